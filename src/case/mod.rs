@@ -1,0 +1,164 @@
+//! Case files: parsed once from TOML, validated once, then trusted by every later stage
+//! (DESIGN.md "Data flow"). All quantities in the validated [`Case`] are SI.
+
+mod error;
+mod schema;
+mod validate;
+
+pub use error::CaseError;
+
+use std::path::{Path, PathBuf};
+
+/// Which contact models a case uses; names follow LIGGGHTS' `pair_style gran` keywords.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum RollingModel {
+    None,
+    /// Constant directional torque, `rolling_friction cdt` (Feng eq 4).
+    Cdt,
+    /// Elastic-plastic spring-dashpot without the dashpot, `rolling_friction epsd2`.
+    Epsd2,
+}
+
+impl RollingModel {
+    pub fn liggghts_keyword(self) -> Option<&'static str> {
+        match self {
+            RollingModel::None => None,
+            RollingModel::Cdt => Some("cdt"),
+            RollingModel::Epsd2 => Some("epsd2"),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Axis {
+    X = 0,
+    Y = 1,
+    Z = 2,
+}
+
+impl Axis {
+    pub fn index(self) -> usize {
+        self as usize
+    }
+    pub fn name(self) -> &'static str {
+        ["x", "y", "z"][self as usize]
+    }
+}
+
+/// Elastic constants of one atom type, both forms kept so nobody re-derives them.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Material {
+    pub youngs_modulus: f64,
+    pub shear_modulus: f64,
+    pub poisson_ratio: f64,
+}
+
+/// Per type-pair coefficients, symmetric, indexed by 0-based type.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PairTable {
+    pub n_types: usize,
+    pub restitution: Vec<f64>,
+    pub friction: Vec<f64>,
+    pub rolling_friction: Vec<f64>,
+}
+
+impl PairTable {
+    pub fn idx(&self, a: usize, b: usize) -> usize {
+        a * self.n_types + b
+    }
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Particle {
+    pub id: u64,
+    /// 0-based type (the file's type minus one).
+    pub type_: usize,
+    pub radius: f64,
+    pub density: f64,
+    pub x: [f64; 3],
+    pub v: [f64; 3],
+    pub omega: [f64; 3],
+}
+
+impl Particle {
+    /// Mass as LIGGGHTS computes it from diameter and density for a 3D sphere.
+    pub fn mass(&self) -> f64 {
+        4.0 * std::f64::consts::PI / 3.0 * self.radius * self.radius * self.radius * self.density
+    }
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub enum Wall {
+    Plane { axis: Axis, position: f64, type_: usize },
+    Cylinder { axis: Axis, radius: f64, center: [f64; 2], type_: usize },
+}
+
+impl Wall {
+    pub fn type_(&self) -> usize {
+        match self {
+            Wall::Plane { type_, .. } | Wall::Cylinder { type_, .. } => *type_,
+        }
+    }
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Tolerances {
+    pub velocity_rel: f64,
+    pub position_frac_radius: f64,
+}
+
+/// A validated case. Constructed only through [`Case::load`] / [`Case::from_toml_str`].
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Case {
+    pub name: String,
+    pub kind: String,
+    pub description: String,
+    /// Where the case came from; errors and reports name it.
+    pub source: PathBuf,
+    pub dt: f64,
+    pub n_steps: u64,
+    pub output_every: u64,
+    pub gravity: [f64; 3],
+    pub neighbor_skin: f64,
+    pub rolling: RollingModel,
+    pub domain_lo: [f64; 3],
+    pub domain_hi: [f64; 3],
+    pub materials: Vec<Material>,
+    pub pairs: PairTable,
+    pub particles: Vec<Particle>,
+    pub walls: Vec<Wall>,
+    pub tolerances: Tolerances,
+    /// Rayleigh time of the smallest/softest grain (Feng Sec. 2), for reports.
+    pub rayleigh_time: f64,
+}
+
+impl Case {
+    pub fn load(path: &Path) -> Result<Case, CaseError> {
+        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        Case::from_toml_str(&text, path)
+    }
+
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Case, CaseError> {
+        let raw: schema::CaseFile = toml::from_str(text).map_err(|e| CaseError::Parse {
+            file: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        validate::validate(raw, path)
+    }
+
+    pub fn n_types(&self) -> usize {
+        self.materials.len()
+    }
+
+    pub fn min_radius(&self) -> f64 {
+        self.particles.iter().map(|p| p.radius).fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Rayleigh time step `pi R sqrt(rho/G) / (0.1631 nu + 0.8766)` (Feng Sec. 2, ref 32).
+pub fn rayleigh_time(radius: f64, density: f64, shear_modulus: f64, poisson: f64) -> f64 {
+    std::f64::consts::PI * radius * (density / shear_modulus).sqrt() / (0.1631 * poisson + 0.8766)
+}

@@ -1,0 +1,130 @@
+//! The TOML shape of a case file, exactly as users write it. Every table denies unknown
+//! fields so a typo (`restitutoin`) is an error instead of a silently ignored line.
+//! Units are SI throughout the file; engines convert if they must (LIGGGHTS cgs).
+
+use serde::Deserialize;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CaseFile {
+    pub case: Meta,
+    pub simulation: Simulation,
+    pub models: Models,
+    pub domain: Domain,
+    pub materials: Vec<Material>,
+    pub interactions: Vec<Interaction>,
+    pub particles: Vec<Particle>,
+    #[serde(default)]
+    pub walls: Vec<Wall>,
+    #[serde(default)]
+    pub compare: Option<Compare>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Meta {
+    pub name: String,
+    pub kind: String,
+    #[serde(default)]
+    pub description: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Simulation {
+    /// Time step in s.
+    pub dt: f64,
+    /// Simulated time in s.
+    pub duration: f64,
+    /// Output every this many steps (step 0 is always written).
+    pub output_every: u64,
+    /// Gravitational acceleration vector in m/s^2.
+    pub gravity: [f64; 3],
+    /// Verlet skin in m. Optional: it changes cost, not physics (documented default:
+    /// half the smallest particle radius).
+    pub neighbor_skin: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Models {
+    pub normal: String,
+    pub tangential: String,
+    pub rolling: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Domain {
+    /// Lower corner of the simulation box (m). Particles leaving it are an error in
+    /// LIGGGHTS (`boundary f f f`), so the native engine treats it the same way.
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Material {
+    /// Atom type this material belongs to (1-based, contiguous), as in LIGGGHTS.
+    #[serde(rename = "type")]
+    pub type_: usize,
+    pub youngs_modulus: Option<f64>,
+    pub shear_modulus: Option<f64>,
+    pub poisson_ratio: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Interaction {
+    pub types: [usize; 2],
+    pub restitution: f64,
+    pub friction: f64,
+    pub rolling_friction: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Particle {
+    pub id: u64,
+    #[serde(rename = "type")]
+    pub type_: usize,
+    pub radius: f64,
+    pub density: f64,
+    pub x: [f64; 3],
+    #[serde(default)]
+    pub v: [f64; 3],
+    #[serde(default)]
+    pub omega: [f64; 3],
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "snake_case")]
+pub enum Wall {
+    /// Axis-aligned plane `axis = position`; it repels from both sides, as LIGGGHTS'
+    /// `primitive xplane|yplane|zplane` does.
+    Plane {
+        axis: String,
+        position: f64,
+        #[serde(rename = "type")]
+        type_: usize,
+    },
+    /// Inside of an infinite cylinder around an axis-parallel line through `center`
+    /// (the two coordinates perpendicular to the axis), like `primitive zcylinder R cx cy`.
+    Cylinder {
+        axis: String,
+        radius: f64,
+        center: [f64; 2],
+        #[serde(rename = "type")]
+        type_: usize,
+    },
+}
+
+/// Tolerances of the trajectory comparison. Defaults (documented in the README) are the
+/// issue's acceptance criteria: 1e-6 relative in velocities and angular velocities,
+/// 1e-6 of the smallest radius in positions.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Compare {
+    pub velocity_rel: Option<f64>,
+    pub position_frac_radius: Option<f64>,
+}

@@ -1,0 +1,268 @@
+//! Turns the raw TOML into a [`Case`], refusing anything non-physical with a message
+//! that names file, field, value and reason.
+
+use super::error::{CaseError, Ctx};
+use super::schema;
+use super::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances, Wall};
+use std::path::Path;
+
+fn finite(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
+    if v.is_finite() { Ok(v) } else { Err(ctx.bad(field, v, "must be a finite number")) }
+}
+
+fn positive(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
+    if v.is_finite() && v > 0.0 { Ok(v) } else { Err(ctx.bad(field, v, "must be > 0")) }
+}
+
+fn vec3(ctx: &Ctx, field: &str, v: [f64; 3]) -> Result<[f64; 3], CaseError> {
+    for (k, c) in v.iter().enumerate() {
+        finite(ctx, &format!("{field}[{k}]"), *c)?;
+    }
+    Ok(v)
+}
+
+fn axis(ctx: &Ctx, field: &str, s: &str) -> Result<Axis, CaseError> {
+    match s {
+        "x" => Ok(Axis::X),
+        "y" => Ok(Axis::Y),
+        "z" => Ok(Axis::Z),
+        _ => Err(ctx.bad(field, s, "must be one of \"x\", \"y\", \"z\"")),
+    }
+}
+
+pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseError> {
+    let ctx = Ctx { file: path.to_path_buf() };
+
+    if raw.case.kind != "micro" {
+        return Err(ctx.bad("case.kind", &raw.case.kind, "supported kinds: \"micro\""));
+    }
+    if raw.case.name.trim().is_empty() {
+        return Err(ctx.bad("case.name", &raw.case.name, "must not be empty"));
+    }
+
+    // Models: only the LIGGGHTS 3.8 combination the native engine reproduces exactly.
+    if raw.models.normal != "hertz" {
+        return Err(ctx.bad("models.normal", &raw.models.normal, "supported: \"hertz\""));
+    }
+    if raw.models.tangential != "history" {
+        return Err(ctx.bad("models.tangential", &raw.models.tangential, "supported: \"history\""));
+    }
+    let rolling = match raw.models.rolling.as_str() {
+        "none" => RollingModel::None,
+        "cdt" => RollingModel::Cdt,
+        "epsd2" => RollingModel::Epsd2,
+        other => return Err(ctx.bad("models.rolling", other, "supported: \"none\", \"cdt\", \"epsd2\"")),
+    };
+
+    // Materials: types 1..n, each exactly once.
+    let n_types = raw.materials.len();
+    if n_types == 0 {
+        return Err(ctx.bad("materials", "[]", "at least one material (atom type) is required"));
+    }
+    let mut materials: Vec<Option<Material>> = vec![None; n_types];
+    for (k, m) in raw.materials.iter().enumerate() {
+        let f = |name: &str| format!("materials[{k}].{name}");
+        if m.type_ < 1 || m.type_ > n_types {
+            return Err(ctx.bad(f("type"), m.type_, format!("types must be 1..={n_types} (one material per type)")));
+        }
+        if materials[m.type_ - 1].is_some() {
+            return Err(ctx.bad(f("type"), m.type_, "type defined twice"));
+        }
+        let nu = finite(&ctx, &f("poisson_ratio"), m.poisson_ratio)?;
+        if !(nu > -1.0 && nu < 0.5) {
+            return Err(ctx.bad(f("poisson_ratio"), nu, "must lie in (-1, 0.5)"));
+        }
+        let (e, g) = match (m.youngs_modulus, m.shear_modulus) {
+            (Some(e), None) => {
+                let e = positive(&ctx, &f("youngs_modulus"), e)?;
+                (e, e / (2.0 * (1.0 + nu)))
+            }
+            (None, Some(g)) => {
+                let g = positive(&ctx, &f("shear_modulus"), g)?;
+                (2.0 * g * (1.0 + nu), g)
+            }
+            (Some(_), Some(_)) => {
+                return Err(ctx.bad(f("youngs_modulus"), "both given", "give youngs_modulus or shear_modulus, not both"));
+            }
+            (None, None) => return Err(ctx.bad(f("youngs_modulus"), "missing", "give youngs_modulus or shear_modulus")),
+        };
+        materials[m.type_ - 1] = Some(Material { youngs_modulus: e, shear_modulus: g, poisson_ratio: nu });
+    }
+    let materials: Vec<Material> = materials.into_iter().map(|m| m.expect("every type checked above")).collect();
+
+    // Interactions: every unordered type pair exactly once.
+    let nn = n_types * n_types;
+    let mut pairs = PairTable {
+        n_types,
+        restitution: vec![f64::NAN; nn],
+        friction: vec![f64::NAN; nn],
+        rolling_friction: vec![f64::NAN; nn],
+    };
+    for (k, it) in raw.interactions.iter().enumerate() {
+        let f = |name: &str| format!("interactions[{k}].{name}");
+        let [a, b] = it.types;
+        if a < 1 || a > n_types || b < 1 || b > n_types {
+            return Err(ctx.bad(f("types"), it.types, format!("types must be in 1..={n_types}")));
+        }
+        let (a, b) = (a - 1, b - 1);
+        if !pairs.restitution[pairs.idx(a, b)].is_nan() {
+            return Err(ctx.bad(f("types"), it.types, "pair defined twice"));
+        }
+        let e = finite(&ctx, &f("restitution"), it.restitution)?;
+        if !(e > 0.0 && e <= 1.0) {
+            return Err(ctx.bad(f("restitution"), e, "must lie in (0, 1]"));
+        }
+        let mu = finite(&ctx, &f("friction"), it.friction)?;
+        if mu < 0.0 {
+            return Err(ctx.bad(f("friction"), mu, "must be >= 0"));
+        }
+        let mur = finite(&ctx, &f("rolling_friction"), it.rolling_friction)?;
+        if mur < 0.0 {
+            return Err(ctx.bad(f("rolling_friction"), mur, "must be >= 0"));
+        }
+        for (i, j) in [(a, b), (b, a)] {
+            let ix = pairs.idx(i, j);
+            pairs.restitution[ix] = e;
+            pairs.friction[ix] = mu;
+            pairs.rolling_friction[ix] = mur;
+        }
+    }
+    for a in 0..n_types {
+        for b in a..n_types {
+            if pairs.restitution[pairs.idx(a, b)].is_nan() {
+                return Err(ctx.bad("interactions", format!("types [{}, {}]", a + 1, b + 1), "missing: every type pair needs restitution, friction and rolling_friction"));
+            }
+        }
+    }
+
+    // Domain.
+    let lo = vec3(&ctx, "domain.lo", raw.domain.lo)?;
+    let hi = vec3(&ctx, "domain.hi", raw.domain.hi)?;
+    for k in 0..3 {
+        if hi[k] <= lo[k] {
+            return Err(ctx.bad(format!("domain.hi[{k}]"), hi[k], format!("must exceed domain.lo[{k}] = {}", lo[k])));
+        }
+    }
+
+    // Particles.
+    if raw.particles.is_empty() {
+        return Err(ctx.bad("particles", "[]", "at least one particle is required"));
+    }
+    let mut particles = Vec::with_capacity(raw.particles.len());
+    let mut seen = std::collections::HashSet::new();
+    for (k, p) in raw.particles.iter().enumerate() {
+        let f = |name: &str| format!("particles[{k}].{name}");
+        if p.id == 0 || !seen.insert(p.id) {
+            return Err(ctx.bad(f("id"), p.id, "ids must be positive and unique"));
+        }
+        if p.type_ < 1 || p.type_ > n_types {
+            return Err(ctx.bad(f("type"), p.type_, format!("must be in 1..={n_types}")));
+        }
+        let radius = positive(&ctx, &f("radius"), p.radius)?;
+        let density = positive(&ctx, &f("density"), p.density)?;
+        let x = vec3(&ctx, &f("x"), p.x)?;
+        for c in 0..3 {
+            if x[c] - radius < lo[c] || x[c] + radius > hi[c] {
+                return Err(ctx.bad(f("x"), x, "particle (with its radius) must lie inside the domain box"));
+            }
+        }
+        particles.push(Particle {
+            id: p.id,
+            type_: p.type_ - 1,
+            radius,
+            density,
+            x,
+            v: vec3(&ctx, &f("v"), p.v)?,
+            omega: vec3(&ctx, &f("omega"), p.omega)?,
+        });
+    }
+
+    // Walls.
+    let mut walls = Vec::with_capacity(raw.walls.len());
+    for (k, w) in raw.walls.iter().enumerate() {
+        let f = |name: &str| format!("walls[{k}].{name}");
+        let wall = match w {
+            schema::Wall::Plane { axis: a, position, type_ } => Wall::Plane {
+                axis: axis(&ctx, &f("axis"), a)?,
+                position: finite(&ctx, &f("position"), *position)?,
+                type_: *type_,
+            },
+            schema::Wall::Cylinder { axis: a, radius, center, type_ } => {
+                let ax = axis(&ctx, &f("axis"), a)?;
+                if ax != Axis::Z {
+                    return Err(ctx.bad(f("axis"), a, "only \"z\" cylinders are supported"));
+                }
+                Wall::Cylinder {
+                    axis: ax,
+                    radius: positive(&ctx, &f("radius"), *radius)?,
+                    center: [finite(&ctx, &f("center[0]"), center[0])?, finite(&ctx, &f("center[1]"), center[1])?],
+                    type_: *type_,
+                }
+            }
+        };
+        let t = wall.type_();
+        if t < 1 || t > n_types {
+            return Err(ctx.bad(f("type"), t, format!("wall material type must be in 1..={n_types}")));
+        }
+        walls.push(match wall {
+            Wall::Plane { axis, position, .. } => Wall::Plane { axis, position, type_: t - 1 },
+            Wall::Cylinder { axis, radius, center, .. } => Wall::Cylinder { axis, radius, center, type_: t - 1 },
+        });
+    }
+
+    // Time integration: refuse steps above the Rayleigh time of the most critical grain.
+    let dt = positive(&ctx, "simulation.dt", raw.simulation.dt)?;
+    let rayleigh = particles
+        .iter()
+        .map(|p| {
+            let m = &materials[p.type_];
+            super::rayleigh_time(p.radius, p.density, m.shear_modulus, m.poisson_ratio)
+        })
+        .fold(f64::INFINITY, f64::min);
+    if dt > rayleigh {
+        return Err(ctx.bad("simulation.dt", dt, format!("exceeds the Rayleigh time {rayleigh:.3e} s; use <= 20% of it ({:.3e} s)", 0.2 * rayleigh)));
+    }
+    let duration = positive(&ctx, "simulation.duration", raw.simulation.duration)?;
+    let n_steps = (duration / dt).round();
+    if (n_steps * dt - duration).abs() > 1e-9 * duration {
+        return Err(ctx.bad("simulation.duration", duration, format!("must be a whole number of time steps of {dt} s")));
+    }
+    if raw.simulation.output_every == 0 {
+        return Err(ctx.bad("simulation.output_every", 0, "must be >= 1"));
+    }
+    let gravity = vec3(&ctx, "simulation.gravity", raw.simulation.gravity)?;
+    let min_r = particles.iter().map(|p| p.radius).fold(f64::INFINITY, f64::min);
+    let neighbor_skin = match raw.simulation.neighbor_skin {
+        Some(s) => positive(&ctx, "simulation.neighbor_skin", s)?,
+        None => 0.5 * min_r,
+    };
+
+    let tolerances = match &raw.compare {
+        None => Tolerances { velocity_rel: 1e-6, position_frac_radius: 1e-6 },
+        Some(c) => Tolerances {
+            velocity_rel: positive(&ctx, "compare.velocity_rel", c.velocity_rel.unwrap_or(1e-6))?,
+            position_frac_radius: positive(&ctx, "compare.position_frac_radius", c.position_frac_radius.unwrap_or(1e-6))?,
+        },
+    };
+
+    Ok(Case {
+        name: raw.case.name,
+        kind: raw.case.kind,
+        description: raw.case.description,
+        source: path.to_path_buf(),
+        dt,
+        n_steps: n_steps as u64,
+        output_every: raw.simulation.output_every,
+        gravity,
+        neighbor_skin,
+        rolling,
+        domain_lo: lo,
+        domain_hi: hi,
+        materials,
+        pairs,
+        particles,
+        walls,
+        tolerances,
+        rayleigh_time: rayleigh,
+    })
+}

@@ -1,0 +1,122 @@
+//! Renders verdicts: `report.json` (the stable machine interface), `report.md` (for
+//! people) and `report.junit.xml` (for CI dashboards). The exit code follows from
+//! [`Report::exit_code`].
+
+pub mod progress;
+
+use crate::compare::Check;
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// How one case was run: which engines, and whether the reference was live or recorded.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CaseRun {
+    pub case: String,
+    pub case_file: String,
+    pub test_engine: String,
+    pub reference_engine: String,
+    pub reference_version: String,
+    /// "live" or "recorded <dir>".
+    pub reference_source: String,
+    pub wall_time_test_s: f64,
+    pub wall_time_reference_s: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Report {
+    pub passed: bool,
+    pub checks: Vec<Check>,
+    #[serde(default)]
+    pub runs: Vec<CaseRun>,
+    /// Anything a reader must know to trust the verdict (e.g. recorded fallback).
+    #[serde(default)]
+    pub notes: Vec<String>,
+    /// True if some stage failed to produce a result (engine crash, bad input).
+    #[serde(default)]
+    pub errored: bool,
+}
+
+impl Report {
+    pub fn new(checks: Vec<Check>, runs: Vec<CaseRun>, notes: Vec<String>, errored: bool) -> Report {
+        let passed = !errored && !checks.is_empty() && checks.iter().all(|c| c.passed);
+        Report { passed, checks, runs, notes, errored }
+    }
+
+    /// 0 all passed, 1 some check failed, 2 something errored.
+    pub fn exit_code(&self) -> i32 {
+        if self.errored {
+            2
+        } else if self.passed {
+            0
+        } else {
+            1
+        }
+    }
+
+    pub fn write(&self, dir: &Path, title: &str) -> Result<()> {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(self)? + "\n")?;
+        std::fs::write(dir.join("report.md"), self.markdown(title))?;
+        std::fs::write(dir.join("report.junit.xml"), self.junit(title))?;
+        Ok(())
+    }
+
+    pub fn markdown(&self, title: &str) -> String {
+        let mut s = String::new();
+        let verdict = if self.errored { "ERROR" } else if self.passed { "PASS" } else { "FAIL" };
+        let _ = writeln!(s, "# {title}: {verdict}\n");
+        if !self.notes.is_empty() {
+            for n in &self.notes {
+                let _ = writeln!(s, "> {n}");
+            }
+            s.push('\n');
+        }
+        let _ = writeln!(s, "| check | metric | value | tolerance | verdict | where |");
+        let _ = writeln!(s, "|---|---|---|---|---|---|");
+        for c in &self.checks {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.3e} | {:.1e} | {} | {} |",
+                c.name,
+                c.metric,
+                c.value,
+                c.tolerance,
+                if c.passed { "pass" } else { "**FAIL**" },
+                c.detail.replace('|', "/").replace('\n', " ")
+            );
+        }
+        if !self.runs.is_empty() {
+            let _ = writeln!(s, "\n## Runs\n\n| case | test | reference | reference source | version | wall time test / ref (s) |\n|---|---|---|---|---|---|");
+            for r in &self.runs {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} | {} | {:.2} / {:.2} |",
+                    r.case, r.test_engine, r.reference_engine, r.reference_source, r.reference_version, r.wall_time_test_s, r.wall_time_reference_s
+                );
+            }
+        }
+        s
+    }
+
+    pub fn junit(&self, title: &str) -> String {
+        let esc = |t: &str| t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;");
+        let failures = self.checks.iter().filter(|c| !c.passed).count();
+        let mut s = format!(
+            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"{}\" tests=\"{}\" failures=\"{}\">\n",
+            esc(title),
+            self.checks.len(),
+            failures
+        );
+        for c in &self.checks {
+            let _ = write!(s, "  <testcase name=\"{}\" classname=\"granval\">", esc(&c.name));
+            if !c.passed {
+                let _ = write!(s, "<failure message=\"{} = {:e} &gt; {:e}\">{}</failure>", esc(&c.metric), c.value, c.tolerance, esc(&c.detail));
+            }
+            s.push_str("</testcase>\n");
+        }
+        s.push_str("</testsuite>\n");
+        s
+    }
+}
