@@ -15,7 +15,9 @@ pub const MIN_YOUNGS_MODULUS_SI: f64 = 5e6;
 pub const MIN_RESTITUTION_EXCLUSIVE: f64 = 0.05;
 
 /// Dump columns, in the order the deck asks for them (the parser maps by name anyway).
-pub const DUMP_COLUMNS: [&str; 13] = ["id", "x", "y", "z", "vx", "vy", "vz", "omegax", "omegay", "omegaz", "fx", "fy", "fz"];
+pub const DUMP_COLUMNS: [&str; 13] = [
+    "id", "x", "y", "z", "vx", "vy", "vz", "omegax", "omegay", "omegaz", "fx", "fy", "fz",
+];
 
 /// Above this largest atom ID an `atom_modify map array` would allocate a huge lookup
 /// table, so the deck switches to `map hash` (same physics, slower lookups).
@@ -32,7 +34,15 @@ fn join(xs: impl IntoIterator<Item = f64>) -> String {
 /// Keeps free text (case names) harmless inside a LIGGGHTS comment: no `$` variable
 /// expansion, no `&` continuation, no line breaks.
 fn comment_safe(s: &str) -> String {
-    s.chars().map(|c| if c.is_alphanumeric() || " _-.:,/()[]+=".contains(c) { c } else { '_' }).collect()
+    s.chars()
+        .map(|c| {
+            if c.is_alphanumeric() || " _-.:,/()[]+=".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
 }
 
 /// Refuses material values LIGGGHTS 3.8 itself would refuse, before anything runs, naming
@@ -41,7 +51,7 @@ pub fn check_liggghts_limits(case: &Case) -> Result<()> {
     let file = case.source.display();
     for (t, m) in case.materials.iter().enumerate() {
         let ty = t + 1;
-        if !(m.youngs_modulus >= MIN_YOUNGS_MODULUS_SI) {
+        if m.youngs_modulus.is_nan() || m.youngs_modulus < MIN_YOUNGS_MODULUS_SI {
             bail!(
                 "{file}: field `youngs_modulus` of material type {ty} = {:e} Pa: LIGGGHTS 3.8 refuses youngsModulus < 5e6 Pa in SI units \
                  (\"youngsModulus >= 5e6 required for SI units\"); granval does not change materials — use a stiffer material \
@@ -49,7 +59,7 @@ pub fn check_liggghts_limits(case: &Case) -> Result<()> {
                 m.youngs_modulus
             );
         }
-        if !(m.poisson_ratio >= 0.0) {
+        if m.poisson_ratio.is_nan() || m.poisson_ratio < 0.0 {
             bail!(
                 "{file}: field `poisson_ratio` of material type {ty} = {:e}: LIGGGHTS 3.8 requires 0 <= poissonsRatio <= 0.5; \
                  granval does not change materials — run this case with the native engine only",
@@ -86,20 +96,37 @@ pub fn write_data_file(case: &Case) -> Result<String> {
     check_liggghts_limits(case)?;
     let mut s = String::new();
     // The first line of a data file is always skipped by read_data.
-    writeln!(s, "LIGGGHTS data file written by granval for case {}", comment_safe(&case.name))?;
+    writeln!(
+        s,
+        "LIGGGHTS data file written by granval for case {}",
+        comment_safe(&case.name)
+    )?;
     writeln!(s)?;
     writeln!(s, "{} atoms", case.particles.len())?;
     writeln!(s, "{} atom types", case.n_types())?;
     writeln!(s)?;
     for (k, ax) in ["x", "y", "z"].iter().enumerate() {
-        writeln!(s, "{} {} {ax}lo {ax}hi", f(case.domain_lo[k]), f(case.domain_hi[k]))?;
+        writeln!(
+            s,
+            "{} {} {ax}lo {ax}hi",
+            f(case.domain_lo[k]),
+            f(case.domain_hi[k])
+        )?;
     }
     writeln!(s)?;
     writeln!(s, "Atoms")?;
     writeln!(s)?;
     for p in &case.particles {
         // 2*r is exact in binary floating point; LIGGGHTS halves it back exactly.
-        writeln!(s, "{} {} {} {} {}", p.id, p.type_ + 1, f(2.0 * p.radius), f(p.density), join(p.x))?;
+        writeln!(
+            s,
+            "{} {} {} {} {}",
+            p.id,
+            p.type_ + 1,
+            f(2.0 * p.radius),
+            f(p.density),
+            join(p.x)
+        )?;
     }
     writeln!(s)?;
     writeln!(s, "Velocities")?;
@@ -115,19 +142,45 @@ pub fn write_data_file(case: &Case) -> Result<String> {
 pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<String> {
     check_liggghts_limits(case)?;
     for (what, name) in [("dump file", dump_file), ("data file", data_file)] {
-        if name.is_empty() || name.chars().any(|c| c.is_whitespace() || "$#&\"'".contains(c)) {
-            bail!("{what} name {name:?} cannot be written into a LIGGGHTS deck (no whitespace, $, #, &, quotes)");
+        if name.is_empty()
+            || name
+                .chars()
+                .any(|c| c.is_whitespace() || "$#&\"'".contains(c))
+        {
+            bail!(
+                "{what} name {name:?} cannot be written into a LIGGGHTS deck (no whitespace, $, #, &, quotes)"
+            );
         }
     }
     let n = case.n_types();
-    let rolling = case.rolling.liggghts_keyword().map(|k| format!(" rolling_friction {k}")).unwrap_or_default();
+    let rolling = case
+        .rolling
+        .liggghts_keyword()
+        .map(|k| format!(" rolling_friction {k}"))
+        .unwrap_or_default();
     let models = format!("model hertz tangential history{rolling}");
     let max_id = case.particles.iter().map(|p| p.id).max().unwrap_or(0);
-    let map = if max_id > MAP_ARRAY_MAX_ID { "hash" } else { "array" };
+    let map = if max_id > MAP_ARRAY_MAX_ID {
+        "hash"
+    } else {
+        "array"
+    };
 
     let mut s = String::new();
-    writeln!(s, "# LIGGGHTS 3.8 input written by granval for case {}", comment_safe(&case.name))?;
-    writeln!(s, "# {} particles, {} atom types, {} steps of {} s, output every {} steps", case.particles.len(), n, case.n_steps, f(case.dt), case.output_every)?;
+    writeln!(
+        s,
+        "# LIGGGHTS 3.8 input written by granval for case {}",
+        comment_safe(&case.name)
+    )?;
+    writeln!(
+        s,
+        "# {} particles, {} atom types, {} steps of {} s, output every {} steps",
+        case.particles.len(),
+        n,
+        case.n_steps,
+        f(case.dt),
+        case.output_every
+    )?;
     writeln!(s, "units si")?;
     writeln!(s, "atom_style granular")?;
     writeln!(s, "atom_modify map {map}")?;
@@ -139,12 +192,32 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
     writeln!(s, "neighbor {} bin", f(case.neighbor_skin))?;
     writeln!(s, "neigh_modify delay 0")?;
 
-    writeln!(s, "fix m1 all property/global youngsModulus peratomtype {}", join(case.materials.iter().map(|m| m.youngs_modulus)))?;
-    writeln!(s, "fix m2 all property/global poissonsRatio peratomtype {}", join(case.materials.iter().map(|m| m.poisson_ratio)))?;
-    writeln!(s, "fix m3 all property/global coefficientRestitution peratomtypepair {n} {}", join(case.pairs.restitution.iter().copied()))?;
-    writeln!(s, "fix m4 all property/global coefficientFriction peratomtypepair {n} {}", join(case.pairs.friction.iter().copied()))?;
+    writeln!(
+        s,
+        "fix m1 all property/global youngsModulus peratomtype {}",
+        join(case.materials.iter().map(|m| m.youngs_modulus))
+    )?;
+    writeln!(
+        s,
+        "fix m2 all property/global poissonsRatio peratomtype {}",
+        join(case.materials.iter().map(|m| m.poisson_ratio))
+    )?;
+    writeln!(
+        s,
+        "fix m3 all property/global coefficientRestitution peratomtypepair {n} {}",
+        join(case.pairs.restitution.iter().copied())
+    )?;
+    writeln!(
+        s,
+        "fix m4 all property/global coefficientFriction peratomtypepair {n} {}",
+        join(case.pairs.friction.iter().copied())
+    )?;
     if case.rolling.liggghts_keyword().is_some() {
-        writeln!(s, "fix m5 all property/global coefficientRollingFriction peratomtypepair {n} {}", join(case.pairs.rolling_friction.iter().copied()))?;
+        writeln!(
+            s,
+            "fix m5 all property/global coefficientRollingFriction peratomtypepair {n} {}",
+            join(case.pairs.rolling_friction.iter().copied())
+        )?;
     }
     writeln!(s, "pair_style gran {models}")?;
     writeln!(s, "pair_coeff * *")?;
@@ -159,17 +232,46 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
     for (k, w) in case.walls.iter().enumerate() {
         let prim = match w {
             Wall::Plane { axis, position, .. } => format!("{}plane {}", axis.name(), f(*position)),
-            Wall::Cylinder { axis, radius, center, .. } => format!("{}cylinder {} {} {}", axis.name(), f(*radius), f(center[0]), f(center[1])),
+            Wall::Cylinder {
+                axis,
+                radius,
+                center,
+                ..
+            } => format!(
+                "{}cylinder {} {} {}",
+                axis.name(),
+                f(*radius),
+                f(center[0]),
+                f(center[1])
+            ),
         };
-        writeln!(s, "fix w{} all wall/gran {models} primitive type {} {prim}", k + 1, w.type_() + 1)?;
+        writeln!(
+            s,
+            "fix w{} all wall/gran {models} primitive type {} {prim}",
+            k + 1,
+            w.type_() + 1
+        )?;
     }
 
     writeln!(s, "fix integr all nve/sphere")?;
     writeln!(s, "thermo_style custom step atoms ke cpu")?;
+    // LIGGGHTS 3.8 silently drops atoms that leave a fixed box unless told otherwise;
+    // the case semantics (and the native engine) make leaving the domain an error. The
+    // check runs at thermo output, and the last step of a run always has one. Must come
+    // after thermo_style, which resets thermo_modify settings.
+    writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", (case.n_steps / 20).max(1))?;
-    writeln!(s, "dump d all custom {} {dump_file} {}", case.output_every, DUMP_COLUMNS.join(" "))?;
+    writeln!(
+        s,
+        "dump d all custom {} {dump_file} {}",
+        case.output_every,
+        DUMP_COLUMNS.join(" ")
+    )?;
     // LIGGGHTS 3.8 takes one C format string for the whole line (no per-column form).
-    let fmt = std::iter::once("%d").chain(std::iter::repeat_n("%.17g", DUMP_COLUMNS.len() - 1)).collect::<Vec<_>>().join(" ");
+    let fmt = std::iter::once("%d")
+        .chain(std::iter::repeat_n("%.17g", DUMP_COLUMNS.len() - 1))
+        .collect::<Vec<_>>()
+        .join(" ");
     writeln!(s, "dump_modify d sort id format \"{fmt}\"")?;
     writeln!(s, "run {}", case.n_steps)?;
     Ok(s)

@@ -19,7 +19,12 @@ use std::io::{BufRead, BufReader};
 use std::path::Path;
 
 /// Column names the parser needs, in [`ParticleState`] order after `id`.
-const VECTOR_COLUMNS: [[&str; 3]; 4] = [["x", "y", "z"], ["vx", "vy", "vz"], ["omegax", "omegay", "omegaz"], ["fx", "fy", "fz"]];
+const VECTOR_COLUMNS: [[&str; 3]; 4] = [
+    ["x", "y", "z"],
+    ["vx", "vy", "vz"],
+    ["omegax", "omegay", "omegaz"],
+    ["fx", "fy", "fz"],
+];
 
 struct Lines<R> {
     inner: std::io::Lines<R>,
@@ -33,7 +38,9 @@ impl<R: BufRead> Lines<R> {
             None => Ok(None),
             Some(l) => {
                 self.no += 1;
-                Ok(Some(l.with_context(|| format!("{}: line {}: read error", path.display(), self.no))?))
+                Ok(Some(l.with_context(|| {
+                    format!("{}: line {}: read error", path.display(), self.no)
+                })?))
             }
         }
     }
@@ -42,19 +49,33 @@ impl<R: BufRead> Lines<R> {
     fn need(&mut self, path: &Path, what: &str) -> Result<String> {
         match self.next(path)? {
             Some(l) => Ok(l),
-            None => bail!("{}: line {}: file ends where {what} was expected (truncated dump?)", path.display(), self.no + 1),
+            None => bail!(
+                "{}: line {}: file ends where {what} was expected (truncated dump?)",
+                path.display(),
+                self.no + 1
+            ),
         }
     }
 }
 
 fn parse_num<T: std::str::FromStr>(path: &Path, line: usize, what: &str, s: &str) -> Result<T> {
-    s.trim().parse::<T>().map_err(|_| anyhow::anyhow!("{}: line {line}: {what} {:?} is not a valid number", path.display(), s.trim()))
+    s.trim().parse::<T>().map_err(|_| {
+        anyhow::anyhow!(
+            "{}: line {line}: {what} {:?} is not a valid number",
+            path.display(),
+            s.trim()
+        )
+    })
 }
 
 /// Parses a dump file into frames: particles sorted by id, `t = step * dt`.
 pub fn parse_dump(path: &Path, dt: f64) -> Result<Vec<Frame>> {
-    let file = std::fs::File::open(path).with_context(|| format!("cannot open dump file {}", path.display()))?;
-    let mut lines = Lines { inner: BufReader::new(file).lines(), no: 0 };
+    let file = std::fs::File::open(path)
+        .with_context(|| format!("cannot open dump file {}", path.display()))?;
+    let mut lines = Lines {
+        inner: BufReader::new(file).lines(),
+        no: 0,
+    };
     let mut frames: Vec<Frame> = Vec::new();
     let mut step: Option<u64> = None;
     let mut natoms: Option<usize> = None;
@@ -73,7 +94,12 @@ pub fn parse_dump(path: &Path, dt: f64) -> Result<Vec<Frame>> {
             continue;
         }
         let Some(item) = t.strip_prefix("ITEM:") else {
-            bail!("{}: line {}: expected an `ITEM:` line, found {:?}", path.display(), lines.no, t);
+            bail!(
+                "{}: line {}: expected an `ITEM:` line, found {:?}",
+                path.display(),
+                lines.no,
+                t
+            );
         };
         let item = item.trim();
         if item == "TIMESTEP" {
@@ -90,13 +116,20 @@ pub fn parse_dump(path: &Path, dt: f64) -> Result<Vec<Frame>> {
         } else if let Some(cols) = item.strip_prefix("ATOMS") {
             let header_line = lines.no;
             let (Some(st), Some(n)) = (step, natoms) else {
-                bail!("{}: line {header_line}: `ITEM: ATOMS` before `ITEM: TIMESTEP` and `ITEM: NUMBER OF ATOMS`", path.display());
+                bail!(
+                    "{}: line {header_line}: `ITEM: ATOMS` before `ITEM: TIMESTEP` and `ITEM: NUMBER OF ATOMS`",
+                    path.display()
+                );
             };
             let cols: Vec<&str> = cols.split_whitespace().collect();
             let col = |name: &str| -> Result<usize> {
-                cols.iter()
-                    .position(|c| *c == name)
-                    .with_context(|| format!("{}: line {header_line}: dump has no `{name}` column (columns: {})", path.display(), cols.join(" ")))
+                cols.iter().position(|c| *c == name).with_context(|| {
+                    format!(
+                        "{}: line {header_line}: dump has no `{name}` column (columns: {})",
+                        path.display(),
+                        cols.join(" ")
+                    )
+                })
             };
             let id_col = col("id")?;
             let mut vcols = [[0usize; 3]; 4];
@@ -110,7 +143,13 @@ pub fn parse_dump(path: &Path, dt: f64) -> Result<Vec<Frame>> {
                 let l = lines.need(path, "an atom line")?;
                 let fields: Vec<&str> = l.split_whitespace().collect();
                 if fields.len() != cols.len() {
-                    bail!("{}: line {}: {} values but the ATOMS header (line {header_line}) names {} columns", path.display(), lines.no, fields.len(), cols.len());
+                    bail!(
+                        "{}: line {}: {} values but the ATOMS header (line {header_line}) names {} columns",
+                        path.display(),
+                        lines.no,
+                        fields.len(),
+                        cols.len()
+                    );
                 }
                 let id: u64 = parse_num(path, lines.no, "id", fields[id_col])?;
                 let mut v = [[0.0f64; 3]; 4];
@@ -119,18 +158,36 @@ pub fn parse_dump(path: &Path, dt: f64) -> Result<Vec<Frame>> {
                         let name = VECTOR_COLUMNS[k][c];
                         let x: f64 = parse_num(path, lines.no, name, fields[vcols[k][c]])?;
                         if !x.is_finite() {
-                            bail!("{}: line {}: {name} of atom {id} is {x} (the run blew up?)", path.display(), lines.no);
+                            bail!(
+                                "{}: line {}: {name} of atom {id} is {x} (the run blew up?)",
+                                path.display(),
+                                lines.no
+                            );
                         }
                         v[k][c] = x;
                     }
                 }
-                particles.push(ParticleState { id, x: v[0], v: v[1], omega: v[2], f: v[3] });
+                particles.push(ParticleState {
+                    id,
+                    x: v[0],
+                    v: v[1],
+                    omega: v[2],
+                    f: v[3],
+                });
             }
             particles.sort_by_key(|p| p.id);
             if let Some(w) = particles.windows(2).find(|w| w[0].id == w[1].id) {
-                bail!("{}: frame at step {st} (ATOMS header line {header_line}): atom id {} appears twice", path.display(), w[0].id);
+                bail!(
+                    "{}: frame at step {st} (ATOMS header line {header_line}): atom id {} appears twice",
+                    path.display(),
+                    w[0].id
+                );
             }
-            frames.push(Frame { step: st, t: st as f64 * dt, particles });
+            frames.push(Frame {
+                step: st,
+                t: st as f64 * dt,
+                particles,
+            });
             step = None;
             natoms = None;
         } else {
@@ -149,7 +206,10 @@ pub fn parse_dump(path: &Path, dt: f64) -> Result<Vec<Frame>> {
         }
     }
     if let Some(st) = step {
-        bail!("{}: file ends inside the frame of step {st} (no ATOMS section; truncated dump?)", path.display());
+        bail!(
+            "{}: file ends inside the frame of step {st} (no ATOMS section; truncated dump?)",
+            path.display()
+        );
     }
     Ok(frames)
 }

@@ -11,7 +11,10 @@ mod deck;
 mod dump;
 mod runner;
 
-pub use deck::{DUMP_COLUMNS, MIN_RESTITUTION_EXCLUSIVE, MIN_YOUNGS_MODULUS_SI, check_liggghts_limits, expected_frames, write_data_file, write_deck};
+pub use deck::{
+    DUMP_COLUMNS, MIN_RESTITUTION_EXCLUSIVE, MIN_YOUNGS_MODULUS_SI, check_liggghts_limits,
+    expected_frames, write_data_file, write_deck,
+};
 pub use dump::parse_dump;
 
 use crate::case::Case;
@@ -44,7 +47,11 @@ pub struct Liggghts {
 
 impl Default for Liggghts {
     fn default() -> Self {
-        Liggghts { binary: "liggghts".to_string(), mpi_procs: 1, timeout: Duration::from_secs(30 * 60) }
+        Liggghts {
+            binary: "liggghts".to_string(),
+            mpi_procs: 1,
+            timeout: Duration::from_secs(30 * 60),
+        }
     }
 }
 
@@ -67,7 +74,9 @@ impl Liggghts {
 /// in a scratch directory (well under a second).
 pub fn installed_version(binary: &str) -> Option<String> {
     let dir = tempfile::tempdir().ok()?;
-    let argv: Vec<String> = [binary, "-in", "/dev/null", "-log", "none", "-echo", "none"].map(String::from).to_vec();
+    let argv: Vec<String> = [binary, "-in", "/dev/null", "-log", "none", "-echo", "none"]
+        .map(String::from)
+        .to_vec();
     let (out, err) = (dir.path().join("stdout"), dir.path().join("stderr"));
     let fin = runner::run(&argv, dir.path(), &out, &err, Duration::from_secs(60)).ok()?;
     match fin.outcome {
@@ -78,11 +87,16 @@ pub fn installed_version(binary: &str) -> Option<String> {
 }
 
 fn version_line(text: &str) -> Option<String> {
-    text.lines().map(str::trim).find(|l| l.starts_with(VERSION_PREFIX)).map(str::to_string)
+    text.lines()
+        .map(str::trim)
+        .find(|l| l.starts_with(VERSION_PREFIX))
+        .map(str::to_string)
 }
 
 fn read_lossy(path: &Path) -> String {
-    std::fs::read(path).map(|b| String::from_utf8_lossy(&b).into_owned()).unwrap_or_default()
+    std::fs::read(path)
+        .map(|b| String::from_utf8_lossy(&b).into_owned())
+        .unwrap_or_default()
 }
 
 /// Distinct lines starting with `ERROR` (MPI ranks may each print the same one).
@@ -105,7 +119,11 @@ fn warnings(text: &str) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
     for (k, l) in lines.iter().enumerate() {
         if let Some(rest) = l.trim().strip_prefix("WARNING:") {
-            let msg = if rest.trim().is_empty() { lines.get(k + 1).map(|s| s.trim()).unwrap_or("") } else { rest.trim() };
+            let msg = if rest.trim().is_empty() {
+                lines.get(k + 1).map(|s| s.trim()).unwrap_or("")
+            } else {
+                rest.trim()
+            };
             let msg = format!("LIGGGHTS warning: {msg}");
             if !out.contains(&msg) {
                 out.push(msg);
@@ -118,7 +136,10 @@ fn warnings(text: &str) -> Vec<String> {
 fn tail(text: &str, n: usize) -> String {
     let lines: Vec<&str> = text.lines().collect();
     let start = lines.len().saturating_sub(n);
-    lines[start..].iter().map(|l| format!("  | {l}\n")).collect()
+    lines[start..]
+        .iter()
+        .map(|l| format!("  | {l}\n"))
+        .collect()
 }
 
 impl Engine for Liggghts {
@@ -129,12 +150,14 @@ impl Engine for Liggghts {
     fn run(&self, case: &Case, dir: &Path) -> Result<RunOutput> {
         let deck = write_deck(case, DUMP_FILE, DATA_FILE)?;
         let data = write_data_file(case)?;
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create run directory {}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create run directory {}", dir.display()))?;
         // A stale dump or log from an earlier run must never be mistaken for this one.
         for f in [DUMP_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE] {
             let p = dir.join(f);
             if p.exists() {
-                std::fs::remove_file(&p).with_context(|| format!("cannot remove stale {}", p.display()))?;
+                std::fs::remove_file(&p)
+                    .with_context(|| format!("cannot remove stale {}", p.display()))?;
             }
         }
         for (name, text) in [(DECK_FILE, &deck), (DATA_FILE, &data)] {
@@ -144,22 +167,41 @@ impl Engine for Liggghts {
 
         let argv = self.argv();
         let command = runner::command_line(&argv);
-        let fin = runner::run(&argv, dir, &dir.join(STDOUT_FILE), &dir.join(STDERR_FILE), self.timeout)
-            .with_context(|| format!("LIGGGHTS run of case {} failed to start", case.source.display()))?;
+        let fin = runner::run(
+            &argv,
+            dir,
+            &dir.join(STDOUT_FILE),
+            &dir.join(STDERR_FILE),
+            self.timeout,
+        )
+        .with_context(|| {
+            format!(
+                "LIGGGHTS run of case {} failed to start",
+                case.source.display()
+            )
+        })?;
 
         let log = read_lossy(&dir.join(LOG_FILE));
         let stdout = read_lossy(&dir.join(STDOUT_FILE));
         let stderr = read_lossy(&dir.join(STDERR_FILE));
         let errors = error_lines(&[&log, &stdout, &stderr]);
         let fail = |reason: String| -> anyhow::Error {
-            let mut m = format!("LIGGGHTS run of case {} failed: {reason}\n  command: `{command}` in {}\n", case.source.display(), dir.display());
+            let mut m = format!(
+                "LIGGGHTS run of case {} failed: {reason}\n  command: `{command}` in {}\n",
+                case.source.display(),
+                dir.display()
+            );
             if !errors.is_empty() {
                 m += "LIGGGHTS reported:\n";
                 for e in &errors {
                     m += &format!("  {e}\n");
                 }
             }
-            let (name, text) = if log.trim().is_empty() { (STDOUT_FILE, &stdout) } else { (LOG_FILE, &log) };
+            let (name, text) = if log.trim().is_empty() {
+                (STDOUT_FILE, &stdout)
+            } else {
+                (LOG_FILE, &log)
+            };
             if !text.trim().is_empty() {
                 m += &format!("last lines of {name}:\n{}", tail(text, 15));
             }
@@ -170,24 +212,44 @@ impl Engine for Liggghts {
         };
 
         match fin.outcome {
-            runner::Outcome::TimedOut => return Err(fail(format!("timed out after {:.1} s; the process was killed", self.timeout.as_secs_f64()))),
-            runner::Outcome::Exited(s) if !s.success() => return Err(fail(format!("exited with {s}"))),
+            runner::Outcome::TimedOut => {
+                return Err(fail(format!(
+                    "timed out after {:.1} s; the process was killed",
+                    self.timeout.as_secs_f64()
+                )));
+            }
+            runner::Outcome::Exited(s) if !s.success() => {
+                return Err(fail(format!("exited with {s}")));
+            }
             runner::Outcome::Exited(_) => {}
         }
         if !errors.is_empty() {
-            return Err(fail("ERROR in the LIGGGHTS output although the exit status was 0".to_string()));
+            return Err(fail(
+                "ERROR in the LIGGGHTS output although the exit status was 0".to_string(),
+            ));
         }
         let dump_path = dir.join(DUMP_FILE);
         match std::fs::metadata(&dump_path) {
-            Err(_) => return Err(fail(format!("no dump file {} was written", dump_path.display()))),
-            Ok(m) if m.len() == 0 => return Err(fail(format!("dump file {} is empty", dump_path.display()))),
+            Err(_) => {
+                return Err(fail(format!(
+                    "no dump file {} was written",
+                    dump_path.display()
+                )));
+            }
+            Ok(m) if m.len() == 0 => {
+                return Err(fail(format!("dump file {} is empty", dump_path.display())));
+            }
             Ok(_) => {}
         }
         let frames = parse_dump(&dump_path, case.dt).map_err(|e| fail(format!("{e:#}")))?;
 
         let expected = expected_frames(case);
         if frames.len() != expected {
-            let which = if frames.len() < expected { "fewer" } else { "more" };
+            let which = if frames.len() < expected {
+                "fewer"
+            } else {
+                "more"
+            };
             return Err(fail(format!(
                 "{} has {} frames, {which} than the expected {expected} (n_steps {} / output_every {} + 1)",
                 dump_path.display(),
@@ -199,10 +261,20 @@ impl Engine for Liggghts {
         for (k, fr) in frames.iter().enumerate() {
             let step = k as u64 * case.output_every;
             if fr.step != step {
-                return Err(fail(format!("frame {k} of {} is step {}, expected step {step}", dump_path.display(), fr.step)));
+                return Err(fail(format!(
+                    "frame {k} of {} is step {}, expected step {step}",
+                    dump_path.display(),
+                    fr.step
+                )));
             }
             if fr.particles.len() != case.particles.len() {
-                return Err(fail(format!("step {} of {} has {} particles, the case has {}", fr.step, dump_path.display(), fr.particles.len(), case.particles.len())));
+                return Err(fail(format!(
+                    "step {} of {} has {} particles, the case has {}",
+                    fr.step,
+                    dump_path.display(),
+                    fr.particles.len(),
+                    case.particles.len()
+                )));
             }
         }
 

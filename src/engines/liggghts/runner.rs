@@ -21,7 +21,10 @@ pub struct Finished {
 
 /// Quotes one argument for display as a POSIX shell word (only when needed).
 pub fn shell_word(s: &str) -> String {
-    if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c)) {
+    if !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c))
+    {
         s.to_string()
     } else {
         format!("'{}'", s.replace('\'', "'\\''"))
@@ -29,15 +32,26 @@ pub fn shell_word(s: &str) -> String {
 }
 
 pub fn command_line(argv: &[String]) -> String {
-    argv.iter().map(|a| shell_word(a)).collect::<Vec<_>>().join(" ")
+    argv.iter()
+        .map(|a| shell_word(a))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// Runs `argv` in `dir` with stdin from /dev/null and stdout/stderr written to the given
 /// files; kills it (SIGTERM, then SIGKILL after a grace period) when `timeout` passes.
-pub fn run(argv: &[String], dir: &Path, stdout: &Path, stderr: &Path, timeout: Duration) -> Result<Finished> {
+pub fn run(
+    argv: &[String],
+    dir: &Path,
+    stdout: &Path,
+    stderr: &Path,
+    timeout: Duration,
+) -> Result<Finished> {
     let (prog, args) = argv.split_first().context("empty command line")?;
-    let out = std::fs::File::create(stdout).with_context(|| format!("cannot create {}", stdout.display()))?;
-    let err = std::fs::File::create(stderr).with_context(|| format!("cannot create {}", stderr.display()))?;
+    let out = std::fs::File::create(stdout)
+        .with_context(|| format!("cannot create {}", stdout.display()))?;
+    let err = std::fs::File::create(stderr)
+        .with_context(|| format!("cannot create {}", stderr.display()))?;
     let start = Instant::now();
     let mut child = Command::new(prog)
         .args(args)
@@ -46,18 +60,37 @@ pub fn run(argv: &[String], dir: &Path, stdout: &Path, stderr: &Path, timeout: D
         .stdout(Stdio::from(out))
         .stderr(Stdio::from(err))
         .spawn()
-        .with_context(|| format!("cannot start `{}` in {} (is it installed and on PATH?)", command_line(argv), dir.display()))?;
+        .with_context(|| {
+            format!(
+                "cannot start `{}` in {} (is it installed and on PATH?)",
+                command_line(argv),
+                dir.display()
+            )
+        })?;
 
     let mut pause = Duration::from_millis(5);
     loop {
-        if let Some(status) = child.try_wait().context("waiting for the LIGGGHTS process")? {
-            return Ok(Finished { outcome: Outcome::Exited(status), wall_time_s: start.elapsed().as_secs_f64() });
+        if let Some(status) = child
+            .try_wait()
+            .context("waiting for the LIGGGHTS process")?
+        {
+            return Ok(Finished {
+                outcome: Outcome::Exited(status),
+                wall_time_s: start.elapsed().as_secs_f64(),
+            });
         }
         if start.elapsed() >= timeout {
             terminate(&mut child);
-            return Ok(Finished { outcome: Outcome::TimedOut, wall_time_s: start.elapsed().as_secs_f64() });
+            return Ok(Finished {
+                outcome: Outcome::TimedOut,
+                wall_time_s: start.elapsed().as_secs_f64(),
+            });
         }
-        std::thread::sleep(pause.min(timeout.saturating_sub(start.elapsed())).max(Duration::from_millis(1)));
+        std::thread::sleep(
+            pause
+                .min(timeout.saturating_sub(start.elapsed()))
+                .max(Duration::from_millis(1)),
+        );
         pause = (pause * 2).min(Duration::from_millis(100));
     }
 }

@@ -1,0 +1,166 @@
+//! The native engine against closed-form contact mechanics, independent of LIGGGHTS:
+//! Hertz impact duration and peak overlap, restitution, and CDT rolling deceleration.
+
+mod common;
+
+use granval::case::Case;
+use granval::dem::{Perturbation, Simulation, vec3};
+use std::path::Path;
+
+const R: f64 = 1.0e-3;
+const RHO: f64 = 2500.0;
+const E: f64 = 1.0e8;
+const NU: f64 = 0.3;
+
+fn head_on(e: f64, v: f64, dt: f64, duration: f64) -> Case {
+    let toml = format!(
+        r#"
+[case]
+name = "analytic-head-on"
+kind = "micro"
+[simulation]
+dt = {dt:e}
+duration = {duration:e}
+output_every = 1
+gravity = [0.0, 0.0, 0.0]
+[models]
+normal = "hertz"
+tangential = "history"
+rolling = "none"
+[domain]
+lo = [-0.01, -0.01, -0.01]
+hi = [0.01, 0.01, 0.01]
+[[materials]]
+type = 1
+youngs_modulus = {E:e}
+poisson_ratio = {NU}
+[[interactions]]
+types = [1, 1]
+restitution = {e}
+friction = 0.5
+rolling_friction = 0.0
+[[particles]]
+id = 1
+type = 1
+radius = {R:e}
+density = {RHO}
+x = [-1.001e-3, 0.0, 0.0]
+v = [{v}, 0.0, 0.0]
+[[particles]]
+id = 2
+type = 1
+radius = {R:e}
+density = {RHO}
+x = [1.001e-3, 0.0, 0.0]
+v = [{mv}, 0.0, 0.0]
+"#,
+        mv = -v
+    );
+    Case::from_toml_str(&toml, Path::new("analytic.toml")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+struct Impact {
+    duration: f64,
+    peak_overlap: f64,
+    restitution: f64,
+}
+
+/// Integrates one head-on impact until the spheres separate.
+fn impact(e: f64, v: f64, dt: f64) -> Impact {
+    let case = head_on(e, v, dt, (2.0e-4 / dt).ceil() * dt);
+    let mut sim = Simulation::from_case_perturbed(&case, Perturbation::default());
+    sim.setup().unwrap();
+    let (mut t_in, mut t_out, mut peak) = (None, None, 0.0f64);
+    let v_before = sim.v[0][0] - sim.v[1][0];
+    for _ in 0..case.n_steps {
+        sim.step().unwrap();
+        let overlap = 2.0 * R - vec3::norm(vec3::sub(sim.x[0], sim.x[1]));
+        let t = sim.step as f64 * dt;
+        if overlap > 0.0 {
+            t_in.get_or_insert(t);
+            peak = peak.max(overlap);
+        } else if t_in.is_some() {
+            t_out = Some(t);
+            break;
+        }
+    }
+    let v_after = sim.v[0][0] - sim.v[1][0];
+    Impact {
+        duration: t_out.expect("spheres separate") - t_in.expect("spheres touch"),
+        peak_overlap: peak,
+        restitution: -v_after / v_before,
+    }
+}
+
+#[test]
+fn elastic_hertz_impact_duration_and_peak_overlap() {
+    // Hertz (e = 1): F = k d^1.5, k = 4/3 Y* sqrt(R*); energy gives
+    // d_max = (5 m* v^2 / (4 k))^(2/5) and t_c = 2 I d_max / v, with
+    // I = int_0^1 (1 - x^2.5)^-1/2 dx = sqrt(pi) Gamma(1.4) / Gamma(0.9) = 1.4716...
+    let v = 1.0; // relative approach speed (each sphere at 0.5 m/s)
+    let m = 4.0 / 3.0 * std::f64::consts::PI * R.powi(3) * RHO;
+    let (m_eff, r_eff, y_eff) = (m / 2.0, R / 2.0, 1.0 / (2.0 * (1.0 - NU * NU) / E));
+    let k = 4.0 / 3.0 * y_eff * r_eff.sqrt();
+    let d_max = (5.0 * m_eff * v * v / (4.0 * k)).powf(0.4);
+    let integral = std::f64::consts::PI.sqrt() * 0.887_263_817_503_075_4 / 1.068_628_702_119_319_4;
+    let t_c = 2.0 * integral * d_max / v;
+    let dt = t_c / 4000.0;
+    let got = impact(1.0, v / 2.0, dt);
+    eprintln!("t_c theory {t_c:.6e} s, native {:.6e} s; d_max theory {d_max:.6e} m, native {:.6e} m", got.duration, got.peak_overlap);
+    assert!((got.duration / t_c - 1.0).abs() < 0.01, "duration {} vs Hertz {}", got.duration, t_c);
+    assert!((got.peak_overlap / d_max - 1.0).abs() < 0.01, "peak overlap {} vs Hertz {}", got.peak_overlap, d_max);
+    assert!((got.restitution - 1.0).abs() < 1e-3, "elastic impact lost energy: e = {}", got.restitution);
+}
+
+#[test]
+fn measured_restitution_matches_input() {
+    for e in [0.3, 0.5, 0.9] {
+        let got = impact(e, 0.5, 2.0e-8).restitution;
+        eprintln!("input e = {e}: measured {got:.6} ({:+.3}%)", 100.0 * (got / e - 1.0));
+        assert!((got / e - 1.0).abs() < 0.01, "input e = {e}, measured {got}");
+    }
+}
+
+#[test]
+fn cdt_rolling_stopping_distance() {
+    // Rolling without slip under a constant rolling torque mu_r N R (eq 4), N = m g:
+    // (m + I/R^2) a = -mu_r m g  =>  a = -(5/7) mu_r g, distance v0^2 / (2 |a|).
+    let case = common::load("cases/micro/rolling-cdt.toml");
+    let p = &case.particles[0];
+    let (v0, mu_r, g) = (p.v[0], case.pairs.rolling_friction[case.pairs.idx(0, 1)], 9.81);
+    let expected = v0 * v0 / (2.0 * 5.0 / 7.0 * mu_r * g);
+    let mut sim = Simulation::from_case(&case);
+    sim.setup().unwrap();
+    let x0 = sim.x[0][0];
+    let mut stop = None;
+    for _ in 0..case.n_steps {
+        sim.step().unwrap();
+        if sim.v[0][0] <= 0.0 {
+            stop = Some(sim.x[0][0] - x0);
+            break;
+        }
+    }
+    let got = stop.expect("the sphere stops within the case duration");
+    eprintln!("stopping distance: theory {expected:.6e} m, native {got:.6e} m ({:+.3}%)", 100.0 * (got / expected - 1.0));
+    assert!((got / expected - 1.0).abs() < 0.01);
+}
+
+#[test]
+fn threads_do_not_change_results() {
+    // The force pass gathers per particle in a fixed order: 1 and 2 threads must agree bit for bit.
+    let mut case = granval::bench::lattice_case(3000, 7);
+    case.n_steps = 300;
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let mut sim = Simulation::from_case(&case);
+            sim.setup().unwrap();
+            for _ in 0..case.n_steps {
+                sim.step().unwrap();
+            }
+            assert!(sim.n_pairs() > 3000, "test too sparse to exercise the parallel pass");
+            (sim.x.clone(), sim.v.clone(), sim.omega.clone())
+        })
+    };
+    assert!(run(1) == run(2), "1-thread and 2-thread runs differ");
+}
