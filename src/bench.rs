@@ -55,15 +55,44 @@ pub fn lattice_case(n: usize, seed: u64) -> Case {
         }
     }
     let height = (nz as f64 + 2.0) * spacing;
-    let mat = Material { youngs_modulus: 1.0e7, shear_modulus: 1.0e7 / 2.6, poisson_ratio: 0.3 };
-    let rayleigh = crate::case::rayleigh_time(0.95 * 0.98 * r, 2500.0, mat.shear_modulus, mat.poisson_ratio);
+    let mat = Material {
+        youngs_modulus: 1.0e7,
+        shear_modulus: 1.0e7 / 2.6,
+        poisson_ratio: 0.3,
+    };
+    let rayleigh = crate::case::rayleigh_time(
+        0.95 * 0.98 * r,
+        2500.0,
+        mat.shear_modulus,
+        mat.poisson_ratio,
+    );
     let dt = 0.2 * rayleigh;
     let walls = vec![
-        Wall::Plane { axis: Axis::Z, position: 0.0, type_: 0 },
-        Wall::Plane { axis: Axis::X, position: 0.0, type_: 0 },
-        Wall::Plane { axis: Axis::X, position: lx, type_: 0 },
-        Wall::Plane { axis: Axis::Y, position: 0.0, type_: 0 },
-        Wall::Plane { axis: Axis::Y, position: lx, type_: 0 },
+        Wall::Plane {
+            axis: Axis::Z,
+            position: 0.0,
+            type_: 0,
+        },
+        Wall::Plane {
+            axis: Axis::X,
+            position: 0.0,
+            type_: 0,
+        },
+        Wall::Plane {
+            axis: Axis::X,
+            position: lx,
+            type_: 0,
+        },
+        Wall::Plane {
+            axis: Axis::Y,
+            position: 0.0,
+            type_: 0,
+        },
+        Wall::Plane {
+            axis: Axis::Y,
+            position: lx,
+            type_: 0,
+        },
     ];
     Case {
         name: format!("bench-{n}"),
@@ -79,10 +108,18 @@ pub fn lattice_case(n: usize, seed: u64) -> Case {
         domain_lo: [-0.5 * r, -0.5 * r, -0.5 * r],
         domain_hi: [lx + 0.5 * r, lx + 0.5 * r, height],
         materials: vec![mat],
-        pairs: PairTable { n_types: 1, restitution: vec![0.5], friction: vec![0.5], rolling_friction: vec![0.01] },
+        pairs: PairTable {
+            n_types: 1,
+            restitution: vec![0.5],
+            friction: vec![0.5],
+            rolling_friction: vec![0.01],
+        },
         particles,
         walls,
-        tolerances: Tolerances { velocity_rel: 1e-6, position_frac_radius: 1e-6 },
+        tolerances: Tolerances {
+            velocity_rel: 1e-6,
+            position_frac_radius: 1e-6,
+        },
         rayleigh_time: rayleigh,
     }
 }
@@ -97,7 +134,7 @@ pub fn settled_packing(n: usize, seed: u64, settle_time: f64) -> Result<(Case, f
     let mut ke_peak: f64 = 0.0;
     for _ in 0..steps {
         sim.step()?;
-        if sim.step % 100 == 0 {
+        if sim.step.is_multiple_of(100) {
             ke_peak = ke_peak.max(sim.kinetic_energy());
         }
     }
@@ -109,7 +146,9 @@ pub fn settled_packing(n: usize, seed: u64, settle_time: f64) -> Result<(Case, f
 }
 
 fn time_native(case: &Case, steps: u64, threads: usize) -> Result<f64> {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
     pool.install(|| -> Result<f64> {
         let mut sim = Simulation::from_case_perturbed(case, Perturbation::default());
         sim.setup()?;
@@ -123,7 +162,13 @@ fn time_native(case: &Case, steps: u64, threads: usize) -> Result<f64> {
 
 /// "Loop time of 12.3 on 1 procs for 2000 steps with 10000 atoms" from a LIGGGHTS log.
 pub fn loop_time(log: &str) -> Option<f64> {
-    log.lines().rev().find_map(|l| l.strip_prefix("Loop time of ")?.split_whitespace().next()?.parse().ok())
+    log.lines().rev().find_map(|l| {
+        l.strip_prefix("Loop time of ")?
+            .split_whitespace()
+            .next()?
+            .parse()
+            .ok()
+    })
 }
 
 pub fn run(n: usize, steps: u64) -> Result<()> {
@@ -139,18 +184,33 @@ pub fn run(n: usize, steps: u64) -> Result<()> {
     let ps = (n as u64 * steps) as f64;
     let t1 = time_native(&case, steps, 1)?;
     let t2 = time_native(&case, steps, 2)?;
-    println!("native 1 thread : {:>10.3e} particle-steps/s ({t1:.2} s)", ps / t1);
-    println!("native 2 threads: {:>10.3e} particle-steps/s ({t2:.2} s)  speed-up vs 1 thread: {:.2}x", ps / t2, t1 / t2);
+    println!(
+        "native 1 thread : {:>10.3e} particle-steps/s ({t1:.2} s)",
+        ps / t1
+    );
+    println!(
+        "native 2 threads: {:>10.3e} particle-steps/s ({t2:.2} s)  speed-up vs 1 thread: {:.2}x",
+        ps / t2,
+        t1 / t2
+    );
     match liggghts::installed_version("liggghts") {
         None => println!("LIGGGHTS not installed: no ratio measured"),
         Some(v) => {
             let dir = tempfile::tempdir()?;
-            Liggghts::default().run(&case, dir.path()).context("LIGGGHTS bench run")?;
+            Liggghts::default()
+                .run(&case, dir.path())
+                .context("LIGGGHTS bench run")?;
             let log = std::fs::read_to_string(dir.path().join("log.liggghts"))?;
             let tl = loop_time(&log).context("no 'Loop time' line in the LIGGGHTS log")?;
-            println!("liggghts 1 proc : {:>10.3e} particle-steps/s ({tl:.2} s loop time; {v})", ps / tl);
+            println!(
+                "liggghts 1 proc : {:>10.3e} particle-steps/s ({tl:.2} s loop time; {v})",
+                ps / tl
+            );
             println!("ratio native(1 thread) / liggghts(1 proc) = {:.2}", tl / t1);
-            println!("ratio native(2 threads) / liggghts(1 proc) = {:.2}", tl / t2);
+            println!(
+                "ratio native(2 threads) / liggghts(1 proc) = {:.2}",
+                tl / t2
+            );
         }
     }
     Ok(())

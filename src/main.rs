@@ -13,7 +13,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "granval", version, about = "Validation harness for granular DEM: native Rust DEM vs LIGGGHTS/LAMMPS")]
+#[command(
+    name = "granval",
+    version,
+    about = "Validation harness for granular DEM: native Rust DEM vs LIGGGHTS/LAMMPS"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -111,7 +115,12 @@ enum RefCmd {
 }
 
 fn options(c: &Common) -> Options {
-    let mut o = Options { reference_root: c.reference.clone(), mpi_procs: c.np, progress: true, ..Options::default() };
+    let mut o = Options {
+        reference_root: c.reference.clone(),
+        mpi_procs: c.np,
+        progress: true,
+        ..Options::default()
+    };
     o.require_live |= c.require_live;
     o
 }
@@ -123,12 +132,20 @@ fn finish(report: &Report, dir: &Path, title: &str) -> Result<ExitCode> {
     Ok(ExitCode::from(report.exit_code() as u8))
 }
 
-fn run_suite(paths: &[PathBuf], opts: &Options, report_dir: &Path, title: &str) -> Result<ExitCode> {
+fn run_suite(
+    paths: &[PathBuf],
+    opts: &Options,
+    report_dir: &Path,
+    title: &str,
+) -> Result<ExitCode> {
     let (mut checks, mut runs, mut notes, mut errored) = (vec![], vec![], vec![], false);
     for path in paths {
         match Case::load(path) {
             Err(e) => {
-                checks.push(granval::compare::Check::error(path.display().to_string(), e.to_string()));
+                checks.push(granval::compare::Check::error(
+                    path.display().to_string(),
+                    e.to_string(),
+                ));
                 errored = true;
             }
             Ok(case) => {
@@ -141,50 +158,107 @@ fn run_suite(paths: &[PathBuf], opts: &Options, report_dir: &Path, title: &str) 
             }
         }
     }
-    finish(&Report::new(checks, runs, notes, errored), report_dir, title)
+    finish(
+        &Report::new(checks, runs, notes, errored),
+        report_dir,
+        title,
+    )
 }
 
 fn real_main() -> Result<ExitCode> {
     let cli = Cli::parse();
     match cli.cmd {
-        Cmd::Run { case, engine, out, np } => {
+        Cmd::Run {
+            case,
+            engine,
+            out,
+            np,
+        } => {
             let case = Case::load(&case)?;
-            std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+            std::fs::create_dir_all(&out)
+                .with_context(|| format!("cannot create {}", out.display()))?;
             let result = match engine {
-                EngineName::Native => Native { progress: true, ..Native::default() }.run(&case, &out)?,
-                EngineName::Liggghts => Liggghts { mpi_procs: np, ..Liggghts::default() }.run(&case, &out)?,
+                EngineName::Native => Native {
+                    progress: true,
+                    ..Native::default()
+                }
+                .run(&case, &out)?,
+                EngineName::Liggghts => Liggghts {
+                    mpi_procs: np,
+                    ..Liggghts::default()
+                }
+                .run(&case, &out)?,
             };
             pipeline::save_run(&out, &result)?;
-            println!("{} frames written to {}", result.frames.len(), out.join("particles.csv").display());
+            println!(
+                "{} frames written to {}",
+                result.frames.len(),
+                out.join("particles.csv").display()
+            );
             Ok(ExitCode::SUCCESS)
         }
-        Cmd::Compare { case, report, common } => {
+        Cmd::Compare {
+            case,
+            report,
+            common,
+        } => {
             let name = case.display().to_string();
-            run_suite(&[case], &options(&common), &report, &format!("granval compare {name}"))
+            run_suite(
+                &[case],
+                &options(&common),
+                &report,
+                &format!("granval compare {name}"),
+            )
         }
-        Cmd::Check { suite, report, cases, common } => {
+        Cmd::Check {
+            suite,
+            report,
+            cases,
+            common,
+        } => {
             let paths = pipeline::suite_cases(&cases, &suite)?;
-            run_suite(&paths, &options(&common), &report, &format!("granval check --suite {suite}"))
+            run_suite(
+                &paths,
+                &options(&common),
+                &report,
+                &format!("granval check --suite {suite}"),
+            )
         }
-        Cmd::Reference { cmd: RefCmd::Refresh { suite, cases, reference } } => {
-            let version = liggghts::installed_version("liggghts").context("reference refresh needs a live LIGGGHTS (`apt-get install liggghts`)")?;
+        Cmd::Reference {
+            cmd:
+                RefCmd::Refresh {
+                    suite,
+                    cases,
+                    reference,
+                },
+        } => {
+            let version = liggghts::installed_version("liggghts")
+                .context("reference refresh needs a live LIGGGHTS (`apt-get install liggghts`)")?;
             println!("using {version}");
             for path in pipeline::suite_cases(&cases, &suite)? {
                 let case = Case::load(&path)?;
                 let dir = reference.join(&case.kind).join(&case.name);
-                let previous = granval::engines::recorded::Recorded { dir: dir.clone() }.run(&case, &dir).ok();
+                let previous = granval::engines::recorded::Recorded { dir: dir.clone() }
+                    .run(&case, &dir)
+                    .ok();
                 std::fs::create_dir_all(&dir)?;
                 let out = Liggghts::default().run(&case, &dir)?;
                 pipeline::save_run(&dir, &out)?;
                 let drift = match previous {
-                    Some(prev) => granval::compare::trajectory::compare(&case, &out.frames, &prev.frames)
-                        .iter()
-                        .map(|c| format!("{} {:.2e}", c.metric, c.value))
-                        .collect::<Vec<_>>()
-                        .join(", "),
+                    Some(prev) => {
+                        granval::compare::trajectory::compare(&case, &out.frames, &prev.frames)
+                            .iter()
+                            .map(|c| format!("{} {:.2e}", c.metric, c.value))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    }
                     None => "new".into(),
                 };
-                println!("{:<32} {} frames  drift vs previous record: {drift}", case.name, out.frames.len());
+                println!(
+                    "{:<32} {} frames  drift vs previous record: {drift}",
+                    case.name,
+                    out.frames.len()
+                );
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -196,7 +270,10 @@ fn real_main() -> Result<ExitCode> {
             use granval::analysis::malt;
             if let Some(phi) = phi {
                 let q = malt::k_phi(phi.to_radians())?;
-                println!("K_phi({phi} deg) = {:.9} (quadrature error estimate {:.1e})", q.value, q.abs_err);
+                println!(
+                    "K_phi({phi} deg) = {:.9} (quadrature error estimate {:.1e})",
+                    q.value, q.abs_err
+                );
             }
             if let Some(k) = k {
                 println!("phi(K = {k}) = {:.6} deg", malt::phi_of_k(k)?.to_degrees());

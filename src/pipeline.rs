@@ -49,16 +49,25 @@ pub fn save_run(dir: &Path, out: &RunOutput) -> anyhow::Result<()> {
 }
 
 /// The reference run of a case: live LIGGGHTS if installed, else the recorded one.
-pub fn reference_run(case: &Case, opts: &Options, run_dir: &Path) -> anyhow::Result<(RunOutput, String, Vec<String>)> {
+pub fn reference_run(
+    case: &Case,
+    opts: &Options,
+    run_dir: &Path,
+) -> anyhow::Result<(RunOutput, String, Vec<String>)> {
     let mut notes = Vec::new();
     if liggghts::installed_version("liggghts").is_some() {
-        let eng = Liggghts { mpi_procs: opts.mpi_procs, ..Liggghts::default() };
+        let eng = Liggghts {
+            mpi_procs: opts.mpi_procs,
+            ..Liggghts::default()
+        };
         std::fs::create_dir_all(run_dir)?;
         let out = eng.run(case, run_dir)?;
         return Ok((out, "live".into(), notes));
     }
     if opts.require_live {
-        anyhow::bail!("LIGGGHTS is not installed but live engines are required (GRANVAL_REQUIRE_LIVE=1 / --require-live)");
+        anyhow::bail!(
+            "LIGGGHTS is not installed but live engines are required (GRANVAL_REQUIRE_LIVE=1 / --require-live)"
+        );
     }
     let rec = Recorded::for_case(&opts.reference_root, case);
     let out = rec.run(case, run_dir)?;
@@ -79,16 +88,30 @@ pub fn compare_case(case: &Case, opts: &Options, out_dir: &Path) -> CaseResult {
     let native = match opts.native.run(case, &native_dir) {
         Ok(o) => o,
         Err(e) => {
-            return CaseResult { checks: vec![Check::error(format!("{}: native run", case.name), format!("{e:#}"))], run: None, notes: vec![], errored: true };
+            return CaseResult {
+                checks: vec![Check::error(
+                    format!("{}: native run", case.name),
+                    format!("{e:#}"),
+                )],
+                run: None,
+                notes: vec![],
+                errored: true,
+            };
         }
     };
     let (reference, source, notes) = match reference_run(case, opts, &ref_dir) {
         Ok(r) => r,
         Err(e) => {
             return CaseResult {
-                checks: vec![Check::error(format!("{}: reference run", case.name), format!("{e:#}"))],
+                checks: vec![Check::error(
+                    format!("{}: reference run", case.name),
+                    format!("{e:#}"),
+                )],
                 run: None,
-                notes: vec![format!("the reference engine failed for {}: this is an error, not a pass", case.name)],
+                notes: vec![format!(
+                    "the reference engine failed for {}: this is an error, not a pass",
+                    case.name
+                )],
                 errored: true,
             };
         }
@@ -97,7 +120,10 @@ pub fn compare_case(case: &Case, opts: &Options, out_dir: &Path) -> CaseResult {
     let mut checks = Vec::new();
     for (dir, run) in [(&native_dir, &native), (&ref_dir, &reference)] {
         if let Err(e) = save_run(dir, run) {
-            checks.push(Check::error(format!("{}: writing outputs", case.name), format!("{e:#}")));
+            checks.push(Check::error(
+                format!("{}: writing outputs", case.name),
+                format!("{e:#}"),
+            ));
             errored = true;
         }
     }

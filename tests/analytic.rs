@@ -106,18 +106,41 @@ fn elastic_hertz_impact_duration_and_peak_overlap() {
     let t_c = 2.0 * integral * d_max / v;
     let dt = t_c / 4000.0;
     let got = impact(1.0, v / 2.0, dt);
-    eprintln!("t_c theory {t_c:.6e} s, native {:.6e} s; d_max theory {d_max:.6e} m, native {:.6e} m", got.duration, got.peak_overlap);
-    assert!((got.duration / t_c - 1.0).abs() < 0.01, "duration {} vs Hertz {}", got.duration, t_c);
-    assert!((got.peak_overlap / d_max - 1.0).abs() < 0.01, "peak overlap {} vs Hertz {}", got.peak_overlap, d_max);
-    assert!((got.restitution - 1.0).abs() < 1e-3, "elastic impact lost energy: e = {}", got.restitution);
+    eprintln!(
+        "t_c theory {t_c:.6e} s, native {:.6e} s; d_max theory {d_max:.6e} m, native {:.6e} m",
+        got.duration, got.peak_overlap
+    );
+    assert!(
+        (got.duration / t_c - 1.0).abs() < 0.01,
+        "duration {} vs Hertz {}",
+        got.duration,
+        t_c
+    );
+    assert!(
+        (got.peak_overlap / d_max - 1.0).abs() < 0.01,
+        "peak overlap {} vs Hertz {}",
+        got.peak_overlap,
+        d_max
+    );
+    assert!(
+        (got.restitution - 1.0).abs() < 1e-3,
+        "elastic impact lost energy: e = {}",
+        got.restitution
+    );
 }
 
 #[test]
 fn measured_restitution_matches_input() {
     for e in [0.3, 0.5, 0.9] {
         let got = impact(e, 0.5, 2.0e-8).restitution;
-        eprintln!("input e = {e}: measured {got:.6} ({:+.3}%)", 100.0 * (got / e - 1.0));
-        assert!((got / e - 1.0).abs() < 0.01, "input e = {e}, measured {got}");
+        eprintln!(
+            "input e = {e}: measured {got:.6} ({:+.3}%)",
+            100.0 * (got / e - 1.0)
+        );
+        assert!(
+            (got / e - 1.0).abs() < 0.01,
+            "input e = {e}, measured {got}"
+        );
     }
 }
 
@@ -127,7 +150,11 @@ fn cdt_rolling_stopping_distance() {
     // (m + I/R^2) a = -mu_r m g  =>  a = -(5/7) mu_r g, distance v0^2 / (2 |a|).
     let case = common::load("cases/micro/rolling-cdt.toml");
     let p = &case.particles[0];
-    let (v0, mu_r, g) = (p.v[0], case.pairs.rolling_friction[case.pairs.idx(0, 1)], 9.81);
+    let (v0, mu_r, g) = (
+        p.v[0],
+        case.pairs.rolling_friction[case.pairs.idx(0, 1)],
+        9.81,
+    );
     let expected = v0 * v0 / (2.0 * 5.0 / 7.0 * mu_r * g);
     let mut sim = Simulation::from_case(&case);
     sim.setup().unwrap();
@@ -141,7 +168,10 @@ fn cdt_rolling_stopping_distance() {
         }
     }
     let got = stop.expect("the sphere stops within the case duration");
-    eprintln!("stopping distance: theory {expected:.6e} m, native {got:.6e} m ({:+.3}%)", 100.0 * (got / expected - 1.0));
+    eprintln!(
+        "stopping distance: theory {expected:.6e} m, native {got:.6e} m ({:+.3}%)",
+        100.0 * (got / expected - 1.0)
+    );
     assert!((got / expected - 1.0).abs() < 0.01);
 }
 
@@ -151,14 +181,20 @@ fn threads_do_not_change_results() {
     let mut case = granval::bench::lattice_case(3000, 7);
     case.n_steps = 300;
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(|| {
             let mut sim = Simulation::from_case(&case);
             sim.setup().unwrap();
             for _ in 0..case.n_steps {
                 sim.step().unwrap();
             }
-            assert!(sim.n_pairs() > 3000, "test too sparse to exercise the parallel pass");
+            assert!(
+                sim.n_pairs() > 3000,
+                "test too sparse to exercise the parallel pass"
+            );
             (sim.x.clone(), sim.v.clone(), sim.omega.clone())
         })
     };

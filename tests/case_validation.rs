@@ -19,7 +19,10 @@ fn err(text: &str) -> String {
 
 fn assert_mentions(msg: &str, parts: &[&str]) {
     for p in parts {
-        assert!(msg.contains(p), "error message {msg:?} does not mention {p:?}");
+        assert!(
+            msg.contains(p),
+            "error message {msg:?} does not mention {p:?}"
+        );
     }
 }
 
@@ -31,13 +34,24 @@ fn all_shipped_cases_load() {
 #[test]
 fn non_positive_radius() {
     let m = err(&base().replacen("radius = 1.0e-3", "radius = -1.0e-3", 1));
-    assert_mentions(&m, &["cases/bad.toml", "particles[0].radius", "-0.001", "> 0"]);
+    assert_mentions(
+        &m,
+        &["cases/bad.toml", "particles[0].radius", "-0.001", "> 0"],
+    );
 }
 
 #[test]
 fn poisson_out_of_range() {
     let m = err(&base().replacen("poisson_ratio = 0.3", "poisson_ratio = 0.5", 1));
-    assert_mentions(&m, &["cases/bad.toml", "materials[0].poisson_ratio", "0.5", "(-1, 0.5)"]);
+    assert_mentions(
+        &m,
+        &[
+            "cases/bad.toml",
+            "materials[0].poisson_ratio",
+            "0.5",
+            "(-1, 0.5)",
+        ],
+    );
 }
 
 #[test]
@@ -56,7 +70,11 @@ fn negative_friction() {
 
 #[test]
 fn time_step_above_rayleigh_time() {
-    let m = err(&base().replacen("dt = 1e-6", "dt = 1e-4", 1).replacen("duration = 1e-3", "duration = 1e-2", 1));
+    let m = err(&base().replacen("dt = 1e-6", "dt = 1e-4", 1).replacen(
+        "duration = 1e-3",
+        "duration = 1e-2",
+        1,
+    ));
     assert_mentions(&m, &["simulation.dt", "0.0001", "Rayleigh"]);
 }
 
@@ -69,7 +87,9 @@ fn unknown_field_is_an_error() {
 #[test]
 fn missing_pair_is_an_error() {
     let text = base();
-    let cut = text.find("[[interactions]]\ntypes = [2, 2]").expect("fixture has a 2-2 pair");
+    let cut = text
+        .find("[[interactions]]\ntypes = [2, 2]")
+        .expect("fixture has a 2-2 pair");
     let end = text[cut..].find("\n\n").unwrap() + cut;
     let m = err(&format!("{}{}", &text[..cut], &text[end..]));
     assert_mentions(&m, &["interactions", "types [2, 2]", "missing"]);

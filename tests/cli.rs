@@ -14,9 +14,21 @@ fn granval() -> Command {
 #[test]
 fn compare_writes_report_and_exits_zero() {
     let out = tempfile::tempdir().unwrap();
-    let st = granval().args(["compare", "cases/micro/spin.toml", "--report"]).arg(out.path()).output().unwrap();
-    assert_eq!(st.status.code(), Some(0), "stdout: {}\nstderr: {}", String::from_utf8_lossy(&st.stdout), String::from_utf8_lossy(&st.stderr));
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.path().join("report.json")).unwrap()).unwrap();
+    let st = granval()
+        .args(["compare", "cases/micro/spin.toml", "--report"])
+        .arg(out.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        st.status.code(),
+        Some(0),
+        "stdout: {}\nstderr: {}",
+        String::from_utf8_lossy(&st.stdout),
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("report.json")).unwrap())
+            .unwrap();
     assert_eq!(report["passed"], true);
     let checks = report["checks"].as_array().unwrap();
     assert_eq!(checks.len(), 3);
@@ -26,19 +38,35 @@ fn compare_writes_report_and_exits_zero() {
         }
     }
     assert!(out.path().join("report.md").exists() && out.path().join("report.junit.xml").exists());
-    assert!(out.path().join("spin/native/particles.csv").exists() && out.path().join("spin/native/provenance.json").exists());
+    assert!(
+        out.path().join("spin/native/particles.csv").exists()
+            && out.path().join("spin/native/provenance.json").exists()
+    );
 }
 
 #[test]
 fn bad_case_exits_two_with_located_message() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.toml");
-    let text = std::fs::read_to_string(common::root().join("cases/micro/spin.toml")).unwrap().replacen("friction = 0.5", "friction = -1.0", 1);
+    let text = std::fs::read_to_string(common::root().join("cases/micro/spin.toml"))
+        .unwrap()
+        .replacen("friction = 0.5", "friction = -1.0", 1);
     std::fs::write(&bad, text).unwrap();
-    let st = granval().args(["run"]).arg(&bad).args(["--out"]).arg(dir.path().join("o")).output().unwrap();
+    let st = granval()
+        .args(["run"])
+        .arg(&bad)
+        .args(["--out"])
+        .arg(dir.path().join("o"))
+        .output()
+        .unwrap();
     assert_eq!(st.status.code(), Some(2));
     let err = String::from_utf8_lossy(&st.stderr);
-    assert!(err.contains("bad.toml") && err.contains("interactions[0].friction") && err.contains("-1.0"), "{err}");
+    assert!(
+        err.contains("bad.toml")
+            && err.contains("interactions[0].friction")
+            && err.contains("-1.0"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -55,8 +83,15 @@ fn missing_reference_is_an_error_not_a_pass() {
         .arg(out.path())
         .output()
         .unwrap();
-    assert_eq!(st.status.code(), Some(2), "{}", String::from_utf8_lossy(&st.stdout));
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.path().join("report.json")).unwrap()).unwrap();
+    assert_eq!(
+        st.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&st.stdout)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("report.json")).unwrap())
+            .unwrap();
     assert_eq!(report["passed"], false);
 }
 
@@ -71,9 +106,17 @@ fn recorded_fallback_says_so() {
         .arg(out.path())
         .output()
         .unwrap();
-    assert_eq!(st.status.code(), Some(0), "{}", String::from_utf8_lossy(&st.stdout));
+    assert_eq!(
+        st.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&st.stdout)
+    );
     let md = std::fs::read_to_string(out.path().join("report.md")).unwrap();
-    assert!(md.contains("RECORDED") && md.contains("reference/micro/head-on-e05"), "{md}");
+    assert!(
+        md.contains("RECORDED") && md.contains("reference/micro/head-on-e05"),
+        "{md}"
+    );
 }
 
 #[test]
@@ -81,7 +124,12 @@ fn require_live_refuses_fallback() {
     let out = tempfile::tempdir().unwrap();
     let st = granval()
         .env("PATH", "/nonexistent")
-        .args(["compare", "cases/micro/head-on-e05.toml", "--require-live", "--report"])
+        .args([
+            "compare",
+            "cases/micro/head-on-e05.toml",
+            "--require-live",
+            "--report",
+        ])
         .arg(out.path())
         .output()
         .unwrap();

@@ -13,7 +13,10 @@ fn caught(pert: Perturbation) -> Vec<String> {
         let dir = tempfile::tempdir().unwrap();
         let reference = common::reference_frames(&case, dir.path());
         let native = dem::run(&case, pert, |_| {}).unwrap();
-        if trajectory::compare(&case, &native, &reference).iter().any(|c| !c.passed) {
+        if trajectory::compare(&case, &native, &reference)
+            .iter()
+            .any(|c| !c.passed)
+        {
             names.push(case.name.clone());
         }
     }
@@ -24,31 +27,76 @@ fn assert_caught(pert: Perturbation, must_include: &[&str]) {
     let names = caught(pert);
     eprintln!("{pert:?} caught by: {names:?}");
     for m in must_include {
-        assert!(names.iter().any(|n| n == m), "{pert:?} not caught by {m} (caught by {names:?})");
+        assert!(
+            names.iter().any(|n| n == m),
+            "{pert:?} not caught by {m} (caught by {names:?})"
+        );
     }
 }
 
 #[test]
 fn friction_times_1_1_fails() {
-    assert_caught(Perturbation { friction_factor: 1.1, ..Default::default() }, &["oblique-stick", "oblique-slide", "spin", "plane-oblique"]);
+    assert_caught(
+        Perturbation {
+            friction_factor: 1.1,
+            ..Default::default()
+        },
+        &["oblique-stick", "oblique-slide", "spin", "plane-oblique"],
+    );
 }
 
 #[test]
 fn restitution_plus_0_05_fails() {
-    assert_caught(Perturbation { restitution_shift: 0.05, ..Default::default() }, &["head-on-e05", "head-on-e09", "unequal", "plane-normal"]);
+    assert_caught(
+        Perturbation {
+            restitution_shift: 0.05,
+            ..Default::default()
+        },
+        &["head-on-e05", "head-on-e09", "unequal", "plane-normal"],
+    );
 }
 
 #[test]
 fn restitution_minus_0_05_fails() {
-    assert_caught(Perturbation { restitution_shift: -0.05, ..Default::default() }, &["head-on-e05", "head-on-e09", "unequal", "plane-normal"]);
+    assert_caught(
+        Perturbation {
+            restitution_shift: -0.05,
+            ..Default::default()
+        },
+        &["head-on-e05", "head-on-e09", "unequal", "plane-normal"],
+    );
 }
 
 #[test]
 fn poisson_plus_0_1_fails() {
-    assert_caught(Perturbation { poisson_shift: 0.1, ..Default::default() }, &["head-on-e05", "head-on-e09", "unequal", "plane-normal", "oblique-stick"]);
+    assert_caught(
+        Perturbation {
+            poisson_shift: 0.1,
+            ..Default::default()
+        },
+        &[
+            "head-on-e05",
+            "head-on-e09",
+            "unequal",
+            "plane-normal",
+            "oblique-stick",
+        ],
+    );
 }
 
 #[test]
 fn poisson_minus_0_1_fails() {
-    assert_caught(Perturbation { poisson_shift: -0.1, ..Default::default() }, &["head-on-e05", "head-on-e09", "unequal", "plane-normal", "oblique-stick"]);
+    assert_caught(
+        Perturbation {
+            poisson_shift: -0.1,
+            ..Default::default()
+        },
+        &[
+            "head-on-e05",
+            "head-on-e09",
+            "unequal",
+            "plane-normal",
+            "oblique-stick",
+        ],
+    );
 }

@@ -30,7 +30,12 @@ pub struct Ctx {
 }
 
 impl Ctx {
-    pub fn bad(&self, field: impl Into<String>, value: impl std::fmt::Debug, reason: impl Into<String>) -> CaseError {
+    pub fn bad(
+        &self,
+        field: impl Into<String>,
+        value: impl std::fmt::Debug,
+        reason: impl Into<String>,
+    ) -> CaseError {
         CaseError::Invalid {
             file: self.file.clone(),
             field: field.into(),

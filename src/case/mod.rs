@@ -89,8 +89,17 @@ impl Particle {
 
 #[derive(Debug, Clone, serde::Serialize)]
 pub enum Wall {
-    Plane { axis: Axis, position: f64, type_: usize },
-    Cylinder { axis: Axis, radius: f64, center: [f64; 2], type_: usize },
+    Plane {
+        axis: Axis,
+        position: f64,
+        type_: usize,
+    },
+    Cylinder {
+        axis: Axis,
+        radius: f64,
+        center: [f64; 2],
+        type_: usize,
+    },
 }
 
 impl Wall {
@@ -154,7 +163,10 @@ impl Case {
     }
 
     pub fn min_radius(&self) -> f64 {
-        self.particles.iter().map(|p| p.radius).fold(f64::INFINITY, f64::min)
+        self.particles
+            .iter()
+            .map(|p| p.radius)
+            .fold(f64::INFINITY, f64::min)
     }
 }
 

@@ -7,11 +7,19 @@ use super::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances,
 use std::path::Path;
 
 fn finite(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
-    if v.is_finite() { Ok(v) } else { Err(ctx.bad(field, v, "must be a finite number")) }
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(ctx.bad(field, v, "must be a finite number"))
+    }
 }
 
 fn positive(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
-    if v.is_finite() && v > 0.0 { Ok(v) } else { Err(ctx.bad(field, v, "must be > 0")) }
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(ctx.bad(field, v, "must be > 0"))
+    }
 }
 
 fn vec3(ctx: &Ctx, field: &str, v: [f64; 3]) -> Result<[f64; 3], CaseError> {
@@ -31,7 +39,9 @@ fn axis(ctx: &Ctx, field: &str, s: &str) -> Result<Axis, CaseError> {
 }
 
 pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseError> {
-    let ctx = Ctx { file: path.to_path_buf() };
+    let ctx = Ctx {
+        file: path.to_path_buf(),
+    };
 
     if raw.case.kind != "micro" {
         return Err(ctx.bad("case.kind", &raw.case.kind, "supported kinds: \"micro\""));
@@ -45,25 +55,43 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         return Err(ctx.bad("models.normal", &raw.models.normal, "supported: \"hertz\""));
     }
     if raw.models.tangential != "history" {
-        return Err(ctx.bad("models.tangential", &raw.models.tangential, "supported: \"history\""));
+        return Err(ctx.bad(
+            "models.tangential",
+            &raw.models.tangential,
+            "supported: \"history\"",
+        ));
     }
     let rolling = match raw.models.rolling.as_str() {
         "none" => RollingModel::None,
         "cdt" => RollingModel::Cdt,
         "epsd2" => RollingModel::Epsd2,
-        other => return Err(ctx.bad("models.rolling", other, "supported: \"none\", \"cdt\", \"epsd2\"")),
+        other => {
+            return Err(ctx.bad(
+                "models.rolling",
+                other,
+                "supported: \"none\", \"cdt\", \"epsd2\"",
+            ));
+        }
     };
 
     // Materials: types 1..n, each exactly once.
     let n_types = raw.materials.len();
     if n_types == 0 {
-        return Err(ctx.bad("materials", "[]", "at least one material (atom type) is required"));
+        return Err(ctx.bad(
+            "materials",
+            "[]",
+            "at least one material (atom type) is required",
+        ));
     }
     let mut materials: Vec<Option<Material>> = vec![None; n_types];
     for (k, m) in raw.materials.iter().enumerate() {
         let f = |name: &str| format!("materials[{k}].{name}");
         if m.type_ < 1 || m.type_ > n_types {
-            return Err(ctx.bad(f("type"), m.type_, format!("types must be 1..={n_types} (one material per type)")));
+            return Err(ctx.bad(
+                f("type"),
+                m.type_,
+                format!("types must be 1..={n_types} (one material per type)"),
+            ));
         }
         if materials[m.type_ - 1].is_some() {
             return Err(ctx.bad(f("type"), m.type_, "type defined twice"));
@@ -82,13 +110,30 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
                 (2.0 * g * (1.0 + nu), g)
             }
             (Some(_), Some(_)) => {
-                return Err(ctx.bad(f("youngs_modulus"), "both given", "give youngs_modulus or shear_modulus, not both"));
+                return Err(ctx.bad(
+                    f("youngs_modulus"),
+                    "both given",
+                    "give youngs_modulus or shear_modulus, not both",
+                ));
             }
-            (None, None) => return Err(ctx.bad(f("youngs_modulus"), "missing", "give youngs_modulus or shear_modulus")),
+            (None, None) => {
+                return Err(ctx.bad(
+                    f("youngs_modulus"),
+                    "missing",
+                    "give youngs_modulus or shear_modulus",
+                ));
+            }
         };
-        materials[m.type_ - 1] = Some(Material { youngs_modulus: e, shear_modulus: g, poisson_ratio: nu });
+        materials[m.type_ - 1] = Some(Material {
+            youngs_modulus: e,
+            shear_modulus: g,
+            poisson_ratio: nu,
+        });
     }
-    let materials: Vec<Material> = materials.into_iter().map(|m| m.expect("every type checked above")).collect();
+    let materials: Vec<Material> = materials
+        .into_iter()
+        .map(|m| m.expect("every type checked above"))
+        .collect();
 
     // Interactions: every unordered type pair exactly once.
     let nn = n_types * n_types;
@@ -102,7 +147,11 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         let f = |name: &str| format!("interactions[{k}].{name}");
         let [a, b] = it.types;
         if a < 1 || a > n_types || b < 1 || b > n_types {
-            return Err(ctx.bad(f("types"), it.types, format!("types must be in 1..={n_types}")));
+            return Err(ctx.bad(
+                f("types"),
+                it.types,
+                format!("types must be in 1..={n_types}"),
+            ));
         }
         let (a, b) = (a - 1, b - 1);
         if !pairs.restitution[pairs.idx(a, b)].is_nan() {
@@ -130,7 +179,11 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
     for a in 0..n_types {
         for b in a..n_types {
             if pairs.restitution[pairs.idx(a, b)].is_nan() {
-                return Err(ctx.bad("interactions", format!("types [{}, {}]", a + 1, b + 1), "missing: every type pair needs restitution, friction and rolling_friction"));
+                return Err(ctx.bad(
+                    "interactions",
+                    format!("types [{}, {}]", a + 1, b + 1),
+                    "missing: every type pair needs restitution, friction and rolling_friction",
+                ));
             }
         }
     }
@@ -140,7 +193,11 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
     let hi = vec3(&ctx, "domain.hi", raw.domain.hi)?;
     for k in 0..3 {
         if hi[k] <= lo[k] {
-            return Err(ctx.bad(format!("domain.hi[{k}]"), hi[k], format!("must exceed domain.lo[{k}] = {}", lo[k])));
+            return Err(ctx.bad(
+                format!("domain.hi[{k}]"),
+                hi[k],
+                format!("must exceed domain.lo[{k}] = {}", lo[k]),
+            ));
         }
     }
 
@@ -163,7 +220,11 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         let x = vec3(&ctx, &f("x"), p.x)?;
         for c in 0..3 {
             if x[c] - radius < lo[c] || x[c] + radius > hi[c] {
-                return Err(ctx.bad(f("x"), x, "particle (with its radius) must lie inside the domain box"));
+                return Err(ctx.bad(
+                    f("x"),
+                    x,
+                    "particle (with its radius) must lie inside the domain box",
+                ));
             }
         }
         particles.push(Particle {
@@ -182,12 +243,21 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
     for (k, w) in raw.walls.iter().enumerate() {
         let f = |name: &str| format!("walls[{k}].{name}");
         let wall = match w {
-            schema::Wall::Plane { axis: a, position, type_ } => Wall::Plane {
+            schema::Wall::Plane {
+                axis: a,
+                position,
+                type_,
+            } => Wall::Plane {
                 axis: axis(&ctx, &f("axis"), a)?,
                 position: finite(&ctx, &f("position"), *position)?,
                 type_: *type_,
             },
-            schema::Wall::Cylinder { axis: a, radius, center, type_ } => {
+            schema::Wall::Cylinder {
+                axis: a,
+                radius,
+                center,
+                type_,
+            } => {
                 let ax = axis(&ctx, &f("axis"), a)?;
                 if ax != Axis::Z {
                     return Err(ctx.bad(f("axis"), a, "only \"z\" cylinders are supported"));
@@ -195,18 +265,39 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
                 Wall::Cylinder {
                     axis: ax,
                     radius: positive(&ctx, &f("radius"), *radius)?,
-                    center: [finite(&ctx, &f("center[0]"), center[0])?, finite(&ctx, &f("center[1]"), center[1])?],
+                    center: [
+                        finite(&ctx, &f("center[0]"), center[0])?,
+                        finite(&ctx, &f("center[1]"), center[1])?,
+                    ],
                     type_: *type_,
                 }
             }
         };
         let t = wall.type_();
         if t < 1 || t > n_types {
-            return Err(ctx.bad(f("type"), t, format!("wall material type must be in 1..={n_types}")));
+            return Err(ctx.bad(
+                f("type"),
+                t,
+                format!("wall material type must be in 1..={n_types}"),
+            ));
         }
         walls.push(match wall {
-            Wall::Plane { axis, position, .. } => Wall::Plane { axis, position, type_: t - 1 },
-            Wall::Cylinder { axis, radius, center, .. } => Wall::Cylinder { axis, radius, center, type_: t - 1 },
+            Wall::Plane { axis, position, .. } => Wall::Plane {
+                axis,
+                position,
+                type_: t - 1,
+            },
+            Wall::Cylinder {
+                axis,
+                radius,
+                center,
+                ..
+            } => Wall::Cylinder {
+                axis,
+                radius,
+                center,
+                type_: t - 1,
+            },
         });
     }
 
@@ -220,28 +311,49 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         })
         .fold(f64::INFINITY, f64::min);
     if dt > rayleigh {
-        return Err(ctx.bad("simulation.dt", dt, format!("exceeds the Rayleigh time {rayleigh:.3e} s; use <= 20% of it ({:.3e} s)", 0.2 * rayleigh)));
+        return Err(ctx.bad(
+            "simulation.dt",
+            dt,
+            format!(
+                "exceeds the Rayleigh time {rayleigh:.3e} s; use <= 20% of it ({:.3e} s)",
+                0.2 * rayleigh
+            ),
+        ));
     }
     let duration = positive(&ctx, "simulation.duration", raw.simulation.duration)?;
     let n_steps = (duration / dt).round();
     if (n_steps * dt - duration).abs() > 1e-9 * duration {
-        return Err(ctx.bad("simulation.duration", duration, format!("must be a whole number of time steps of {dt} s")));
+        return Err(ctx.bad(
+            "simulation.duration",
+            duration,
+            format!("must be a whole number of time steps of {dt} s"),
+        ));
     }
     if raw.simulation.output_every == 0 {
         return Err(ctx.bad("simulation.output_every", 0, "must be >= 1"));
     }
     let gravity = vec3(&ctx, "simulation.gravity", raw.simulation.gravity)?;
-    let min_r = particles.iter().map(|p| p.radius).fold(f64::INFINITY, f64::min);
+    let min_r = particles
+        .iter()
+        .map(|p| p.radius)
+        .fold(f64::INFINITY, f64::min);
     let neighbor_skin = match raw.simulation.neighbor_skin {
         Some(s) => positive(&ctx, "simulation.neighbor_skin", s)?,
         None => 0.5 * min_r,
     };
 
     let tolerances = match &raw.compare {
-        None => Tolerances { velocity_rel: 1e-6, position_frac_radius: 1e-6 },
+        None => Tolerances {
+            velocity_rel: 1e-6,
+            position_frac_radius: 1e-6,
+        },
         Some(c) => Tolerances {
             velocity_rel: positive(&ctx, "compare.velocity_rel", c.velocity_rel.unwrap_or(1e-6))?,
-            position_frac_radius: positive(&ctx, "compare.position_frac_radius", c.position_frac_radius.unwrap_or(1e-6))?,
+            position_frac_radius: positive(
+                &ctx,
+                "compare.position_frac_radius",
+                c.position_frac_radius.unwrap_or(1e-6),
+            )?,
         },
     };
 

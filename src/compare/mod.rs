@@ -20,12 +20,32 @@ pub struct Check {
 
 impl Check {
     /// A check that passes when `value <= tolerance`. NaN never passes.
-    pub fn at_most(name: impl Into<String>, metric: impl Into<String>, value: f64, tolerance: f64, detail: impl Into<String>) -> Check {
-        Check { name: name.into(), metric: metric.into(), value, tolerance, passed: value <= tolerance, detail: detail.into() }
+    pub fn at_most(
+        name: impl Into<String>,
+        metric: impl Into<String>,
+        value: f64,
+        tolerance: f64,
+        detail: impl Into<String>,
+    ) -> Check {
+        Check {
+            name: name.into(),
+            metric: metric.into(),
+            value,
+            tolerance,
+            passed: value <= tolerance,
+            detail: detail.into(),
+        }
     }
 
     /// A reference engine that crashed or produced nothing: a failed check, never a pass.
     pub fn error(name: impl Into<String>, message: impl Into<String>) -> Check {
-        Check { name: name.into(), metric: "error".into(), value: f64::NAN, tolerance: 0.0, passed: false, detail: message.into() }
+        Check {
+            name: name.into(),
+            metric: "error".into(),
+            value: f64::NAN,
+            tolerance: 0.0,
+            passed: false,
+            detail: message.into(),
+        }
     }
 }

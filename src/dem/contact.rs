@@ -30,12 +30,27 @@ pub struct PairCoeffs {
 }
 
 impl PairCoeffs {
-    pub fn new(e_i: f64, nu_i: f64, e_j: f64, nu_j: f64, restitution: f64, mu: f64, mu_r: f64) -> Self {
+    pub fn new(
+        e_i: f64,
+        nu_i: f64,
+        e_j: f64,
+        nu_j: f64,
+        restitution: f64,
+        mu: f64,
+        mu_r: f64,
+    ) -> Self {
         let yeff = 1.0 / ((1.0 - nu_i * nu_i) / e_i + (1.0 - nu_j * nu_j) / e_j);
-        let geff = 1.0 / (2.0 * (2.0 - nu_i) * (1.0 + nu_i) / e_i + 2.0 * (2.0 - nu_j) * (1.0 + nu_j) / e_j);
+        let geff = 1.0
+            / (2.0 * (2.0 - nu_i) * (1.0 + nu_i) / e_i + 2.0 * (2.0 - nu_j) * (1.0 + nu_j) / e_j);
         let ln_e = restitution.ln();
         let betaeff = ln_e / (ln_e * ln_e + std::f64::consts::PI * std::f64::consts::PI).sqrt();
-        PairCoeffs { yeff, geff, betaeff, mu, mu_r }
+        PairCoeffs {
+            yeff,
+            geff,
+            betaeff,
+            mu,
+            mu_r,
+        }
     }
 }
 
@@ -99,7 +114,11 @@ pub fn hertz_history(
     } else {
         let cri = g.radi - 0.5 * deltan;
         let crj = g.radj - 0.5 * deltan;
-        (scale(add(scale(g.omega_i, cri), scale(g.omega_j, crj)), rinv), cri, crj)
+        (
+            scale(add(scale(g.omega_i, cri), scale(g.omega_j, crj)), rinv),
+            cri,
+            crj,
+        )
     };
     let d = g.delta;
     let vtr = [
@@ -109,7 +128,11 @@ pub fn hertz_history(
     ];
 
     // Normal force, eq 2 / Table 1 (normal_model_hertz.h).
-    let reff = if g.is_wall { g.radi } else { g.radi * g.radj / (g.radi + g.radj) };
+    let reff = if g.is_wall {
+        g.radi
+    } else {
+        g.radi * g.radj / (g.radi + g.radj)
+    };
     let sqrtval = (reff * deltan).sqrt();
     let sn = 2.0 * c.yeff * sqrtval;
     let st = 8.0 * c.geff * sqrtval;
@@ -147,7 +170,11 @@ pub fn hertz_history(
         sub_assign(&mut ft, scale(vtr, gammat));
     }
     add_assign(&mut f_i, ft);
-    let tor = [en[1] * ft[2] - en[2] * ft[1], en[2] * ft[0] - en[0] * ft[2], en[0] * ft[1] - en[1] * ft[0]];
+    let tor = [
+        en[1] * ft[2] - en[2] * ft[1],
+        en[2] * ft[0] - en[0] * ft[2],
+        en[0] * ft[1] - en[1] * ft[0],
+    ];
     let mut torque_i = scale(tor, -cri);
     let mut torque_j = scale(tor, -crj);
 
@@ -157,12 +184,20 @@ pub fn hertz_history(
         RollingModel::Cdt => {
             // Eq 4: constant magnitude mu_r k_n delta_n R*, along the relative rotation;
             // walls use the contact-point rotation rate wr, whose direction is omega_i's.
-            let w = if g.is_wall { wr } else { sub(g.omega_i, g.omega_j) };
+            let w = if g.is_wall {
+                wr
+            } else {
+                sub(g.omega_i, g.omega_j)
+            };
             let wmag = norm(w);
             if wmag > 0.0 {
                 let t = if g.is_wall {
                     let fnel = deltan * kn;
-                    [c.mu_r * fnel * w[0] / wmag * reff, c.mu_r * fnel * w[1] / wmag * reff, c.mu_r * fnel * w[2] / wmag * reff]
+                    [
+                        c.mu_r * fnel * w[0] / wmag * reff,
+                        c.mu_r * fnel * w[1] / wmag * reff,
+                        c.mu_r * fnel * w[2] / wmag * reff,
+                    ]
                 } else {
                     scale(w, c.mu_r * kn * deltan * reff / wmag)
                 };
@@ -174,7 +209,11 @@ pub fn hertz_history(
             }
         }
         RollingModel::Epsd2 => {
-            let w = if g.is_wall { wr } else { sub(g.omega_i, g.omega_j) };
+            let w = if g.is_wall {
+                wr
+            } else {
+                sub(g.omega_i, g.omega_j)
+            };
             let wn = dot(w, en);
             let w_t = sub(w, scale(en, wn));
             let kr = kt * reff * reff;
@@ -195,7 +234,11 @@ pub fn hertz_history(
         add_assign(&mut torque_j, t);
     }
 
-    ContactForce { f_i, torque_i, torque_j }
+    ContactForce {
+        f_i,
+        torque_i,
+        torque_j,
+    }
 }
 
 #[cfg(test)]
@@ -233,8 +276,16 @@ mod tests {
     fn damping_opposes_approach() {
         let c = PairCoeffs::new(1e7, 0.3, 1e7, 0.3, 0.5, 0.5, 0.0);
         let mut h = History::default();
-        let approaching = hertz_history(&geom(1e-5, -0.1), &c, RollingModel::None, 1e-6, &mut h, true);
-        let separating = hertz_history(&geom(1e-5, 0.1), &c, RollingModel::None, 1e-6, &mut h, true);
+        let approaching = hertz_history(
+            &geom(1e-5, -0.1),
+            &c,
+            RollingModel::None,
+            1e-6,
+            &mut h,
+            true,
+        );
+        let separating =
+            hertz_history(&geom(1e-5, 0.1), &c, RollingModel::None, 1e-6, &mut h, true);
         assert!(approaching.f_i[0] > separating.f_i[0]);
     }
 

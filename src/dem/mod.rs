@@ -61,7 +61,11 @@ pub struct Perturbation {
 
 impl Default for Perturbation {
     fn default() -> Self {
-        Perturbation { friction_factor: 1.0, restitution_shift: 0.0, poisson_shift: 0.0 }
+        Perturbation {
+            friction_factor: 1.0,
+            restitution_shift: 0.0,
+            poisson_shift: 0.0,
+        }
     }
 }
 
@@ -121,7 +125,8 @@ impl Simulation {
     /// LIGGGHTS' `Verlet::setup` does before step 1 (and before the step-0 dump).
     pub fn setup(&mut self) -> anyhow::Result<()> {
         self.check_domain()?;
-        self.pairs.build(&self.x, &self.radius, self.skin, self.lo, self.hi);
+        self.pairs
+            .build(&self.x, &self.radius, self.skin, self.lo, self.hi);
         self.compute_forces(false);
         Ok(())
     }
@@ -145,7 +150,8 @@ impl Simulation {
         self.step += 1;
         self.check_domain()?;
         if self.pairs.needs_rebuild(&self.x, self.skin) {
-            self.pairs.build(&self.x, &self.radius, self.skin, self.lo, self.hi);
+            self.pairs
+                .build(&self.x, &self.radius, self.skin, self.lo, self.hi);
         }
         self.compute_forces(true);
         (&mut self.v, &mut self.omega)
@@ -164,21 +170,42 @@ impl Simulation {
     /// LIGGGHTS runs with `boundary f f f`: an atom leaving the box is lost and the run
     /// stops with an error. Do the same instead of silently integrating it.
     fn check_domain(&self) -> anyhow::Result<()> {
-        if let Some(k) = self.x.iter().position(|p| (0..3).any(|c| !(p[c] >= self.lo[c] && p[c] <= self.hi[c]))) {
-            anyhow::bail!("particle id {} left the domain box at step {} (x = {:?})", self.id[k], self.step, self.x[k]);
+        if let Some(k) = self
+            .x
+            .iter()
+            .position(|p| (0..3).any(|c| !(p[c] >= self.lo[c] && p[c] <= self.hi[c])))
+        {
+            anyhow::bail!(
+                "particle id {} left the domain box at step {} (x = {:?})",
+                self.id[k],
+                self.step,
+                self.x[k]
+            );
         }
         Ok(())
     }
 
     fn compute_forces(&mut self, update_history: bool) {
         let dt = self.dt;
-        let (x, v, omega, radius, mass, type_) = (&self.x, &self.v, &self.omega, &self.radius, &self.mass, &self.type_);
+        let (x, v, omega, radius, mass, type_) = (
+            &self.x,
+            &self.v,
+            &self.omega,
+            &self.radius,
+            &self.mass,
+            &self.type_,
+        );
         let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
 
         // Pass 1: every neighbour pair independently.
         let np = self.pairs.len();
         self.pair_out.resize(np, ContactForce::default());
-        (&self.pairs.i, &self.pairs.j, &mut self.pairs.hist, &mut self.pair_out)
+        (
+            &self.pairs.i,
+            &self.pairs.j,
+            &mut self.pairs.hist,
+            &mut self.pair_out,
+        )
             .into_par_iter()
             .with_min_len(PAR_MIN_LEN)
             .for_each(|(&i, &j, hist, out)| {
@@ -213,7 +240,11 @@ impl Simulation {
         let pairs = &self.pairs;
         let pair_out = &self.pair_out;
         let (walls, gravity) = (&self.walls, self.gravity);
-        (&mut self.f, &mut self.torque, self.wall_hist.par_chunks_mut(self.walls_stride))
+        (
+            &mut self.f,
+            &mut self.torque,
+            self.wall_hist.par_chunks_mut(self.walls_stride),
+        )
             .into_par_iter()
             .enumerate()
             .with_min_len(PAR_MIN_LEN)
@@ -269,10 +300,20 @@ impl Simulation {
     /// Snapshot in output order (sorted by id).
     pub fn frame(&self) -> Frame {
         let mut particles: Vec<ParticleState> = (0..self.x.len())
-            .map(|k| ParticleState { id: self.id[k], x: self.x[k], v: self.v[k], omega: self.omega[k], f: self.f[k] })
+            .map(|k| ParticleState {
+                id: self.id[k],
+                x: self.x[k],
+                v: self.v[k],
+                omega: self.omega[k],
+                f: self.f[k],
+            })
             .collect();
         particles.sort_by_key(|p| p.id);
-        Frame { step: self.step, t: self.step as f64 * self.dt, particles }
+        Frame {
+            step: self.step,
+            t: self.step as f64 * self.dt,
+            particles,
+        }
     }
 
     pub fn kinetic_energy(&self) -> f64 {
@@ -280,20 +321,25 @@ impl Simulation {
             .map(|k| {
                 let m = self.mass[k];
                 let r = self.radius[k];
-                0.5 * m * dot(self.v[k], self.v[k]) + 0.5 * INERTIA * m * r * r * dot(self.omega[k], self.omega[k])
+                0.5 * m * dot(self.v[k], self.v[k])
+                    + 0.5 * INERTIA * m * r * r * dot(self.omega[k], self.omega[k])
             })
             .sum()
     }
 }
 
 /// Runs a case start to finish and returns every output frame (step 0 included).
-pub fn run(case: &Case, pert: Perturbation, mut on_step: impl FnMut(u64)) -> anyhow::Result<Vec<Frame>> {
+pub fn run(
+    case: &Case,
+    pert: Perturbation,
+    mut on_step: impl FnMut(u64),
+) -> anyhow::Result<Vec<Frame>> {
     let mut sim = Simulation::from_case_perturbed(case, pert);
     sim.setup()?;
     let mut frames = vec![sim.frame()];
     for _ in 0..case.n_steps {
         sim.step()?;
-        if sim.step % case.output_every == 0 {
+        if sim.step.is_multiple_of(case.output_every) {
             frames.push(sim.frame());
         }
         on_step(sim.step);

@@ -43,10 +43,16 @@ impl Grid {
             n[k] = (((hi[k] - lo[k]) / cutoff).floor() as usize).clamp(1, 1 << 20);
         }
         // Use the coarsest edge so every cell edge >= cutoff in all directions.
-        let edge = (0..3).map(|k| (hi[k] - lo[k]) / n[k] as f64).fold(f64::INFINITY, f64::min);
+        let edge = (0..3)
+            .map(|k| (hi[k] - lo[k]) / n[k] as f64)
+            .fold(f64::INFINITY, f64::min);
         debug_assert!(edge >= cutoff * (1.0 - 1e-12));
         let _ = edge;
-        Grid { lo, inv: 1.0 / cutoff, n }
+        Grid {
+            lo,
+            inv: 1.0 / cutoff,
+            n,
+        }
     }
     #[inline]
     fn coord(&self, x: V3) -> [usize; 3] {
@@ -118,7 +124,9 @@ impl PairList {
                             continue;
                         }
                         let cell = grid.index([c[0] as usize, c[1] as usize, c[2] as usize]);
-                        for &j in &self.cell_items[self.cell_start[cell] as usize..self.cell_start[cell + 1] as usize] {
+                        for &j in &self.cell_items
+                            [self.cell_start[cell] as usize..self.cell_start[cell + 1] as usize]
+                        {
                             let j = j as usize;
                             if j <= i {
                                 continue;
@@ -152,7 +160,11 @@ impl PairList {
                     }
                     if a < a_end && self.j[a] == j {
                         let (i2, j2) = (i, j as usize);
-                        let d = [x[i2][0] - x[j2][0], x[i2][1] - x[j2][1], x[i2][2] - x[j2][2]];
+                        let d = [
+                            x[i2][0] - x[j2][0],
+                            x[i2][1] - x[j2][1],
+                            x[i2][2] - x[j2][2],
+                        ];
                         let radsum = radius[i2] + radius[j2];
                         if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < radsum * radsum {
                             self.new_hist[k] = self.hist[a];
@@ -207,7 +219,9 @@ mod tests {
         let mut x = Vec::new();
         let mut s = 12345u64;
         let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (s >> 11) as f64 / (1u64 << 53) as f64
         };
         for _ in 0..400 {
@@ -226,7 +240,10 @@ mod tests {
             }
         }
         assert_eq!(l.len(), brute);
-        assert!(brute > 50, "test cloud too sparse to mean anything: {brute}");
+        assert!(
+            brute > 50,
+            "test cloud too sparse to mean anything: {brute}"
+        );
     }
 
     #[test]
@@ -239,7 +256,9 @@ mod tests {
         l.hist[0].shear = [1.0, 2.0, 3.0];
         let x2 = vec![[0.0, 0.0, 0.0], [1.9e-3, 1e-4, 0.0], [3.5e-3, 1.5e-3, 0.0]];
         l.build(&x2, &radius, 5e-4, [-0.01; 3], [0.01; 3]);
-        let k = (l.start[0]..l.start[1]).find(|&k| l.j[k] == 1).expect("pair 0-1 kept");
+        let k = (l.start[0]..l.start[1])
+            .find(|&k| l.j[k] == 1)
+            .expect("pair 0-1 kept");
         assert_eq!(l.hist[k].shear, [1.0, 2.0, 3.0]);
         assert!(l.hist.iter().filter(|h| h.shear != [0.0; 3]).count() == 1);
     }

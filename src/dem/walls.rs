@@ -20,7 +20,12 @@ pub fn wall_contact(w: &Wall, x: V3, r: f64) -> Option<(V3, f64)> {
             delta[k] = d;
             Some((delta, dist))
         }
-        Wall::Cylinder { axis, radius, center, .. } => {
+        Wall::Cylinder {
+            axis,
+            radius,
+            center,
+            ..
+        } => {
             debug_assert_eq!(axis, Axis::Z);
             let dy = x[0] - center[0];
             let dz = x[1] - center[1];
@@ -29,7 +34,11 @@ pub fn wall_contact(w: &Wall, x: V3, r: f64) -> Option<(V3, f64)> {
                 return None;
             }
             // Inside the cylinder: gap R - dist; outside: dist - R (both sides repel).
-            let (gap, sign) = if dist > radius { (dist - radius, 1.0) } else { (radius - dist, -1.0) };
+            let (gap, sign) = if dist > radius {
+                (dist - radius, 1.0)
+            } else {
+                (radius - dist, -1.0)
+            };
             if gap - r > 0.0 {
                 return None;
             }
@@ -45,7 +54,12 @@ mod tests {
 
     #[test]
     fn cylinder_pushes_inward_from_inside() {
-        let w = Wall::Cylinder { axis: Axis::Z, radius: 0.05, center: [0.0, 0.0], type_: 0 };
+        let w = Wall::Cylinder {
+            axis: Axis::Z,
+            radius: 0.05,
+            center: [0.0, 0.0],
+            type_: 0,
+        };
         let (d, gap) = wall_contact(&w, [0.049, 0.0, 0.1], 0.002).expect("touching");
         approx::assert_relative_eq!(gap, 0.001, max_relative = 1e-12);
         assert!(d[0] < 0.0, "normal must point to the axis: {d:?}");
@@ -54,8 +68,22 @@ mod tests {
 
     #[test]
     fn plane_is_two_sided() {
-        let w = Wall::Plane { axis: Axis::Z, position: 0.0, type_: 0 };
-        assert!(wall_contact(&w, [0.0, 0.0, 0.0009], 0.001).expect("above").0[2] > 0.0);
-        assert!(wall_contact(&w, [0.0, 0.0, -0.0009], 0.001).expect("below").0[2] < 0.0);
+        let w = Wall::Plane {
+            axis: Axis::Z,
+            position: 0.0,
+            type_: 0,
+        };
+        assert!(
+            wall_contact(&w, [0.0, 0.0, 0.0009], 0.001)
+                .expect("above")
+                .0[2]
+                > 0.0
+        );
+        assert!(
+            wall_contact(&w, [0.0, 0.0, -0.0009], 0.001)
+                .expect("below")
+                .0[2]
+                < 0.0
+        );
     }
 }

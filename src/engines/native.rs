@@ -1,7 +1,7 @@
 //! The in-process Rust DEM as an [`Engine`].
 
-use super::output::{Provenance, RunOutput, now_utc, sha256_hex};
 use super::Engine;
+use super::output::{Provenance, RunOutput, now_utc, sha256_hex};
 use crate::case::Case;
 use crate::dem::{self, Perturbation};
 use std::path::Path;
@@ -22,7 +22,7 @@ impl Engine for Native {
         let start = std::time::Instant::now();
         let bar = crate::report::progress::bar(self.progress, case.n_steps, "native");
         let frames = dem::run(case, self.perturbation, |s| {
-            if s % 1000 == 0 {
+            if s.is_multiple_of(1000) {
                 bar.set_position(s);
             }
         })?;

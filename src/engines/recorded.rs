@@ -2,8 +2,8 @@
 //! engine is not installed. It is never produced by the native engine: `provenance.json`
 //! must name a real reference engine and its version line.
 
-use super::output::{RunOutput, read_particles_csv, read_provenance};
 use super::Engine;
+use super::output::{RunOutput, read_particles_csv, read_provenance};
 use crate::case::Case;
 use std::path::{Path, PathBuf};
 
@@ -16,7 +16,9 @@ pub struct Recorded {
 impl Recorded {
     /// Where the reference run of a case lives: `reference/<suite>/<case name>/`.
     pub fn for_case(reference_root: &Path, case: &Case) -> Recorded {
-        Recorded { dir: reference_root.join(&case.kind).join(&case.name) }
+        Recorded {
+            dir: reference_root.join(&case.kind).join(&case.name),
+        }
     }
 }
 
@@ -38,7 +40,12 @@ impl Engine for Recorded {
         let frames = read_particles_csv(&self.dir.join("particles.csv"), case.dt)?;
         let expected = case.n_steps / case.output_every + 1;
         if frames.len() as u64 != expected {
-            anyhow::bail!("{}: {} frames recorded, the case implies {}", self.dir.display(), frames.len(), expected);
+            anyhow::bail!(
+                "{}: {} frames recorded, the case implies {}",
+                self.dir.display(),
+                frames.len(),
+                expected
+            );
         }
         Ok(RunOutput { frames, provenance })
     }

@@ -39,9 +39,20 @@ pub struct Report {
 }
 
 impl Report {
-    pub fn new(checks: Vec<Check>, runs: Vec<CaseRun>, notes: Vec<String>, errored: bool) -> Report {
+    pub fn new(
+        checks: Vec<Check>,
+        runs: Vec<CaseRun>,
+        notes: Vec<String>,
+        errored: bool,
+    ) -> Report {
         let passed = !errored && !checks.is_empty() && checks.iter().all(|c| c.passed);
-        Report { passed, checks, runs, notes, errored }
+        Report {
+            passed,
+            checks,
+            runs,
+            notes,
+            errored,
+        }
     }
 
     /// 0 all passed, 1 some check failed, 2 something errored.
@@ -57,7 +68,10 @@ impl Report {
 
     pub fn write(&self, dir: &Path, title: &str) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(self)? + "\n")?;
+        std::fs::write(
+            dir.join("report.json"),
+            serde_json::to_string_pretty(self)? + "\n",
+        )?;
         std::fs::write(dir.join("report.md"), self.markdown(title))?;
         std::fs::write(dir.join("report.junit.xml"), self.junit(title))?;
         Ok(())
@@ -65,7 +79,13 @@ impl Report {
 
     pub fn markdown(&self, title: &str) -> String {
         let mut s = String::new();
-        let verdict = if self.errored { "ERROR" } else if self.passed { "PASS" } else { "FAIL" };
+        let verdict = if self.errored {
+            "ERROR"
+        } else if self.passed {
+            "PASS"
+        } else {
+            "FAIL"
+        };
         let _ = writeln!(s, "# {title}: {verdict}\n");
         if !self.notes.is_empty() {
             for n in &self.notes {
@@ -73,7 +93,10 @@ impl Report {
             }
             s.push('\n');
         }
-        let _ = writeln!(s, "| check | metric | value | tolerance | verdict | where |");
+        let _ = writeln!(
+            s,
+            "| check | metric | value | tolerance | verdict | where |"
+        );
         let _ = writeln!(s, "|---|---|---|---|---|---|");
         for c in &self.checks {
             let _ = writeln!(
@@ -88,12 +111,21 @@ impl Report {
             );
         }
         if !self.runs.is_empty() {
-            let _ = writeln!(s, "\n## Runs\n\n| case | test | reference | reference source | version | wall time test / ref (s) |\n|---|---|---|---|---|---|");
+            let _ = writeln!(
+                s,
+                "\n## Runs\n\n| case | test | reference | reference source | version | wall time test / ref (s) |\n|---|---|---|---|---|---|"
+            );
             for r in &self.runs {
                 let _ = writeln!(
                     s,
                     "| {} | {} | {} | {} | {} | {:.2} / {:.2} |",
-                    r.case, r.test_engine, r.reference_engine, r.reference_source, r.reference_version, r.wall_time_test_s, r.wall_time_reference_s
+                    r.case,
+                    r.test_engine,
+                    r.reference_engine,
+                    r.reference_source,
+                    r.reference_version,
+                    r.wall_time_test_s,
+                    r.wall_time_reference_s
                 );
             }
         }
@@ -101,7 +133,12 @@ impl Report {
     }
 
     pub fn junit(&self, title: &str) -> String {
-        let esc = |t: &str| t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;");
+        let esc = |t: &str| {
+            t.replace('&', "&amp;")
+                .replace('<', "&lt;")
+                .replace('>', "&gt;")
+                .replace('"', "&quot;")
+        };
         let failures = self.checks.iter().filter(|c| !c.passed).count();
         let mut s = format!(
             "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"{}\" tests=\"{}\" failures=\"{}\">\n",
@@ -110,9 +147,20 @@ impl Report {
             failures
         );
         for c in &self.checks {
-            let _ = write!(s, "  <testcase name=\"{}\" classname=\"granval\">", esc(&c.name));
+            let _ = write!(
+                s,
+                "  <testcase name=\"{}\" classname=\"granval\">",
+                esc(&c.name)
+            );
             if !c.passed {
-                let _ = write!(s, "<failure message=\"{} = {:e} &gt; {:e}\">{}</failure>", esc(&c.metric), c.value, c.tolerance, esc(&c.detail));
+                let _ = write!(
+                    s,
+                    "<failure message=\"{} = {:e} &gt; {:e}\">{}</failure>",
+                    esc(&c.metric),
+                    c.value,
+                    c.tolerance,
+                    esc(&c.detail)
+                );
             }
             s.push_str("</testcase>\n");
         }

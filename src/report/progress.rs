@@ -8,9 +8,11 @@ pub fn bar(show: bool, len: u64, label: &str) -> ProgressBar {
     }
     let b = ProgressBar::new(len);
     b.set_style(
-        ProgressStyle::with_template("{prefix:>9} [{bar:40}] {pos}/{len} steps  {per_sec}  eta {eta}")
-            .expect("static template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{prefix:>9} [{bar:40}] {pos}/{len} steps  {per_sec}  eta {eta}",
+        )
+        .expect("static template")
+        .progress_chars("=> "),
     );
     b.set_prefix(label.to_string());
     b

@@ -24,17 +24,25 @@ pub fn micro_cases() -> Vec<Case> {
 }
 
 pub fn options() -> Options {
-    Options { reference_root: root().join("reference"), ..Options::default() }
+    Options {
+        reference_root: root().join("reference"),
+        ..Options::default()
+    }
 }
 
 /// The reference trajectory of a case: live LIGGGHTS when installed (required in CI via
 /// GRANVAL_REQUIRE_LIVE=1), otherwise the recorded run — and the test log says which.
 pub fn reference_frames(case: &Case, scratch: &Path) -> Vec<Frame> {
-    let (out, source, notes) = pipeline::reference_run(case, &options(), scratch).unwrap_or_else(|e| panic!("reference run of {}: {e:#}", case.name));
+    let (out, source, notes) = pipeline::reference_run(case, &options(), scratch)
+        .unwrap_or_else(|e| panic!("reference run of {}: {e:#}", case.name));
     if source == "live" {
         eprintln!("[{}] reference: LIVE {}", case.name, out.provenance.version);
     } else {
-        eprintln!("[{}] reference: FALLBACK to {source} (LIGGGHTS not installed). {}", case.name, notes.join(" "));
+        eprintln!(
+            "[{}] reference: FALLBACK to {source} (LIGGGHTS not installed). {}",
+            case.name,
+            notes.join(" ")
+        );
     }
     out.frames
 }
