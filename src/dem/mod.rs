@@ -6,6 +6,7 @@
 //! of threads (and for a given case, run to run).
 
 pub mod contact;
+pub mod intruder;
 pub mod neighbor;
 pub mod vec3;
 pub mod walls;
@@ -42,6 +43,13 @@ pub struct Simulation {
     walls_stride: usize,
     pairs: PairList,
     pair_out: Vec<ContactForce>,
+    /// Whether each pair touched this step; the gather reads `pair_out` only where set,
+    /// so non-touching pairs cost one byte of memory traffic instead of a whole result.
+    pair_touch: Vec<bool>,
+    /// Bit k set: particle was within its radius + skin of wall k at the last rebuild,
+    /// so it may touch it before the next one (the role of LIGGGHTS' primitive-wall
+    /// neighbour lists). Walls beyond 64 are always checked.
+    near_walls: Vec<u64>,
     gravity: V3,
     pub dt: f64,
     skin: f64,
@@ -112,6 +120,8 @@ impl Simulation {
             walls_stride: stride,
             pairs: PairList::default(),
             pair_out: Vec::new(),
+            pair_touch: Vec::new(),
+            near_walls: vec![u64::MAX; n],
             gravity: case.gravity,
             dt: case.dt,
             skin: case.neighbor_skin,
@@ -125,8 +135,7 @@ impl Simulation {
     /// LIGGGHTS' `Verlet::setup` does before step 1 (and before the step-0 dump).
     pub fn setup(&mut self) -> anyhow::Result<()> {
         self.check_domain()?;
-        self.pairs
-            .build(&self.x, &self.radius, self.skin, self.lo, self.hi);
+        self.rebuild();
         self.compute_forces(false);
         Ok(())
     }
@@ -150,8 +159,7 @@ impl Simulation {
         self.step += 1;
         self.check_domain()?;
         if self.pairs.needs_rebuild(&self.x, self.skin) {
-            self.pairs
-                .build(&self.x, &self.radius, self.skin, self.lo, self.hi);
+            self.rebuild();
         }
         self.compute_forces(true);
         (&mut self.v, &mut self.omega)
@@ -165,6 +173,23 @@ impl Simulation {
                 add_assign(w, scale(*t, dtirotate));
             });
         Ok(())
+    }
+
+    fn rebuild(&mut self) {
+        self.pairs
+            .build(&self.x, &self.radius, self.skin, self.lo, self.hi);
+        let (walls, skin) = (&self.walls, self.skin);
+        (&mut self.near_walls, &self.x, &self.radius)
+            .into_par_iter()
+            .with_min_len(PAR_MIN_LEN)
+            .for_each(|(mask, x, r)| {
+                *mask = 0;
+                for (k, w) in walls.iter().enumerate() {
+                    if k >= 64 || walls::wall_contact(w, *x, r + skin).is_some() {
+                        *mask |= 1u64 << k.min(63);
+                    }
+                }
+            });
     }
 
     /// LIGGGHTS runs with `boundary f f f`: an atom leaving the box is lost and the run
@@ -200,15 +225,17 @@ impl Simulation {
         // Pass 1: every neighbour pair independently.
         let np = self.pairs.len();
         self.pair_out.resize(np, ContactForce::default());
+        self.pair_touch.resize(np, false);
         (
             &self.pairs.i,
             &self.pairs.j,
             &mut self.pairs.hist,
             &mut self.pair_out,
+            &mut self.pair_touch,
         )
             .into_par_iter()
             .with_min_len(PAR_MIN_LEN)
-            .for_each(|(&i, &j, hist, out)| {
+            .for_each(|(&i, &j, hist, out, touch)| {
                 let (i, j) = (i as usize, j as usize);
                 let delta = sub(x[i], x[j]);
                 let rsq = dot(delta, delta);
@@ -229,38 +256,47 @@ impl Simulation {
                     };
                     let c = &coeffs[type_[i] * n_types + type_[j]];
                     *out = hertz_history(&g, c, rolling, dt, hist, update_history);
+                    *touch = true;
                 } else {
                     // History is NOT cleared here: LIGGGHTS 3.8 keeps a separated pair's
                     // shear until the next neighbour rebuild (see neighbor.rs).
-                    *out = ContactForce::default();
+                    *touch = false;
                 }
             });
 
         // Pass 2: per particle, gather pair results in a fixed order, then walls, gravity.
         let pairs = &self.pairs;
-        let pair_out = &self.pair_out;
+        let (pair_out, pair_touch) = (&self.pair_out, &self.pair_touch);
         let (walls, gravity) = (&self.walls, self.gravity);
         (
             &mut self.f,
             &mut self.torque,
             self.wall_hist.par_chunks_mut(self.walls_stride),
+            &self.near_walls,
         )
             .into_par_iter()
             .enumerate()
             .with_min_len(PAR_MIN_LEN)
-            .for_each(|(i, (f, t, whist))| {
+            .for_each(|(i, (f, t, whist, &near))| {
                 let mut fi = [0.0; 3];
                 let mut ti = [0.0; 3];
-                for o in &pair_out[pairs.start[i]..pairs.start[i + 1]] {
-                    add_assign(&mut fi, o.f_i);
-                    add_assign(&mut ti, o.torque_i);
+                for k in pairs.start[i]..pairs.start[i + 1] {
+                    if pair_touch[k] {
+                        add_assign(&mut fi, pair_out[k].f_i);
+                        add_assign(&mut ti, pair_out[k].torque_i);
+                    }
                 }
                 for &k in &pairs.rev_pair[pairs.rev_start[i]..pairs.rev_start[i + 1]] {
-                    let o = &pair_out[k as usize];
-                    sub_assign(&mut fi, o.f_i);
-                    add_assign(&mut ti, o.torque_j);
+                    if pair_touch[k as usize] {
+                        let o = &pair_out[k as usize];
+                        sub_assign(&mut fi, o.f_i);
+                        add_assign(&mut ti, o.torque_j);
+                    }
                 }
-                for (w, hist) in walls.iter().zip(whist.iter_mut()) {
+                for (k, (w, hist)) in walls.iter().zip(whist.iter_mut()).enumerate() {
+                    if near & (1u64 << k.min(63)) == 0 {
+                        continue;
+                    }
                     match walls::wall_contact(w, x[i], radius[i]) {
                         Some((delta, r)) => {
                             let g = ContactGeom {

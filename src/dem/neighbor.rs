@@ -26,6 +26,8 @@ pub struct PairList {
     new_i: Vec<u32>,
     new_j: Vec<u32>,
     new_hist: Vec<History>,
+    cell_of: Vec<u32>,
+    fill: Vec<usize>,
 }
 
 /// A uniform grid over the domain box; cell edge >= the largest interaction cutoff.
@@ -94,19 +96,23 @@ impl PairList {
         // Counting sort of particles into cells.
         self.cell_start.clear();
         self.cell_start.resize(ncell + 1, 0);
-        let cells: Vec<usize> = x.iter().map(|p| grid.index(grid.coord(*p))).collect();
-        for &c in &cells {
-            self.cell_start[c + 1] += 1;
+        self.cell_of.clear();
+        self.cell_of
+            .extend(x.iter().map(|p| grid.index(grid.coord(*p)) as u32));
+        for &c in &self.cell_of {
+            self.cell_start[c as usize + 1] += 1;
         }
         for c in 0..ncell {
             self.cell_start[c + 1] += self.cell_start[c];
         }
         self.cell_items.clear();
         self.cell_items.resize(n, 0);
-        let mut fill = self.cell_start.clone();
-        for (p, &c) in cells.iter().enumerate() {
-            self.cell_items[fill[c] as usize] = p as u32;
-            fill[c] += 1;
+        self.fill.clear();
+        self.fill
+            .extend(self.cell_start.iter().map(|&c| c as usize));
+        for (p, &c) in self.cell_of.iter().enumerate() {
+            self.cell_items[self.fill[c as usize]] = p as u32;
+            self.fill[c as usize] += 1;
         }
 
         self.new_start.clear();
@@ -189,10 +195,11 @@ impl PairList {
         }
         self.rev_pair.clear();
         self.rev_pair.resize(self.j.len(), 0);
-        let mut fill = self.rev_start.clone();
+        self.fill.clear();
+        self.fill.extend_from_slice(&self.rev_start);
         for (k, &j) in self.j.iter().enumerate() {
-            self.rev_pair[fill[j as usize]] = k as u32;
-            fill[j as usize] += 1;
+            self.rev_pair[self.fill[j as usize]] = k as u32;
+            self.fill[j as usize] += 1;
         }
 
         self.x_at_build.clear();

@@ -3,6 +3,7 @@
 //! [`Report::exit_code`].
 
 pub mod progress;
+pub mod svg;
 
 use crate::compare::Check;
 use anyhow::{Context, Result};

@@ -10,6 +10,7 @@
 mod deck;
 mod dump;
 mod runner;
+pub mod stl;
 
 pub use deck::{
     DUMP_COLUMNS, MIN_RESTITUTION_EXCLUSIVE, MIN_YOUNGS_MODULUS_SI, check_liggghts_limits,
