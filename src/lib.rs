@@ -10,5 +10,6 @@ pub mod case;
 pub mod compare;
 pub mod dem;
 pub mod engines;
+pub mod penetration;
 pub mod pipeline;
 pub mod report;

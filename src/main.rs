@@ -165,6 +165,35 @@ fn run_suite(
     )
 }
 
+/// `granval run` for a penetration case: prepare the bed natively, then penetrate.
+fn run_penetration(case: &Path, native: bool, out: &Path) -> Result<ExitCode> {
+    let case = granval::case::penetration::PenetrationCase::load(case)?;
+    if !native {
+        anyhow::bail!(
+            "penetration runs in LIGGGHTS go through `granval compare` (both engines start from the natively prepared bed)"
+        );
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let t0 = std::time::Instant::now();
+    let bed = granval::penetration::prepare_bed(&case, true)?;
+    println!(
+        "{} (prepared in {:.1} s)",
+        granval::dem::packing::bed_note(&case, &bed),
+        t0.elapsed().as_secs_f64()
+    );
+    let run =
+        granval::penetration::run_native(&case, &bed, granval::dem::Perturbation::default(), true)?;
+    granval::penetration::write_force_csv(&out.join("force.csv"), &run.samples)?;
+    granval::engines::output::write_provenance(&out.join("provenance.json"), &run.provenance)?;
+    println!(
+        "{} force samples written to {} ({:.1} s)",
+        run.samples.len(),
+        out.join("force.csv").display(),
+        run.provenance.wall_time_s
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 fn real_main() -> Result<ExitCode> {
     let cli = Cli::parse();
     match cli.cmd {
@@ -174,6 +203,9 @@ fn real_main() -> Result<ExitCode> {
             out,
             np,
         } => {
+            if granval::case::penetration::kind_of(&case)? == "penetration" {
+                return run_penetration(&case, matches!(engine, EngineName::Native), &out);
+            }
             let case = Case::load(&case)?;
             std::fs::create_dir_all(&out)
                 .with_context(|| format!("cannot create {}", out.display()))?;

@@ -2,8 +2,9 @@
 //! (DESIGN.md "Data flow"). All quantities in the validated [`Case`] are SI.
 
 mod error;
-mod schema;
-mod validate;
+pub mod penetration;
+pub(crate) mod schema;
+pub(crate) mod validate;
 
 pub use error::CaseError;
 

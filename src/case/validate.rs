@@ -6,7 +6,7 @@ use super::schema;
 use super::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances, Wall};
 use std::path::Path;
 
-fn finite(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
+pub(super) fn finite(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
     if v.is_finite() {
         Ok(v)
     } else {
@@ -14,7 +14,7 @@ fn finite(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
     }
 }
 
-fn positive(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
+pub(super) fn positive(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
@@ -22,7 +22,7 @@ fn positive(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
     }
 }
 
-fn vec3(ctx: &Ctx, field: &str, v: [f64; 3]) -> Result<[f64; 3], CaseError> {
+pub(super) fn vec3(ctx: &Ctx, field: &str, v: [f64; 3]) -> Result<[f64; 3], CaseError> {
     for (k, c) in v.iter().enumerate() {
         finite(ctx, &format!("{field}[{k}]"), *c)?;
     }
@@ -38,18 +38,18 @@ fn axis(ctx: &Ctx, field: &str, s: &str) -> Result<Axis, CaseError> {
     }
 }
 
-pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseError> {
-    let ctx = Ctx {
-        file: path.to_path_buf(),
+/// Models, materials and pair coefficients: shared by every case kind.
+pub(super) fn physics(
+    ctx: &Ctx,
+    models: &schema::Models,
+    raw_materials: &[schema::Material],
+    interactions: &[schema::Interaction],
+) -> Result<(RollingModel, Vec<Material>, PairTable), CaseError> {
+    let raw = Raw {
+        models,
+        materials: raw_materials,
+        interactions,
     };
-
-    if raw.case.kind != "micro" {
-        return Err(ctx.bad("case.kind", &raw.case.kind, "supported kinds: \"micro\""));
-    }
-    if raw.case.name.trim().is_empty() {
-        return Err(ctx.bad("case.name", &raw.case.name, "must not be empty"));
-    }
-
     // Models: only the LIGGGHTS 3.8 combination the native engine reproduces exactly.
     if raw.models.normal != "hertz" {
         return Err(ctx.bad("models.normal", &raw.models.normal, "supported: \"hertz\""));
@@ -96,17 +96,17 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         if materials[m.type_ - 1].is_some() {
             return Err(ctx.bad(f("type"), m.type_, "type defined twice"));
         }
-        let nu = finite(&ctx, &f("poisson_ratio"), m.poisson_ratio)?;
+        let nu = finite(ctx, &f("poisson_ratio"), m.poisson_ratio)?;
         if !(nu > -1.0 && nu < 0.5) {
             return Err(ctx.bad(f("poisson_ratio"), nu, "must lie in (-1, 0.5)"));
         }
         let (e, g) = match (m.youngs_modulus, m.shear_modulus) {
             (Some(e), None) => {
-                let e = positive(&ctx, &f("youngs_modulus"), e)?;
+                let e = positive(ctx, &f("youngs_modulus"), e)?;
                 (e, e / (2.0 * (1.0 + nu)))
             }
             (None, Some(g)) => {
-                let g = positive(&ctx, &f("shear_modulus"), g)?;
+                let g = positive(ctx, &f("shear_modulus"), g)?;
                 (2.0 * g * (1.0 + nu), g)
             }
             (Some(_), Some(_)) => {
@@ -157,15 +157,15 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         if !pairs.restitution[pairs.idx(a, b)].is_nan() {
             return Err(ctx.bad(f("types"), it.types, "pair defined twice"));
         }
-        let e = finite(&ctx, &f("restitution"), it.restitution)?;
+        let e = finite(ctx, &f("restitution"), it.restitution)?;
         if !(e > 0.0 && e <= 1.0) {
             return Err(ctx.bad(f("restitution"), e, "must lie in (0, 1]"));
         }
-        let mu = finite(&ctx, &f("friction"), it.friction)?;
+        let mu = finite(ctx, &f("friction"), it.friction)?;
         if mu < 0.0 {
             return Err(ctx.bad(f("friction"), mu, "must be >= 0"));
         }
-        let mur = finite(&ctx, &f("rolling_friction"), it.rolling_friction)?;
+        let mur = finite(ctx, &f("rolling_friction"), it.rolling_friction)?;
         if mur < 0.0 {
             return Err(ctx.bad(f("rolling_friction"), mur, "must be >= 0"));
         }
@@ -187,6 +187,34 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             }
         }
     }
+
+    Ok((rolling, materials, pairs))
+}
+
+/// Borrowed view so the shared validation reads like the original field accesses.
+struct Raw<'a> {
+    models: &'a schema::Models,
+    materials: &'a [schema::Material],
+    interactions: &'a [schema::Interaction],
+}
+
+pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseError> {
+    let ctx = Ctx {
+        file: path.to_path_buf(),
+    };
+
+    if raw.case.kind != "micro" {
+        // Other kinds have their own loaders (e.g. `PenetrationCase::load`).
+
+        return Err(ctx.bad("case.kind", &raw.case.kind, "supported kinds: \"micro\""));
+    }
+    if raw.case.name.trim().is_empty() {
+        return Err(ctx.bad("case.name", &raw.case.name, "must not be empty"));
+    }
+
+    let (rolling, materials, pairs) =
+        physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
+    let n_types = materials.len();
 
     // Domain.
     let lo = vec3(&ctx, "domain.lo", raw.domain.lo)?;

@@ -8,6 +8,8 @@
 pub mod contact;
 pub mod intruder;
 pub mod neighbor;
+pub mod packing;
+pub mod penetration;
 pub mod vec3;
 pub mod walls;
 
@@ -50,6 +52,7 @@ pub struct Simulation {
     /// so it may touch it before the next one (the role of LIGGGHTS' primitive-wall
     /// neighbour lists). Walls beyond 64 are always checked.
     near_walls: Vec<u64>,
+    intruder: Option<MovingIntruder>,
     gravity: V3,
     pub dt: f64,
     skin: f64,
@@ -77,7 +80,47 @@ impl Default for Perturbation {
     }
 }
 
+/// A rigid body driven at constant velocity through the grains (the penetration
+/// intruder). Grains see it as a moving wall with the wall contact law, like LIGGGHTS'
+/// `fix move/mesh` + `fix wall/gran ... mesh`; the force on it is the sum of the
+/// reactions, summed in particle order so it is deterministic.
+pub struct MovingIntruder {
+    pub body: intruder::FlatCylinder,
+    pub velocity: V3,
+    pub type_: usize,
+    hist: Vec<History>,
+    /// Force each grain receives from the intruder this step (zero if not touching).
+    on_grain: Vec<V3>,
+}
+
 impl Simulation {
+    /// Adds the moving intruder; `type_` is its 0-based material type.
+    pub fn set_intruder(&mut self, body: intruder::FlatCylinder, velocity: V3, type_: usize) {
+        let n = self.x.len();
+        self.intruder = Some(MovingIntruder {
+            body,
+            velocity,
+            type_,
+            hist: vec![History::default(); n],
+            on_grain: vec![[0.0; 3]; n],
+        });
+    }
+
+    pub fn intruder(&self) -> Option<&MovingIntruder> {
+        self.intruder.as_ref()
+    }
+
+    /// Total force the grains exert on the intruder (N).
+    pub fn intruder_force(&self) -> V3 {
+        let mut f = [0.0; 3];
+        if let Some(it) = &self.intruder {
+            for g in &it.on_grain {
+                sub_assign(&mut f, *g);
+            }
+        }
+        f
+    }
+
     pub fn from_case(case: &Case) -> Simulation {
         Simulation::from_case_perturbed(case, Perturbation::default())
     }
@@ -122,6 +165,7 @@ impl Simulation {
             pair_out: Vec::new(),
             pair_touch: Vec::new(),
             near_walls: vec![u64::MAX; n],
+            intruder: None,
             gravity: case.gravity,
             dt: case.dt,
             skin: case.neighbor_skin,
@@ -157,6 +201,9 @@ impl Simulation {
                 add_assign(w, scale(*t, dtirotate));
             });
         self.step += 1;
+        if let Some(it) = &mut self.intruder {
+            it.body.translate(it.velocity[2] * dt);
+        }
         self.check_domain()?;
         if self.pairs.needs_rebuild(&self.x, self.skin) {
             self.rebuild();
@@ -323,6 +370,47 @@ impl Simulation {
                 *f = fi;
                 *t = ti;
             });
+
+        // Pass 3: the moving intruder, a wall with velocity (grain-intruder law).
+        if let Some(it) = &mut self.intruder {
+            let (body, vel, ity) = (&it.body, it.velocity, it.type_);
+            (
+                &mut self.f,
+                &mut self.torque,
+                &mut it.hist,
+                &mut it.on_grain,
+            )
+                .into_par_iter()
+                .enumerate()
+                .with_min_len(PAR_MIN_LEN)
+                .for_each(|(i, (f, t, hist, on))| {
+                    match body.closest_contact(x[i], radius[i]) {
+                        Some((delta, r)) => {
+                            let g = ContactGeom {
+                                delta,
+                                r,
+                                radi: radius[i],
+                                radj: 0.0,
+                                is_wall: true,
+                                meff: mass[i],
+                                vel_i: v[i],
+                                vel_j: vel,
+                                omega_i: omega[i],
+                                omega_j: [0.0; 3],
+                            };
+                            let c = &coeffs[type_[i] * n_types + ity];
+                            let o = hertz_history(&g, c, rolling, dt, hist, update_history);
+                            add_assign(f, o.f_i);
+                            add_assign(t, o.torque_i);
+                            *on = o.f_i;
+                        }
+                        None => {
+                            *hist = History::default();
+                            *on = [0.0; 3];
+                        }
+                    }
+                });
+        }
     }
 
     pub fn n_pairs(&self) -> usize {
@@ -350,6 +438,16 @@ impl Simulation {
             t: self.step as f64 * self.dt,
             particles,
         }
+    }
+
+    /// Translational kinetic energy, what LIGGGHTS' `compute ke` reports. Bed
+    /// preparation uses it: CDT rolling friction makes resting grains flip their spin
+    /// every step (the torque follows the sign of w), a numerical floor in the
+    /// rotational energy that no amount of settling removes.
+    pub fn translational_kinetic_energy(&self) -> f64 {
+        (0..self.x.len())
+            .map(|k| 0.5 * self.mass[k] * dot(self.v[k], self.v[k]))
+            .sum()
     }
 
     pub fn kinetic_energy(&self) -> f64 {

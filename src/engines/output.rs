@@ -154,3 +154,12 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 pub fn now_utc() -> String {
     chrono::Utc::now().to_rfc3339_opts(chrono::SecondsFormat::Secs, true)
 }
+
+/// The intruder at one output step of a penetration run, SI: time, height of its
+/// bottom face, and the total force the grains exert on it (+z resists a downward push).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ForceSample {
+    pub t: f64,
+    pub z_bottom: f64,
+    pub f: [f64; 3],
+}

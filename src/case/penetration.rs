@@ -1,0 +1,442 @@
+//! Case kind `penetration`: quasi-static penetration of a flat-bottomed cylinder into a
+//! poured and settled bed in a cylindrical container (Feng et al. Sec. 2, Tables 1-2,
+//! Fig 1). Parsed and validated once; all SI.
+
+use super::error::{CaseError, Ctx};
+use super::validate::{finite, physics, positive};
+use super::{Material, PairTable, RollingModel, schema};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    case: schema::Meta,
+    simulation: Sim,
+    models: schema::Models,
+    materials: Vec<schema::Material>,
+    interactions: Vec<schema::Interaction>,
+    container: Container,
+    bed: Bed,
+    preparation: Preparation,
+    intruder: Intruder,
+    analysis: Analysis,
+    #[serde(default)]
+    compare: Option<Tolerances>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Sim {
+    /// Time step (s); must not exceed the Rayleigh time (Feng uses 20% of it).
+    dt: f64,
+    /// |g| in m/s^2, acting along -z.
+    gravity: f64,
+    neighbor_skin: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Container {
+    diameter: f64,
+    height: f64,
+    /// Material type of floor and side wall (1-based).
+    #[serde(rename = "type")]
+    type_: usize,
+}
+
+/// Grain diameter distributions of the paper: constant (Table 2), Gaussian with
+/// cut-offs (Table 4), uniform +- half width.
+#[derive(Debug, Clone, Copy, Deserialize, serde::Serialize, PartialEq)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "snake_case")]
+pub enum Diameter {
+    Constant {
+        value: f64,
+    },
+    Gaussian {
+        mean: f64,
+        std: f64,
+        min: f64,
+        max: f64,
+    },
+    Uniform {
+        mean: f64,
+        half_width: f64,
+    },
+}
+
+impl Diameter {
+    pub fn mean(&self) -> f64 {
+        match *self {
+            Diameter::Constant { value } => value,
+            Diameter::Gaussian { mean, .. } | Diameter::Uniform { mean, .. } => mean,
+        }
+    }
+    pub fn max(&self) -> f64 {
+        match *self {
+            Diameter::Constant { value } => value,
+            Diameter::Gaussian { max, .. } => max,
+            Diameter::Uniform { mean, half_width } => mean + half_width,
+        }
+    }
+    pub fn min(&self) -> f64 {
+        match *self {
+            Diameter::Constant { value } => value,
+            Diameter::Gaussian { min, .. } => min,
+            Diameter::Uniform { mean, half_width } => mean - half_width,
+        }
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Bed {
+    #[serde(rename = "type")]
+    type_: usize,
+    density: f64,
+    diameter: Diameter,
+    /// Number of grains (give `count` or `fill_height`).
+    count: Option<usize>,
+    /// Target settled bed height in m, converted to a count with `packing_guess`.
+    fill_height: Option<f64>,
+    #[serde(default = "default_packing_guess")]
+    packing_guess: f64,
+    seed: u64,
+}
+
+fn default_packing_guess() -> f64 {
+    0.6
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Preparation {
+    /// Settle until mean KE < this fraction of its value at the end of pouring (Sec. 2: 1e-7).
+    settle_ke_ratio: f64,
+    /// Give up (error) if not settled after this much simulated time (s).
+    max_settle_time: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Intruder {
+    diameter: f64,
+    length: f64,
+    #[serde(rename = "type")]
+    type_: usize,
+    /// Driving speed (m/s), downward.
+    speed: f64,
+    /// Gap between the intruder bottom and the bed surface at the start (m).
+    start_gap: f64,
+    /// Final depth of the bottom below the bed surface (m).
+    final_depth: f64,
+    /// Force output every this many steps.
+    force_every: u64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Analysis {
+    /// Regime C, where p = K_phi h + p0 is fitted, starts here (h = depth / R).
+    fit_h_min: f64,
+}
+
+#[derive(Debug, Deserialize, Clone, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tolerances {
+    /// |K_native / K_ref - 1| (default 0.10, the target).
+    #[serde(default = "d_k")]
+    pub k_phi_rel: f64,
+    /// RMS(p_a - p_b) / mean p over regime C (default 0.15).
+    #[serde(default = "d_fdr")]
+    pub fdr_distance: f64,
+    /// |h_A,a - h_A,b| and |h_B,a - h_B,b| (defaults 0.1 and 0.25, in units of R).
+    #[serde(default = "d_ha")]
+    pub h_a_abs: f64,
+    #[serde(default = "d_hb")]
+    pub h_b_abs: f64,
+}
+
+fn d_k() -> f64 {
+    0.10
+}
+fn d_fdr() -> f64 {
+    0.15
+}
+fn d_ha() -> f64 {
+    0.1
+}
+fn d_hb() -> f64 {
+    0.25
+}
+
+impl Default for Tolerances {
+    fn default() -> Self {
+        Tolerances {
+            k_phi_rel: d_k(),
+            fdr_distance: d_fdr(),
+            h_a_abs: d_ha(),
+            h_b_abs: d_hb(),
+        }
+    }
+}
+
+/// A validated penetration case.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PenetrationCase {
+    pub name: String,
+    pub description: String,
+    pub source: PathBuf,
+    pub dt: f64,
+    pub gravity: f64,
+    pub neighbor_skin: f64,
+    pub rolling: RollingModel,
+    pub materials: Vec<Material>,
+    pub pairs: PairTable,
+    pub container_radius: f64,
+    pub container_height: f64,
+    /// 0-based material types.
+    pub wall_type: usize,
+    pub grain_type: usize,
+    pub intruder_type: usize,
+    pub density: f64,
+    pub diameter: Diameter,
+    pub count: usize,
+    pub seed: u64,
+    pub settle_ke_ratio: f64,
+    pub max_settle_time: f64,
+    pub intruder_radius: f64,
+    pub intruder_length: f64,
+    pub speed: f64,
+    pub start_gap: f64,
+    pub final_depth: f64,
+    pub force_every: u64,
+    pub fit_h_min: f64,
+    pub tolerances: Tolerances,
+    pub rayleigh_time: f64,
+}
+
+/// The `[case] kind` of a file, to choose its loader.
+pub fn kind_of(path: &Path) -> Result<String, CaseError> {
+    #[derive(Deserialize)]
+    struct Peek {
+        case: PeekCase,
+    }
+    #[derive(Deserialize)]
+    struct PeekCase {
+        kind: String,
+    }
+    let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    let p: Peek = toml::from_str(&text).map_err(|e| CaseError::Parse {
+        file: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    Ok(p.case.kind)
+}
+
+impl PenetrationCase {
+    pub fn load(path: &Path) -> Result<PenetrationCase, CaseError> {
+        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_toml_str(&text, path)
+    }
+
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<PenetrationCase, CaseError> {
+        let raw: File = toml::from_str(text).map_err(|e| CaseError::Parse {
+            file: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        let ctx = Ctx {
+            file: path.to_path_buf(),
+        };
+        if raw.case.kind != "penetration" {
+            return Err(ctx.bad(
+                "case.kind",
+                &raw.case.kind,
+                "this loader reads kind = \"penetration\"",
+            ));
+        }
+        let (rolling, materials, pairs) =
+            physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
+        let n_types = materials.len();
+        let ty = |field: &str, t: usize| -> Result<usize, CaseError> {
+            if t < 1 || t > n_types {
+                Err(ctx.bad(
+                    field,
+                    t,
+                    format!("must be a material type in 1..={n_types}"),
+                ))
+            } else {
+                Ok(t - 1)
+            }
+        };
+        let wall_type = ty("container.type", raw.container.type_)?;
+        let grain_type = ty("bed.type", raw.bed.type_)?;
+        let intruder_type = ty("intruder.type", raw.intruder.type_)?;
+
+        let container_radius = 0.5 * positive(&ctx, "container.diameter", raw.container.diameter)?;
+        let container_height = positive(&ctx, "container.height", raw.container.height)?;
+        let density = positive(&ctx, "bed.density", raw.bed.density)?;
+        let diameter = raw.bed.diameter;
+        match diameter {
+            Diameter::Constant { value } => {
+                positive(&ctx, "bed.diameter.value", value)?;
+            }
+            Diameter::Gaussian {
+                mean,
+                std,
+                min,
+                max,
+            } => {
+                positive(&ctx, "bed.diameter.mean", mean)?;
+                positive(&ctx, "bed.diameter.std", std)?;
+                positive(&ctx, "bed.diameter.min", min)?;
+                if !(min <= mean && mean <= max) {
+                    return Err(ctx.bad(
+                        "bed.diameter",
+                        (min, mean, max),
+                        "need min <= mean <= max",
+                    ));
+                }
+            }
+            Diameter::Uniform { mean, half_width } => {
+                positive(&ctx, "bed.diameter.mean", mean)?;
+                let hw = finite(&ctx, "bed.diameter.half_width", half_width)?;
+                if !(0.0..mean).contains(&hw) {
+                    return Err(ctx.bad("bed.diameter.half_width", hw, "must lie in [0, mean)"));
+                }
+            }
+        }
+        let d_mean = diameter.mean();
+        let packing_guess = raw.bed.packing_guess;
+        if !(packing_guess > 0.0 && packing_guess < 0.75) {
+            return Err(ctx.bad("bed.packing_guess", packing_guess, "must lie in (0, 0.75)"));
+        }
+        let count = match (raw.bed.count, raw.bed.fill_height) {
+            (Some(n), None) if n > 0 => n,
+            (Some(n), None) => return Err(ctx.bad("bed.count", n, "must be >= 1")),
+            (None, Some(h)) => {
+                let h = positive(&ctx, "bed.fill_height", h)?;
+                let v_grain = std::f64::consts::PI / 6.0 * d_mean.powi(3);
+                (packing_guess * std::f64::consts::PI * container_radius.powi(2) * h / v_grain)
+                    .round() as usize
+            }
+            (Some(_), Some(_)) => {
+                return Err(ctx.bad(
+                    "bed.count",
+                    "both given",
+                    "give count or fill_height, not both",
+                ));
+            }
+            (None, None) => {
+                return Err(ctx.bad("bed.count", "missing", "give count or fill_height"));
+            }
+        };
+
+        let settle_ke_ratio = positive(
+            &ctx,
+            "preparation.settle_ke_ratio",
+            raw.preparation.settle_ke_ratio,
+        )?;
+        let max_settle_time = positive(
+            &ctx,
+            "preparation.max_settle_time",
+            raw.preparation.max_settle_time,
+        )?;
+
+        let i = &raw.intruder;
+        let intruder_radius = 0.5 * positive(&ctx, "intruder.diameter", i.diameter)?;
+        let intruder_length = positive(&ctx, "intruder.length", i.length)?;
+        let speed = positive(&ctx, "intruder.speed", i.speed)?;
+        let start_gap = finite(&ctx, "intruder.start_gap", i.start_gap)?;
+        if start_gap < 0.0 {
+            return Err(ctx.bad(
+                "intruder.start_gap",
+                start_gap,
+                "must be >= 0 (the intruder starts above the bed)",
+            ));
+        }
+        let final_depth = positive(&ctx, "intruder.final_depth", i.final_depth)?;
+        if i.force_every == 0 {
+            return Err(ctx.bad("intruder.force_every", 0, "must be >= 1"));
+        }
+        if intruder_radius >= container_radius {
+            return Err(ctx.bad(
+                "intruder.diameter",
+                i.diameter,
+                "must be smaller than the container diameter",
+            ));
+        }
+        if final_depth >= intruder_length {
+            return Err(ctx.bad(
+                "intruder.final_depth",
+                final_depth,
+                "the intruder would be buried: must be < intruder.length",
+            ));
+        }
+
+        let mat = &materials[grain_type];
+        let rayleigh = super::rayleigh_time(
+            0.5 * diameter.min(),
+            density,
+            mat.shear_modulus,
+            mat.poisson_ratio,
+        );
+        let dt = positive(&ctx, "simulation.dt", raw.simulation.dt)?;
+        if dt > rayleigh {
+            return Err(ctx.bad("simulation.dt", dt, format!("exceeds the Rayleigh time {rayleigh:.3e} s of the smallest grain; use <= 20% of it ({:.3e} s)", 0.2 * rayleigh)));
+        }
+        let gravity = positive(&ctx, "simulation.gravity", raw.simulation.gravity)?;
+        let neighbor_skin = match raw.simulation.neighbor_skin {
+            Some(s) => positive(&ctx, "simulation.neighbor_skin", s)?,
+            None => 0.25 * diameter.min(),
+        };
+        let fit_h_min = positive(&ctx, "analysis.fit_h_min", raw.analysis.fit_h_min)?;
+        let tolerances = raw.compare.unwrap_or_default();
+        for (f, v) in [
+            ("compare.k_phi_rel", tolerances.k_phi_rel),
+            ("compare.fdr_distance", tolerances.fdr_distance),
+            ("compare.h_a_abs", tolerances.h_a_abs),
+            ("compare.h_b_abs", tolerances.h_b_abs),
+        ] {
+            positive(&ctx, f, v)?;
+        }
+
+        Ok(PenetrationCase {
+            name: raw.case.name,
+            description: raw.case.description,
+            source: path.to_path_buf(),
+            dt,
+            gravity,
+            neighbor_skin,
+            rolling,
+            materials,
+            pairs,
+            container_radius,
+            container_height,
+            wall_type,
+            grain_type,
+            intruder_type,
+            density,
+            diameter,
+            count,
+            seed: raw.bed.seed,
+            settle_ke_ratio,
+            max_settle_time,
+            intruder_radius,
+            intruder_length,
+            speed,
+            start_gap,
+            final_depth,
+            force_every: i.force_every,
+            fit_h_min,
+            tolerances,
+            rayleigh_time: rayleigh,
+        })
+    }
+}

@@ -1,0 +1,265 @@
+//! Bed preparation of Feng et al. Sec. 2: grains are released from a loose jittered
+//! lattice inside the container (the "pour"), fall under gravity, and the system is
+//! relaxed until the mean kinetic energy is below `settle_ke_ratio` times its value at
+//! the end of pouring (translational energy, as LIGGGHTS' `compute ke`; see
+//! `Simulation::translational_kinetic_energy`). "End of pouring" is taken as the kinetic-energy maximum: until
+//! then grains are still gaining energy in free fall; afterwards the heap only dissipates.
+
+use super::Simulation;
+use crate::case::penetration::{Diameter, PenetrationCase};
+use crate::case::{Axis, Case, Particle, Tolerances, Wall};
+use anyhow::{Result, bail};
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use std::path::PathBuf;
+
+/// A settled bed, ready for penetration by either engine.
+#[derive(Debug, Clone)]
+pub struct Bed {
+    pub particles: Vec<Particle>,
+    /// Bed surface height (m): mean over a 2 d_mean grid of the highest grain top
+    /// `z + r` in each cell, for cells within R_container - d_mean of the axis.
+    pub surface_z: f64,
+    /// Packing fraction in the coaxial cylinder r < R_c - 2 d_mean, 2 d_mean < z <
+    /// surface - 2 d_mean: volume of grains whose centres lie inside / region volume.
+    pub psi: f64,
+    pub ke_ratio: f64,
+    pub settle_time: f64,
+    pub ke_at_end_of_pour: f64,
+}
+
+fn draw_diameters(d: &Diameter, n: usize, seed: u64) -> Result<Vec<f64>> {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut out = Vec::with_capacity(n);
+    match *d {
+        Diameter::Constant { value } => out.resize(n, value),
+        Diameter::Uniform { mean, half_width } => {
+            for _ in 0..n {
+                out.push(mean + half_width * (2.0 * rng.random::<f64>() - 1.0));
+            }
+        }
+        Diameter::Gaussian {
+            mean,
+            std,
+            min,
+            max,
+        } => {
+            let normal = Normal::new(mean, std)?;
+            while out.len() < n {
+                // Truncated Gaussian (Table 4's cut-offs) by rejection.
+                let v = normal.sample(&mut rng);
+                if (min..=max).contains(&v) {
+                    out.push(v);
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The simulation box for a penetration case: container plus the intruder's travel.
+pub fn domain(case: &PenetrationCase, top: f64) -> ([f64; 3], [f64; 3]) {
+    let m = case.diameter.max();
+    let r = case.container_radius + m;
+    ([-r, -r, -m], [r, r, top.max(case.container_height) + m])
+}
+
+/// A `Case` the native engine can run: the given grains in the container.
+pub fn container_case(case: &PenetrationCase, particles: Vec<Particle>, top: f64) -> Case {
+    let (lo, hi) = domain(case, top);
+    Case {
+        name: format!("{}-bed", case.name),
+        kind: "penetration".into(),
+        description: case.description.clone(),
+        source: case.source.clone(),
+        dt: case.dt,
+        n_steps: 0,
+        output_every: 1,
+        gravity: [0.0, 0.0, -case.gravity],
+        neighbor_skin: case.neighbor_skin,
+        rolling: case.rolling,
+        domain_lo: lo,
+        domain_hi: hi,
+        materials: case.materials.clone(),
+        pairs: case.pairs.clone(),
+        particles,
+        walls: vec![
+            Wall::Plane {
+                axis: Axis::Z,
+                position: 0.0,
+                type_: case.wall_type,
+            },
+            Wall::Cylinder {
+                axis: Axis::Z,
+                radius: case.container_radius,
+                center: [0.0, 0.0],
+                type_: case.wall_type,
+            },
+        ],
+        tolerances: Tolerances {
+            velocity_rel: 1e-6,
+            position_frac_radius: 1e-6,
+        },
+        rayleigh_time: case.rayleigh_time,
+    }
+}
+
+/// Loose lattice: spacing 1.05 d_max, inside R_c - d_max/2, layers from d_max up.
+fn lattice(case: &PenetrationCase) -> Result<Vec<Particle>> {
+    let d = draw_diameters(&case.diameter, case.count, case.seed)?;
+    let dmax = case.diameter.max();
+    let a = 1.05 * dmax;
+    let rin = case.container_radius - 0.5 * dmax;
+    let n1 = (2.0 * rin / a).floor() as i64;
+    let mut sites = Vec::new();
+    for j in 0..=n1 {
+        for i in 0..=n1 {
+            let (x, y) = (-rin + i as f64 * a, -rin + j as f64 * a);
+            if (x * x + y * y).sqrt() <= rin - 0.5 * a {
+                sites.push((x, y));
+            }
+        }
+    }
+    if sites.is_empty() {
+        bail!(
+            "{}: container too narrow for the grains",
+            case.source.display()
+        );
+    }
+    let mut rng = rand::rngs::StdRng::seed_from_u64(case.seed ^ 0x5EED);
+    let mut particles = Vec::with_capacity(case.count);
+    for (k, diam) in d.into_iter().enumerate() {
+        let layer = k / sites.len();
+        let (x, y) = sites[k % sites.len()];
+        let jitter = 0.02 * dmax;
+        particles.push(Particle {
+            id: k as u64 + 1,
+            type_: case.grain_type,
+            radius: 0.5 * diam,
+            density: case.density,
+            x: [
+                x + jitter * (rng.random::<f64>() - 0.5),
+                y + jitter * (rng.random::<f64>() - 0.5),
+                dmax + layer as f64 * a,
+            ],
+            v: [0.0; 3],
+            omega: [0.0; 3],
+        });
+    }
+    Ok(particles)
+}
+
+/// Pours and settles the bed with the native engine.
+pub fn prepare(case: &PenetrationCase, mut progress: impl FnMut(f64, f64)) -> Result<Bed> {
+    let particles = lattice(case)?;
+    let top = particles
+        .iter()
+        .map(|p| p.x[2] + p.radius)
+        .fold(0.0, f64::max);
+    let sim_case = container_case(case, particles, top);
+    let mut sim = Simulation::from_case(&sim_case);
+    sim.setup()?;
+    let n = sim.x.len() as f64;
+    let check_every = 50u64;
+    let max_steps = (case.max_settle_time / case.dt).ceil() as u64;
+    let (mut ke_peak, mut ratio) = (0.0f64, f64::INFINITY);
+    let mut poured = false;
+    while sim.step < max_steps {
+        sim.step()?;
+        if !sim.step.is_multiple_of(check_every) {
+            continue;
+        }
+        let ke = sim.translational_kinetic_energy() / n;
+        if !poured {
+            if ke >= ke_peak {
+                ke_peak = ke;
+            } else if ke < 0.5 * ke_peak {
+                poured = true;
+            }
+        } else {
+            ratio = ke / ke_peak;
+            progress(sim.step as f64 * case.dt, ratio);
+            if ratio < case.settle_ke_ratio {
+                break;
+            }
+        }
+    }
+    if ratio >= case.settle_ke_ratio {
+        bail!(
+            "{}: bed not settled after max_settle_time = {} s (mean KE / KE at end of pouring = {ratio:.2e}, target {:.1e})",
+            case.source.display(),
+            case.max_settle_time,
+            case.settle_ke_ratio
+        );
+    }
+    let frame = sim.frame();
+    let settled: Vec<Particle> = sim_case
+        .particles
+        .iter()
+        .zip(&frame.particles)
+        .map(|(p, s)| Particle {
+            x: s.x,
+            v: s.v,
+            omega: s.omega,
+            ..p.clone()
+        })
+        .collect();
+    let surface_z = surface_height(case, &settled);
+    let psi = packing_fraction(case, &settled, surface_z);
+    Ok(Bed {
+        particles: settled,
+        surface_z,
+        psi,
+        ke_ratio: ratio,
+        settle_time: sim.step as f64 * case.dt,
+        ke_at_end_of_pour: ke_peak,
+    })
+}
+
+pub fn surface_height(case: &PenetrationCase, ps: &[Particle]) -> f64 {
+    let d = case.diameter.mean();
+    let cell = 2.0 * d;
+    let rmax = case.container_radius - d;
+    let n = (2.0 * rmax / cell).ceil() as usize + 1;
+    let mut top = vec![f64::NEG_INFINITY; n * n];
+    for p in ps {
+        let (x, y) = (p.x[0], p.x[1]);
+        if (x * x + y * y).sqrt() > rmax {
+            continue;
+        }
+        let (i, j) = (((x + rmax) / cell) as usize, ((y + rmax) / cell) as usize);
+        let c = &mut top[j.min(n - 1) * n + i.min(n - 1)];
+        *c = c.max(p.x[2] + p.radius);
+    }
+    let filled: Vec<f64> = top.into_iter().filter(|v| v.is_finite()).collect();
+    filled.iter().sum::<f64>() / filled.len() as f64
+}
+
+pub fn packing_fraction(case: &PenetrationCase, ps: &[Particle], surface_z: f64) -> f64 {
+    let d = case.diameter.mean();
+    let (rr, z0, z1) = (
+        case.container_radius - 2.0 * d,
+        2.0 * d,
+        surface_z - 2.0 * d,
+    );
+    let vol: f64 = ps
+        .iter()
+        .filter(|p| (p.x[0].powi(2) + p.x[1].powi(2)).sqrt() < rr && p.x[2] > z0 && p.x[2] < z1)
+        .map(|p| 4.0 / 3.0 * std::f64::consts::PI * p.radius.powi(3))
+        .sum();
+    vol / (std::f64::consts::PI * rr * rr * (z1 - z0))
+}
+
+/// For `Bed` files written next to a run: where the bed came from.
+pub fn bed_note(case: &PenetrationCase, bed: &Bed) -> String {
+    format!(
+        "bed of {} grains prepared natively from {} (seed {}): settled after {:.3} s, KE ratio {:.2e}, surface z = {:.6e} m, psi = {:.4}",
+        bed.particles.len(),
+        PathBuf::from(&case.source).display(),
+        case.seed,
+        bed.settle_time,
+        bed.ke_ratio,
+        bed.surface_z,
+        bed.psi
+    )
+}

@@ -1,0 +1,66 @@
+//! Native quasi-static penetration (Feng et al. Sec. 2): the settled bed, the
+//! flat-bottomed cylinder started `start_gap` above the surface and driven down the
+//! axis at constant speed to `final_depth`; the force on it is recorded with its height.
+
+use super::intruder::FlatCylinder;
+use super::packing::{Bed, container_case};
+use super::{Perturbation, Simulation};
+use crate::case::penetration::PenetrationCase;
+use crate::engines::output::ForceSample;
+use anyhow::Result;
+
+/// Steps from the start position to the final depth.
+pub fn n_steps(case: &PenetrationCase, bed: &Bed) -> u64 {
+    ((start_z(case, bed) - (bed.surface_z - case.final_depth)) / case.speed / case.dt).ceil() as u64
+}
+
+/// Height of the intruder bottom at the start: `start_gap` above the highest grain top
+/// under its footprint (not the mean surface), so no grain starts inside it.
+pub fn start_z(case: &PenetrationCase, bed: &Bed) -> f64 {
+    let highest = bed
+        .particles
+        .iter()
+        .filter(|p| (p.x[0] * p.x[0] + p.x[1] * p.x[1]).sqrt() < case.intruder_radius + p.radius)
+        .map(|p| p.x[2] + p.radius)
+        .fold(bed.surface_z, f64::max);
+    highest + case.start_gap
+}
+
+/// Top of the simulation box: the intruder must fit at its start position.
+pub fn box_top(case: &PenetrationCase, bed: &Bed) -> f64 {
+    start_z(case, bed) + case.intruder_length + case.diameter.max()
+}
+
+pub fn run(
+    case: &PenetrationCase,
+    bed: &Bed,
+    pert: Perturbation,
+    mut progress: impl FnMut(u64, u64),
+) -> Result<Vec<ForceSample>> {
+    let sim_case = container_case(case, bed.particles.clone(), box_top(case, bed));
+    let mut sim = Simulation::from_case_perturbed(&sim_case, pert);
+    let body = FlatCylinder::new(
+        case.intruder_radius,
+        case.intruder_length,
+        [0.0, 0.0, start_z(case, bed)],
+    );
+    sim.set_intruder(body, [0.0, 0.0, -case.speed], case.intruder_type);
+    sim.setup()?;
+    let total = n_steps(case, bed);
+    let sample = |sim: &Simulation| ForceSample {
+        t: sim.step as f64 * case.dt,
+        z_bottom: sim.intruder().expect("intruder set above").body.bottom_z(),
+        f: sim.intruder_force(),
+    };
+    let mut out = vec![sample(&sim)];
+    for _ in 0..total {
+        sim.step()?;
+        if sim.step.is_multiple_of(case.force_every) {
+            out.push(sample(&sim));
+        }
+        if sim.step.is_multiple_of(500) {
+            progress(sim.step, total);
+        }
+    }
+    Ok(out)
+}
