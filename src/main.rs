@@ -140,6 +140,33 @@ fn run_suite(
 ) -> Result<ExitCode> {
     let (mut checks, mut runs, mut notes, mut errored) = (vec![], vec![], vec![], false);
     for path in paths {
+        if matches!(
+            granval::case::penetration::kind_of(path).as_deref(),
+            Ok("penetration")
+        ) {
+            match granval::case::penetration::PenetrationCase::load(path) {
+                Err(e) => {
+                    checks.push(granval::compare::Check::error(
+                        path.display().to_string(),
+                        e.to_string(),
+                    ));
+                    errored = true;
+                }
+                Ok(case) => {
+                    eprintln!("== {} ({})", case.name, path.display());
+                    let r = granval::penetration::compare_case(
+                        &case,
+                        opts,
+                        &report_dir.join(&case.name),
+                    );
+                    checks.extend(r.checks);
+                    runs.extend(r.run);
+                    notes.extend(r.notes);
+                    errored |= r.errored;
+                }
+            }
+            continue;
+        }
         match Case::load(path) {
             Err(e) => {
                 checks.push(granval::compare::Check::error(
@@ -268,6 +295,28 @@ fn real_main() -> Result<ExitCode> {
                 .context("reference refresh needs a live LIGGGHTS (`apt-get install liggghts`)")?;
             println!("using {version}");
             for path in pipeline::suite_cases(&cases, &suite)? {
+                if granval::case::penetration::kind_of(&path)? == "penetration" {
+                    let case = granval::case::penetration::PenetrationCase::load(&path)?;
+                    let dir = reference.join("penetration").join(&case.name);
+                    let bed = granval::penetration::prepare_bed(&case, true)?;
+                    let mut run = granval::penetration::run_liggghts(&case, &bed, &dir, 2)?;
+                    run.provenance.notes.push(format!(
+                        "bed sha256 {}",
+                        granval::penetration::bed_hash(&bed)
+                    ));
+                    granval::penetration::write_force_csv(&dir.join("force.csv"), &run.samples)?;
+                    granval::engines::output::write_provenance(
+                        &dir.join("provenance.json"),
+                        &run.provenance,
+                    )?;
+                    println!(
+                        "{:<32} {} force samples recorded in {}",
+                        case.name,
+                        run.samples.len(),
+                        dir.display()
+                    );
+                    continue;
+                }
                 let case = Case::load(&path)?;
                 let dir = reference.join(&case.kind).join(&case.name);
                 let previous = granval::engines::recorded::Recorded { dir: dir.clone() }

@@ -9,6 +9,7 @@
 
 mod deck;
 mod dump;
+pub mod penetration;
 mod runner;
 pub mod stl;
 

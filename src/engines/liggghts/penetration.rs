@@ -1,0 +1,934 @@
+//! LIGGGHTS 3.8 deck for the penetration experiment (Feng et al., Sec. 2, Tables 1-2): a
+//! flat-bottomed cylindrical intruder (closed STL mesh, [`super::stl`]) driven down at
+//! constant speed into a settled granular bed inside a cylindrical container; the force on
+//! the intruder and its measured position are written every `force_every` steps.
+//!
+//! All inputs are SI. [`Units::Cgs`] converts everything written (deck, data file, STL)
+//! to LIGGGHTS' `units cgs` and [`parse_force_file`] converts the force file back to SI.
+//!
+//! Measured facts about Debian's LIGGGHTS 3.8.0 this module relies on:
+//! - `youngsModulus >= 5e6 required for SI units` and `youngsModulus >= 5e7 required for
+//!   CGS units`: 5e7 barye = 5e6 Pa, the *same* physical limit (likewise the upper limits
+//!   1e9 Pa and 1e10 barye). Changing units therefore never makes a soft material
+//!   acceptable; [`choose_units`] says so. The only way past the check is LIGGGHTS' own
+//!   `soft_particles yes` / `hard_particles yes` switches, which disable the range check
+//!   and do not change any material value; [`PenetrationDeck::soft_particles`] and
+//!   [`PenetrationDeck::hard_particles`] write them, and only when asked.
+//! - `${var}` substitution of an equal-style variable prints `%.15g`, but the immediate
+//!   form `$(expr)` prints `%.20g` (round-trip exact for an f64). The force line is
+//!   therefore built from `$(...)` expressions that reference `f_cad[i]` directly
+//!   (a `v_name` reference would go through the 15-digit string form).
+//! - `fix mesh/surface/stress` stores a 9-vector: total force exerted *by the particles
+//!   on the mesh* (1-3), the torque about the reference point (4-6) and the current
+//!   (moved) reference point (7-9). With `reference_point` at the bottom centre,
+//!   `f_cad[9]` is the measured height of the intruder's bottom face.
+//!
+//! Force sign convention: `f` is the force the grains exert on the intruder, in the global
+//! frame; pushing down into a bed gives `f[2] > 0` (the bed resists, pushing up).
+
+use super::runner;
+use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE, VERSION_PREFIX};
+use crate::case::{Material, PairTable, Particle, RollingModel};
+use crate::engines::output::{Provenance, now_utc, sha256_hex};
+use anyhow::{Context, Result, bail};
+use std::fmt::Write as _;
+use std::io::BufRead;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+pub const DECK_FILE: &str = "in.penetration";
+pub const DATA_FILE: &str = "data.bed";
+pub const STL_FILE: &str = "intruder.stl";
+pub const FORCE_FILE: &str = "force.txt";
+pub const README_FILE: &str = "README.md";
+
+/// LIGGGHTS' range check on `youngsModulus`, in Pa, identical in SI and cgs
+/// (5e6..1e9 Pa = 5e7..1e10 barye), measured on LIGGGHTS 3.8.0.
+pub const LIGGGHTS_MIN_E_PA: f64 = 5e6;
+pub const LIGGGHTS_MAX_E_PA: f64 = 1e9;
+/// The same limits as LIGGGHTS states them for `units cgs` (barye).
+pub const LIGGGHTS_MIN_E_CGS: f64 = 5e7;
+pub const LIGGGHTS_MAX_E_CGS: f64 = 1e10;
+
+/// Unit system of a deck. Inputs are always SI; this is what gets written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Units {
+    Si,
+    Cgs,
+}
+
+impl Units {
+    pub fn keyword(self) -> &'static str {
+        match self {
+            Units::Si => "si",
+            Units::Cgs => "cgs",
+        }
+    }
+    /// SI -> deck factor for lengths (m -> cm).
+    pub fn length(self) -> f64 {
+        match self {
+            Units::Si => 1.0,
+            Units::Cgs => 100.0,
+        }
+    }
+    /// Velocities (m/s -> cm/s) and accelerations (m/s^2 -> cm/s^2): time is s in both.
+    pub fn velocity(self) -> f64 {
+        self.length()
+    }
+    /// Densities (kg/m^3 -> g/cm^3).
+    pub fn density(self) -> f64 {
+        match self {
+            Units::Si => 1.0,
+            Units::Cgs => 1e-3,
+        }
+    }
+    /// Pressures / Young's modulus (Pa -> barye = dyn/cm^2).
+    pub fn pressure(self) -> f64 {
+        match self {
+            Units::Si => 1.0,
+            Units::Cgs => 10.0,
+        }
+    }
+    /// Forces (N -> dyn).
+    pub fn force(self) -> f64 {
+        match self {
+            Units::Si => 1.0,
+            Units::Cgs => 1e5,
+        }
+    }
+    /// Mass (kg -> g).
+    pub fn mass(self) -> f64 {
+        match self {
+            Units::Si => 1.0,
+            Units::Cgs => 1e3,
+        }
+    }
+    fn names(self) -> &'static str {
+        match self {
+            Units::Si => "SI: s, m, N",
+            Units::Cgs => "cgs: s, cm, dyn",
+        }
+    }
+    /// Young's modulus range LIGGGHTS accepts in this unit system, in that system's units.
+    pub fn youngs_range(self) -> (f64, f64) {
+        match self {
+            Units::Si => (LIGGGHTS_MIN_E_PA, LIGGGHTS_MAX_E_PA),
+            Units::Cgs => (LIGGGHTS_MIN_E_CGS, LIGGGHTS_MAX_E_CGS),
+        }
+    }
+}
+
+/// Si when LIGGGHTS accepts every Young's modulus in SI, else Cgs when it accepts them in
+/// cgs, else an error naming the value. Measured on LIGGGHTS 3.8.0, both systems impose
+/// the same physical range (5e6..1e9 Pa), so in practice this returns Si or an error; a
+/// soft material (e.g. Table 2's G = 1 MPa, E = 2.6 MPa) needs `soft_particles = true`,
+/// which disables LIGGGHTS' check without changing the material.
+pub fn choose_units(materials: &[Material]) -> Result<Units> {
+    'units: for u in [Units::Si, Units::Cgs] {
+        let (lo, hi) = u.youngs_range();
+        for m in materials {
+            let e = m.youngs_modulus * u.pressure();
+            if !(e >= lo && e <= hi) {
+                continue 'units;
+            }
+        }
+        return Ok(u);
+    }
+    for (t, m) in materials.iter().enumerate() {
+        let e = m.youngs_modulus;
+        if !(LIGGGHTS_MIN_E_PA..=LIGGGHTS_MAX_E_PA).contains(&e) {
+            bail!(
+                "material type {} has youngs_modulus = {e:e} Pa: LIGGGHTS 3.8 accepts 5e6..1e9 Pa in SI units and \
+                 5e7..1e10 barye (the same 5e6..1e9 Pa) in cgs units, so no choice of units represents it; \
+                 granval does not change materials — set soft_particles (E below the range) or hard_particles \
+                 (above) on the deck to make LIGGGHTS skip its range check with the material unchanged",
+                t + 1
+            );
+        }
+    }
+    bail!("no materials given")
+}
+
+/// One penetration run. ALL inputs in SI; the intruder's axis is the container's (x = y = 0).
+#[derive(Debug, Clone)]
+pub struct PenetrationDeck {
+    pub units: Units,
+    pub materials: Vec<Material>,
+    pub pairs: PairTable,
+    pub rolling: RollingModel,
+    pub dt: f64,
+    /// m/s^2, along -z.
+    pub gravity: f64,
+    pub container_radius: f64,
+    pub floor_z: f64,
+    pub domain_lo: [f64; 3],
+    pub domain_hi: [f64; 3],
+    /// The settled bed, SI.
+    pub particles: Vec<Particle>,
+    pub intruder_radius: f64,
+    pub intruder_length: f64,
+    /// 0-based material type of the intruder mesh.
+    pub intruder_type: usize,
+    /// Height of the intruder's bottom face at step 0.
+    pub intruder_bottom_z0: f64,
+    /// m/s, downward.
+    pub speed: f64,
+    pub n_steps: u64,
+    pub force_every: u64,
+    pub neighbor_skin: f64,
+    /// Maximum rim error of the STL polygon as a fraction of the intruder radius.
+    pub rim_error_frac: f64,
+    /// 0-based material type of the floor and container walls (the grains' type, 0).
+    pub wall_type: usize,
+    /// Write `soft_particles yes`: lets LIGGGHTS accept E < 5e6 Pa (its range check only;
+    /// the material is written unchanged). Refused otherwise.
+    pub soft_particles: bool,
+    /// Write `hard_particles yes`: lets LIGGGHTS accept E > 1e9 Pa.
+    pub hard_particles: bool,
+}
+
+/// What [`write_deck_dir`] wrote.
+#[derive(Debug, Clone)]
+pub struct DeckFiles {
+    pub deck: PathBuf,
+    pub data: PathBuf,
+    pub stl: PathBuf,
+    pub readme: PathBuf,
+    /// Azimuthal segments of the intruder STL (4n facets).
+    pub stl_segments: usize,
+    /// SHA-256 of deck + data file + STL text.
+    pub input_hash: String,
+}
+
+/// One line of `force.txt`, converted to SI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForceSample {
+    pub step: u64,
+    pub t: f64,
+    /// Measured height of the intruder's bottom face (LIGGGHTS' moved reference point).
+    pub z_bottom: f64,
+    /// Force of the grains on the intruder (N); `f[2] > 0` when the bed resists.
+    pub f: [f64; 3],
+}
+
+fn f(x: f64) -> String {
+    format!("{x:e}")
+}
+
+fn join(xs: impl IntoIterator<Item = f64>) -> String {
+    xs.into_iter().map(f).collect::<Vec<_>>().join(" ")
+}
+
+fn positive(name: &str, x: f64) -> Result<()> {
+    if !(x.is_finite() && x > 0.0) {
+        bail!("penetration deck: `{name}` = {x:e} must be positive and finite");
+    }
+    Ok(())
+}
+
+/// Refuses inputs LIGGGHTS would refuse or that make no sense, naming field and value.
+pub fn validate(d: &PenetrationDeck) -> Result<()> {
+    let n = d.materials.len();
+    if n == 0 {
+        bail!("penetration deck: no materials");
+    }
+    if d.pairs.n_types != n
+        || [
+            &d.pairs.restitution,
+            &d.pairs.friction,
+            &d.pairs.rolling_friction,
+        ]
+        .iter()
+        .any(|v| v.len() != n * n)
+    {
+        bail!(
+            "penetration deck: pair table is for {} types with {}/{}/{} entries, the deck has {n} materials (needs {} entries each)",
+            d.pairs.n_types,
+            d.pairs.restitution.len(),
+            d.pairs.friction.len(),
+            d.pairs.rolling_friction.len(),
+            n * n
+        );
+    }
+    for (t, m) in d.materials.iter().enumerate() {
+        let e = m.youngs_modulus;
+        if !e.is_finite() || e <= 0.0 {
+            bail!(
+                "penetration deck: youngs_modulus of material type {} = {e:e} Pa",
+                t + 1
+            );
+        }
+        if e < LIGGGHTS_MIN_E_PA && !d.soft_particles {
+            bail!(
+                "penetration deck: youngs_modulus of material type {} = {e:e} Pa is below LIGGGHTS 3.8's limit of 5e6 Pa \
+                 (5e7 barye in cgs: the same value, so units do not help); granval does not change materials — \
+                 set soft_particles = true to make LIGGGHTS skip its check with the material unchanged",
+                t + 1
+            );
+        }
+        if e > LIGGGHTS_MAX_E_PA && !d.hard_particles {
+            bail!(
+                "penetration deck: youngs_modulus of material type {} = {e:e} Pa is above LIGGGHTS 3.8's limit of 1e9 Pa; \
+                 set hard_particles = true to make LIGGGHTS skip its check with the material unchanged",
+                t + 1
+            );
+        }
+        if !(0.0..=0.5).contains(&m.poisson_ratio) {
+            bail!(
+                "penetration deck: poisson_ratio of material type {} = {:e}: LIGGGHTS requires 0 <= nu <= 0.5",
+                t + 1,
+                m.poisson_ratio
+            );
+        }
+    }
+    for a in 0..n {
+        for b in 0..n {
+            let e = d.pairs.restitution[d.pairs.idx(a, b)];
+            if !(e > super::MIN_RESTITUTION_EXCLUSIVE && e <= 1.0) {
+                bail!(
+                    "penetration deck: restitution of types [{}, {}] = {e:e}: LIGGGHTS requires 0.05 < e <= 1",
+                    a + 1,
+                    b + 1
+                );
+            }
+        }
+    }
+    for (name, t) in [
+        ("intruder_type", d.intruder_type),
+        ("wall_type", d.wall_type),
+    ] {
+        if t >= n {
+            bail!("penetration deck: `{name}` = {t} (0-based) but there are only {n} materials");
+        }
+    }
+    for (name, x) in [
+        ("dt", d.dt),
+        ("container_radius", d.container_radius),
+        ("intruder_radius", d.intruder_radius),
+        ("intruder_length", d.intruder_length),
+        ("speed", d.speed),
+        ("neighbor_skin", d.neighbor_skin),
+        ("rim_error_frac", d.rim_error_frac),
+    ] {
+        positive(name, x)?;
+    }
+    if !(d.gravity.is_finite() && d.gravity >= 0.0) {
+        bail!(
+            "penetration deck: `gravity` = {:e} must be >= 0 (it acts along -z)",
+            d.gravity
+        );
+    }
+    if d.n_steps == 0 || d.force_every == 0 {
+        bail!(
+            "penetration deck: n_steps = {} and force_every = {} must be positive",
+            d.n_steps,
+            d.force_every
+        );
+    }
+    if d.intruder_radius >= d.container_radius {
+        bail!(
+            "penetration deck: intruder_radius {:e} m must be smaller than container_radius {:e} m",
+            d.intruder_radius,
+            d.container_radius
+        );
+    }
+    for k in 0..3 {
+        if d.domain_lo[k] >= d.domain_hi[k] || d.domain_lo[k].is_nan() || d.domain_hi[k].is_nan() {
+            bail!(
+                "penetration deck: domain_lo[{k}] = {:e} must be below domain_hi[{k}] = {:e}",
+                d.domain_lo[k],
+                d.domain_hi[k]
+            );
+        }
+    }
+    let r = d.container_radius;
+    if d.domain_lo[0] > -r || d.domain_hi[0] < r || d.domain_lo[1] > -r || d.domain_hi[1] < r {
+        bail!(
+            "penetration deck: the container (radius {r:e} m about x = y = 0) does not fit in the domain"
+        );
+    }
+    if !(d.floor_z > d.domain_lo[2] && d.floor_z < d.domain_hi[2]) {
+        bail!(
+            "penetration deck: floor_z = {:e} is outside the domain z range",
+            d.floor_z
+        );
+    }
+    // LIGGGHTS errors when a mesh element's centre leaves the domain; keep the whole mesh in.
+    let top = d.intruder_bottom_z0 + d.intruder_length;
+    let bottom_end = d.intruder_bottom_z0 - d.speed * d.dt * d.n_steps as f64;
+    if top >= d.domain_hi[2] {
+        bail!(
+            "penetration deck: the intruder's top at z = {top:e} m is not below domain_hi[2] = {:e} m",
+            d.domain_hi[2]
+        );
+    }
+    if bottom_end <= d.floor_z {
+        bail!(
+            "penetration deck: the intruder's bottom would reach z = {bottom_end:e} m after {} steps, at or below the floor {:e} m",
+            d.n_steps,
+            d.floor_z
+        );
+    }
+    for p in &d.particles {
+        if p.type_ >= n {
+            bail!(
+                "penetration deck: particle {} has type {} (0-based), only {n} materials",
+                p.id,
+                p.type_
+            );
+        }
+        if !(p.radius > 0.0 && p.density > 0.0) {
+            bail!(
+                "penetration deck: particle {} has radius {:e} m, density {:e} kg/m^3",
+                p.id,
+                p.radius,
+                p.density
+            );
+        }
+        if (0..3).any(|k| !(p.x[k] > d.domain_lo[k] && p.x[k] < d.domain_hi[k])) {
+            bail!(
+                "penetration deck: particle {} at {:?} m is outside the domain",
+                p.id,
+                p.x
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The `read_data` file of the bed in the deck's units (`atom-ID type diameter density x y z`,
+/// then `Velocities`), every float in `{:e}`.
+pub fn data_text(d: &PenetrationDeck) -> Result<String> {
+    validate(d)?;
+    let u = d.units;
+    let (l, v, rho) = (u.length(), u.velocity(), u.density());
+    let mut s = String::new();
+    writeln!(
+        s,
+        "LIGGGHTS data file written by granval: penetration bed ({} units)",
+        u.keyword()
+    )?;
+    writeln!(s)?;
+    writeln!(s, "{} atoms", d.particles.len())?;
+    writeln!(s, "{} atom types", d.materials.len())?;
+    writeln!(s)?;
+    for (k, ax) in ["x", "y", "z"].iter().enumerate() {
+        writeln!(
+            s,
+            "{} {} {ax}lo {ax}hi",
+            f(d.domain_lo[k] * l),
+            f(d.domain_hi[k] * l)
+        )?;
+    }
+    writeln!(s)?;
+    writeln!(s, "Atoms")?;
+    writeln!(s)?;
+    for p in &d.particles {
+        writeln!(
+            s,
+            "{} {} {} {} {}",
+            p.id,
+            p.type_ + 1,
+            f(2.0 * p.radius * l),
+            f(p.density * rho),
+            join(p.x.map(|x| x * l))
+        )?;
+    }
+    writeln!(s)?;
+    writeln!(s, "Velocities")?;
+    writeln!(s)?;
+    for p in &d.particles {
+        writeln!(s, "{} {} {}", p.id, join(p.v.map(|x| x * v)), join(p.omega))?;
+    }
+    Ok(s)
+}
+
+/// Thermo output interval: about 1 % of the run, so a progress bar can follow the log.
+pub fn thermo_every(n_steps: u64) -> u64 {
+    (n_steps / 100).max(1)
+}
+
+/// Number of lines `force.txt` holds after a complete run (fix print skips step 0).
+pub fn expected_samples(d: &PenetrationDeck) -> usize {
+    (d.n_steps / d.force_every) as usize
+}
+
+/// The deck text (reads `data.bed` and `intruder.stl` from the run directory).
+pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
+    validate(d)?;
+    let u = d.units;
+    let (l, v) = (u.length(), u.velocity());
+    let n = d.materials.len();
+    let rolling = d
+        .rolling
+        .liggghts_keyword()
+        .map(|k| format!(" rolling_friction {k}"))
+        .unwrap_or_default();
+    let models = format!("model hertz tangential history{rolling}");
+    let max_id = d.particles.iter().map(|p| p.id).max().unwrap_or(0);
+    let map = if max_id > 10_000_000 { "hash" } else { "array" };
+
+    let mut s = String::new();
+    writeln!(
+        s,
+        "# LIGGGHTS 3.8 penetration deck written by granval (units {})",
+        u.names()
+    )?;
+    writeln!(
+        s,
+        "# {} grains; intruder R = {} m, L = {} m, type {}, bottom at z = {} m, speed {} m/s down; {} steps of {} s",
+        d.particles.len(),
+        f(d.intruder_radius),
+        f(d.intruder_length),
+        d.intruder_type + 1,
+        f(d.intruder_bottom_z0),
+        f(d.speed),
+        d.n_steps,
+        f(d.dt)
+    )?;
+    writeln!(s, "units {}", u.keyword())?;
+    writeln!(s, "atom_style granular")?;
+    writeln!(s, "atom_modify map {map}")?;
+    writeln!(s, "boundary f f f")?;
+    writeln!(s, "newton off")?;
+    writeln!(s, "communicate single vel yes")?;
+    writeln!(s, "processors * * *")?;
+    if d.soft_particles {
+        writeln!(
+            s,
+            "# disables LIGGGHTS' youngsModulus >= 5e6 Pa range check; materials are unchanged"
+        )?;
+        writeln!(s, "soft_particles yes")?;
+    }
+    if d.hard_particles {
+        writeln!(
+            s,
+            "# disables LIGGGHTS' youngsModulus <= 1e9 Pa range check; materials are unchanged"
+        )?;
+        writeln!(s, "hard_particles yes")?;
+    }
+    writeln!(s, "read_data {DATA_FILE}")?;
+    writeln!(s, "neighbor {} bin", f(d.neighbor_skin * l))?;
+    writeln!(s, "neigh_modify delay 0")?;
+    writeln!(
+        s,
+        "fix m1 all property/global youngsModulus peratomtype {}",
+        join(d.materials.iter().map(|m| m.youngs_modulus * u.pressure()))
+    )?;
+    writeln!(
+        s,
+        "fix m2 all property/global poissonsRatio peratomtype {}",
+        join(d.materials.iter().map(|m| m.poisson_ratio))
+    )?;
+    writeln!(
+        s,
+        "fix m3 all property/global coefficientRestitution peratomtypepair {n} {}",
+        join(d.pairs.restitution.iter().copied())
+    )?;
+    writeln!(
+        s,
+        "fix m4 all property/global coefficientFriction peratomtypepair {n} {}",
+        join(d.pairs.friction.iter().copied())
+    )?;
+    if d.rolling.liggghts_keyword().is_some() {
+        writeln!(
+            s,
+            "fix m5 all property/global coefficientRollingFriction peratomtypepair {n} {}",
+            join(d.pairs.rolling_friction.iter().copied())
+        )?;
+    }
+    writeln!(s, "pair_style gran {models}")?;
+    writeln!(s, "pair_coeff * *")?;
+    writeln!(s, "timestep {}", f(d.dt))?;
+    if d.gravity > 0.0 {
+        writeln!(
+            s,
+            "fix gravi all gravity {} vector 0 0 -1",
+            f(d.gravity * v)
+        )?;
+    }
+    let wt = d.wall_type + 1;
+    writeln!(
+        s,
+        "fix floor all wall/gran {models} primitive type {wt} zplane {}",
+        f(d.floor_z * l)
+    )?;
+    writeln!(
+        s,
+        "fix container all wall/gran {models} primitive type {wt} zcylinder {} 0 0",
+        f(d.container_radius * l)
+    )?;
+    writeln!(s, "fix integr all nve/sphere")?;
+    // The STL is written at its start position (no `move`); the reference point is the
+    // bottom centre, so f_cad[7..9] track it and f_cad[4..6] are torques about it.
+    writeln!(
+        s,
+        "fix cad all mesh/surface/stress file {STL_FILE} type {} stress on reference_point 0 0 {}",
+        d.intruder_type + 1,
+        f(d.intruder_bottom_z0 * l)
+    )?;
+    writeln!(
+        s,
+        "fix wallint all wall/gran {models} mesh n_meshes 1 meshes cad"
+    )?;
+    writeln!(
+        s,
+        "fix mv all move/mesh mesh cad linear 0 0 {}",
+        f(-d.speed * v)
+    )?;
+    // $(...) is printed with %.20g (round-trip exact); ${v} would only give %.15g.
+    writeln!(
+        s,
+        "fix fout all print {} \"$(step) $(step*dt) $(f_cad[9]) $(f_cad[1]) $(f_cad[2]) $(f_cad[3])\" file {FORCE_FILE} screen no title \"# step t z_bottom fx fy fz (units {}; f = force of the grains on the intruder)\"",
+        d.force_every,
+        u.names()
+    )?;
+    writeln!(s, "thermo_style custom step atoms ke cpu")?;
+    writeln!(s, "thermo_modify lost error")?;
+    writeln!(s, "thermo {}", thermo_every(d.n_steps))?;
+    writeln!(s, "run {}", d.n_steps)?;
+    Ok(s)
+}
+
+fn readme_text(d: &PenetrationDeck, segments: usize) -> String {
+    let u = d.units;
+    let force_unit = match u {
+        Units::Si => "N",
+        Units::Cgs => "dyn",
+    };
+    let len_unit = match u {
+        Units::Si => "m",
+        Units::Cgs => "cm",
+    };
+    format!(
+        "# LIGGGHTS penetration run (written by granval)\n\n\
+         Flat-bottomed cylindrical intruder (R = {r:e} m, L = {len:e} m, {segments}-segment STL) driven down at \
+         {speed:e} m/s into a bed of {np} grains in a cylinder of radius {cr:e} m; {steps} steps of {dt:e} s.\n\
+         Deck units: `{kw}` ({names}); granval converts back to SI when it reads the results.\n\n\
+         ## Run\n\n\
+         One core, in this directory:\n\n    liggghts -in {DECK_FILE}\n\n\
+         N MPI ranks (add `--allow-run-as-root` when running as root):\n\n    mpirun -np N liggghts -in {DECK_FILE}\n\n\
+         granval itself runs `liggghts -in {DECK_FILE} -log {LOG_FILE}` with stdout/stderr in \
+         `{STDOUT_FILE}` / `{STDERR_FILE}`.\n\n\
+         ## Files\n\n\
+         - `{DECK_FILE}`: the LIGGGHTS deck.\n\
+         - `{DATA_FILE}`: the settled bed (`read_data`): box, `atom-ID type diameter density x y z`, velocities; {len_unit}, {dens}, {len_unit}/s.\n\
+         - `{STL_FILE}`: the intruder, closed ASCII STL in {len_unit}, already at its start position.\n\
+         - `{FORCE_FILE}` (output): every {every} steps, `step t z_bottom fx fy fz`: time (s), measured height of the \
+           intruder's bottom face ({len_unit}) and the force of the grains on the intruder ({force_unit}; fz > 0 = the bed \
+           pushes the intruder up), printed with 17+ significant digits.\n\
+         - `{LOG_FILE}` (output): LIGGGHTS log, thermo line every {thermo} steps (~1 % of the run).\n\n\
+         ## Analysis\n\n    granval analyze DIR\n\n\
+         reads `{FORCE_FILE}` (converted to SI) from this directory DIR.\n",
+        r = d.intruder_radius,
+        len = d.intruder_length,
+        speed = d.speed,
+        np = d.particles.len(),
+        cr = d.container_radius,
+        steps = d.n_steps,
+        dt = d.dt,
+        kw = u.keyword(),
+        names = u.names(),
+        dens = if u == Units::Si { "kg/m^3" } else { "g/cm^3" },
+        every = d.force_every,
+        thermo = thermo_every(d.n_steps),
+    )
+}
+
+/// Writes `in.penetration`, `data.bed`, `intruder.stl` and `README.md` into `dir`
+/// (created if missing). Nothing is written unless the deck validates.
+pub fn write_deck_dir(d: &PenetrationDeck, dir: &Path) -> Result<DeckFiles> {
+    let deck = deck_text(d)?;
+    let data = data_text(d)?;
+    let l = d.units.length();
+    let (stl, segments) = super::stl::flat_cylinder_stl(
+        d.intruder_radius * l,
+        d.intruder_length * l,
+        [0.0, 0.0, d.intruder_bottom_z0 * l],
+        d.rim_error_frac,
+    );
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create run directory {}", dir.display()))?;
+    let readme = readme_text(d, segments);
+    let files = DeckFiles {
+        deck: dir.join(DECK_FILE),
+        data: dir.join(DATA_FILE),
+        stl: dir.join(STL_FILE),
+        readme: dir.join(README_FILE),
+        stl_segments: segments,
+        input_hash: sha256_hex(format!("{deck}{data}{stl}").as_bytes()),
+    };
+    for (p, text) in [
+        (&files.deck, &deck),
+        (&files.data, &data),
+        (&files.stl, &stl),
+        (&files.readme, &readme),
+    ] {
+        std::fs::write(p, text).with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    Ok(files)
+}
+
+/// Reads `force.txt` line by line (only the output vector grows), converting to SI.
+/// Lines starting with `#` and blank lines are skipped; errors name file and line.
+pub fn parse_force_file(path: &Path, units: Units) -> Result<Vec<ForceSample>> {
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut reader = std::io::BufReader::new(file);
+    let (l, fo) = (units.length(), units.force());
+    let mut out = Vec::new();
+    let mut line = String::new();
+    let mut lineno = 0usize;
+    loop {
+        line.clear();
+        let n = reader
+            .read_line(&mut line)
+            .with_context(|| format!("{}:{}: read error", path.display(), lineno + 1))?;
+        if n == 0 {
+            break;
+        }
+        lineno += 1;
+        let t = line.trim();
+        if t.is_empty() || t.starts_with('#') {
+            continue;
+        }
+        let mut it = t.split_whitespace();
+        let bad = |what: &str| {
+            anyhow::anyhow!(
+                "{}:{lineno}: {what} in force line {t:?} (expected `step t z_bottom fx fy fz`)",
+                path.display()
+            )
+        };
+        let step_tok = it.next().ok_or_else(|| bad("missing step"))?;
+        // %.20g prints an integer step as an integer, but accept "1000.0"-like forms too.
+        let step = match step_tok.parse::<u64>() {
+            Ok(s) => s,
+            Err(_) => {
+                let x: f64 = step_tok.parse().map_err(|_| bad("unparsable step"))?;
+                if !(x >= 0.0 && x.fract() == 0.0) {
+                    return Err(bad("non-integer step"));
+                }
+                x as u64
+            }
+        };
+        let mut v = [0.0f64; 5];
+        for (k, name) in ["t", "z_bottom", "fx", "fy", "fz"].iter().enumerate() {
+            let tok = it
+                .next()
+                .ok_or_else(|| bad(&format!("missing column {name}")))?;
+            v[k] = tok
+                .parse()
+                .map_err(|_| bad(&format!("unparsable {name} {tok:?}")))?;
+            if !v[k].is_finite() {
+                return Err(bad(&format!("non-finite {name}")));
+            }
+        }
+        if it.next().is_some() {
+            return Err(bad("extra columns"));
+        }
+        out.push(ForceSample {
+            step,
+            t: v[0],
+            z_bottom: v[1] / l,
+            f: [v[2] / fo, v[3] / fo, v[4] / fo],
+        });
+    }
+    Ok(out)
+}
+
+/// Whether coreutils' `stdbuf` runs here (checked once).
+fn have_stdbuf() -> bool {
+    static HAVE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *HAVE.get_or_init(|| {
+        std::process::Command::new("stdbuf")
+            .arg("--version")
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false)
+    })
+}
+
+/// `liggghts -in in.penetration -log log.liggghts`, under `mpirun` when `mpi_procs > 1`,
+/// and behind `stdbuf -oL` when available: LIGGGHTS' per-rank errors (`error->one`, e.g.
+/// "Cannot open mesh file") end in `MPI_Abort`, which discards a fully buffered stdout and
+/// log, so without line buffering the `ERROR` line is lost (measured on 3.8.0).
+pub fn argv(mpi_procs: usize) -> Vec<String> {
+    let mut argv: Vec<String> = Vec::new();
+    if mpi_procs > 1 {
+        argv.extend(["mpirun", "--allow-run-as-root", "-np"].map(String::from));
+        argv.push(mpi_procs.to_string());
+    }
+    if have_stdbuf() {
+        argv.extend(["stdbuf", "-oL"].map(String::from));
+    }
+    argv.extend(["liggghts", "-in", DECK_FILE, "-log", LOG_FILE].map(String::from));
+    argv
+}
+
+/// Writes the deck directory ([`write_deck_dir`]) and runs it ([`run_existing`]).
+pub fn run(
+    d: &PenetrationDeck,
+    dir: &Path,
+    mpi_procs: usize,
+    timeout: Duration,
+) -> Result<(Vec<ForceSample>, Provenance)> {
+    let files = write_deck_dir(d, dir)?;
+    let (samples, mut prov) = run_existing(d, dir, mpi_procs, timeout)?;
+    prov.notes
+        .insert(2, format!("intruder STL: {} segments", files.stl_segments));
+    Ok((samples, prov))
+}
+
+/// Runs LIGGGHTS on the deck directory `dir` as it is on disk (written by
+/// [`write_deck_dir`] for `d`, possibly edited by hand), killed after `timeout`. Refuses
+/// failed runs (non-zero exit, any `ERROR` line, timeout, missing/short force file) with
+/// the log tail, and returns the force samples in SI plus the provenance (its input hash
+/// covers the deck, data and STL files as run).
+pub fn run_existing(
+    d: &PenetrationDeck,
+    dir: &Path,
+    mpi_procs: usize,
+    timeout: Duration,
+) -> Result<(Vec<ForceSample>, Provenance)> {
+    let mut inputs = Vec::new();
+    for name in [DECK_FILE, DATA_FILE, STL_FILE] {
+        // A missing input is left for LIGGGHTS to report (its error is the useful one).
+        if let Ok(b) = std::fs::read(dir.join(name)) {
+            inputs.extend_from_slice(&b);
+        }
+    }
+    let input_hash = sha256_hex(&inputs);
+    for name in [FORCE_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE] {
+        let p = dir.join(name);
+        if p.exists() {
+            std::fs::remove_file(&p)
+                .with_context(|| format!("cannot remove stale {}", p.display()))?;
+        }
+    }
+    let argv = argv(mpi_procs);
+    let command = runner::command_line(&argv);
+    let fin = runner::run(
+        &argv,
+        dir,
+        &dir.join(STDOUT_FILE),
+        &dir.join(STDERR_FILE),
+        timeout,
+    )
+    .context("LIGGGHTS penetration run failed to start")?;
+
+    let log = super::read_lossy(&dir.join(LOG_FILE));
+    let stdout = super::read_lossy(&dir.join(STDOUT_FILE));
+    let stderr = super::read_lossy(&dir.join(STDERR_FILE));
+    let errors = super::error_lines(&[&log, &stdout, &stderr]);
+    let fail = |reason: String| -> anyhow::Error {
+        let mut m = format!(
+            "LIGGGHTS penetration run failed: {reason}\n  command: `{command}` in {}\n",
+            dir.display()
+        );
+        if !errors.is_empty() {
+            m += "LIGGGHTS reported:\n";
+            for e in &errors {
+                m += &format!("  {e}\n");
+            }
+        }
+        let (name, text) = if log.trim().is_empty() {
+            (STDOUT_FILE, &stdout)
+        } else {
+            (LOG_FILE, &log)
+        };
+        if !text.trim().is_empty() {
+            m += &format!("last lines of {name}:\n{}", super::tail(text, 15));
+        }
+        if !stderr.trim().is_empty() {
+            m += &format!("last lines of {STDERR_FILE}:\n{}", super::tail(&stderr, 10));
+        }
+        anyhow::anyhow!(m.trim_end().to_string())
+    };
+    match fin.outcome {
+        runner::Outcome::TimedOut => {
+            return Err(fail(format!(
+                "timed out after {:.1} s; the process was killed",
+                timeout.as_secs_f64()
+            )));
+        }
+        runner::Outcome::Exited(s) if !s.success() => {
+            return Err(fail(format!("exited with {s}")));
+        }
+        runner::Outcome::Exited(_) => {}
+    }
+    if !errors.is_empty() {
+        return Err(fail(
+            "ERROR in the LIGGGHTS output although the exit status was 0".to_string(),
+        ));
+    }
+    let force_path = dir.join(FORCE_FILE);
+    if !force_path.exists() {
+        return Err(fail(format!("no {} was written", force_path.display())));
+    }
+    let samples = parse_force_file(&force_path, d.units).map_err(|e| fail(format!("{e:#}")))?;
+    let expected = expected_samples(d);
+    if samples.len() != expected {
+        return Err(fail(format!(
+            "{} has {} samples, expected {expected} (n_steps {} / force_every {})",
+            force_path.display(),
+            samples.len(),
+            d.n_steps,
+            d.force_every
+        )));
+    }
+    for (k, s) in samples.iter().enumerate() {
+        let step = (k as u64 + 1) * d.force_every;
+        if s.step != step {
+            return Err(fail(format!(
+                "sample {k} of {} is step {}, expected {step}",
+                force_path.display(),
+                s.step
+            )));
+        }
+    }
+
+    let version = log
+        .lines()
+        .next()
+        .map(str::trim)
+        .filter(|l| l.starts_with(VERSION_PREFIX))
+        .map(str::to_string)
+        .or_else(|| super::version_line(&stdout))
+        .unwrap_or_else(|| "LIGGGHTS (version line not found in log)".to_string());
+    let mut notes = vec![
+        format!("run directory: {}", dir.display()),
+        format!(
+            "deck units: {}; force samples converted to SI",
+            d.units.keyword()
+        ),
+    ];
+    if d.soft_particles {
+        notes.push(
+            "soft_particles yes (LIGGGHTS' E >= 5e6 Pa check disabled; materials unchanged)"
+                .to_string(),
+        );
+    }
+    if d.hard_particles {
+        notes.push(
+            "hard_particles yes (LIGGGHTS' E <= 1e9 Pa check disabled; materials unchanged)"
+                .to_string(),
+        );
+    }
+    notes.extend(super::warnings(&log));
+    Ok((
+        samples,
+        Provenance {
+            engine: "liggghts".to_string(),
+            version,
+            command,
+            input_hash,
+            date: now_utc(),
+            wall_time_s: fin.wall_time_s,
+            threads: mpi_procs.max(1),
+            case_file: dir.join(DECK_FILE).display().to_string(),
+            notes,
+        },
+    ))
+}
