@@ -4,7 +4,7 @@
 //! Every float is written with Rust's `{:e}` (shortest round-trip representation), so
 //! LIGGGHTS parses back exactly the f64 the case holds: the deck carries no rounding.
 
-use crate::case::{Case, Wall};
+use crate::case::{Case, Material, PairTable, RollingModel, Wall};
 use anyhow::{Result, bail};
 use std::fmt::Write;
 
@@ -23,12 +23,64 @@ pub const DUMP_COLUMNS: [&str; 13] = [
 /// table, so the deck switches to `map hash` (same physics, slower lookups).
 const MAP_ARRAY_MAX_ID: u64 = 10_000_000;
 
-fn f(x: f64) -> String {
+/// Full-precision (shortest round-trip) number for a deck or data file.
+pub(super) fn f(x: f64) -> String {
     format!("{x:e}")
 }
 
-fn join(xs: impl IntoIterator<Item = f64>) -> String {
+pub(super) fn join(xs: impl IntoIterator<Item = f64>) -> String {
     xs.into_iter().map(f).collect::<Vec<_>>().join(" ")
+}
+
+/// `model hertz tangential history [rolling_friction K]`: pair_style and every
+/// `fix wall/gran` must name the same models.
+pub(super) fn model_keywords(rolling: RollingModel) -> String {
+    let r = rolling
+        .liggghts_keyword()
+        .map(|k| format!(" rolling_friction {k}"))
+        .unwrap_or_default();
+    format!("model hertz tangential history{r}")
+}
+
+/// Material property/global fixes, pair style and pair_coeff, shared by every granval
+/// deck. `pressure` converts Pa into the deck's units (1 for SI).
+pub(super) fn write_contact_model(
+    s: &mut String,
+    materials: &[Material],
+    pairs: &PairTable,
+    rolling: RollingModel,
+    pressure: f64,
+) -> std::fmt::Result {
+    let n = materials.len();
+    writeln!(
+        s,
+        "fix m1 all property/global youngsModulus peratomtype {}",
+        join(materials.iter().map(|m| m.youngs_modulus * pressure))
+    )?;
+    writeln!(
+        s,
+        "fix m2 all property/global poissonsRatio peratomtype {}",
+        join(materials.iter().map(|m| m.poisson_ratio))
+    )?;
+    writeln!(
+        s,
+        "fix m3 all property/global coefficientRestitution peratomtypepair {n} {}",
+        join(pairs.restitution.iter().copied())
+    )?;
+    writeln!(
+        s,
+        "fix m4 all property/global coefficientFriction peratomtypepair {n} {}",
+        join(pairs.friction.iter().copied())
+    )?;
+    if rolling.liggghts_keyword().is_some() {
+        writeln!(
+            s,
+            "fix m5 all property/global coefficientRollingFriction peratomtypepair {n} {}",
+            join(pairs.rolling_friction.iter().copied())
+        )?;
+    }
+    writeln!(s, "pair_style gran {}", model_keywords(rolling))?;
+    writeln!(s, "pair_coeff * *")
 }
 
 /// Keeps free text (case names) harmless inside a LIGGGHTS comment: no `$` variable
@@ -153,12 +205,7 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
         }
     }
     let n = case.n_types();
-    let rolling = case
-        .rolling
-        .liggghts_keyword()
-        .map(|k| format!(" rolling_friction {k}"))
-        .unwrap_or_default();
-    let models = format!("model hertz tangential history{rolling}");
+    let models = model_keywords(case.rolling);
     let max_id = case.particles.iter().map(|p| p.id).max().unwrap_or(0);
     let map = if max_id > MAP_ARRAY_MAX_ID {
         "hash"
@@ -192,35 +239,7 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
     writeln!(s, "neighbor {} bin", f(case.neighbor_skin))?;
     writeln!(s, "neigh_modify delay 0")?;
 
-    writeln!(
-        s,
-        "fix m1 all property/global youngsModulus peratomtype {}",
-        join(case.materials.iter().map(|m| m.youngs_modulus))
-    )?;
-    writeln!(
-        s,
-        "fix m2 all property/global poissonsRatio peratomtype {}",
-        join(case.materials.iter().map(|m| m.poisson_ratio))
-    )?;
-    writeln!(
-        s,
-        "fix m3 all property/global coefficientRestitution peratomtypepair {n} {}",
-        join(case.pairs.restitution.iter().copied())
-    )?;
-    writeln!(
-        s,
-        "fix m4 all property/global coefficientFriction peratomtypepair {n} {}",
-        join(case.pairs.friction.iter().copied())
-    )?;
-    if case.rolling.liggghts_keyword().is_some() {
-        writeln!(
-            s,
-            "fix m5 all property/global coefficientRollingFriction peratomtypepair {n} {}",
-            join(case.pairs.rolling_friction.iter().copied())
-        )?;
-    }
-    writeln!(s, "pair_style gran {models}")?;
-    writeln!(s, "pair_coeff * *")?;
+    write_contact_model(&mut s, &case.materials, &case.pairs, case.rolling, 1.0)?;
     writeln!(s, "timestep {}", f(case.dt))?;
 
     let g = case.gravity;

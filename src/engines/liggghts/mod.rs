@@ -183,35 +183,10 @@ impl Engine for Liggghts {
             )
         })?;
 
-        let log = read_lossy(&dir.join(LOG_FILE));
-        let stdout = read_lossy(&dir.join(STDOUT_FILE));
-        let stderr = read_lossy(&dir.join(STDERR_FILE));
-        let errors = error_lines(&[&log, &stdout, &stderr]);
-        let fail = |reason: String| -> anyhow::Error {
-            let mut m = format!(
-                "LIGGGHTS run of case {} failed: {reason}\n  command: `{command}` in {}\n",
-                case.source.display(),
-                dir.display()
-            );
-            if !errors.is_empty() {
-                m += "LIGGGHTS reported:\n";
-                for e in &errors {
-                    m += &format!("  {e}\n");
-                }
-            }
-            let (name, text) = if log.trim().is_empty() {
-                (STDOUT_FILE, &stdout)
-            } else {
-                (LOG_FILE, &log)
-            };
-            if !text.trim().is_empty() {
-                m += &format!("last lines of {name}:\n{}", tail(text, 15));
-            }
-            if !stderr.trim().is_empty() {
-                m += &format!("last lines of {STDERR_FILE}:\n{}", tail(&stderr, 10));
-            }
-            anyhow::anyhow!(m.trim_end().to_string())
-        };
+        let tr = Transcript::read(dir);
+        let (log, stdout, errors) = (&tr.log, &tr.stdout, &tr.errors);
+        let what = format!("LIGGGHTS run of case {}", case.source.display());
+        let fail = |reason: String| tr.failure(&what, &command, dir, &reason);
 
         match fin.outcome {
             runner::Outcome::TimedOut => {
@@ -286,10 +261,10 @@ impl Engine for Liggghts {
             .map(str::trim)
             .filter(|l| l.starts_with(VERSION_PREFIX))
             .map(str::to_string)
-            .or_else(|| version_line(&stdout))
+            .or_else(|| version_line(stdout))
             .unwrap_or_else(|| "LIGGGHTS (version line not found in log)".to_string());
         let mut notes = vec![format!("run directory: {}", dir.display())];
-        notes.extend(warnings(&log));
+        notes.extend(warnings(log));
         Ok(RunOutput {
             frames,
             provenance: Provenance {
@@ -304,5 +279,63 @@ impl Engine for Liggghts {
                 notes,
             },
         })
+    }
+}
+
+/// What a finished LIGGGHTS process left behind, read once; every adapter turns a
+/// failed run into the same error text from it.
+pub(crate) struct Transcript {
+    pub log: String,
+    pub stdout: String,
+    pub stderr: String,
+    /// `ERROR` lines from all three.
+    pub errors: Vec<String>,
+}
+
+impl Transcript {
+    pub(crate) fn read(dir: &Path) -> Transcript {
+        let log = read_lossy(&dir.join(LOG_FILE));
+        let stdout = read_lossy(&dir.join(STDOUT_FILE));
+        let stderr = read_lossy(&dir.join(STDERR_FILE));
+        let errors = error_lines(&[&log, &stdout, &stderr]);
+        Transcript {
+            log,
+            stdout,
+            stderr,
+            errors,
+        }
+    }
+
+    /// "`what` failed: `reason`", the command, LIGGGHTS' ERROR lines and the tails of
+    /// its log (or stdout when the log is empty) and stderr.
+    pub(crate) fn failure(
+        &self,
+        what: &str,
+        command: &str,
+        dir: &Path,
+        reason: &str,
+    ) -> anyhow::Error {
+        let mut m = format!(
+            "{what} failed: {reason}\n  command: `{command}` in {}\n",
+            dir.display()
+        );
+        if !self.errors.is_empty() {
+            m += "LIGGGHTS reported:\n";
+            for e in &self.errors {
+                m += &format!("  {e}\n");
+            }
+        }
+        let (name, text) = if self.log.trim().is_empty() {
+            (STDOUT_FILE, &self.stdout)
+        } else {
+            (LOG_FILE, &self.log)
+        };
+        if !text.trim().is_empty() {
+            m += &format!("last lines of {name}:\n{}", tail(text, 15));
+        }
+        if !self.stderr.trim().is_empty() {
+            m += &format!("last lines of {STDERR_FILE}:\n{}", tail(&self.stderr, 10));
+        }
+        anyhow::anyhow!(m.trim_end().to_string())
     }
 }

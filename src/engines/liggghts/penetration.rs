@@ -26,6 +26,7 @@
 //! Force sign convention: `f` is the force the grains exert on the intruder, in the global
 //! frame; pushing down into a bed gives `f[2] > 0` (the bed resists, pushing up).
 
+use super::deck::{f, join, model_keywords, write_contact_model};
 use super::runner;
 use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE, VERSION_PREFIX};
 use crate::case::{Material, PairTable, Particle, RollingModel};
@@ -209,14 +210,6 @@ pub struct ForceSample {
     pub z_bottom: f64,
     /// Force of the grains on the intruder (N); `f[2] > 0` when the bed resists.
     pub f: [f64; 3],
-}
-
-fn f(x: f64) -> String {
-    format!("{x:e}")
-}
-
-fn join(xs: impl IntoIterator<Item = f64>) -> String {
-    xs.into_iter().map(f).collect::<Vec<_>>().join(" ")
 }
 
 fn positive(name: &str, x: f64) -> Result<()> {
@@ -458,13 +451,7 @@ pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
     validate(d)?;
     let u = d.units;
     let (l, v) = (u.length(), u.velocity());
-    let n = d.materials.len();
-    let rolling = d
-        .rolling
-        .liggghts_keyword()
-        .map(|k| format!(" rolling_friction {k}"))
-        .unwrap_or_default();
-    let models = format!("model hertz tangential history{rolling}");
+    let models = model_keywords(d.rolling);
     let max_id = d.particles.iter().map(|p| p.id).max().unwrap_or(0);
     let map = if max_id > 10_000_000 { "hash" } else { "array" };
 
@@ -510,35 +497,7 @@ pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
     writeln!(s, "read_data {DATA_FILE}")?;
     writeln!(s, "neighbor {} bin", f(d.neighbor_skin * l))?;
     writeln!(s, "neigh_modify delay 0")?;
-    writeln!(
-        s,
-        "fix m1 all property/global youngsModulus peratomtype {}",
-        join(d.materials.iter().map(|m| m.youngs_modulus * u.pressure()))
-    )?;
-    writeln!(
-        s,
-        "fix m2 all property/global poissonsRatio peratomtype {}",
-        join(d.materials.iter().map(|m| m.poisson_ratio))
-    )?;
-    writeln!(
-        s,
-        "fix m3 all property/global coefficientRestitution peratomtypepair {n} {}",
-        join(d.pairs.restitution.iter().copied())
-    )?;
-    writeln!(
-        s,
-        "fix m4 all property/global coefficientFriction peratomtypepair {n} {}",
-        join(d.pairs.friction.iter().copied())
-    )?;
-    if d.rolling.liggghts_keyword().is_some() {
-        writeln!(
-            s,
-            "fix m5 all property/global coefficientRollingFriction peratomtypepair {n} {}",
-            join(d.pairs.rolling_friction.iter().copied())
-        )?;
-    }
-    writeln!(s, "pair_style gran {models}")?;
-    writeln!(s, "pair_coeff * *")?;
+    write_contact_model(&mut s, &d.materials, &d.pairs, d.rolling, u.pressure())?;
     writeln!(s, "timestep {}", f(d.dt))?;
     if d.gravity > 0.0 {
         writeln!(
@@ -818,34 +777,9 @@ pub fn run_existing(
     )
     .context("LIGGGHTS penetration run failed to start")?;
 
-    let log = super::read_lossy(&dir.join(LOG_FILE));
-    let stdout = super::read_lossy(&dir.join(STDOUT_FILE));
-    let stderr = super::read_lossy(&dir.join(STDERR_FILE));
-    let errors = super::error_lines(&[&log, &stdout, &stderr]);
-    let fail = |reason: String| -> anyhow::Error {
-        let mut m = format!(
-            "LIGGGHTS penetration run failed: {reason}\n  command: `{command}` in {}\n",
-            dir.display()
-        );
-        if !errors.is_empty() {
-            m += "LIGGGHTS reported:\n";
-            for e in &errors {
-                m += &format!("  {e}\n");
-            }
-        }
-        let (name, text) = if log.trim().is_empty() {
-            (STDOUT_FILE, &stdout)
-        } else {
-            (LOG_FILE, &log)
-        };
-        if !text.trim().is_empty() {
-            m += &format!("last lines of {name}:\n{}", super::tail(text, 15));
-        }
-        if !stderr.trim().is_empty() {
-            m += &format!("last lines of {STDERR_FILE}:\n{}", super::tail(&stderr, 10));
-        }
-        anyhow::anyhow!(m.trim_end().to_string())
-    };
+    let tr = super::Transcript::read(dir);
+    let (log, stdout, errors) = (&tr.log, &tr.stdout, &tr.errors);
+    let fail = |reason: String| tr.failure("LIGGGHTS penetration run", &command, dir, &reason);
     match fin.outcome {
         runner::Outcome::TimedOut => {
             return Err(fail(format!(
@@ -895,7 +829,7 @@ pub fn run_existing(
         .map(str::trim)
         .filter(|l| l.starts_with(VERSION_PREFIX))
         .map(str::to_string)
-        .or_else(|| super::version_line(&stdout))
+        .or_else(|| super::version_line(stdout))
         .unwrap_or_else(|| "LIGGGHTS (version line not found in log)".to_string());
     let mut notes = vec![
         format!("run directory: {}", dir.display()),
@@ -916,7 +850,7 @@ pub fn run_existing(
                 .to_string(),
         );
     }
-    notes.extend(super::warnings(&log));
+    notes.extend(super::warnings(log));
     Ok((
         samples,
         Provenance {
