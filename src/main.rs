@@ -61,6 +61,30 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
     },
+    /// Write a self-contained LIGGGHTS deck directory for a penetration case (one
+    /// sub-directory per bed; README with the one-core and mpirun commands).
+    Deck {
+        case: PathBuf,
+        #[arg(short = 'o', long = "out")]
+        out: PathBuf,
+        /// Who prepares the beds: `native` (exact `data.bed`, needed to compare engines)
+        /// or `liggghts` (the deck pours and settles them; for full-size beds).
+        #[arg(long, value_enum, default_value = "native")]
+        bed: granval::penetration::deck_dir::BedBy,
+    },
+    /// Analyse a deck directory after LIGGGHTS ran in it (here or on a cluster): the
+    /// same observables, checks and report as `granval compare`.
+    Analyze {
+        dir: PathBuf,
+        #[arg(long)]
+        report: PathBuf,
+        /// Do not re-run the native engine from the same beds (LIGGGHTS observables and
+        /// published-value checks only).
+        #[arg(long)]
+        no_native: bool,
+        #[command(flatten)]
+        common: Common,
+    },
     /// Reference data management.
     Reference {
         #[command(subcommand)]
@@ -154,7 +178,7 @@ fn run_suite(
                 }
                 Ok(case) => {
                     eprintln!("== {} ({})", case.name, path.display());
-                    let r = granval::penetration::compare_case(
+                    let r = granval::penetration::ensemble::compare_case(
                         &case,
                         opts,
                         &report_dir.join(&case.name),
@@ -210,6 +234,12 @@ fn run_penetration(case: &Path, native: bool, out: &Path) -> Result<ExitCode> {
     );
     let run =
         granval::penetration::run_native(&case, &bed, granval::dem::Perturbation::default(), true)?;
+    if case.ensemble_beds > 1 {
+        println!(
+            "note: `granval run` penetrates bed 0 only; `granval compare` runs all {} beds",
+            case.ensemble_beds
+        );
+    }
     granval::penetration::write_force_csv(&out.join("force.csv"), &run.samples)?;
     granval::engines::output::write_provenance(&out.join("provenance.json"), &run.provenance)?;
     println!(
@@ -219,6 +249,72 @@ fn run_penetration(case: &Path, native: bool, out: &Path) -> Result<ExitCode> {
         run.provenance.wall_time_s
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// `granval reference refresh` for a penetration case: every bed of its ensemble in live
+/// LIGGGHTS (np 2), stored as a deck directory with the run's outputs and provenance.
+fn refresh_penetration(path: &Path, reference: &Path) -> Result<()> {
+    use granval::penetration::{self as pen, deck_dir};
+    let case = granval::case::penetration::PenetrationCase::load(path)?;
+    let root = reference.join("penetration").join(&case.name);
+    if root.exists() {
+        std::fs::remove_dir_all(&root)
+            .with_context(|| format!("cannot clear {}", root.display()))?;
+    }
+    std::fs::create_dir_all(&root)?;
+    std::fs::copy(path, root.join(deck_dir::CASE_FILE))?;
+    for k in 0..case.ensemble_beds {
+        let ck = case.realisation(k);
+        let dir = root.join(deck_dir::bed_dir_name(k));
+        let bed = pen::prepare_bed(&ck, true)?;
+        let run = pen::run_liggghts(&ck, &bed, &dir, 2, true)?;
+        granval::engines::output::write_provenance(&dir.join("provenance.json"), &run.provenance)?;
+        println!(
+            "{:<32} bed {k}: {} force samples recorded in {} ({:.0} s)",
+            case.name,
+            run.samples,
+            dir.display(),
+            run.provenance.wall_time_s
+        );
+    }
+    Ok(())
+}
+
+/// `granval deck`: the case's deck directory, ready for LIGGGHTS here or on a cluster.
+fn write_deck(
+    case: &Path,
+    out: &Path,
+    bed: granval::penetration::deck_dir::BedBy,
+) -> Result<ExitCode> {
+    let kind = granval::case::penetration::kind_of(case)?;
+    if kind != "penetration" {
+        anyhow::bail!(
+            "{}: `granval deck` writes penetration decks; this case has kind = {kind:?}",
+            case.display()
+        );
+    }
+    let case = granval::case::penetration::PenetrationCase::load(case)?;
+    let dirs = granval::penetration::deck_dir::write(&case, out, bed, true)?;
+    for d in &dirs {
+        println!("{}", d.display());
+    }
+    println!(
+        "{} deck director{} written; see {}",
+        dirs.len(),
+        if dirs.len() == 1 { "y" } else { "ies" },
+        out.join("README.md").display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `granval analyze`: a deck directory after LIGGGHTS ran in it.
+fn analyze(dir: &Path, native: bool, opts: &Options, report: &Path) -> Result<ExitCode> {
+    let r = granval::penetration::deck_dir::analyze(dir, native, opts, report)?;
+    finish(
+        &Report::new(r.checks, r.run.into_iter().collect(), r.notes, r.errored),
+        report,
+        &format!("granval analyze {}", dir.display()),
+    )
 }
 
 fn real_main() -> Result<ExitCode> {
@@ -296,25 +392,7 @@ fn real_main() -> Result<ExitCode> {
             println!("using {version}");
             for path in pipeline::suite_cases(&cases, &suite)? {
                 if granval::case::penetration::kind_of(&path)? == "penetration" {
-                    let case = granval::case::penetration::PenetrationCase::load(&path)?;
-                    let dir = reference.join("penetration").join(&case.name);
-                    let bed = granval::penetration::prepare_bed(&case, true)?;
-                    let mut run = granval::penetration::run_liggghts(&case, &bed, &dir, 2)?;
-                    run.provenance.notes.push(format!(
-                        "bed sha256 {}",
-                        granval::penetration::bed_hash(&bed)
-                    ));
-                    granval::penetration::write_force_csv(&dir.join("force.csv"), &run.samples)?;
-                    granval::engines::output::write_provenance(
-                        &dir.join("provenance.json"),
-                        &run.provenance,
-                    )?;
-                    println!(
-                        "{:<32} {} force samples recorded in {}",
-                        case.name,
-                        run.samples.len(),
-                        dir.display()
-                    );
+                    refresh_penetration(&path, &reference)?;
                     continue;
                 }
                 let case = Case::load(&path)?;
@@ -343,6 +421,13 @@ fn real_main() -> Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
+        Cmd::Deck { case, out, bed } => write_deck(&case, &out, bed),
+        Cmd::Analyze {
+            dir,
+            report,
+            no_native,
+            common,
+        } => analyze(&dir, !no_native, &options(&common), &report),
         Cmd::Bench { n, steps } => {
             granval::bench::run(n, steps)?;
             Ok(ExitCode::SUCCESS)

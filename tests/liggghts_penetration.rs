@@ -91,6 +91,7 @@ fn deck(units: Units, e: f64) -> PenetrationDeck {
         wall_type: 0,
         soft_particles: e < 5e6,
         hard_particles: false,
+        settle: None,
     }
 }
 

@@ -576,6 +576,138 @@ pub fn write_csv(path: &Path, fdr: &Fdr, fit: Option<&LinearFit>) -> Result<()> 
     Ok(())
 }
 
+// ---------------------------------------------------------------------------
+// Streaming reduction
+// ---------------------------------------------------------------------------
+
+/// Eq 5 applied sample by sample while a force series is read, averaged into bins of
+/// width `bin` in h (bin k covers [k bin, (k+1) bin)). Memory is one accumulator per
+/// bin, independent of how many samples an engine wrote, so a long cluster run can be
+/// analysed on a laptop. The binned FDR holds each bin's mean h and mean p; at constant
+/// intruder speed every bin holds the same number of samples, so fits on it weight
+/// depths as the raw series would.
+#[derive(Debug, Clone)]
+pub struct FdrBinner {
+    bin: f64,
+    surface_z: f64,
+    radius: f64,
+    p_scale: f64,
+    sum_h: Vec<f64>,
+    sum_p: Vec<f64>,
+    count: Vec<u64>,
+    samples: u64,
+}
+
+impl FdrBinner {
+    /// `surface_z` is the initial bed surface (m); samples above it (h < 0) are counted
+    /// but not binned, since eq 5 describes the intruder in contact.
+    pub fn new(scales: &Scales, surface_z: f64, bin: f64) -> Result<FdrBinner> {
+        nondimensionalise(
+            &FdrInput {
+                depth: vec![0.0],
+                force: vec![0.0],
+            },
+            scales,
+        )?;
+        ensure!(
+            bin.is_finite() && bin > 0.0,
+            "h bin width {bin} must be positive"
+        );
+        ensure!(
+            surface_z.is_finite(),
+            "surface height {surface_z} is not finite"
+        );
+        let r = scales.radius;
+        Ok(FdrBinner {
+            bin,
+            surface_z,
+            radius: r,
+            p_scale: 1.0 / (scales.rho_g * scales.psi * scales.g * PI * r * r * r),
+            sum_h: Vec::new(),
+            sum_p: Vec::new(),
+            count: Vec::new(),
+            samples: 0,
+        })
+    }
+
+    /// One sample: intruder bottom height (m) and vertical resistance (N, positive up).
+    pub fn push(&mut self, z_bottom: f64, force: f64) -> Result<()> {
+        ensure!(
+            z_bottom.is_finite() && force.is_finite(),
+            "non-finite force sample (z_bottom {z_bottom}, F {force})"
+        );
+        self.samples += 1;
+        let h = (self.surface_z - z_bottom) / self.radius;
+        if h < 0.0 {
+            return Ok(());
+        }
+        let k = (h / self.bin) as usize;
+        if k >= self.count.len() {
+            ensure!(
+                k < 10_000_000,
+                "depth h = {h} needs bin {k}: the bin width {} is too fine",
+                self.bin
+            );
+            self.sum_h.resize(k + 1, 0.0);
+            self.sum_p.resize(k + 1, 0.0);
+            self.count.resize(k + 1, 0);
+        }
+        self.sum_h[k] += h;
+        self.sum_p[k] += force * self.p_scale;
+        self.count[k] += 1;
+        Ok(())
+    }
+
+    /// Samples pushed so far (including those above the surface).
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The binned FDR (empty bins skipped), ordered by depth.
+    pub fn fdr(&self) -> Fdr {
+        let (h, p) = (0..self.count.len())
+            .filter(|&k| self.count[k] > 0)
+            .map(|k| {
+                let n = self.count[k] as f64;
+                (self.sum_h[k] / n, self.sum_p[k] / n)
+            })
+            .unzip();
+        Fdr { h, p }
+    }
+}
+
+/// Pointwise mean of several FDRs on the bin centres `(k + 1/2) bin` that every member
+/// covers (linear interpolation inside each member): the ensemble-averaged FDR.
+pub fn ensemble_mean(members: &[&Fdr], bin: f64) -> Result<Fdr> {
+    ensure!(!members.is_empty(), "ensemble mean of no FDRs");
+    let lo = members
+        .iter()
+        .map(|f| f.h.first().copied().unwrap_or(f64::INFINITY))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let hi = members
+        .iter()
+        .map(|f| f.h.last().copied().unwrap_or(f64::NEG_INFINITY))
+        .fold(f64::INFINITY, f64::min);
+    ensure!(
+        lo.is_finite() && hi.is_finite() && lo < hi,
+        "the ensemble members share no depth range ([{lo}, {hi}])"
+    );
+    let k0 = (lo / bin - 0.5).ceil().max(0.0) as usize;
+    let grid: Vec<f64> = (k0..)
+        .map(|k| (k as f64 + 0.5) * bin)
+        .take_while(|&h| h <= hi)
+        .filter(|&h| h >= lo)
+        .collect();
+    ensure!(grid.len() >= 2, "ensemble depth range too short");
+    let mut p = vec![0.0; grid.len()];
+    for f in members {
+        for (acc, v) in p.iter_mut().zip(resample(f, &grid)?) {
+            *acc += v / members.len() as f64;
+        }
+    }
+    Fdr::new(grid, p)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -23,6 +23,38 @@ struct File {
     analysis: Analysis,
     #[serde(default)]
     compare: Option<Tolerances>,
+    #[serde(default)]
+    ensemble: Option<Ensemble>,
+    #[serde(default)]
+    quasi_static: Option<QuasiStatic>,
+    #[serde(default)]
+    published: Option<Published>,
+}
+
+/// Realisations: granular penetration is chaotic, so one bed gives K_phi only to about
+/// +-15 % at CI scale (measured); the engines are compared on ensemble means.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Ensemble {
+    /// Number of independent beds; bed k is drawn with seed `bed.seed + k`.
+    beds: usize,
+}
+
+/// Sec. 3's quasi-static test: the native run repeated at a second speed.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct QuasiStatic {
+    /// Second driving speed (m/s); K_phi at it must match K_phi at `intruder.speed`.
+    speed: f64,
+}
+
+/// A published steady-state slope to check a run against (e.g. Table 3).
+#[derive(Debug, Clone, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Published {
+    pub k_phi: f64,
+    /// Where the number comes from (table / figure / section).
+    pub source: String,
 }
 
 #[derive(Debug, Deserialize)]
@@ -139,6 +171,9 @@ struct Intruder {
 struct Analysis {
     /// Regime C, where p = K_phi h + p0 is fitted, starts here (h = depth / R).
     fit_h_min: f64,
+    /// Width in h of the bins the force series is averaged into while it is read
+    /// (default 0.01): memory stays bounded however many samples a run writes.
+    h_bin: Option<f64>,
 }
 
 #[derive(Debug, Deserialize, Clone, serde::Serialize)]
@@ -155,6 +190,12 @@ pub struct Tolerances {
     pub h_a_abs: f64,
     #[serde(default = "d_hb")]
     pub h_b_abs: f64,
+    /// |K(v2) / K(v1) - 1| of the native quasi-static test (default 0.10).
+    #[serde(default = "d_k")]
+    pub quasi_static_k_rel: f64,
+    /// |K / K_published - 1| (default 0.10).
+    #[serde(default = "d_k")]
+    pub published_k_rel: f64,
 }
 
 fn d_k() -> f64 {
@@ -177,6 +218,8 @@ impl Default for Tolerances {
             fdr_distance: d_fdr(),
             h_a_abs: d_ha(),
             h_b_abs: d_hb(),
+            quasi_static_k_rel: d_k(),
+            published_k_rel: d_k(),
         }
     }
 }
@@ -212,7 +255,12 @@ pub struct PenetrationCase {
     pub final_depth: f64,
     pub force_every: u64,
     pub fit_h_min: f64,
+    pub h_bin: f64,
     pub tolerances: Tolerances,
+    /// Independent beds (seeds `seed`, `seed + 1`, ...), at least 1.
+    pub ensemble_beds: usize,
+    pub quasi_static_speed: Option<f64>,
+    pub published: Option<Published>,
     pub rayleigh_time: f64,
 }
 
@@ -238,6 +286,14 @@ pub fn kind_of(path: &Path) -> Result<String, CaseError> {
 }
 
 impl PenetrationCase {
+    /// Bed `k` of the ensemble: the same case with seed `seed + k`.
+    pub fn realisation(&self, k: usize) -> PenetrationCase {
+        PenetrationCase {
+            seed: self.seed.wrapping_add(k as u64),
+            ..self.clone()
+        }
+    }
+
     pub fn load(path: &Path) -> Result<PenetrationCase, CaseError> {
         let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
             file: path.to_path_buf(),
@@ -403,8 +459,48 @@ impl PenetrationCase {
             ("compare.fdr_distance", tolerances.fdr_distance),
             ("compare.h_a_abs", tolerances.h_a_abs),
             ("compare.h_b_abs", tolerances.h_b_abs),
+            ("compare.quasi_static_k_rel", tolerances.quasi_static_k_rel),
+            ("compare.published_k_rel", tolerances.published_k_rel),
         ] {
             positive(&ctx, f, v)?;
+        }
+        let h_bin = match raw.analysis.h_bin {
+            Some(b) => positive(&ctx, "analysis.h_bin", b)?,
+            None => 0.01,
+        };
+        if h_bin > 0.1 * fit_h_min.max(final_depth / intruder_radius - fit_h_min) {
+            return Err(ctx.bad(
+                "analysis.h_bin",
+                h_bin,
+                "too coarse: regime C would hold fewer than 10 bins",
+            ));
+        }
+        let ensemble_beds = match raw.ensemble {
+            Some(Ensemble { beds: 0 }) => {
+                return Err(ctx.bad("ensemble.beds", 0, "must be >= 1"));
+            }
+            Some(e) => e.beds,
+            None => 1,
+        };
+        let quasi_static_speed = match raw.quasi_static {
+            Some(q) => {
+                let v = positive(&ctx, "quasi_static.speed", q.speed)?;
+                if v == speed {
+                    return Err(ctx.bad(
+                        "quasi_static.speed",
+                        v,
+                        "equals intruder.speed: the test needs a second speed",
+                    ));
+                }
+                Some(v)
+            }
+            None => None,
+        };
+        if let Some(p) = &raw.published {
+            positive(&ctx, "published.k_phi", p.k_phi)?;
+            if p.source.trim().is_empty() {
+                return Err(ctx.bad("published.source", &p.source, "cite the table or figure"));
+            }
         }
 
         Ok(PenetrationCase {
@@ -435,7 +531,11 @@ impl PenetrationCase {
             final_depth,
             force_every: i.force_every,
             fit_h_min,
+            h_bin,
             tolerances,
+            ensemble_beds,
+            quasi_static_speed,
+            published: raw.published,
             rayleigh_time: rayleigh,
         })
     }

@@ -2,53 +2,121 @@
 //! reduced to K_phi, the FDR distance and the regime boundaries, each a gated check.
 
 use super::Check;
-use crate::analysis::fdr::{self, Fdr, FdrInput, LinearFit, RegimeBoundaries, Scales};
+use crate::analysis::fdr::{self, Fdr, LinearFit, RegimeBoundaries};
 use crate::case::penetration::PenetrationCase;
-use crate::engines::output::ForceSample;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use serde::Serialize;
 
-/// What one engine's run reduces to.
+/// What one engine's run, or the mean of its ensemble of runs, reduces to.
 #[derive(Debug, Clone, Serialize)]
 pub struct Observables {
+    /// The (ensemble-mean) binned FDR, h >= 0.
     pub fdr: Fdr,
     pub fit: LinearFit,
     pub boundaries: Option<RegimeBoundaries>,
     /// Why the boundaries could not be located, if they could not.
     pub boundaries_error: Option<String>,
+    /// K_phi and R^2 of each member fitted alone (one entry for a single run).
+    pub members: Vec<(f64, f64)>,
 }
 
-/// Eq 5 with the bed's own psi and surface; only samples at or below the surface.
-pub fn observables(
-    case: &PenetrationCase,
-    samples: &[ForceSample],
-    surface_z: f64,
-    psi: f64,
-) -> Result<Observables> {
-    let input = FdrInput {
-        depth: samples.iter().map(|s| surface_z - s.z_bottom).collect(),
-        // +z force on the intruder resists the downward push.
-        force: samples.iter().map(|s| s.f[2]).collect(),
-    };
-    let scales = Scales {
-        rho_g: case.density,
-        psi,
-        g: case.gravity,
-        radius: case.intruder_radius,
-    };
-    let full = fdr::nondimensionalise(&input, &scales)?;
-    let fdr = full.contact_only();
+impl Observables {
+    /// Sample standard deviation of the members' K_phi (NaN for one member).
+    pub fn k_spread(&self) -> f64 {
+        let n = self.members.len() as f64;
+        let mean = self.members.iter().map(|m| m.0).sum::<f64>() / n;
+        (self
+            .members
+            .iter()
+            .map(|m| (m.0 - mean).powi(2))
+            .sum::<f64>()
+            / (n - 1.0))
+            .sqrt()
+    }
+
+    fn members_text(&self) -> String {
+        let ks: Vec<String> = self.members.iter().map(|m| format!("{:.2}", m.0)).collect();
+        if self.members.len() > 1 {
+            format!("beds [{}], sd {:.2}", ks.join(", "), self.k_spread())
+        } else {
+            "1 bed".into()
+        }
+    }
+}
+
+/// Fit (regime C from `analysis.fit_h_min`) and regime boundaries of one FDR.
+pub fn observables(case: &PenetrationCase, fdr: &Fdr) -> Result<Observables> {
+    let fdr = fdr.contact_only();
     let fit = fdr::steady_state_fit(&fdr, case.fit_h_min, f64::INFINITY)?;
     let (boundaries, boundaries_error) = match fdr::regime_boundaries(&fdr, &fit) {
         Ok(b) => (Some(b), None),
         Err(e) => (None, Some(format!("{e:#}"))),
     };
     Ok(Observables {
+        members: vec![(fit.k_phi, fit.r2)],
         fdr,
         fit,
         boundaries,
         boundaries_error,
     })
+}
+
+/// Observables of an ensemble: everything on the mean FDR of the members (the
+/// fluctuations of single realisations are what the ensemble averages out), plus each
+/// member's own K_phi for the spread.
+pub fn ensemble(case: &PenetrationCase, members: &[&Fdr]) -> Result<Observables> {
+    let mut per = Vec::with_capacity(members.len());
+    for (k, m) in members.iter().enumerate() {
+        let fit = fdr::steady_state_fit(&m.contact_only(), case.fit_h_min, f64::INFINITY)
+            .with_context(|| format!("bed {k}"))?;
+        per.push((fit.k_phi, fit.r2));
+    }
+    let mean = fdr::ensemble_mean(members, case.h_bin)?;
+    let mut obs = observables(case, &mean)?;
+    obs.members = per;
+    Ok(obs)
+}
+
+/// Sec. 3's quasi-static test: K_phi at the case speed and at `quasi_static.speed`.
+pub fn quasi_static(
+    case: &PenetrationCase,
+    v1: &Observables,
+    v2: &Observables,
+    speed2: f64,
+) -> Check {
+    Check::at_most(
+        format!("{}: quasi-static K_phi", case.name),
+        "|K(v2) / K(v1) - 1|",
+        (v2.fit.k_phi / v1.fit.k_phi - 1.0).abs(),
+        case.tolerances.quasi_static_k_rel,
+        format!(
+            "native K_phi = {:.3} at {} m/s ({}), {:.3} at {speed2} m/s ({})",
+            v1.fit.k_phi,
+            case.speed,
+            v1.members_text(),
+            v2.fit.k_phi,
+            v2.members_text()
+        ),
+    )
+}
+
+/// K_phi of one engine against the case's published value (e.g. Table 3).
+pub fn published(case: &PenetrationCase, obs: &Observables, engine: &str) -> Option<Check> {
+    let p = case.published.as_ref()?;
+    Some(Check::at_most(
+        format!("{}: K_phi vs published ({engine})", case.name),
+        "|K / K_published - 1|",
+        (obs.fit.k_phi / p.k_phi - 1.0).abs(),
+        case.tolerances.published_k_rel,
+        format!(
+            "K_phi = {:.3} (R^2 {:.4}, {}) vs {} ({})",
+            obs.fit.k_phi,
+            obs.fit.r2,
+            obs.members_text(),
+            p.k_phi,
+            p.source
+        ),
+    ))
 }
 
 /// Checks of `test` against `reference`, tolerances from the case file.
@@ -61,13 +129,15 @@ pub fn compare(case: &PenetrationCase, test: &Observables, reference: &Observabl
         (test.fit.k_phi / reference.fit.k_phi - 1.0).abs(),
         tol.k_phi_rel,
         format!(
-            "K_test = {:.3} +- {:.3} (R^2 {:.3}), K_ref = {:.3} +- {:.3} (R^2 {:.3}), fitted on h >= {}",
+            "K_test = {:.3} +- {:.3} (R^2 {:.4}; {}), K_ref = {:.3} +- {:.3} (R^2 {:.4}; {}), fitted on h >= {} of the mean FDR",
             test.fit.k_phi,
             test.fit.se_k,
             test.fit.r2,
+            test.members_text(),
             reference.fit.k_phi,
             reference.fit.se_k,
             reference.fit.r2,
+            reference.members_text(),
             case.fit_h_min
         ),
     )];

@@ -68,6 +68,8 @@ pub struct Perturbation {
     pub friction_factor: f64,
     pub restitution_shift: f64,
     pub poisson_shift: f64,
+    /// Replaces the sliding friction of one type pair (0-based types), e.g. mu_gg.
+    pub pair_friction: Option<(usize, usize, f64)>,
 }
 
 impl Default for Perturbation {
@@ -76,6 +78,7 @@ impl Default for Perturbation {
             friction_factor: 1.0,
             restitution_shift: 0.0,
             poisson_shift: 0.0,
+            pair_friction: None,
         }
     }
 }
@@ -138,7 +141,10 @@ impl Simulation {
                     mb.youngs_modulus,
                     mb.poisson_ratio + pert.poisson_shift,
                     (case.pairs.restitution[k] + pert.restitution_shift).min(1.0),
-                    case.pairs.friction[k] * pert.friction_factor,
+                    match pert.pair_friction {
+                        Some((i, j, mu)) if (i, j) == (a, b) || (j, i) == (a, b) => mu,
+                        _ => case.pairs.friction[k] * pert.friction_factor,
+                    },
                     case.pairs.rolling_friction[k],
                 ));
             }

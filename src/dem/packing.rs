@@ -105,7 +105,7 @@ pub fn container_case(case: &PenetrationCase, particles: Vec<Particle>, top: f64
 }
 
 /// Loose lattice: spacing 1.05 d_max, inside R_c - d_max/2, layers from d_max up.
-fn lattice(case: &PenetrationCase) -> Result<Vec<Particle>> {
+pub fn lattice(case: &PenetrationCase) -> Result<Vec<Particle>> {
     let d = draw_diameters(&case.diameter, case.count, case.seed)?;
     let dmax = case.diameter.max();
     let a = 1.05 * dmax;

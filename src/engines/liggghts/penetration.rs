@@ -186,7 +186,29 @@ pub struct PenetrationDeck {
     pub soft_particles: bool,
     /// Write `hard_particles yes`: lets LIGGGHTS accept E > 1e9 Pa.
     pub hard_particles: bool,
+    /// Settle the bed in LIGGGHTS first (`particles` is then the loose lattice).
+    pub settle: Option<Settle>,
 }
+
+/// LIGGGHTS-side bed preparation, for beds too large to pour natively (the paper's
+/// full-size 2.9e6-grain bed): the deck reads the loose lattice granval's native pour
+/// starts from, settles it with the same criterion (mean KE below `ke_ratio` times its
+/// peak at the end of pouring, checked every `check_every` steps), writes the settled
+/// bed to `bed.dump`, and starts the intruder `start_gap` above the highest grain top
+/// within `footprint_radius` of the axis, as the native engine does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settle {
+    pub ke_ratio: f64,
+    pub check_every: u64,
+    pub max_checks: u64,
+    pub footprint_radius: f64,
+    pub start_gap: f64,
+}
+
+/// Settled bed written by a [`Settle`] deck (id type radius x y z vx vy vz, %.17g).
+pub const BED_DUMP_FILE: &str = "bed.dump";
+/// The loose lattice a [`Settle`] deck starts from.
+pub const LATTICE_FILE: &str = "data.lattice";
 
 /// What [`write_deck_dir`] wrote.
 #[derive(Debug, Clone)]
@@ -494,7 +516,15 @@ pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
         )?;
         writeln!(s, "hard_particles yes")?;
     }
-    writeln!(s, "read_data {DATA_FILE}")?;
+    writeln!(
+        s,
+        "read_data {}",
+        if d.settle.is_some() {
+            LATTICE_FILE
+        } else {
+            DATA_FILE
+        }
+    )?;
     writeln!(s, "neighbor {} bin", f(d.neighbor_skin * l))?;
     writeln!(s, "neigh_modify delay 0")?;
     write_contact_model(&mut s, &d.materials, &d.pairs, d.rolling, u.pressure())?;
@@ -518,14 +548,24 @@ pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
         f(d.container_radius * l)
     )?;
     writeln!(s, "fix integr all nve/sphere")?;
-    // The STL is written at its start position (no `move`); the reference point is the
-    // bottom centre, so f_cad[7..9] track it and f_cad[4..6] are torques about it.
-    writeln!(
-        s,
-        "fix cad all mesh/surface/stress file {STL_FILE} type {} stress on reference_point 0 0 {}",
-        d.intruder_type + 1,
-        f(d.intruder_bottom_z0 * l)
-    )?;
+    if let Some(st) = &d.settle {
+        write_settle_block(&mut s, d, st)?;
+        // The STL has its bottom at z = 0 and is moved above the settled bed.
+        writeln!(
+            s,
+            "fix cad all mesh/surface/stress file {STL_FILE} type {} move 0 0 ${{z0}} stress on reference_point 0 0 ${{z0}}",
+            d.intruder_type + 1
+        )?;
+    } else {
+        // The STL is written at its start position (no `move`); the reference point is the
+        // bottom centre, so f_cad[7..9] track it and f_cad[4..6] are torques about it.
+        writeln!(
+            s,
+            "fix cad all mesh/surface/stress file {STL_FILE} type {} stress on reference_point 0 0 {}",
+            d.intruder_type + 1,
+            f(d.intruder_bottom_z0 * l)
+        )?;
+    }
     writeln!(
         s,
         "fix wallint all wall/gran {models} mesh n_meshes 1 meshes cad"
@@ -545,8 +585,92 @@ pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
     writeln!(s, "thermo_style custom step atoms ke cpu")?;
     writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", thermo_every(d.n_steps))?;
-    writeln!(s, "run {}", d.n_steps)?;
+    if d.settle.is_some() {
+        writeln!(s, "variable pen_steps index {}", d.n_steps)?;
+        writeln!(s, "run ${{pen_steps}}")?;
+    } else {
+        writeln!(s, "run {}", d.n_steps)?;
+    }
     Ok(s)
+}
+
+/// The settling loop and intruder placement of a [`Settle`] deck. `settle_checks` is an
+/// `index` variable, so `-var settle_checks N` caps a smoke run at N * check_every steps.
+fn write_settle_block(s: &mut String, d: &PenetrationDeck, st: &Settle) -> Result<()> {
+    let l = d.units.length();
+    let every = st.check_every;
+    writeln!(
+        s,
+        "# --- bed preparation (Feng et al. Sec. 2), granval's native protocol ---"
+    )?;
+    writeln!(s, "thermo_style custom step atoms ke cpu")?;
+    writeln!(s, "thermo_modify lost error")?;
+    writeln!(s, "thermo {}", every * 20)?;
+    writeln!(s, "variable settle_checks index {}", st.max_checks)?;
+    // `-var smoke 1` (with small settle_checks / pen_steps) runs every command of the
+    // deck briefly without settling: a start-up test for decks too big to run here.
+    writeln!(s, "variable smoke index 0")?;
+    writeln!(s, "variable kepeak equal 0")?;
+    writeln!(s, "variable poured equal 0")?;
+    writeln!(s, "variable ratio equal 1")?;
+    writeln!(s, "variable nchk loop ${{settle_checks}}")?;
+    writeln!(s, "label settle_loop")?;
+    writeln!(s, "run {every} post no")?;
+    writeln!(s, "variable kenow equal $(ke/atoms)")?;
+    writeln!(s, "variable half equal $(0.5*v_kepeak)")?;
+    writeln!(
+        s,
+        "if \"${{poured}} == 0 && ${{kenow}} >= ${{kepeak}}\" then \"variable kepeak equal ${{kenow}}\" elif \"${{poured}} == 0 && ${{kenow}} < ${{half}}\" then \"variable poured equal 1\""
+    )?;
+    writeln!(
+        s,
+        "if \"${{poured}} == 1\" then \"variable ratio equal $(v_kenow/v_kepeak)\""
+    )?;
+    writeln!(
+        s,
+        "if \"${{poured}} == 1 && ${{ratio}} < {}\" then \"jump SELF settled\"",
+        f(st.ke_ratio)
+    )?;
+    writeln!(s, "next nchk")?;
+    writeln!(s, "jump SELF settle_loop")?;
+    writeln!(s, "if \"${{smoke}} == 1\" then \"jump SELF settled\"")?;
+    writeln!(
+        s,
+        "print \"granval: bed not settled after $(step) steps (KE ratio ${{ratio}}, target {})\"",
+        f(st.ke_ratio)
+    )?;
+    writeln!(s, "quit")?;
+    writeln!(s, "label settled")?;
+    writeln!(
+        s,
+        "print \"granval: bed settled at step $(step), KE ratio ${{ratio}}\""
+    )?;
+    writeln!(
+        s,
+        "write_dump all custom {BED_DUMP_FILE} id type radius x y z vx vy vz modify format \"%d %d %.17g %.17g %.17g %.17g %.17g %.17g %.17g\""
+    )?;
+    writeln!(
+        s,
+        "region foot cylinder z 0 0 {} {} {} units box",
+        f(st.footprint_radius * l),
+        f(d.domain_lo[2] * l),
+        f(d.domain_hi[2] * l)
+    )?;
+    // LIGGGHTS 3.8's atom-style variables know no `radius`; compute property/atom does.
+    writeln!(s, "compute rad all property/atom radius")?;
+    writeln!(s, "variable top atom z+c_rad")?;
+    writeln!(s, "compute ztop all reduce/region foot max v_top")?;
+    writeln!(s, "thermo_style custom step atoms ke c_ztop")?;
+    writeln!(s, "run 0")?;
+    // Plain decimal: LIGGGHTS 3.8's formula parser reads `1e-3` as a thermo keyword.
+    writeln!(s, "variable z0 equal $(c_ztop+{})", st.start_gap * l)?;
+    writeln!(
+        s,
+        "print \"granval: intruder bottom starts at z0 = ${{z0}}\""
+    )?;
+    writeln!(s, "reset_timestep 0")?;
+    writeln!(s, "# --- penetration ---")?;
+    Ok(())
 }
 
 fn readme_text(d: &PenetrationDeck, segments: usize) -> String {
@@ -600,10 +724,15 @@ pub fn write_deck_dir(d: &PenetrationDeck, dir: &Path) -> Result<DeckFiles> {
     let deck = deck_text(d)?;
     let data = data_text(d)?;
     let l = d.units.length();
+    let z_stl = if d.settle.is_some() {
+        0.0
+    } else {
+        d.intruder_bottom_z0 * l
+    };
     let (stl, segments) = super::stl::flat_cylinder_stl(
         d.intruder_radius * l,
         d.intruder_length * l,
-        [0.0, 0.0, d.intruder_bottom_z0 * l],
+        [0.0, 0.0, z_stl],
         d.rim_error_frac,
     );
     std::fs::create_dir_all(dir)
@@ -611,7 +740,11 @@ pub fn write_deck_dir(d: &PenetrationDeck, dir: &Path) -> Result<DeckFiles> {
     let readme = readme_text(d, segments);
     let files = DeckFiles {
         deck: dir.join(DECK_FILE),
-        data: dir.join(DATA_FILE),
+        data: dir.join(if d.settle.is_some() {
+            LATTICE_FILE
+        } else {
+            DATA_FILE
+        }),
         stl: dir.join(STL_FILE),
         readme: dir.join(README_FILE),
         stl_segments: segments,
@@ -628,14 +761,28 @@ pub fn write_deck_dir(d: &PenetrationDeck, dir: &Path) -> Result<DeckFiles> {
     Ok(files)
 }
 
-/// Reads `force.txt` line by line (only the output vector grows), converting to SI.
-/// Lines starting with `#` and blank lines are skipped; errors name file and line.
+/// Reads `force.txt` into memory (small files, tests); see [`for_each_force_sample`].
 pub fn parse_force_file(path: &Path, units: Units) -> Result<Vec<ForceSample>> {
+    let mut out = Vec::new();
+    for_each_force_sample(path, units, |s| {
+        out.push(*s);
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Streams `force.txt` line by line, converting each sample to SI and handing it to
+/// `visit`; nothing is kept, so memory does not grow with the number of output steps.
+/// Lines starting with `#` and blank lines are skipped; errors name file and line.
+pub fn for_each_force_sample(
+    path: &Path,
+    units: Units,
+    mut visit: impl FnMut(&ForceSample) -> Result<()>,
+) -> Result<()> {
     let file =
         std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
     let mut reader = std::io::BufReader::new(file);
     let (l, fo) = (units.length(), units.force());
-    let mut out = Vec::new();
     let mut line = String::new();
     let mut lineno = 0usize;
     loop {
@@ -685,14 +832,14 @@ pub fn parse_force_file(path: &Path, units: Units) -> Result<Vec<ForceSample>> {
         if it.next().is_some() {
             return Err(bad("extra columns"));
         }
-        out.push(ForceSample {
+        visit(&ForceSample {
             step,
             t: v[0],
             z_bottom: v[1] / l,
             f: [v[2] / fo, v[3] / fo, v[4] / fo],
-        });
+        })?;
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Whether coreutils' `stdbuf` runs here (checked once).
@@ -733,32 +880,121 @@ pub fn run(
     mpi_procs: usize,
     timeout: Duration,
 ) -> Result<(Vec<ForceSample>, Provenance)> {
+    let mut out = Vec::new();
+    let prov = run_streaming(
+        d,
+        dir,
+        mpi_procs,
+        timeout,
+        |_| {},
+        |s| {
+            out.push(*s);
+            Ok(())
+        },
+    )?;
+    Ok((out, prov))
+}
+
+/// [`write_deck_dir`], then LIGGGHTS on it; `progress(step)` follows the thermo lines of
+/// its log while it runs and `visit` receives every force sample (SI) afterwards.
+pub fn run_streaming(
+    d: &PenetrationDeck,
+    dir: &Path,
+    mpi_procs: usize,
+    timeout: Duration,
+    progress: impl FnMut(u64),
+    visit: impl FnMut(&ForceSample) -> Result<()>,
+) -> Result<Provenance> {
     let files = write_deck_dir(d, dir)?;
-    let (samples, mut prov) = run_existing(d, dir, mpi_procs, timeout)?;
+    let mut prov = execute(d, dir, mpi_procs, timeout, progress, visit)?;
     prov.notes
         .insert(2, format!("intruder STL: {} segments", files.stl_segments));
-    Ok((samples, prov))
+    Ok(prov)
 }
 
 /// Runs LIGGGHTS on the deck directory `dir` as it is on disk (written by
-/// [`write_deck_dir`] for `d`, possibly edited by hand), killed after `timeout`. Refuses
-/// failed runs (non-zero exit, any `ERROR` line, timeout, missing/short force file) with
-/// the log tail, and returns the force samples in SI plus the provenance (its input hash
-/// covers the deck, data and STL files as run).
+/// [`write_deck_dir`] for `d`, possibly edited by hand), killed after `timeout`; the
+/// samples are collected in memory (see [`execute`] for the streaming form).
 pub fn run_existing(
     d: &PenetrationDeck,
     dir: &Path,
     mpi_procs: usize,
     timeout: Duration,
 ) -> Result<(Vec<ForceSample>, Provenance)> {
+    let mut out = Vec::new();
+    let prov = execute(
+        d,
+        dir,
+        mpi_procs,
+        timeout,
+        |_| {},
+        |s| {
+            out.push(*s);
+            Ok(())
+        },
+    )?;
+    Ok((out, prov))
+}
+
+fn input_hash(dir: &Path) -> String {
     let mut inputs = Vec::new();
-    for name in [DECK_FILE, DATA_FILE, STL_FILE] {
+    for name in [DECK_FILE, DATA_FILE, LATTICE_FILE, STL_FILE] {
         // A missing input is left for LIGGGHTS to report (its error is the useful one).
         if let Ok(b) = std::fs::read(dir.join(name)) {
             inputs.extend_from_slice(&b);
         }
     }
-    let input_hash = sha256_hex(&inputs);
+    sha256_hex(&inputs)
+}
+
+/// Follows LIGGGHTS' log while it grows: the step of the newest thermo line.
+struct LogFollower {
+    path: PathBuf,
+    offset: u64,
+    partial: String,
+}
+
+impl LogFollower {
+    fn poll(&mut self) -> Option<u64> {
+        use std::io::{Read, Seek, SeekFrom};
+        let mut f = std::fs::File::open(&self.path).ok()?;
+        let len = f.metadata().ok()?.len();
+        if len <= self.offset {
+            return None;
+        }
+        f.seek(SeekFrom::Start(self.offset)).ok()?;
+        let mut buf = Vec::new();
+        f.take(len - self.offset).read_to_end(&mut buf).ok()?;
+        self.offset = len;
+        self.partial.push_str(&String::from_utf8_lossy(&buf));
+        let mut last = None;
+        let complete = self.partial.rfind('\n').map(|i| i + 1).unwrap_or(0);
+        for line in self.partial[..complete].lines() {
+            let mut it = line.split_whitespace();
+            // Thermo lines are `step atoms ke cpu` (thermo_style custom step atoms ke cpu).
+            if let (Some(a), Some(b), Some(_), Some(_), None) =
+                (it.next(), it.next(), it.next(), it.next(), it.next())
+                && let (Ok(step), Ok(_)) = (a.parse::<u64>(), b.parse::<u64>())
+            {
+                last = Some(step);
+            }
+        }
+        self.partial.drain(..complete);
+        last
+    }
+}
+
+/// Runs LIGGGHTS in `dir` and hands the checked outputs to [`read_outputs`]. Refuses
+/// failed runs (non-zero exit, any `ERROR` line, timeout, missing/short force file) with
+/// the log tail.
+pub fn execute(
+    d: &PenetrationDeck,
+    dir: &Path,
+    mpi_procs: usize,
+    timeout: Duration,
+    mut progress: impl FnMut(u64),
+    visit: impl FnMut(&ForceSample) -> Result<()>,
+) -> Result<Provenance> {
     for name in [FORCE_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE] {
         let p = dir.join(name);
         if p.exists() {
@@ -768,17 +1004,25 @@ pub fn run_existing(
     }
     let argv = argv(mpi_procs);
     let command = runner::command_line(&argv);
-    let fin = runner::run(
+    let mut follower = LogFollower {
+        path: dir.join(LOG_FILE),
+        offset: 0,
+        partial: String::new(),
+    };
+    let fin = runner::run_with(
         &argv,
         dir,
         &dir.join(STDOUT_FILE),
         &dir.join(STDERR_FILE),
         timeout,
+        || {
+            if let Some(step) = follower.poll() {
+                progress(step)
+            }
+        },
     )
     .context("LIGGGHTS penetration run failed to start")?;
-
     let tr = super::Transcript::read(dir);
-    let (log, stdout, errors) = (&tr.log, &tr.stdout, &tr.errors);
     let fail = |reason: String| tr.failure("LIGGGHTS penetration run", &command, dir, &reason);
     match fin.outcome {
         runner::Outcome::TimedOut => {
@@ -792,37 +1036,74 @@ pub fn run_existing(
         }
         runner::Outcome::Exited(_) => {}
     }
+    let mut prov = read_outputs(d, dir, visit).map_err(|e| fail(format!("{e:#}")))?;
+    prov.command = command;
+    prov.wall_time_s = fin.wall_time_s;
+    prov.threads = mpi_procs.max(1);
+    Ok(prov)
+}
+
+/// LIGGGHTS' own "Total wall time: h:mm:ss" (for runs made outside granval).
+pub fn log_wall_time(log: &str) -> Option<f64> {
+    let l = log
+        .lines()
+        .rev()
+        .find(|l| l.starts_with("Total wall time:"))?;
+    let t = l.trim_start_matches("Total wall time:").trim();
+    let parts: Vec<f64> = t
+        .split(':')
+        .map(|x| x.parse().ok())
+        .collect::<Option<_>>()?;
+    Some(parts.iter().fold(0.0, |acc, v| acc * 60.0 + v))
+}
+
+/// Checks the outputs of a finished run of `d` in `dir` — made by granval or by hand
+/// (e.g. on a cluster) — and streams its force samples (SI) to `visit`: no `ERROR` in
+/// the log or stdout, every expected sample present at the expected step. The returned
+/// provenance's command and wall time are those the log tells (`execute` overwrites them
+/// with what it measured).
+pub fn read_outputs(
+    d: &PenetrationDeck,
+    dir: &Path,
+    mut visit: impl FnMut(&ForceSample) -> Result<()>,
+) -> Result<Provenance> {
+    let tr = super::Transcript::read(dir);
+    let (log, stdout, errors) = (&tr.log, &tr.stdout, &tr.errors);
+    if log.is_empty() && stdout.is_empty() {
+        bail!(
+            "{}: neither {LOG_FILE} nor {STDOUT_FILE} exists or has content: LIGGGHTS did not run here (run `liggghts -in {DECK_FILE}` in it first)",
+            dir.display()
+        );
+    }
     if !errors.is_empty() {
-        return Err(fail(
-            "ERROR in the LIGGGHTS output although the exit status was 0".to_string(),
-        ));
+        bail!("ERROR in the LIGGGHTS output: {}", errors.join(" | "));
     }
     let force_path = dir.join(FORCE_FILE);
     if !force_path.exists() {
-        return Err(fail(format!("no {} was written", force_path.display())));
+        bail!("no {} was written", force_path.display());
     }
-    let samples = parse_force_file(&force_path, d.units).map_err(|e| fail(format!("{e:#}")))?;
-    let expected = expected_samples(d);
-    if samples.len() != expected {
-        return Err(fail(format!(
-            "{} has {} samples, expected {expected} (n_steps {} / force_every {})",
-            force_path.display(),
-            samples.len(),
-            d.n_steps,
-            d.force_every
-        )));
-    }
-    for (k, s) in samples.iter().enumerate() {
-        let step = (k as u64 + 1) * d.force_every;
+    let mut n = 0usize;
+    for_each_force_sample(&force_path, d.units, |s| {
+        let step = (n as u64 + 1) * d.force_every;
         if s.step != step {
-            return Err(fail(format!(
-                "sample {k} of {} is step {}, expected {step}",
+            bail!(
+                "sample {n} of {} is step {}, expected {step}",
                 force_path.display(),
                 s.step
-            )));
+            );
         }
+        n += 1;
+        visit(s)
+    })?;
+    let expected = expected_samples(d);
+    if n != expected {
+        bail!(
+            "{} has {n} samples, expected {expected} (n_steps {} / force_every {}): the run is incomplete",
+            force_path.display(),
+            d.n_steps,
+            d.force_every
+        );
     }
-
     let version = log
         .lines()
         .next()
@@ -851,18 +1132,200 @@ pub fn run_existing(
         );
     }
     notes.extend(super::warnings(log));
-    Ok((
-        samples,
-        Provenance {
-            engine: "liggghts".to_string(),
-            version,
-            command,
-            input_hash,
-            date: now_utc(),
-            wall_time_s: fin.wall_time_s,
-            threads: mpi_procs.max(1),
-            case_file: dir.join(DECK_FILE).display().to_string(),
-            notes,
-        },
-    ))
+    let procs = log
+        .lines()
+        .find_map(|l| {
+            l.trim()
+                .strip_prefix("Loop time of")
+                .and_then(|r| r.split(" on ").nth(1))
+                .and_then(|r| r.split_whitespace().next())
+                .and_then(|p| p.parse::<usize>().ok())
+        })
+        .unwrap_or(1);
+    Ok(Provenance {
+        engine: "liggghts".to_string(),
+        version,
+        command: format!("run outside granval (log says {procs} procs)"),
+        input_hash: input_hash(dir),
+        date: now_utc(),
+        wall_time_s: log_wall_time(log).unwrap_or(f64::NAN),
+        threads: procs,
+        case_file: dir.join(DECK_FILE).display().to_string(),
+        notes,
+    })
+}
+
+/// Reads a bed back from a `read_data` file written by [`data_text`] (SI out), so
+/// `granval analyze` knows the exact grains a deck directory started from. Errors name
+/// the file, line and what is wrong; every atom needs a `Velocities` line.
+pub fn parse_data_file(path: &Path, units: Units) -> Result<Vec<Particle>> {
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let (l, v, rho) = (units.length(), units.velocity(), units.density());
+    let mut particles: Vec<Particle> = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    let mut section = "";
+    let mut declared = None;
+    let mut with_velocity = 0usize;
+    for (k, line) in std::io::BufReader::new(file).lines().enumerate() {
+        let lineno = k + 1;
+        let line = line.with_context(|| format!("{}:{lineno}: read error", path.display()))?;
+        let t = line.split('#').next().unwrap_or("").trim();
+        if k == 0 || t.is_empty() {
+            continue;
+        }
+        let bad = |what: &str| anyhow::anyhow!("{}:{lineno}: {what}: {t:?}", path.display());
+        match t {
+            "Atoms" | "Velocities" => {
+                section = if t == "Atoms" { "atoms" } else { "velocities" };
+                continue;
+            }
+            _ => {}
+        }
+        let tok: Vec<&str> = t.split_whitespace().collect();
+        let num = |i: usize, name: &str| -> Result<f64> {
+            let x: f64 = tok
+                .get(i)
+                .ok_or_else(|| bad(&format!("missing {name}")))?
+                .parse()
+                .map_err(|_| bad(&format!("unparsable {name}")))?;
+            if x.is_finite() {
+                Ok(x)
+            } else {
+                Err(bad(&format!("non-finite {name}")))
+            }
+        };
+        match section {
+            "" => {
+                if tok.len() == 2 && tok[1] == "atoms" {
+                    declared = Some(tok[0].parse::<usize>().map_err(|_| bad("atom count"))?);
+                }
+            }
+            "atoms" => {
+                if tok.len() != 7 {
+                    bail!(bad("expected `atom-ID type diameter density x y z`"));
+                }
+                let id: u64 = tok[0].parse().map_err(|_| bad("unparsable atom-ID"))?;
+                let ty: usize = tok[1].parse().map_err(|_| bad("unparsable type"))?;
+                if ty == 0 {
+                    bail!(bad("atom type 0"));
+                }
+                if index.insert(id, particles.len()).is_some() {
+                    bail!(bad("duplicate atom-ID"));
+                }
+                particles.push(Particle {
+                    id,
+                    type_: ty - 1,
+                    radius: 0.5 * num(2, "diameter")? / l,
+                    density: num(3, "density")? / rho,
+                    x: [num(4, "x")? / l, num(5, "y")? / l, num(6, "z")? / l],
+                    v: [0.0; 3],
+                    omega: [0.0; 3],
+                });
+            }
+            _ => {
+                if tok.len() != 7 {
+                    bail!(bad("expected `atom-ID vx vy vz wx wy wz`"));
+                }
+                let id: u64 = tok[0].parse().map_err(|_| bad("unparsable atom-ID"))?;
+                let &i = index
+                    .get(&id)
+                    .ok_or_else(|| bad("velocity of an atom not in `Atoms`"))?;
+                let p = &mut particles[i];
+                p.v = [num(1, "vx")? / v, num(2, "vy")? / v, num(3, "vz")? / v];
+                p.omega = [num(4, "wx")?, num(5, "wy")?, num(6, "wz")?];
+                with_velocity += 1;
+            }
+        }
+    }
+    match declared {
+        Some(n) if n == particles.len() && n == with_velocity => Ok(particles),
+        Some(n) => bail!(
+            "{}: header declares {n} atoms, found {} in `Atoms` and {with_velocity} in `Velocities`",
+            path.display(),
+            particles.len()
+        ),
+        None => bail!("{}: no `N atoms` header line", path.display()),
+    }
+}
+
+/// Reads the settled bed a [`Settle`] deck wrote (`write_dump ... id type radius x y z vx
+/// vy vz`), SI out; angular velocities are not needed by the analysis and set to zero.
+pub fn parse_bed_dump(path: &Path, units: Units, density: f64) -> Result<Vec<Particle>> {
+    let file = std::fs::File::open(path).with_context(|| {
+        format!(
+            "cannot open {} (the settled bed; did the deck reach `label settled`?)",
+            path.display()
+        )
+    })?;
+    let (l, v) = (units.length(), units.velocity());
+    let mut out = Vec::new();
+    let mut in_atoms = false;
+    let mut expected = None;
+    let mut after_number = false;
+    for (k, line) in std::io::BufReader::new(file).lines().enumerate() {
+        let lineno = k + 1;
+        let line = line.with_context(|| format!("{}:{lineno}: read error", path.display()))?;
+        let t = line.trim();
+        if after_number {
+            expected =
+                Some(t.parse::<usize>().with_context(|| {
+                    format!("{}:{lineno}: bad atom count {t:?}", path.display())
+                })?);
+            after_number = false;
+            continue;
+        }
+        if t.starts_with("ITEM: NUMBER OF ATOMS") {
+            after_number = true;
+            continue;
+        }
+        if let Some(cols) = t.strip_prefix("ITEM: ATOMS") {
+            if cols.split_whitespace().collect::<Vec<_>>()
+                != ["id", "type", "radius", "x", "y", "z", "vx", "vy", "vz"]
+            {
+                bail!("{}:{lineno}: unexpected columns {cols:?}", path.display());
+            }
+            in_atoms = true;
+            continue;
+        }
+        if t.starts_with("ITEM:") {
+            in_atoms = false;
+            continue;
+        }
+        if !in_atoms || t.is_empty() {
+            continue;
+        }
+        let tok: Vec<&str> = t.split_whitespace().collect();
+        let bad = |w: &str| anyhow::anyhow!("{}:{lineno}: {w}: {t:?}", path.display());
+        if tok.len() != 9 {
+            bail!(bad("expected 9 columns"));
+        }
+        let x: Vec<f64> = tok[2..]
+            .iter()
+            .map(|s| s.parse::<f64>().ok().filter(|x| x.is_finite()))
+            .collect::<Option<_>>()
+            .ok_or_else(|| bad("unparsable number"))?;
+        let ty: usize = tok[1].parse().map_err(|_| bad("unparsable type"))?;
+        out.push(Particle {
+            id: tok[0].parse().map_err(|_| bad("unparsable id"))?,
+            type_: ty.checked_sub(1).ok_or_else(|| bad("type 0"))?,
+            radius: x[0] / l,
+            density,
+            x: [x[1] / l, x[2] / l, x[3] / l],
+            v: [x[4] / v, x[5] / v, x[6] / v],
+            omega: [0.0; 3],
+        });
+    }
+    match expected {
+        Some(n) if n == out.len() => {
+            out.sort_by_key(|p| p.id);
+            Ok(out)
+        }
+        Some(n) => bail!(
+            "{}: header says {n} atoms, read {}",
+            path.display(),
+            out.len()
+        ),
+        None => bail!("{}: no `ITEM: NUMBER OF ATOMS`", path.display()),
+    }
 }

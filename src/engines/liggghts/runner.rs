@@ -47,6 +47,19 @@ pub fn run(
     stderr: &Path,
     timeout: Duration,
 ) -> Result<Finished> {
+    run_with(argv, dir, stdout, stderr, timeout, || {})
+}
+
+/// [`run`], calling `tick` about twice a second while the process lives (progress bars
+/// that follow the log).
+pub fn run_with(
+    argv: &[String],
+    dir: &Path,
+    stdout: &Path,
+    stderr: &Path,
+    timeout: Duration,
+    mut tick: impl FnMut(),
+) -> Result<Finished> {
     let (prog, args) = argv.split_first().context("empty command line")?;
     let out = std::fs::File::create(stdout)
         .with_context(|| format!("cannot create {}", stdout.display()))?;
@@ -69,7 +82,12 @@ pub fn run(
         })?;
 
     let mut pause = Duration::from_millis(5);
+    let mut last_tick = Instant::now();
     loop {
+        if last_tick.elapsed() >= Duration::from_millis(500) {
+            tick();
+            last_tick = Instant::now();
+        }
         if let Some(status) = child
             .try_wait()
             .context("waiting for the LIGGGHTS process")?

@@ -1,0 +1,273 @@
+//! The penetration experiment end to end (issue 3): bed preparation, runs in both
+//! engines from the same bed, reduction of each run to its binned FDR while the force
+//! series is read. Engine-agnostic pieces live in `analysis::fdr`; [`ensemble`] compares
+//! the engines over several beds, [`deck_dir`] writes and analyses self-contained
+//! LIGGGHTS deck directories (`granval deck` / `granval analyze`).
+
+pub mod deck_dir;
+pub mod ensemble;
+
+use crate::case::penetration::PenetrationCase;
+use crate::dem::packing::{self, Bed};
+use crate::dem::{self, Perturbation};
+use crate::engines::output::{ForceSample, Provenance, now_utc, sha256_hex};
+use anyhow::{Context, Result};
+use std::io::Write;
+use std::path::Path;
+
+pub struct PenetrationRun {
+    pub samples: Vec<ForceSample>,
+    pub provenance: Provenance,
+}
+
+/// One engine's run reduced to what the comparison needs: the binned FDR (eq 5).
+#[derive(Debug, Clone)]
+pub struct EngineRun {
+    pub fdr: crate::analysis::fdr::Fdr,
+    pub samples: u64,
+    pub provenance: Provenance,
+}
+
+/// The streaming eq-5 reducer of a run from `bed`: its own psi and surface.
+pub fn binner(case: &PenetrationCase, bed: &Bed) -> Result<crate::analysis::fdr::FdrBinner> {
+    crate::analysis::fdr::FdrBinner::new(
+        &crate::analysis::fdr::Scales {
+            rho_g: case.density,
+            psi: bed.psi,
+            g: case.gravity,
+            radius: case.intruder_radius,
+        },
+        bed.surface_z,
+        case.h_bin,
+    )
+}
+
+impl PenetrationRun {
+    /// Reduces the in-memory samples of a native run exactly as a LIGGGHTS force file is
+    /// reduced while it is read.
+    pub fn reduce(self, case: &PenetrationCase, bed: &Bed) -> Result<EngineRun> {
+        let mut b = binner(case, bed)?;
+        for s in &self.samples {
+            b.push(s.z_bottom, s.f[2])?;
+        }
+        Ok(EngineRun {
+            fdr: b.fdr(),
+            samples: b.samples(),
+            provenance: self.provenance,
+        })
+    }
+}
+
+/// Writes `force.csv` (t, z_bottom, fx, fy, fz; SI, full precision).
+pub fn write_force_csv(path: &Path, samples: &[ForceSample]) -> Result<()> {
+    let mut w = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
+    );
+    writeln!(w, "t,z_bottom,fx,fy,fz")?;
+    for s in samples {
+        writeln!(
+            w,
+            "{:e},{:e},{:e},{:e},{:e}",
+            s.t, s.z_bottom, s.f[0], s.f[1], s.f[2]
+        )?;
+    }
+    Ok(())
+}
+
+/// Prepares the bed natively (pour + settle to the case's KE criterion).
+pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
+    let bar = crate::report::progress::bar(progress, 1, "settle");
+    let bed = packing::prepare(case, |t, ratio| {
+        bar.set_message(format!("t = {t:.3} s, KE ratio {ratio:.1e}"))
+    })?;
+    bar.finish_and_clear();
+    Ok(bed)
+}
+
+pub fn run_native(
+    case: &PenetrationCase,
+    bed: &Bed,
+    pert: Perturbation,
+    progress: bool,
+) -> Result<PenetrationRun> {
+    let start = std::time::Instant::now();
+    let bar =
+        crate::report::progress::bar(progress, dem::penetration::n_steps(case, bed), "native");
+    let samples = dem::penetration::run(case, bed, pert, |s, _| bar.set_position(s))?;
+    bar.finish_and_clear();
+    Ok(PenetrationRun {
+        samples,
+        provenance: Provenance {
+            engine: "native".into(),
+            version: format!("granval {} native DEM", env!("CARGO_PKG_VERSION")),
+            command: "in-process".into(),
+            input_hash: sha256_hex(&std::fs::read(&case.source).unwrap_or_default()),
+            date: now_utc(),
+            wall_time_s: start.elapsed().as_secs_f64(),
+            threads: rayon::current_num_threads(),
+            case_file: case.source.display().to_string(),
+            notes: vec![packing::bed_note(case, bed)],
+        },
+    })
+}
+
+/// The LIGGGHTS deck of a penetration case started from `bed` (identical grains,
+/// container, intruder start and speed as the native run).
+pub fn liggghts_deck(
+    case: &PenetrationCase,
+    bed: &Bed,
+) -> Result<crate::engines::liggghts::penetration::PenetrationDeck> {
+    use crate::engines::liggghts::penetration::{PenetrationDeck, Units};
+    let (lo, hi) = packing::domain(case, dem::penetration::box_top(case, bed));
+    // LIGGGHTS refuses E < 5e6 Pa (Table 2's G = 1 MPa gives E = 2.6 MPa) in SI *and* in
+    // cgs (5e7 barye). Its own `soft_particles yes` lifts only that range check; the
+    // material is written unchanged, never stiffened.
+    let soft = case.materials.iter().any(|m| m.youngs_modulus < 5e6);
+    let hard = case.materials.iter().any(|m| m.youngs_modulus > 1e9);
+    Ok(PenetrationDeck {
+        units: Units::Si,
+        materials: case.materials.clone(),
+        pairs: case.pairs.clone(),
+        rolling: case.rolling,
+        dt: case.dt,
+        gravity: case.gravity,
+        container_radius: case.container_radius,
+        floor_z: 0.0,
+        domain_lo: lo,
+        domain_hi: hi,
+        particles: bed.particles.clone(),
+        intruder_radius: case.intruder_radius,
+        intruder_length: case.intruder_length,
+        intruder_type: case.intruder_type,
+        intruder_bottom_z0: dem::penetration::start_z(case, bed),
+        speed: case.speed,
+        n_steps: dem::penetration::n_steps(case, bed),
+        force_every: case.force_every,
+        neighbor_skin: case.neighbor_skin,
+        rim_error_frac: 0.01,
+        wall_type: case.wall_type,
+        soft_particles: soft,
+        hard_particles: hard,
+        settle: None,
+    })
+}
+
+/// Runs the case in LIGGGHTS from the natively prepared bed, in `dir` (a deck
+/// directory, see [`deck_dir`]); the force file is reduced while it is read.
+pub fn run_liggghts(
+    case: &PenetrationCase,
+    bed: &Bed,
+    dir: &Path,
+    mpi_procs: usize,
+    progress: bool,
+) -> Result<EngineRun> {
+    let deck = liggghts_deck(case, bed)?;
+    std::fs::create_dir_all(dir)?;
+    let mut b = binner(case, bed)?;
+    let bar = crate::report::progress::bar(progress, deck.n_steps, "LIGGGHTS");
+    let mut provenance = crate::engines::liggghts::penetration::run_streaming(
+        &deck,
+        dir,
+        mpi_procs,
+        std::time::Duration::from_secs(4 * 3600),
+        |step| bar.set_position(step),
+        |s| b.push(s.z_bottom, s.f[2]),
+    )?;
+    bar.finish_and_clear();
+    provenance.notes.push(packing::bed_note(case, bed));
+    provenance
+        .notes
+        .push(format!("bed sha256 {}", bed_hash(bed)));
+    Ok(EngineRun {
+        fdr: b.fdr(),
+        samples: b.samples(),
+        provenance,
+    })
+}
+
+/// Reads a `force.csv` written by [`write_force_csv`].
+pub fn read_force_csv(path: &Path) -> Result<Vec<ForceSample>> {
+    let mut r =
+        csv::Reader::from_path(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut out = Vec::new();
+    for (k, rec) in r.records().enumerate() {
+        let rec = rec.with_context(|| format!("{}: record {}", path.display(), k + 2))?;
+        let v = |i: usize| -> Result<f64> {
+            rec[i].parse::<f64>().with_context(|| {
+                format!(
+                    "{}: line {}: column {} = {:?}",
+                    path.display(),
+                    k + 2,
+                    i + 1,
+                    &rec[i]
+                )
+            })
+        };
+        out.push(ForceSample {
+            t: v(0)?,
+            z_bottom: v(1)?,
+            f: [v(2)?, v(3)?, v(4)?],
+        });
+    }
+    Ok(out)
+}
+
+/// Fingerprint of a bed (positions, radii, velocities), so a recorded LIGGGHTS run is
+/// only ever compared with a native run from the very same grains.
+pub fn bed_hash(bed: &Bed) -> String {
+    let mut bytes = Vec::with_capacity(bed.particles.len() * 80);
+    for p in &bed.particles {
+        for v in
+            p.x.iter()
+                .chain(&p.v)
+                .chain(&p.omega)
+                .chain(std::iter::once(&p.radius))
+        {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    sha256_hex(&bytes)
+}
+
+/// The LIGGGHTS deck of bed `k` of a case whose bed LIGGGHTS prepares itself (see
+/// [`crate::engines::liggghts::penetration::Settle`]): the same loose lattice as the
+/// native pour, settled with the same criterion, then penetrated.
+pub fn liggghts_settle_deck(
+    case: &PenetrationCase,
+) -> Result<crate::engines::liggghts::penetration::PenetrationDeck> {
+    use crate::engines::liggghts::penetration::Settle;
+    let lattice = packing::lattice(case)?;
+    let lattice_top = lattice
+        .iter()
+        .map(|p| p.x[2] + p.radius)
+        .fold(0.0, f64::max);
+    let dmax = case.diameter.max();
+    // Upper bound of the start height (the settled bed is lower than the lattice).
+    let z0_bound = lattice_top + case.start_gap;
+    let fill_guess = lattice_top;
+    let bed = Bed {
+        particles: lattice,
+        surface_z: fill_guess,
+        psi: f64::NAN,
+        ke_ratio: f64::NAN,
+        settle_time: f64::NAN,
+        ke_at_end_of_pour: f64::NAN,
+    };
+    let mut d = liggghts_deck(case, &bed)?;
+    let (lo, hi) = packing::domain(case, z0_bound + case.intruder_length + dmax);
+    d.domain_lo = lo;
+    d.domain_hi = hi;
+    d.intruder_bottom_z0 = z0_bound;
+    // Travel: gap + final depth + one grain (the highest top is at most ~d_max above
+    // the mean surface), so the tip reaches at least `final_depth`.
+    d.n_steps = ((case.start_gap + case.final_depth + dmax) / case.speed / case.dt).ceil() as u64;
+    let check_every = 50;
+    d.settle = Some(Settle {
+        ke_ratio: case.settle_ke_ratio,
+        check_every,
+        max_checks: (case.max_settle_time / case.dt / check_every as f64).ceil() as u64,
+        footprint_radius: case.intruder_radius + dmax,
+        start_gap: case.start_gap,
+    });
+    Ok(d)
+}
