@@ -9,6 +9,7 @@ pub mod bench;
 pub mod case;
 pub mod compare;
 pub mod dem;
+pub mod dem2d;
 pub mod engines;
 pub mod penetration;
 pub mod pipeline;

@@ -1,6 +1,7 @@
 //! Engine adapters: each turns a validated [`Case`] into the same [`RunOutput`]
 //! (DESIGN.md "Data flow"). Engine-specific code stops at these adapters.
 
+pub mod lammps;
 pub mod liggghts;
 pub mod native;
 pub mod output;

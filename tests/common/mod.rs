@@ -46,3 +46,8 @@ pub fn reference_frames(case: &Case, scratch: &Path) -> Vec<Frame> {
     }
     out.frames
 }
+
+/// GRANVAL_REQUIRE_LIVE=1: reference engines must run live, no recorded fallback.
+pub fn require_live() -> bool {
+    std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1")
+}

@@ -10,7 +10,7 @@
 mod deck;
 mod dump;
 pub mod penetration;
-mod runner;
+pub(crate) mod runner;
 pub mod stl;
 
 pub use deck::{

@@ -1,0 +1,370 @@
+//! Native 2D disk DEM for the impact experiment of Kondic et al. (K Sec. II):
+//! linear spring-dashpot disks with Cundall-Strack friction ([`contact`]), periodic in
+//! x, walls of frozen disks, gravity along -y, a rigid intruder (one disk or a
+//! translating cluster of disks), integrated in the order of LAMMPS `fix nve/sphere
+//! disc` + `fix rigid` so that the LAMMPS adapter is a like-for-like reference.
+//!
+//! One step (LAMMPS `run_style verlet`): half kick + drift (initial_integrate),
+//! re-neighbour if needed, pair forces, gravity, half kick (final_integrate).
+
+pub mod bed;
+pub mod contact;
+pub mod neighbor;
+
+use contact::{Coeffs, PairIn, PairOut};
+use neighbor::{Box2, Excluded, PairList};
+use rayon::prelude::*;
+
+/// How a disk moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Role {
+    /// Integrated by velocity Verlet (`fix nve/sphere disc`).
+    Free,
+    /// Never moves (`fix freeze`, not integrated): wall disks.
+    Frozen,
+    /// Member of the rigid intruder cluster (`fix rigid`, rotation off).
+    Cluster,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Disk {
+    pub id: u64,
+    /// 0-based type (coefficient table row).
+    pub type_: usize,
+    pub radius: f64,
+    pub mass: f64,
+    pub x: [f64; 2],
+    pub v: [f64; 2],
+    pub omega: f64,
+    pub role: Role,
+}
+
+/// `4 pi/3 r^3`, in the operation order of LAMMPS' `read_data` for `atom_style
+/// sphere` (`rmass *= 4.0*MY_PI/3.0 * r*r*r`), which turns the data file's density back
+/// into a mass. LAMMPS 7Jan2022 does this in 2D too, so the data file carries
+/// `mass / sphere_volume(r)` and both engines use the mass [`lammps_mass`] returns.
+pub fn sphere_volume(r: f64) -> f64 {
+    4.0 * std::f64::consts::PI / 3.0 * r * r * r
+}
+
+/// The mass LAMMPS will hold after reading `density = mass / sphere_volume(r)`.
+pub fn lammps_mass(mass: f64, r: f64) -> f64 {
+    let density = mass / sphere_volume(r);
+    density * sphere_volume(r)
+}
+
+/// The rigid intruder cluster: translation only (K Sec. III A switches its rotation
+/// off; LAMMPS `fix rigid ... torque 1 off off off`).
+#[derive(Debug, Clone)]
+pub struct Cluster {
+    pub members: Vec<usize>,
+    pub mass: f64,
+    pub xcm: [f64; 2],
+    pub vcm: [f64; 2],
+    /// Member offsets from the centre of mass (fixed: no rotation).
+    pub displace: Vec<[f64; 2]>,
+    pub fcm: [f64; 2],
+}
+
+struct Exclusions<'a> {
+    role: &'a [Role],
+}
+
+impl Excluded for Exclusions<'_> {
+    fn excluded(&self, i: usize, j: usize) -> bool {
+        matches!(
+            (self.role[i], self.role[j]),
+            (Role::Frozen, Role::Frozen) | (Role::Cluster, Role::Cluster)
+        )
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct System {
+    pub disks: Vec<Disk>,
+    pub cluster: Option<Cluster>,
+    /// `coeffs[a * n_types + b]`, symmetric.
+    pub coeffs: Vec<Coeffs>,
+    pub n_types: usize,
+    pub bx: Box2,
+    /// |g| (m/s^2), acting along -y.
+    pub gravity: f64,
+    pub dt: f64,
+    pub skin: f64,
+    pub step: u64,
+    pub f: Vec<[f64; 2]>,
+    pub torque: Vec<f64>,
+    pub list: PairList,
+    /// Per-pair result of the last force pass, in `list.pairs` order.
+    pub last: Vec<Option<PairOut>>,
+    /// Disks whose contact force is the intruder's observable.
+    pub intruder: Vec<usize>,
+    xs: Vec<[f64; 2]>,
+    radii: Vec<f64>,
+    roles: Vec<Role>,
+    setup_done: bool,
+}
+
+impl System {
+    pub fn new(
+        disks: Vec<Disk>,
+        cluster: Option<Cluster>,
+        coeffs: Vec<Coeffs>,
+        n_types: usize,
+        bx: Box2,
+        gravity: f64,
+        dt: f64,
+        skin: f64,
+        intruder: Vec<usize>,
+    ) -> System {
+        let n = disks.len();
+        let radii = disks.iter().map(|d| d.radius).collect();
+        let roles = disks.iter().map(|d| d.role).collect();
+        System {
+            disks,
+            cluster,
+            coeffs,
+            n_types,
+            bx,
+            gravity,
+            dt,
+            skin,
+            step: 0,
+            f: vec![[0.0; 2]; n],
+            torque: vec![0.0; n],
+            list: PairList::default(),
+            last: Vec::new(),
+            intruder,
+            xs: Vec::new(),
+            radii,
+            roles,
+            setup_done: false,
+        }
+    }
+
+    pub fn time(&self) -> f64 {
+        self.step as f64 * self.dt
+    }
+
+    fn coeff(&self, a: usize, b: usize) -> &Coeffs {
+        &self.coeffs[a * self.n_types + b]
+    }
+
+    /// Mass a disk brings into m_eff: the whole cluster's for a cluster member.
+    fn meff_mass(&self, k: usize) -> f64 {
+        match (self.disks[k].role, &self.cluster) {
+            (Role::Cluster, Some(c)) => c.mass,
+            _ => self.disks[k].mass,
+        }
+    }
+
+    fn neighbours(&mut self, force: bool) {
+        self.xs.clear();
+        self.xs.extend(self.disks.iter().map(|d| d.x));
+        if force || self.list.needs_rebuild(&self.bx, &self.xs, self.skin) {
+            for d in &mut self.disks {
+                d.x = self.bx.wrap(d.x);
+            }
+            self.xs.clear();
+            self.xs.extend(self.disks.iter().map(|d| d.x));
+            let ex = Exclusions { role: &self.roles };
+            self.list
+                .build(&self.bx, &self.xs, &self.radii, self.skin, &ex);
+        }
+    }
+
+    /// Pair forces + gravity. Pairs are evaluated in parallel and summed serially in
+    /// list order, so the result is independent of the thread count.
+    fn forces(&mut self, shear_update: bool) {
+        let dt = self.dt;
+        let disks = &self.disks;
+        let this = &*self;
+        let pairs = &self.list.pairs;
+        let out: Vec<(Option<PairOut>, [f64; 2])> = pairs
+            .par_iter()
+            .zip(self.list.shear.par_iter())
+            .map(|(&(i, j), &sh)| {
+                let (i, j) = (i as usize, j as usize);
+                let (a, b) = (&disks[i], &disks[j]);
+                let p = PairIn {
+                    del: this.bx.delta(a.x, b.x),
+                    ri: a.radius,
+                    rj: b.radius,
+                    vi: a.v,
+                    vj: b.v,
+                    wi: a.omega,
+                    wj: b.omega,
+                    mi: this.meff_mass(i),
+                    mj: this.meff_mass(j),
+                    frozen_i: a.role == Role::Frozen,
+                    frozen_j: b.role == Role::Frozen,
+                };
+                let mut sh = sh;
+                let r = contact::hooke(this.coeff(a.type_, b.type_), &p, &mut sh, shear_update, dt);
+                (r, sh)
+            })
+            .collect();
+        for f in &mut self.f {
+            *f = [0.0; 2];
+        }
+        for t in &mut self.torque {
+            *t = 0.0;
+        }
+        self.last.clear();
+        for (k, ((r, sh), &(i, j))) in out.into_iter().zip(&self.list.pairs).enumerate() {
+            self.list.shear[k] = sh;
+            if let Some(o) = r {
+                let (i, j) = (i as usize, j as usize);
+                self.f[i][0] += o.f[0];
+                self.f[i][1] += o.f[1];
+                self.f[j][0] -= o.f[0];
+                self.f[j][1] -= o.f[1];
+                self.torque[i] += o.torque_i;
+                self.torque[j] += o.torque_j;
+            }
+            self.last.push(r);
+        }
+        // fix gravity: f += m g after the pair forces (fix freeze then zeroes walls).
+        for (d, f) in self.disks.iter().zip(&mut self.f) {
+            if d.role == Role::Frozen {
+                *f = [0.0; 2];
+            } else {
+                f[1] += d.mass * -self.gravity;
+            }
+        }
+        for (d, t) in self.disks.iter().zip(&mut self.torque) {
+            if d.role == Role::Frozen {
+                *t = 0.0;
+            }
+        }
+        if let Some(c) = &mut self.cluster {
+            let mut s = [0.0; 2];
+            for &m in &c.members {
+                s[0] += self.f[m][0];
+                s[1] += self.f[m][1];
+            }
+            c.fcm = s;
+        }
+    }
+
+    /// LAMMPS `setup`: neighbour list and forces without advancing the shear history.
+    pub fn setup(&mut self) {
+        if let Some(c) = &self.cluster {
+            for (&m, d) in c.members.iter().zip(&c.displace) {
+                let x = [c.xcm[0] + d[0], c.xcm[1] + d[1]];
+                self.disks[m].x = self.bx.wrap(x);
+                self.disks[m].v = c.vcm;
+                self.disks[m].omega = 0.0;
+            }
+        }
+        self.neighbours(true);
+        self.forces(false);
+        self.setup_done = true;
+    }
+
+    /// One velocity-Verlet step in the order of `fix nve/sphere disc` / `fix rigid`.
+    pub fn step(&mut self) {
+        if !self.setup_done {
+            self.setup();
+        }
+        let dtf = 0.5 * self.dt;
+        let dtv = self.dt;
+        // fix nve/sphere disc: moment of inertia 0.5 m r^2.
+        let dtfrotate = dtf / 0.5;
+        for (k, d) in self.disks.iter_mut().enumerate() {
+            if d.role != Role::Free {
+                continue;
+            }
+            let dtfm = dtf / d.mass;
+            d.v[0] += dtfm * self.f[k][0];
+            d.v[1] += dtfm * self.f[k][1];
+            d.x[0] += dtv * d.v[0];
+            d.x[1] += dtv * d.v[1];
+            let dtirotate = dtfrotate / (d.radius * d.radius * d.mass);
+            d.omega += dtirotate * self.torque[k];
+        }
+        if let Some(c) = &mut self.cluster {
+            let dtfm = dtf / c.mass;
+            c.vcm[0] += dtfm * c.fcm[0];
+            c.vcm[1] += dtfm * c.fcm[1];
+            c.xcm[0] += dtv * c.vcm[0];
+            c.xcm[1] += dtv * c.vcm[1];
+            for (&m, o) in c.members.iter().zip(&c.displace) {
+                self.disks[m].x = [c.xcm[0] + o[0], c.xcm[1] + o[1]];
+                self.disks[m].v = c.vcm;
+            }
+        }
+        self.neighbours(false);
+        self.forces(true);
+        for (k, d) in self.disks.iter_mut().enumerate() {
+            if d.role != Role::Free {
+                continue;
+            }
+            let dtfm = dtf / d.mass;
+            d.v[0] += dtfm * self.f[k][0];
+            d.v[1] += dtfm * self.f[k][1];
+            let dtirotate = dtfrotate / (d.radius * d.radius * d.mass);
+            d.omega += dtirotate * self.torque[k];
+        }
+        if let Some(c) = &mut self.cluster {
+            let dtfm = dtf / c.mass;
+            c.vcm[0] += dtfm * c.fcm[0];
+            c.vcm[1] += dtfm * c.fcm[1];
+            for &m in &c.members {
+                self.disks[m].v = c.vcm;
+            }
+        }
+        self.step += 1;
+    }
+
+    /// Contact force on the intruder from everything else (gravity excluded).
+    pub fn intruder_contact_force(&self) -> [f64; 2] {
+        let mut s = [0.0; 2];
+        let mut is_intr = vec![false; 0];
+        if !self.intruder.is_empty() {
+            is_intr.resize(self.disks.len(), false);
+            for &k in &self.intruder {
+                is_intr[k] = true;
+            }
+        }
+        for (r, &(i, j)) in self.last.iter().zip(&self.list.pairs) {
+            if let Some(o) = r {
+                let (i, j) = (i as usize, j as usize);
+                if is_intr[i] && !is_intr[j] {
+                    s[0] += o.f[0];
+                    s[1] += o.f[1];
+                } else if is_intr[j] && !is_intr[i] {
+                    s[0] -= o.f[0];
+                    s[1] -= o.f[1];
+                }
+            }
+        }
+        s
+    }
+
+    /// Kinetic energy (translation + rotation, I = m r^2/2) of the mobile disks.
+    pub fn kinetic_energy(&self) -> f64 {
+        self.disks
+            .iter()
+            .filter(|d| d.role != Role::Frozen)
+            .map(|d| {
+                0.5 * d.mass * (d.v[0] * d.v[0] + d.v[1] * d.v[1])
+                    + 0.25 * d.mass * d.radius * d.radius * d.omega * d.omega
+            })
+            .sum()
+    }
+
+    /// Normal spring energy `sum k_n x^2 / 2` of the contacts of the last force pass.
+    pub fn elastic_energy(&self) -> f64 {
+        self.last
+            .iter()
+            .zip(&self.list.pairs)
+            .filter_map(|(r, &(i, j))| {
+                r.map(|o| {
+                    let c = self.coeff(self.disks[i as usize].type_, self.disks[j as usize].type_);
+                    0.5 * c.kn * o.overlap * o.overlap
+                })
+            })
+            .sum()
+    }
+}

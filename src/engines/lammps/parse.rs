@@ -1,0 +1,185 @@
+//! Streaming readers for LAMMPS' outputs: each frame or line is handed to a callback
+//! and dropped, so memory does not grow with the number of output steps.
+
+use anyhow::{Context, Result, bail};
+use std::io::BufRead;
+use std::path::Path;
+
+/// One atom of a `dump custom ... id type radius mass x y vx vy omegaz fx fy` frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SnapAtom {
+    pub id: u64,
+    pub type_: usize,
+    pub radius: f64,
+    pub mass: f64,
+    pub x: [f64; 2],
+    pub v: [f64; 2],
+    pub omega: f64,
+    pub f: [f64; 2],
+}
+
+pub const SNAP_COLUMNS: [&str; 11] = [
+    "id", "type", "radius", "mass", "x", "y", "vx", "vy", "omegaz", "fx", "fy",
+];
+
+fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>> {
+    Ok(std::io::BufReader::new(
+        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?,
+    ))
+}
+
+/// Calls `frame(step, atoms)` for every frame of a dump, in file order; returns the
+/// number of frames. Atoms come sorted by id (`dump_modify sort id`).
+pub fn for_each_snapshot(
+    path: &Path,
+    mut frame: impl FnMut(u64, &[SnapAtom]) -> Result<()>,
+) -> Result<usize> {
+    let mut lines = open(path)?.lines().enumerate();
+    let mut atoms: Vec<SnapAtom> = Vec::new();
+    let mut n_frames = 0;
+    let mut next = |what: &str| -> Result<(usize, String)> {
+        match lines.next() {
+            Some((k, l)) => Ok((
+                k + 1,
+                l.with_context(|| format!("{}: line {}", path.display(), k + 1))?,
+            )),
+            None => bail!(
+                "{}: truncated: end of file while expecting {what}",
+                path.display()
+            ),
+        }
+    };
+    loop {
+        let (ln, head) = match next("ITEM: TIMESTEP") {
+            Ok(x) => x,
+            Err(_) => break,
+        };
+        if head.trim() != "ITEM: TIMESTEP" {
+            bail!(
+                "{}: line {ln}: expected `ITEM: TIMESTEP`, found {head:?}",
+                path.display()
+            );
+        }
+        let (ln, step) = next("a step number")?;
+        let step: u64 = step
+            .trim()
+            .parse()
+            .with_context(|| format!("{}: line {ln}: bad step", path.display()))?;
+        let (_, _) = next("ITEM: NUMBER OF ATOMS")?;
+        let (ln, n) = next("an atom count")?;
+        let n: usize = n
+            .trim()
+            .parse()
+            .with_context(|| format!("{}: line {ln}: bad atom count", path.display()))?;
+        let (_, bounds) = next("ITEM: BOX BOUNDS")?;
+        if !bounds.starts_with("ITEM: BOX BOUNDS") {
+            bail!("{}: expected box bounds, found {bounds:?}", path.display());
+        }
+        for _ in 0..3 {
+            next("a box bound line")?;
+        }
+        let (ln, cols) = next("ITEM: ATOMS")?;
+        let cols: Vec<&str> = cols.split_whitespace().skip(2).collect();
+        if cols != SNAP_COLUMNS {
+            bail!(
+                "{}: line {ln}: columns {cols:?}, expected {SNAP_COLUMNS:?}",
+                path.display()
+            );
+        }
+        atoms.clear();
+        for _ in 0..n {
+            let (ln, l) = next("an atom line")?;
+            let v: Vec<&str> = l.split_whitespace().collect();
+            if v.len() != SNAP_COLUMNS.len() {
+                bail!(
+                    "{}: line {ln}: {} fields, expected {}",
+                    path.display(),
+                    v.len(),
+                    SNAP_COLUMNS.len()
+                );
+            }
+            let num = |k: usize| -> Result<f64> {
+                v[k].parse::<f64>().with_context(|| {
+                    format!(
+                        "{}: line {ln}: {} = {:?}",
+                        path.display(),
+                        SNAP_COLUMNS[k],
+                        v[k]
+                    )
+                })
+            };
+            atoms.push(SnapAtom {
+                id: v[0]
+                    .parse()
+                    .with_context(|| format!("{}: line {ln}: bad id", path.display()))?,
+                type_: v[1]
+                    .parse::<usize>()
+                    .with_context(|| format!("{}: line {ln}: bad type", path.display()))?,
+                radius: num(2)?,
+                mass: num(3)?,
+                x: [num(4)?, num(5)?],
+                v: [num(6)?, num(7)?],
+                omega: num(8)?,
+                f: [num(9)?, num(10)?],
+            });
+        }
+        frame(step, &atoms)?;
+        n_frames += 1;
+    }
+    Ok(n_frames)
+}
+
+/// One line of the `fix ave/time` intruder file: step, centre of mass, velocity and
+/// total force (contacts + gravity) of the intruder group.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IntruderLine {
+    pub step: u64,
+    pub x: [f64; 2],
+    pub v: [f64; 2],
+    pub f: [f64; 2],
+}
+
+/// Calls `line` for every data line of the intruder file; returns how many.
+pub fn for_each_intruder_line(
+    path: &Path,
+    mut line: impl FnMut(IntruderLine) -> Result<()>,
+) -> Result<usize> {
+    let mut n = 0;
+    for (k, l) in open(path)?.lines().enumerate() {
+        let l = l.with_context(|| format!("{}: line {}", path.display(), k + 1))?;
+        let t = l.trim();
+        if t.is_empty() || t.starts_with('#') {
+            continue;
+        }
+        let v: Vec<&str> = t.split_whitespace().collect();
+        if v.len() != 7 {
+            bail!(
+                "{}: line {}: {} fields, expected 7 (step x y vx vy fx fy)",
+                path.display(),
+                k + 1,
+                v.len()
+            );
+        }
+        let num = |i: usize| -> Result<f64> {
+            v[i].parse::<f64>().with_context(|| {
+                format!(
+                    "{}: line {}: field {} = {:?}",
+                    path.display(),
+                    k + 1,
+                    i + 1,
+                    v[i]
+                )
+            })
+        };
+        line(IntruderLine {
+            step: v[0].parse().with_context(|| {
+                format!("{}: line {}: bad step {:?}", path.display(), k + 1, v[0])
+            })?,
+            x: [num(1)?, num(2)?],
+            v: [num(3)?, num(4)?],
+            f: [num(5)?, num(6)?],
+        })?;
+        n += 1;
+    }
+    Ok(n)
+}

@@ -1,0 +1,252 @@
+//! Two-disk micro cases, native 2D engine vs LAMMPS `gran/hooke(/history)` from the
+//! same state: every output step must agree to ~1e-10 relative. Live `lmp` when
+//! installed; otherwise the recorded LAMMPS dumps under reference/impact2d/micro/.
+
+mod common;
+
+use granval::dem2d::contact::Coeffs;
+use granval::dem2d::neighbor::Box2;
+use granval::dem2d::{Disk, Role, System, lammps_mass};
+use granval::engines::lammps::{self, Lammps, Outputs, parse};
+use std::path::Path;
+
+const DT: f64 = 1e-5;
+
+fn coeffs(kt_ratio: f64, mu: f64, e_n: f64) -> Coeffs {
+    let kn: f64 = 2.0e3;
+    let m_eff: f64 = 0.5 * 1e-3;
+    let tau = std::f64::consts::PI * (m_eff / kn).sqrt();
+    let gamma_n = granval::dem2d::contact::gamma_n_from_restitution(e_n, tau);
+    Coeffs {
+        kn,
+        kt: kt_ratio * kn,
+        gamma_n,
+        gamma_t: 0.5 * gamma_n,
+        mu,
+    }
+}
+
+fn disk(id: u64, type_: usize, r: f64, x: [f64; 2], v: [f64; 2], omega: f64, role: Role) -> Disk {
+    Disk {
+        id,
+        type_,
+        radius: r,
+        mass: lammps_mass(1e-3 * (r / 0.002).powi(2), r),
+        x,
+        v,
+        omega,
+        role,
+    }
+}
+
+fn system(disks: Vec<Disk>, c_grain: Coeffs, c_wall: Coeffs, gravity: f64) -> System {
+    let bx = Box2 {
+        lo: [0.0, 0.0],
+        hi: [0.05, 0.05],
+        periodic_x: true,
+    };
+    System::new(
+        disks,
+        None,
+        vec![c_grain, c_wall, c_wall, c_wall],
+        2,
+        bx,
+        gravity,
+        DT,
+        0.001,
+        vec![],
+    )
+}
+
+/// (step, id, x, y, vx, vy, omega) rows of the native run every `every` steps.
+fn native_rows(mut sys: System, n: u64, every: u64) -> Vec<(u64, u64, [f64; 5])> {
+    let mut rows = Vec::new();
+    sys.setup();
+    loop {
+        if sys.step % every == 0 {
+            for d in &sys.disks {
+                rows.push((sys.step, d.id, [d.x[0], d.x[1], d.v[0], d.v[1], d.omega]));
+            }
+        }
+        if sys.step == n {
+            break;
+        }
+        sys.step();
+    }
+    rows
+}
+
+fn lammps_rows(sys: &System, n: u64, every: u64, name: &str) -> Vec<(u64, u64, [f64; 5])> {
+    let rec = common::root().join("reference/impact2d/micro").join(name);
+    let live = lammps::installed_version("lmp").is_some();
+    let dump = if live {
+        let dir = tempfile::tempdir().unwrap().keep();
+        let fin = Lammps::default()
+            .run(
+                sys,
+                &Outputs {
+                    n_steps: n,
+                    intruder_every: 0,
+                    snapshot_every: every,
+                },
+                &dir,
+            )
+            .unwrap_or_else(|e| panic!("{e:#}"));
+        eprintln!("[{name}] reference: LIVE {}", fin.version);
+        if std::env::var("GRANVAL_RECORD").is_ok_and(|v| v == "1") {
+            record(&dir, &rec, &fin);
+        }
+        dir.join(lammps::SNAP_FILE)
+    } else {
+        assert!(
+            !common::require_live(),
+            "[{name}] LAMMPS is not installed but GRANVAL_REQUIRE_LIVE=1"
+        );
+        eprintln!(
+            "[{name}] reference: FALLBACK to recorded {} (lmp not installed)",
+            rec.display()
+        );
+        rec.join(lammps::SNAP_FILE)
+    };
+    let mut rows = Vec::new();
+    parse::for_each_snapshot(&dump, |step, atoms| {
+        for a in atoms {
+            rows.push((step, a.id, [a.x[0], a.x[1], a.v[0], a.v[1], a.omega]));
+        }
+        Ok(())
+    })
+    .unwrap();
+    rows
+}
+
+fn record(dir: &Path, rec: &Path, fin: &lammps::Finished) {
+    std::fs::create_dir_all(rec).unwrap();
+    for f in [
+        lammps::DECK_FILE,
+        lammps::DATA_FILE,
+        lammps::SNAP_FILE,
+        lammps::LOG_FILE,
+    ] {
+        std::fs::copy(dir.join(f), rec.join(f)).unwrap();
+    }
+    let p = granval::engines::output::Provenance {
+        engine: "lammps".into(),
+        version: fin.version.clone(),
+        command: fin.command.clone(),
+        input_hash: fin.input_hash.clone(),
+        date: granval::engines::output::now_utc(),
+        wall_time_s: fin.wall_time_s,
+        threads: 1,
+        case_file: "tests/impact2d_micro.rs".into(),
+        notes: vec![],
+    };
+    granval::engines::output::write_provenance(&rec.join("provenance.json"), &p).unwrap();
+}
+
+/// Largest |native - lammps| / scale over all rows, per column scale = max |lammps|.
+fn worst(a: &[(u64, u64, [f64; 5])], b: &[(u64, u64, [f64; 5])]) -> f64 {
+    assert_eq!(a.len(), b.len(), "row counts differ");
+    let mut scale = [0.0f64; 5];
+    for r in b {
+        for k in 0..5 {
+            scale[k] = scale[k].max(r.2[k].abs());
+        }
+    }
+    let mut w = 0.0f64;
+    for (x, y) in a.iter().zip(b) {
+        assert_eq!((x.0, x.1), (y.0, y.1));
+        for k in 0..5 {
+            if scale[k] > 0.0 {
+                w = w.max((x.2[k] - y.2[k]).abs() / scale[k]);
+            }
+        }
+    }
+    w
+}
+
+fn check(name: &str, sys: System, n: u64, every: u64) -> f64 {
+    let native = native_rows(sys.clone(), n, every);
+    let reference = lammps_rows(&sys, n, every, name);
+    let w = worst(&native, &reference);
+    eprintln!("[{name}] worst relative deviation {w:.3e}");
+    w
+}
+
+#[test]
+fn head_on_static_friction() {
+    let c = coeffs(0.8, 0.5, 0.5);
+    let s = system(
+        vec![
+            disk(1, 0, 0.002, [0.02, 0.02], [0.3, 0.0], 0.0, Role::Free),
+            disk(2, 0, 0.0022, [0.025, 0.02], [-0.2, 0.0], 0.0, Role::Free),
+        ],
+        c,
+        c,
+        0.0,
+    );
+    assert!(check("head-on", s, 400, 10) < 1e-10);
+}
+
+#[test]
+fn oblique_sticking_and_sliding() {
+    for (name, mu) in [("oblique-stick", 0.9), ("oblique-slide", 0.1)] {
+        let c = coeffs(0.8, mu, 0.5);
+        let s = system(
+            vec![
+                disk(1, 0, 0.002, [0.02, 0.02], [0.3, 0.1], 20.0, Role::Free),
+                disk(
+                    2,
+                    0,
+                    0.0018,
+                    [0.0245, 0.0215],
+                    [-0.2, -0.15],
+                    -10.0,
+                    Role::Free,
+                ),
+            ],
+            c,
+            c,
+            0.0,
+        );
+        assert!(check(name, s, 600, 10) < 1e-10, "{name}");
+    }
+}
+
+#[test]
+fn oblique_kinetic_friction() {
+    let c = coeffs(0.0, 0.3, 0.5);
+    let s = system(
+        vec![
+            disk(1, 0, 0.002, [0.02, 0.02], [0.3, 0.1], 20.0, Role::Free),
+            disk(
+                2,
+                0,
+                0.0018,
+                [0.0245, 0.0215],
+                [-0.2, -0.15],
+                -10.0,
+                Role::Free,
+            ),
+        ],
+        c,
+        c,
+        0.0,
+    );
+    assert!(check("oblique-kinetic", s, 600, 10) < 1e-10);
+}
+
+#[test]
+fn disk_on_wall_particle_with_gravity() {
+    let c = coeffs(0.8, 0.5, 0.5);
+    let w = coeffs(0.8, 0.9, 0.1);
+    let s = system(
+        vec![
+            disk(1, 0, 0.002, [0.0203, 0.0045], [0.05, -0.2], 5.0, Role::Free),
+            disk(2, 1, 0.002, [0.02, 0.002], [0.0, 0.0], 0.0, Role::Frozen),
+        ],
+        c,
+        w,
+        9.81,
+    );
+    assert!(check("disk-on-wall", s, 3000, 50) < 1e-10);
+}
