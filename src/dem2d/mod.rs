@@ -106,6 +106,7 @@ pub struct System {
 }
 
 impl System {
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         disks: Vec<Disk>,
         cluster: Option<Cluster>,
