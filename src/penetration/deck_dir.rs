@@ -272,36 +272,20 @@ pub fn analyze(
         ));
         runs.reference.push(reduce_liggghts_dir(&ck, &bed, bdir)?);
         if native {
-            let n = super::run_native(&ck, &bed, opts.native.perturbation, opts.progress)?;
-            save_native(&out_dir.join(bed_dir_name(k)).join("native"), &n)?;
-            runs.native.push(n.reduce(&ck, &bed)?);
-            if let Some(v2) = case.quasi_static_speed {
-                let slow_case = PenetrationCase {
-                    speed: v2,
-                    ..ck.clone()
-                };
-                let s =
-                    super::run_native(&slow_case, &bed, opts.native.perturbation, opts.progress)?;
-                runs.native_slow.push(s.reduce(&slow_case, &bed)?);
-            }
+            super::ensemble::run_native_bed(
+                &ck,
+                &bed,
+                opts,
+                &out_dir.join(bed_dir_name(k)),
+                &mut runs,
+            )?;
         }
     }
-    let (checks, notes, errored) = super::ensemble::verdicts(&case, &runs, out_dir);
-    let wall = |r: &[EngineRun]| r.iter().map(|r| r.provenance.wall_time_s).sum::<f64>();
-    let reference = &runs.reference[0].provenance;
-    Ok(crate::pipeline::CaseResult {
-        checks,
-        run: Some(crate::report::CaseRun {
-            case: case.name.clone(),
-            case_file: dir.join(CASE_FILE).display().to_string(),
-            test_engine: if native { "native" } else { "none" }.into(),
-            reference_engine: reference.engine.clone(),
-            reference_version: reference.version.clone(),
-            reference_source: runs.reference_source.clone(),
-            wall_time_test_s: wall(&runs.native),
-            wall_time_reference_s: wall(&runs.reference),
-        }),
-        notes: runs.notes.into_iter().chain(notes).collect(),
-        errored,
-    })
+    Ok(super::ensemble::case_result(
+        &case,
+        &dir.join(CASE_FILE),
+        if native { "native" } else { "none" },
+        runs,
+        out_dir,
+    ))
 }

@@ -44,18 +44,7 @@ fn run_bed(
         packing::bed_note(&ck, &bed)
     ));
     let dir = out_dir.join(deck_dir::bed_dir_name(k));
-    let native = run_native(&ck, &bed, opts.native.perturbation, opts.progress)?;
-    deck_dir::save_native(&dir.join("native"), &native)?;
-    runs.native.push(native.reduce(&ck, &bed)?);
-    if let Some(v2) = case.quasi_static_speed {
-        let slow_case = PenetrationCase {
-            speed: v2,
-            ..ck.clone()
-        };
-        let slow = run_native(&slow_case, &bed, opts.native.perturbation, opts.progress)?;
-        deck_dir::save_native(&dir.join(format!("native-v{v2}")), &slow)?;
-        runs.native_slow.push(slow.reduce(&slow_case, &bed)?);
-    }
+    run_native_bed(&ck, &bed, opts, &dir, runs)?;
     let rec_dir = opts
         .reference_root
         .join("penetration")
@@ -86,6 +75,58 @@ fn run_bed(
         );
     }
     Ok(())
+}
+
+/// The native run(s) of one bed — at the case speed and, with `[quasi_static]`, at the
+/// second speed — saved under `dir/native*` and reduced into `runs`.
+pub fn run_native_bed(
+    ck: &PenetrationCase,
+    bed: &packing::Bed,
+    opts: &Options,
+    dir: &Path,
+    runs: &mut EnsembleRuns,
+) -> Result<()> {
+    let native = run_native(ck, bed, opts.native.perturbation, opts.progress)?;
+    deck_dir::save_native(&dir.join("native"), &native)?;
+    runs.native.push(native.reduce(ck, bed)?);
+    if let Some(v2) = ck.quasi_static_speed {
+        let slow_case = PenetrationCase {
+            speed: v2,
+            ..ck.clone()
+        };
+        let slow = run_native(&slow_case, bed, opts.native.perturbation, opts.progress)?;
+        deck_dir::save_native(&dir.join(format!("native-v{v2}")), &slow)?;
+        runs.native_slow.push(slow.reduce(&slow_case, bed)?);
+    }
+    Ok(())
+}
+
+/// The report entry of an ensemble comparison: checks plus which engines ran where.
+pub fn case_result(
+    case: &PenetrationCase,
+    case_file: &Path,
+    test_engine: &str,
+    runs: EnsembleRuns,
+    out_dir: &Path,
+) -> CaseResult {
+    let (checks, notes, errored) = verdicts(case, &runs, out_dir);
+    let wall = |r: &[EngineRun]| r.iter().map(|r| r.provenance.wall_time_s).sum::<f64>();
+    let reference = &runs.reference[0].provenance;
+    CaseResult {
+        checks,
+        run: Some(CaseRun {
+            case: case.name.clone(),
+            case_file: case_file.display().to_string(),
+            test_engine: test_engine.into(),
+            reference_engine: reference.engine.clone(),
+            reference_version: reference.version.clone(),
+            reference_source: runs.reference_source.clone(),
+            wall_time_test_s: wall(&runs.native),
+            wall_time_reference_s: wall(&runs.reference),
+        }),
+        notes: runs.notes.into_iter().chain(notes).collect(),
+        errored,
+    }
 }
 
 /// Every check of the penetration experiment from the runs of both engines, with the
@@ -205,22 +246,5 @@ pub fn compare_case(case: &PenetrationCase, opts: &Options, out_dir: &Path) -> C
             };
         }
     }
-    let (checks, notes, errored) = verdicts(case, &runs, out_dir);
-    let wall = |r: &[EngineRun]| r.iter().map(|r| r.provenance.wall_time_s).sum::<f64>();
-    let reference = &runs.reference[0].provenance;
-    CaseResult {
-        checks,
-        run: Some(CaseRun {
-            case: case.name.clone(),
-            case_file: case.source.display().to_string(),
-            test_engine: "native".into(),
-            reference_engine: reference.engine.clone(),
-            reference_version: reference.version.clone(),
-            reference_source: runs.reference_source.clone(),
-            wall_time_test_s: wall(&runs.native),
-            wall_time_reference_s: wall(&runs.reference),
-        }),
-        notes: runs.notes.into_iter().chain(notes).collect(),
-        errored,
-    }
+    case_result(case, &case.source, "native", runs, out_dir)
 }

@@ -880,19 +880,11 @@ pub fn run(
     mpi_procs: usize,
     timeout: Duration,
 ) -> Result<(Vec<ForceSample>, Provenance)> {
-    let mut out = Vec::new();
-    let prov = run_streaming(
-        d,
-        dir,
-        mpi_procs,
-        timeout,
-        |_| {},
-        |s| {
-            out.push(*s);
-            Ok(())
-        },
-    )?;
-    Ok((out, prov))
+    let files = write_deck_dir(d, dir)?;
+    let (samples, mut prov) = run_existing(d, dir, mpi_procs, timeout)?;
+    prov.notes
+        .insert(2, format!("intruder STL: {} segments", files.stl_segments));
+    Ok((samples, prov))
 }
 
 /// [`write_deck_dir`], then LIGGGHTS on it; `progress(step)` follows the thermo lines of
