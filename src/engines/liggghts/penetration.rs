@@ -501,7 +501,9 @@ pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
     writeln!(s, "boundary f f f")?;
     writeln!(s, "newton off")?;
     writeln!(s, "communicate single vel yes")?;
-    writeln!(s, "processors * * *")?;
+    // The bed fills the lower part of a tall box: LIGGGHTS' default grid splits z
+    // first and leaves the grains on one rank, so only x and y are decomposed.
+    writeln!(s, "processors * * 1")?;
     if d.soft_particles {
         writeln!(
             s,
