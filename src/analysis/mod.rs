@@ -1,2 +1,3 @@
 pub mod fdr;
 pub mod malt;
+pub mod impact;

@@ -56,7 +56,7 @@ pub struct BedSpec {
 }
 
 /// A settled bed: grains (type 0, free) and the bottom wall (type 1, frozen).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Bed {
     pub grains: Vec<Disk>,
     pub wall: Vec<Disk>,

@@ -8,6 +8,7 @@
 //! re-neighbour if needed, pair forces, gravity, half kick (final_integrate).
 
 pub mod bed;
+pub mod impact;
 pub mod contact;
 pub mod neighbor;
 
@@ -16,7 +17,7 @@ use neighbor::{Box2, Excluded, PairList};
 use rayon::prelude::*;
 
 /// How a disk moves.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Role {
     /// Integrated by velocity Verlet (`fix nve/sphere disc`).
     Free,
@@ -26,7 +27,7 @@ pub enum Role {
     Cluster,
 }
 
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Disk {
     pub id: u64,
     /// 0-based type (coefficient table row).
@@ -183,6 +184,8 @@ impl System {
         let out: Vec<(Option<PairOut>, [f64; 2])> = pairs
             .par_iter()
             .zip(self.list.shear.par_iter())
+            // Chunks large enough that small systems do not drown in scheduling.
+            .with_min_len(2048)
             .map(|(&(i, j), &sh)| {
                 let (i, j) = (i as usize, j as usize);
                 let (a, b) = (&disks[i], &disks[j]);

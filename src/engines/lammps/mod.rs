@@ -7,6 +7,7 @@
 //! `lammps.stdout`, `lammps.stderr`, `intruder.txt` (fix ave/time), `snap.dump`.
 
 pub mod deck;
+pub mod impact;
 pub mod parse;
 
 use crate::dem2d::System;
