@@ -113,6 +113,9 @@ enum RefCmd {
         cases: PathBuf,
         #[arg(long, default_value = "reference")]
         reference: PathBuf,
+        /// Only this case file of the suite (impact2d).
+        #[arg(long)]
+        only: Option<PathBuf>,
     },
 }
 
@@ -298,12 +301,27 @@ fn run_impact2d(path: &Path, engine: EngineName, out: &Path, np: usize) -> Resul
 
 /// `granval reference refresh --suite impact2d`: record every variant in live LAMMPS
 /// and report the final-depth drift against the previous record.
-fn refresh_impact2d(cases: &Path, suite: &str, reference: &Path) -> Result<ExitCode> {
+fn refresh_impact2d(
+    cases: &Path,
+    suite: &str,
+    reference: &Path,
+    only: Option<&Path>,
+) -> Result<ExitCode> {
     use granval::impact2d as i2;
     let version = granval::engines::lammps::installed_version("lmp")
         .context("reference refresh for impact2d needs a live LAMMPS (`apt-get install lammps`)")?;
     println!("using {version}");
-    for path in pipeline::suite_cases(cases, suite)? {
+    let mut paths = pipeline::suite_cases(cases, suite)?;
+    if let Some(o) = only {
+        paths.retain(|p| p == o);
+        anyhow::ensure!(
+            !paths.is_empty(),
+            "{} is not a case of suite {suite} in {}",
+            o.display(),
+            cases.display()
+        );
+    }
+    for path in paths {
         let case = granval::case::impact2d::Impact2dCase::load(&path)?;
         let beds = i2::prepare_beds(&case, true)?;
         for v in &case.variants {
@@ -407,10 +425,11 @@ fn real_main() -> Result<ExitCode> {
                     suite,
                     cases,
                     reference,
+                    only,
                 },
         } => {
             if suite == "impact2d" {
-                return refresh_impact2d(&cases, &suite, &reference);
+                return refresh_impact2d(&cases, &suite, &reference, only.as_deref());
             }
             let version = liggghts::installed_version("liggghts")
                 .context("reference refresh needs a live LIGGGHTS (`apt-get install liggghts`)")?;

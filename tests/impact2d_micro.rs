@@ -250,3 +250,51 @@ fn disk_on_wall_particle_with_gravity() {
     );
     assert!(check("disk-on-wall", s, 3000, 50) < 1e-10);
 }
+
+/// A rigid ring of 12 disks (the ellipse intruder's `fix rigid`, rotation off) falling
+/// onto a grain resting on two wall disks: cluster + grain trajectories must agree.
+#[test]
+fn rigid_cluster_on_a_grain_with_gravity() {
+    let c = coeffs(0.8, 0.5, 0.5);
+    let w = coeffs(0.8, 0.9, 0.1);
+    let mut disks = vec![
+        disk(1, 0, 0.002, [0.0201, 0.0059], [0.0, 0.0], 0.0, Role::Free),
+        disk(2, 1, 0.002, [0.018, 0.002], [0.0, 0.0], 0.0, Role::Frozen),
+        disk(3, 1, 0.002, [0.022, 0.002], [0.0, 0.0], 0.0, Role::Frozen),
+    ];
+    let mut members = Vec::new();
+    for k in 0..12 {
+        let a = 2.0 * std::f64::consts::PI * k as f64 / 12.0;
+        members.push(disks.len());
+        disks.push(disk(
+            4 + k,
+            2,
+            0.0015,
+            [0.02 + 0.005 * a.cos(), 0.0165 + 0.004 * a.sin()],
+            [0.0, 0.0],
+            0.0,
+            Role::Cluster,
+        ));
+    }
+    let cluster = granval::dem2d::Cluster::new(&mut disks, members.clone(), [0.0, -0.3]);
+    let bx = Box2 {
+        lo: [0.0, 0.0],
+        hi: [0.05, 0.05],
+        periodic_x: true,
+    };
+    let coeffs = vec![c, w, c, w, w, w, c, w, c];
+    let s = System::new(
+        disks,
+        Some(cluster),
+        coeffs,
+        3,
+        bx,
+        9.81,
+        DT,
+        0.001,
+        members,
+    );
+    let w = check("rigid-cluster", s, 4000, 100);
+    // fix rigid stores member offsets in its principal-axis frame: round-off, not bitwise.
+    assert!(w < 1e-10, "{w}");
+}

@@ -87,7 +87,16 @@ pub fn energies(step: u64, t: f64, disks: &[SnapDisk], model: &EnergyModel) -> E
     let r: Vec<f64> = disks.iter().map(|d| d.radius).collect();
     let types: Vec<usize> = disks.iter().map(|d| d.type_).collect();
     let mut list = PairList::default();
-    list.build(&model.bx, &x, &r, 0.0, &TypeExcl { model, types: &types });
+    list.build(
+        &model.bx,
+        &x,
+        &r,
+        0.0,
+        &TypeExcl {
+            model,
+            types: &types,
+        },
+    );
     let mut elastic = 0.0;
     for &(i, j) in &list.pairs {
         let (i, j) = (i as usize, j as usize);
@@ -98,7 +107,13 @@ pub fn energies(step: u64, t: f64, disks: &[SnapDisk], model: &EnergyModel) -> E
             elastic += 0.5 * k * overlap * overlap;
         }
     }
-    EnergySample { step, t, kinetic, potential, elastic }
+    EnergySample {
+        step,
+        t,
+        kinetic,
+        potential,
+        elastic,
+    }
 }
 
 /// Potential energies relative to the first sample.
@@ -109,7 +124,10 @@ pub fn relative_potential(e: &[EnergySample]) -> Vec<f64> {
 
 /// D(t) in m.
 pub fn depth(samples: &[IntruderSample], surface: f64, bottom_offset: f64) -> Vec<(f64, f64)> {
-    samples.iter().map(|s| (s.t, surface - (s.x[1] - bottom_offset))).collect()
+    samples
+        .iter()
+        .map(|s| (s.t, surface - (s.x[1] - bottom_offset)))
+        .collect()
 }
 
 /// Mean of D over `t >= t_end - window`.
@@ -117,7 +135,11 @@ pub fn final_depth(d: &[(f64, f64)], window: f64) -> Result<f64> {
     let Some(&(t_end, _)) = d.last() else {
         bail!("no intruder samples");
     };
-    let tail: Vec<f64> = d.iter().filter(|(t, _)| *t >= t_end - window).map(|p| p.1).collect();
+    let tail: Vec<f64> = d
+        .iter()
+        .filter(|(t, _)| *t >= t_end - window)
+        .map(|p| p.1)
+        .collect();
     if tail.len() < 2 {
         bail!("fewer than 2 samples in the final window of {window:.3e} s");
     }
@@ -159,12 +181,21 @@ pub fn linear_r2(x: &[f64], y: &[f64]) -> Result<(f64, f64, f64)> {
     }
     let slope = sxy / sxx;
     let intercept = my - slope * mx;
-    let r2 = if syy == 0.0 { 1.0 } else { sxy * sxy / (sxx * syy) };
+    let r2 = if syy == 0.0 {
+        1.0
+    } else {
+        sxy * sxy / (sxx * syy)
+    };
     Ok((intercept, slope, r2))
 }
 
 /// `intruder.csv`: t, step, x, y, vx, vy, fx, fy, D (SI, full precision).
-pub fn write_intruder_csv(path: &Path, s: &[IntruderSample], surface: f64, bottom_offset: f64) -> Result<()> {
+pub fn write_intruder_csv(
+    path: &Path,
+    s: &[IntruderSample],
+    surface: f64,
+    bottom_offset: f64,
+) -> Result<()> {
     let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(w, "t,step,x,y,vx,vy,fx,fy,depth")?;
     for p in s {
@@ -186,16 +217,21 @@ pub fn write_intruder_csv(path: &Path, s: &[IntruderSample], surface: f64, botto
 }
 
 pub fn read_intruder_csv(path: &Path) -> Result<Vec<IntruderSample>> {
-    let mut r = csv::Reader::from_path(path).map_err(|e| anyhow::anyhow!("cannot open {}: {e}", path.display()))?;
+    let mut r = csv::Reader::from_path(path)
+        .map_err(|e| anyhow::anyhow!("cannot open {}: {e}", path.display()))?;
     let mut out = Vec::new();
     for (k, rec) in r.records().enumerate() {
         let rec = rec?;
         let f = |i: usize| -> Result<f64> {
-            rec[i].parse::<f64>().map_err(|e| anyhow::anyhow!("{}: line {}: column {}: {e}", path.display(), k + 2, i + 1))
+            rec[i].parse::<f64>().map_err(|e| {
+                anyhow::anyhow!("{}: line {}: column {}: {e}", path.display(), k + 2, i + 1)
+            })
         };
         out.push(IntruderSample {
             t: f(0)?,
-            step: rec[1].parse().map_err(|e| anyhow::anyhow!("{}: line {}: step: {e}", path.display(), k + 2))?,
+            step: rec[1]
+                .parse()
+                .map_err(|e| anyhow::anyhow!("{}: line {}: step: {e}", path.display(), k + 2))?,
             x: [f(2)?, f(3)?],
             v: [f(4)?, f(5)?],
             f: [f(6)?, f(7)?],
@@ -209,22 +245,31 @@ pub fn write_energy_csv(path: &Path, e: &[EnergySample]) -> Result<()> {
     let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(w, "t,step,kinetic,potential_abs,elastic")?;
     for s in e {
-        writeln!(w, "{:e},{},{:e},{:e},{:e}", s.t, s.step, s.kinetic, s.potential, s.elastic)?;
+        writeln!(
+            w,
+            "{:e},{},{:e},{:e},{:e}",
+            s.t, s.step, s.kinetic, s.potential, s.elastic
+        )?;
     }
     Ok(())
 }
 
 pub fn read_energy_csv(path: &Path) -> Result<Vec<EnergySample>> {
-    let mut r = csv::Reader::from_path(path).map_err(|e| anyhow::anyhow!("cannot open {}: {e}", path.display()))?;
+    let mut r = csv::Reader::from_path(path)
+        .map_err(|e| anyhow::anyhow!("cannot open {}: {e}", path.display()))?;
     let mut out = Vec::new();
     for (k, rec) in r.records().enumerate() {
         let rec = rec?;
         let f = |i: usize| -> Result<f64> {
-            rec[i].parse::<f64>().map_err(|e| anyhow::anyhow!("{}: line {}: column {}: {e}", path.display(), k + 2, i + 1))
+            rec[i].parse::<f64>().map_err(|e| {
+                anyhow::anyhow!("{}: line {}: column {}: {e}", path.display(), k + 2, i + 1)
+            })
         };
         out.push(EnergySample {
             t: f(0)?,
-            step: rec[1].parse().map_err(|e| anyhow::anyhow!("{}: line {}: step: {e}", path.display(), k + 2))?,
+            step: rec[1]
+                .parse()
+                .map_err(|e| anyhow::anyhow!("{}: line {}: step: {e}", path.display(), k + 2))?,
             kinetic: f(2)?,
             potential: f(3)?,
             elastic: f(4)?,

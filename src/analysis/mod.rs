@@ -1,3 +1,3 @@
 pub mod fdr;
-pub mod malt;
 pub mod impact;
+pub mod malt;

@@ -328,6 +328,8 @@ pub struct Impact2dCase {
     pub release_height: f64,
     pub final_window: f64,
     pub sweep_parameter: Option<String>,
+    /// The case without its sweep: beds are prepared with these materials.
+    pub base: Variant,
     pub variants: Vec<Variant>,
     pub claim: Option<Claim>,
     pub tolerances: Tolerances,
@@ -381,7 +383,11 @@ impl Impact2dCase {
             file: path.to_path_buf(),
         };
         if raw.case.kind != "impact2d" {
-            return Err(ctx.bad("case.kind", &raw.case.kind, "this loader reads kind = \"impact2d\""));
+            return Err(ctx.bad(
+                "case.kind",
+                &raw.case.kind,
+                "this loader reads kind = \"impact2d\"",
+            ));
         }
         let d = positive(&ctx, "units.d", raw.units.d)?;
         let m = positive(&ctx, "units.mass", raw.units.mass)?;
@@ -412,9 +418,13 @@ impl Impact2dCase {
         let s = &raw.simulation;
         let dt_tau = positive(&ctx, "simulation.dt", s.dt)?;
         // Stiffest pair sets the limit: tau_c scales as k_n^-1/2.
-        let k_max = [grains.k_n, walls.k_n, raw.intruder.k_n.unwrap_or(grains.k_n)]
-            .into_iter()
-            .fold(0.0, f64::max);
+        let k_max = [
+            grains.k_n,
+            walls.k_n,
+            raw.intruder.k_n.unwrap_or(grains.k_n),
+        ]
+        .into_iter()
+        .fold(0.0, f64::max);
         let tau_min = scales.tau_of(k_max) / tau;
         if dt_tau > 0.1 * tau_min {
             return Err(ctx.bad(
@@ -446,9 +456,14 @@ impl Impact2dCase {
         let length = positive(&ctx, "bed.length", b.length)? * d;
         let poly = finite(&ctx, "bed.polydispersity", b.polydispersity)?;
         if !(0.0..0.5).contains(&poly) {
-            return Err(ctx.bad("bed.polydispersity", poly, "must lie in [0, 0.5) (K uses 0 to 0.4)"));
+            return Err(ctx.bad(
+                "bed.polydispersity",
+                poly,
+                "must lie in [0, 0.5) (K uses 0 to 0.4)",
+            ));
         }
-        let initial_speed = non_negative(&ctx, "bed.initial_speed", b.initial_speed)? * scales.velocity();
+        let initial_speed =
+            non_negative(&ctx, "bed.initial_speed", b.initial_speed)? * scales.velocity();
         let settle_ke = positive(&ctx, "bed.settle_ke", b.settle_ke)? * m * g0 * d;
         let max_settle_time = positive(&ctx, "bed.max_settle_time", b.max_settle_time)? * tau;
         if length < 5.0 * d {
@@ -460,35 +475,89 @@ impl Impact2dCase {
         let density_ratio = positive(&ctx, "intruder.density_ratio", i.density_ratio)?;
         let (shape, intruder_mass, width) = match i.shape {
             Shape::Disk => {
-                let dia = positive(&ctx, "intruder.diameter", i.diameter.ok_or_else(|| ctx.bad("intruder.diameter", "missing", "a disk intruder needs its diameter (in d)"))?)?;
+                let dia = positive(
+                    &ctx,
+                    "intruder.diameter",
+                    i.diameter.ok_or_else(|| {
+                        ctx.bad(
+                            "intruder.diameter",
+                            "missing",
+                            "a disk intruder needs its diameter (in d)",
+                        )
+                    })?,
+                )?;
                 if i.a.is_some() || i.b.is_some() {
-                    return Err(ctx.bad("intruder.a", i.a, "a and b belong to shape = \"ellipse\""));
+                    return Err(ctx.bad(
+                        "intruder.a",
+                        i.a,
+                        "a and b belong to shape = \"ellipse\"",
+                    ));
                 }
                 let r = 0.5 * dia * d;
-                (IntruderShape::Disk { radius: r }, density_ratio * areal * std::f64::consts::PI * r * r, 2.0 * r)
+                (
+                    IntruderShape::Disk { radius: r },
+                    density_ratio * areal * std::f64::consts::PI * r * r,
+                    2.0 * r,
+                )
             }
             Shape::Ellipse => {
-                let a = positive(&ctx, "intruder.a", i.a.ok_or_else(|| ctx.bad("intruder.a", "missing", "an ellipse needs semi-axes a and b (in d)"))?)?;
-                let bb = positive(&ctx, "intruder.b", i.b.ok_or_else(|| ctx.bad("intruder.b", "missing", "an ellipse needs semi-axes a and b (in d)"))?)?;
+                let a = positive(
+                    &ctx,
+                    "intruder.a",
+                    i.a.ok_or_else(|| {
+                        ctx.bad(
+                            "intruder.a",
+                            "missing",
+                            "an ellipse needs semi-axes a and b (in d)",
+                        )
+                    })?,
+                )?;
+                let bb = positive(
+                    &ctx,
+                    "intruder.b",
+                    i.b.ok_or_else(|| {
+                        ctx.bad(
+                            "intruder.b",
+                            "missing",
+                            "an ellipse needs semi-axes a and b (in d)",
+                        )
+                    })?,
+                )?;
                 if i.diameter.is_some() {
-                    return Err(ctx.bad("intruder.diameter", i.diameter, "diameter belongs to shape = \"disk\""));
+                    return Err(ctx.bad(
+                        "intruder.diameter",
+                        i.diameter,
+                        "diameter belongs to shape = \"disk\"",
+                    ));
                 }
                 if a < 1.0 || bb < 1.0 {
-                    return Err(ctx.bad("intruder.a", (a, bb), "semi-axes must be >= 1 d (the outline disks are d wide)"));
+                    return Err(ctx.bad(
+                        "intruder.a",
+                        (a, bb),
+                        "semi-axes must be >= 1 d (the outline disks are d wide)",
+                    ));
                 }
                 if i.cluster_count < 8 {
                     return Err(ctx.bad("intruder.cluster_count", i.cluster_count, "must be >= 8"));
                 }
                 let (a, bb) = (a * d, bb * d);
                 (
-                    IntruderShape::Ellipse { a, b: bb, count: i.cluster_count },
+                    IntruderShape::Ellipse {
+                        a,
+                        b: bb,
+                        count: i.cluster_count,
+                    },
                     density_ratio * areal * std::f64::consts::PI * a * a,
                     2.0 * a,
                 )
             }
         };
         if width > 0.8 * length {
-            return Err(ctx.bad("intruder", width / d, "the intruder must be narrower than 0.8 L"));
+            return Err(ctx.bad(
+                "intruder",
+                width / d,
+                "the intruder must be narrower than 0.8 L",
+            ));
         }
         let speed = non_negative(&ctx, "intruder.speed", i.speed)? * scales.velocity();
         let release_height = positive(&ctx, "intruder.release_height", i.release_height)? * d;
@@ -509,9 +578,14 @@ impl Impact2dCase {
                 friction: i.friction.unwrap_or(g.friction),
             })
         };
-        let final_window = positive(&ctx, "analysis.final_window", raw.analysis.final_window)? * tau;
+        let final_window =
+            positive(&ctx, "analysis.final_window", raw.analysis.final_window)? * tau;
         if final_window >= duration {
-            return Err(ctx.bad("analysis.final_window", raw.analysis.final_window, "must be shorter than simulation.duration"));
+            return Err(ctx.bad(
+                "analysis.final_window",
+                raw.analysis.final_window,
+                "must be shorter than simulation.duration",
+            ));
         }
 
         let base = Variant {
@@ -528,19 +602,33 @@ impl Impact2dCase {
         let sweep_parameter = raw.sweep.as_ref().map(|s| s.parameter.clone());
         if let Some(sw) = &raw.sweep {
             if sw.values.len() < 2 {
-                return Err(ctx.bad("sweep.values", sw.values.len(), "a sweep needs at least two values"));
+                return Err(ctx.bad(
+                    "sweep.values",
+                    sw.values.len(),
+                    "a sweep needs at least two values",
+                ));
             }
             for (k, v) in sw.values.iter().enumerate() {
                 let field = format!("sweep.values[{k}]");
                 let num = || -> Result<f64, CaseError> {
                     v.as_float()
                         .or_else(|| v.as_integer().map(|n| n as f64))
-                        .ok_or_else(|| ctx.bad(&field, v.to_string(), format!("sweep over `{}` takes numbers", sw.parameter)))
+                        .ok_or_else(|| {
+                            ctx.bad(
+                                &field,
+                                v.to_string(),
+                                format!("sweep over `{}` takes numbers", sw.parameter),
+                            )
+                        })
                 };
                 let text = || -> Result<String, CaseError> {
-                    v.as_str()
-                        .map(str::to_string)
-                        .ok_or_else(|| ctx.bad(&field, v.to_string(), format!("sweep over `{}` takes strings", sw.parameter)))
+                    v.as_str().map(str::to_string).ok_or_else(|| {
+                        ctx.bad(
+                            &field,
+                            v.to_string(),
+                            format!("sweep over `{}` takes strings", sw.parameter),
+                        )
+                    })
                 };
                 let mut var = base.clone();
                 let label;
@@ -576,7 +664,13 @@ impl Impact2dCase {
                         var.grains.friction = match t.as_str() {
                             "static" => Friction::Static,
                             "kinetic" => Friction::Kinetic,
-                            _ => return Err(ctx.bad(&field, t, "friction is \"static\" or \"kinetic\"")),
+                            _ => {
+                                return Err(ctx.bad(
+                                    &field,
+                                    t,
+                                    "friction is \"static\" or \"kinetic\"",
+                                ));
+                            }
                         };
                         if w.friction.is_none() {
                             var.walls.friction = var.grains.friction;
@@ -590,7 +684,13 @@ impl Impact2dCase {
                         var.packing = match t.as_str() {
                             "random" => Packing::Random,
                             "hexagonal" => Packing::Hexagonal,
-                            _ => return Err(ctx.bad(&field, t, "packing is \"random\" or \"hexagonal\"")),
+                            _ => {
+                                return Err(ctx.bad(
+                                    &field,
+                                    t,
+                                    "packing is \"random\" or \"hexagonal\"",
+                                ));
+                            }
                         };
                         var.x = k as f64;
                         label = format!("packing={t}");
@@ -610,12 +710,16 @@ impl Impact2dCase {
                 variants.push(var);
             }
         } else {
-            variants.push(base);
+            variants.push(base.clone());
         }
         let claim = raw.claim.clone();
         match (&claim, &raw.sweep) {
             (Some(_), None) => {
-                return Err(ctx.bad("claim", "given", "a claim compares the variants of a [sweep]; add one"));
+                return Err(ctx.bad(
+                    "claim",
+                    "given",
+                    "a claim compares the variants of a [sweep]; add one",
+                ));
             }
             (Some(Claim::Increasing { min_step }), _) => {
                 non_negative(&ctx, "claim.min_step", *min_step)?;
@@ -635,7 +739,11 @@ impl Impact2dCase {
         if variants.iter().any(|v| v.packing == Packing::Hexagonal) {
             let n = length / d;
             if (n - n.round()).abs() > 1e-9 {
-                return Err(ctx.bad("bed.length", b.length, "a hexagonal bed needs L to be a whole number of d"));
+                return Err(ctx.bad(
+                    "bed.length",
+                    b.length,
+                    "a hexagonal bed needs L to be a whole number of d",
+                ));
             }
         }
         let tolerances = raw.compare.unwrap_or_default();
@@ -667,6 +775,7 @@ impl Impact2dCase {
             release_height,
             final_window,
             sweep_parameter,
+            base,
             variants,
             claim,
             tolerances,

@@ -66,7 +66,10 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
                 .map(|w| w[0].final_depth + min_step - w[1].final_depth)
                 .fold(f64::NEG_INFINITY, f64::max);
             Check::at_most(
-                format!("{}: claim ({engine}): final depth increases along {param}", case.name),
+                format!(
+                    "{}: claim ({engine}): final depth increases along {param}",
+                    case.name
+                ),
                 "max_k (D_k + min_step - D_k+1) / d",
                 worst,
                 0.0,
@@ -79,14 +82,21 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
             let y: Vec<f64> = pts.iter().map(|o| o.final_depth).collect();
             match crate::analysis::impact::linear_r2(&x, &y) {
                 Ok((a, b, r2)) => Check::at_most(
-                    format!("{}: claim ({engine}): final depth linear in {param} for {param} >= {from}", case.name),
+                    format!(
+                        "{}: claim ({engine}): final depth linear in {param} for {param} >= {from}",
+                        case.name
+                    ),
                     "1 - R^2 of the least-squares line",
                     // A falling line is no support for "grows linearly".
                     if b > 0.0 { 1.0 - r2 } else { f64::INFINITY },
                     1.0 - r2_min,
-                    format!("D = {a:.3} + {b:.3} x (R^2 {r2:.4}; the slope must be > 0); final depths (d): {listing}"),
+                    format!(
+                        "D = {a:.3} + {b:.3} x (R^2 {r2:.4}; the slope must be > 0); final depths (d): {listing}"
+                    ),
                 ),
-                Err(e) => Check::error(format!("{}: claim ({engine})", case.name), format!("{e:#}")),
+                Err(e) => {
+                    Check::error(format!("{}: claim ({engine})", case.name), format!("{e:#}"))
+                }
             }
         }
     })

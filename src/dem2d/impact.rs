@@ -26,11 +26,17 @@ pub struct Scene {
     pub intruder_mass: f64,
 }
 
-/// Bed preparation inputs of a variant (its packing, the grain and wall materials).
-pub fn bed_spec(case: &Impact2dCase, v: &Variant) -> BedSpec {
+/// Bed preparation inputs for a packing: always the case's base grain and wall
+/// materials, so every variant of a sweep (e_n, mu, friction, speed, gravity) hits
+/// the very same bed and only the impact differs.
+pub fn bed_spec(case: &Impact2dCase, packing: super::bed::Packing) -> BedSpec {
     let s = &case.scales;
-    let g = v.grains.coeffs(s);
-    let w = v.walls.coeffs(s);
+    let g = case.base.grains.coeffs(s);
+    let w = case.base.walls.coeffs(s);
+    let v = Variant {
+        packing,
+        ..case.base.clone()
+    };
     BedSpec {
         packing: v.packing,
         count: case.count,
@@ -93,14 +99,20 @@ pub fn build(case: &Impact2dCase, v: &Variant, bed: &Bed) -> Result<Scene> {
     let l = case.length;
     let x_imp = 0.5 * l;
     let surface = bed.surface_at(x_imp, l);
-    anyhow::ensure!(surface.is_finite(), "no grain under the impact point x = {x_imp} m");
+    anyhow::ensure!(
+        surface.is_finite(),
+        "no grain under the impact point x = {x_imp} m"
+    );
     let mut disks: Vec<Disk> = bed.grains.clone();
     for g in &mut disks {
         g.type_ = 0;
     }
     let mut next_id = disks.iter().map(|d| d.id).max().unwrap_or(0) + 1;
     for w in &bed.wall {
-        disks.push(Disk { id: next_id, ..w.clone() });
+        disks.push(Disk {
+            id: next_id,
+            ..w.clone()
+        });
         next_id += 1;
     }
     let m = case.intruder_mass;
@@ -146,21 +158,10 @@ pub fn build(case: &Impact2dCase, v: &Variant, bed: &Bed) -> Result<Scene> {
                 });
                 next_id += 1;
             }
-            let total: f64 = members.iter().map(|&k| disks[k].mass).sum();
-            let mut xcm = [0.0; 2];
-            for &k in &members {
-                xcm[0] += disks[k].mass * disks[k].x[0];
-                xcm[1] += disks[k].mass * disks[k].x[1];
-            }
-            xcm = [xcm[0] / total, xcm[1] / total];
-            let displace = members.iter().map(|&k| [disks[k].x[0] - xcm[0], disks[k].x[1] - xcm[1]]).collect();
+            let c = Cluster::new(&mut disks, members, vel);
+            let (total, xcm) = (c.mass, c.xcm);
             let bottom_offset = xcm[1] - bottom;
-            (
-                Some(Cluster { members, mass: total, xcm, vcm: vel, displace, fcm: [0.0; 2] }),
-                2.0 * b,
-                bottom_offset,
-                total,
-            )
+            (Some(c), 2.0 * b, bottom_offset, total)
         }
     };
     let top_y = bottom + height + case.top_gap + 0.5 * case.wall_d;
@@ -171,9 +172,20 @@ pub fn build(case: &Impact2dCase, v: &Variant, bed: &Bed) -> Result<Scene> {
     let i = v.intruder.coeffs(s);
     // Row-major 3x3: grain, wall, intruder.
     let coeffs = vec![g, w, i, w, w, w, i, w, i];
-    let bx = Box2 { lo: [0.0, 0.0], hi: [l, top_y + case.wall_d], periodic_x: true };
-    let sys = System::new(disks, cluster, coeffs, 3, bx, v.gravity, case.dt, case.skin, intruder);
-    Ok(Scene { sys, surface, bottom_offset, intruder_mass })
+    let bx = Box2 {
+        lo: [0.0, 0.0],
+        hi: [l, top_y + case.wall_d],
+        periodic_x: true,
+    };
+    let sys = System::new(
+        disks, cluster, coeffs, 3, bx, v.gravity, case.dt, case.skin, intruder,
+    );
+    Ok(Scene {
+        sys,
+        surface,
+        bottom_offset,
+        intruder_mass,
+    })
 }
 
 /// Native run of a scene: intruder samples every `output_every` steps and energies
@@ -197,11 +209,7 @@ pub fn run_native(
     loop {
         if sys.step % output_every == 0 {
             let (x, v) = intruder_cm(&sys);
-            anyhow::ensure!(
-                x[1].is_finite(),
-                "native run diverged at step {}",
-                sys.step
-            );
+            anyhow::ensure!(x[1].is_finite(), "native run diverged at step {}", sys.step);
             samples.push(IntruderSample {
                 step: sys.step,
                 t: sys.time(),

@@ -8,8 +8,8 @@
 //! re-neighbour if needed, pair forces, gravity, half kick (final_integrate).
 
 pub mod bed;
-pub mod impact;
 pub mod contact;
+pub mod impact;
 pub mod neighbor;
 
 use contact::{Coeffs, PairIn, PairOut};
@@ -65,6 +65,36 @@ pub struct Cluster {
     /// Member offsets from the centre of mass (fixed: no rotation).
     pub displace: Vec<[f64; 2]>,
     pub fcm: [f64; 2],
+}
+
+impl Cluster {
+    /// A rigid cluster of `members` (indices into `disks`, whose role must be
+    /// `Cluster`), centre of mass computed as LAMMPS' `fix rigid` does (mass-weighted).
+    pub fn new(disks: &mut [Disk], members: Vec<usize>, vcm: [f64; 2]) -> Cluster {
+        let mass: f64 = members.iter().map(|&k| disks[k].mass).sum();
+        let mut xcm = [0.0; 2];
+        for &k in &members {
+            xcm[0] += disks[k].mass * disks[k].x[0];
+            xcm[1] += disks[k].mass * disks[k].x[1];
+        }
+        xcm = [xcm[0] / mass, xcm[1] / mass];
+        let displace = members
+            .iter()
+            .map(|&k| [disks[k].x[0] - xcm[0], disks[k].x[1] - xcm[1]])
+            .collect();
+        for &k in &members {
+            disks[k].v = vcm;
+            disks[k].role = Role::Cluster;
+        }
+        Cluster {
+            members,
+            mass,
+            xcm,
+            vcm,
+            displace,
+            fcm: [0.0; 2],
+        }
+    }
 }
 
 struct Exclusions<'a> {

@@ -10,8 +10,18 @@ pub type DepthSeries<'a> = (&'a str, &'a [(f64, f64)]);
 
 pub fn depth_overlay(path: &Path, series: &[DepthSeries<'_>], title: &str) -> Result<()> {
     ensure!(!series.is_empty(), "depth_overlay: no series to plot");
-    let pts = || series.iter().flat_map(|s| s.1.iter()).filter(|p| p.0.is_finite() && p.1.is_finite());
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let pts = || {
+        series
+            .iter()
+            .flat_map(|s| s.1.iter())
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+    };
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
     for &(x, y) in pts() {
         x0 = x0.min(x);
         x1 = x1.max(x);
@@ -44,7 +54,9 @@ pub fn depth_overlay(path: &Path, series: &[DepthSeries<'_>], title: &str) -> Re
             .draw_series(LineSeries::new(s.iter().copied(), color.stroke_width(2)))
             .map_err(e("series"))?
             .label(*label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
     }
     chart
         .configure_series_labels()

@@ -242,7 +242,7 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     }
     let _ = writeln!(
         s,
-        "thermo_style custom step atoms ke\nthermo {}",
+        "thermo_style custom step atoms\nthermo {}",
         out.n_steps.clamp(1, 10_000)
     );
     let _ = writeln!(s, "run {}", out.n_steps);
