@@ -337,12 +337,21 @@ pub fn observe(
     let series = obs::depth(&run.samples, scene.surface, scene.bottom_offset);
     let fin = obs::final_depth(&series, case.final_window)?;
     let max = series.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    let t_end = run.samples.last().map(|s| s.t).unwrap_or(0.0);
+    let final_speed = run
+        .samples
+        .iter()
+        .filter(|s| s.t >= t_end - case.final_window)
+        .map(|s| s.v[0].hypot(s.v[1]))
+        .fold(0.0, f64::max)
+        / case.scales.velocity();
     Ok((
         VariantObs {
             label: v.label.clone(),
             x: v.x,
             final_depth: fin / d,
             max_depth: max / d,
+            final_speed,
         },
         series,
     ))

@@ -63,7 +63,7 @@ fn native_rows(mut sys: System, n: u64, every: u64) -> Vec<(u64, u64, [f64; 5])>
     let mut rows = Vec::new();
     sys.setup();
     loop {
-        if sys.step % every == 0 {
+        if sys.step.is_multiple_of(every) {
             for d in &sys.disks {
                 rows.push((sys.step, d.id, [d.x[0], d.x[1], d.v[0], d.v[1], d.omega]));
             }
@@ -148,16 +148,16 @@ fn worst(a: &[(u64, u64, [f64; 5])], b: &[(u64, u64, [f64; 5])]) -> f64 {
     assert_eq!(a.len(), b.len(), "row counts differ");
     let mut scale = [0.0f64; 5];
     for r in b {
-        for k in 0..5 {
-            scale[k] = scale[k].max(r.2[k].abs());
+        for (s, v) in scale.iter_mut().zip(r.2) {
+            *s = s.max(v.abs());
         }
     }
     let mut w = 0.0f64;
     for (x, y) in a.iter().zip(b) {
         assert_eq!((x.0, x.1), (y.0, y.1));
-        for k in 0..5 {
-            if scale[k] > 0.0 {
-                w = w.max((x.2[k] - y.2[k]).abs() / scale[k]);
+        for ((s, p), q) in scale.iter().zip(x.2).zip(y.2) {
+            if *s > 0.0 {
+                w = w.max((p - q).abs() / s);
             }
         }
     }

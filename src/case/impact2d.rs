@@ -439,7 +439,7 @@ impl Impact2dCase {
         if s.output_every == 0 {
             return Err(ctx.bad("simulation.output_every", 0, "must be >= 1"));
         }
-        if s.energy_every == 0 || s.energy_every % s.output_every != 0 {
+        if s.energy_every == 0 || !s.energy_every.is_multiple_of(s.output_every) {
             return Err(ctx.bad(
                 "simulation.energy_every",
                 s.energy_every,

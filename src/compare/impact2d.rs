@@ -11,6 +11,8 @@ pub struct VariantObs {
     pub x: f64,
     pub final_depth: f64,
     pub max_depth: f64,
+    /// Largest |v| of the intruder in the final window (d / tau_c): is it at rest?
+    pub final_speed: f64,
 }
 
 /// Native vs reference for one variant. `rms` is the D(t) RMS distance in d, or the
@@ -30,10 +32,12 @@ pub fn cross_check(
         (a.final_depth - b.final_depth).abs(),
         tol.final_depth_abs,
         format!(
-            "D_native = {:.3} d, D_{reference} = {:.3} d (mean over the last {:.0} tau_c)",
+            "D_native = {:.3} d, D_{reference} = {:.3} d (mean over the last {:.0} tau_c; max intruder speed there {:.1e} / {:.1e} d/tau_c)",
             a.final_depth,
             b.final_depth,
-            case.final_window / case.scales.tau_c
+            case.final_window / case.scales.tau_c,
+            a.final_speed,
+            b.final_speed
         ),
     )];
     out.push(match rms {
@@ -100,4 +104,91 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
             }
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn case(claim: &str, sweep: &str) -> Impact2dCase {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/cases/impact2d/ci.toml"
+        ))
+        .unwrap();
+        Impact2dCase::from_toml_str(&format!("{text}\n{sweep}\n{claim}\n"), Path::new("t.toml"))
+            .unwrap()
+    }
+
+    fn obs(xs: &[f64], ds: &[f64]) -> Vec<VariantObs> {
+        xs.iter()
+            .zip(ds)
+            .map(|(&x, &d)| VariantObs {
+                label: format!("{x}"),
+                x,
+                final_depth: d,
+                max_depth: d,
+                final_speed: 0.0,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn increasing_claim_passes_rising_and_fails_falling_or_too_flat() {
+        let c = case(
+            "[claim]\nkind = \"increasing\"\nmin_step = 0.5",
+            "[sweep]\nparameter = \"e_n\"\nvalues = [0.1, 0.5, 0.9]",
+        );
+        assert!(
+            claim_check(&c, "x", &obs(&[0.1, 0.5, 0.9], &[1.0, 2.0, 3.0]))
+                .unwrap()
+                .passed
+        );
+        assert!(
+            !claim_check(&c, "x", &obs(&[0.1, 0.5, 0.9], &[3.0, 2.0, 1.0]))
+                .unwrap()
+                .passed
+        );
+        assert!(
+            !claim_check(&c, "x", &obs(&[0.1, 0.5, 0.9], &[1.0, 1.3, 3.0]))
+                .unwrap()
+                .passed
+        );
+    }
+
+    #[test]
+    fn linear_claim_fails_curved_and_falling_data() {
+        let c = case(
+            "[claim]\nkind = \"linear\"\nfrom = 0.4\nr2_min = 0.9",
+            "[sweep]\nparameter = \"speed\"\nvalues = [0.1, 0.4, 0.7, 1.0]",
+        );
+        let x = [0.1, 0.4, 0.7, 1.0];
+        assert!(
+            claim_check(&c, "x", &obs(&x, &[0.0, 2.0, 3.5, 5.0]))
+                .unwrap()
+                .passed
+        );
+        assert!(
+            !claim_check(&c, "x", &obs(&x, &[0.0, 1.0, 1.0, 9.0]))
+                .unwrap()
+                .passed
+        );
+        assert!(
+            !claim_check(&c, "x", &obs(&x, &[0.0, 5.0, 3.5, 2.0]))
+                .unwrap()
+                .passed
+        );
+    }
+
+    #[test]
+    fn cross_check_fails_beyond_a_grain() {
+        let c = case("", "");
+        let a = &obs(&[0.0], &[5.0])[0];
+        let b = &obs(&[0.0], &[6.5])[0];
+        let checks = cross_check(&c, a, b, Ok(1.2), "lammps");
+        assert!(checks.iter().all(|k| !k.passed));
+        let checks = cross_check(&c, a, a, Ok(0.1), "lammps");
+        assert!(checks.iter().all(|k| k.passed));
+    }
 }

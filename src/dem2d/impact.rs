@@ -207,7 +207,7 @@ pub fn run_native(
     let mut samples = Vec::new();
     let mut energy = Vec::new();
     loop {
-        if sys.step % output_every == 0 {
+        if sys.step.is_multiple_of(output_every) {
             let (x, v) = intruder_cm(&sys);
             anyhow::ensure!(x[1].is_finite(), "native run diverged at step {}", sys.step);
             samples.push(IntruderSample {
@@ -219,7 +219,7 @@ pub fn run_native(
             });
             progress(sys.step);
         }
-        if sys.step % energy_every == 0 {
+        if sys.step.is_multiple_of(energy_every) {
             let snap: Vec<SnapDisk> = sys
                 .disks
                 .iter()

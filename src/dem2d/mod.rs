@@ -137,6 +137,10 @@ pub struct System {
 }
 
 impl System {
+    /// Every argument is an independent physical input of the same rank (the state,
+    /// the contact table, the box, gravity, step and skin); a builder would only hide
+    /// which of them a caller forgot.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         disks: Vec<Disk>,
         cluster: Option<Cluster>,
