@@ -140,14 +140,20 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
     Ok(Beds { beds })
 }
 
-pub fn scene(case: &Impact2dCase, v: &Variant, beds: &Beds, tweak: Tweak) -> Result<Scene> {
-    let mut s = scene_mod::build(case, v, beds.get(v.packing))?;
+pub fn scene(case: &Impact2dCase, v: &Variant, beds: &Beds) -> Result<Scene> {
+    scene_mod::build(case, v, beds.get(v.packing))
+}
+
+/// The scene the native engine runs: the shared scene, made wrong on purpose for a
+/// negative control (the reference engine always gets the untouched scene).
+pub fn native_scene(scene: &Scene, tweak: Tweak) -> Scene {
+    let mut s = scene.clone();
     if tweak == Tweak::SwapFriction {
         for c in &mut s.sys.coeffs {
             c.kt = if c.kt > 0.0 { 0.0 } else { 0.8 * c.kn };
         }
     }
-    Ok(s)
+    s
 }
 
 /// Energies: walls frozen; wall-wall and (cluster) intruder-intruder pairs excluded.
@@ -421,11 +427,11 @@ pub fn compare_case_with(
                 .file_name()
                 .unwrap_or_default(),
         );
-        let scene = match scene(case, v, &beds, tweak) {
+        let scene = match scene(case, v, &beds) {
             Ok(s) => s,
             Err(e) => return fail(&format!("[{}] scene", v.label), e, notes),
         };
-        let native = match run_native(case, &scene, opts.progress) {
+        let native = match run_native(case, &native_scene(&scene, tweak), opts.progress) {
             Ok(r) => r,
             Err(e) => return fail(&format!("[{}] native run", v.label), e, notes),
         };

@@ -266,7 +266,7 @@ fn run_impact2d(path: &Path, engine: EngineName, out: &Path, np: usize) -> Resul
         println!("{}", i2::bed_note(&case, *p, b));
     }
     for v in &case.variants {
-        let scene = i2::scene(&case, v, &beds, i2::Tweak::None)?;
+        let scene = i2::scene(&case, v, &beds)?;
         let dir = out.join(&v.label);
         std::fs::create_dir_all(&dir)
             .with_context(|| format!("cannot create {}", dir.display()))?;
@@ -325,7 +325,7 @@ fn refresh_impact2d(
         let case = granval::case::impact2d::Impact2dCase::load(&path)?;
         let beds = i2::prepare_beds(&case, true)?;
         for v in &case.variants {
-            let scene = i2::scene(&case, v, &beds, i2::Tweak::None)?;
+            let scene = i2::scene(&case, v, &beds)?;
             let rec = i2::record_dir(reference, &case, v);
             let previous = i2::recorded(&rec, &scene)
                 .ok()

@@ -298,3 +298,39 @@ fn rigid_cluster_on_a_grain_with_gravity() {
     // fix rigid stores member offsets in its principal-axis frame: round-off, not bitwise.
     assert!(w < 1e-10, "{w}");
 }
+
+/// A LAMMPS that fails, or exits 0 having written nothing, is an error with a
+/// transcript, never an empty success.
+#[test]
+fn crashed_or_silent_lammps_is_an_error() {
+    let c = coeffs(0.8, 0.5, 0.5);
+    let s = system(
+        vec![
+            disk(1, 0, 0.002, [0.02, 0.02], [0.3, 0.0], 0.0, Role::Free),
+            disk(2, 0, 0.002, [0.025, 0.02], [-0.2, 0.0], 0.0, Role::Free),
+        ],
+        c,
+        c,
+        0.0,
+    );
+    let out = Outputs {
+        n_steps: 10,
+        intruder_every: 0,
+        snapshot_every: 5,
+    };
+    for (binary, why) in [("false", "exited with"), ("true", "Total wall time")] {
+        let dir = tempfile::tempdir().unwrap();
+        let lmp = Lammps {
+            binary: binary.into(),
+            ..Lammps::default()
+        };
+        let e = format!("{:#}", lmp.run(&s, &out, dir.path()).unwrap_err());
+        assert!(e.contains("LAMMPS run failed") && e.contains(why), "{e}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let lmp = Lammps {
+        binary: "/nonexistent/lmp".into(),
+        ..Lammps::default()
+    };
+    assert!(lmp.run(&s, &out, dir.path()).is_err());
+}

@@ -109,7 +109,7 @@ fn recorded_lammps_reference_matches_native() {
     let c = case("ci.toml");
     let beds = i2::prepare_beds(&c, false).unwrap();
     let v = &c.variants[0];
-    let scene = i2::scene(&c, v, &beds, Tweak::None).unwrap();
+    let scene = i2::scene(&c, v, &beds).unwrap();
     let rec = i2::record_dir(&common::root().join("reference"), &c, v);
     let reference = i2::recorded(&rec, &scene).unwrap_or_else(|e| panic!("{e:#}"));
     eprintln!(
@@ -202,4 +202,11 @@ fn speed_sweep_agrees_between_engines() {
         (n.value - l.value).abs() < 0.05 || n.value == l.value,
         "{n:?} vs {l:?}"
     );
+}
+
+#[test]
+fn elliptical_cluster_intruder_matches_lammps() {
+    for c in run("ci-ellipse.toml", Tweak::None) {
+        assert!(c.passed, "{c:?}");
+    }
 }
