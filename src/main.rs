@@ -260,6 +260,9 @@ fn impact2d_compare(path: &Path, opts: &Options, report_dir: &Path) -> pipeline:
 /// natively prepared bed; OUT/<variant>/{intruder,energy}.csv + provenance.json.
 fn run_impact2d(path: &Path, engine: EngineName, out: &Path, np: usize) -> Result<ExitCode> {
     use granval::impact2d as i2;
+    if matches!(engine, EngineName::Liggghts) {
+        anyhow::bail!("impact2d cases are 2D: use --engine native or --engine lammps");
+    }
     let case = granval::case::impact2d::Impact2dCase::load(path)?;
     let beds = i2::prepare_beds(&case, true)?;
     for (p, b) in &beds.beds {
