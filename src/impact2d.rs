@@ -314,7 +314,7 @@ pub fn reference_run(
     opts: &crate::pipeline::Options,
     run_dir: &Path,
 ) -> Result<(Run, String)> {
-    if lammps::installed_version("lmp").is_some() {
+    if lammps::installed_version(&lammps::binary()).is_some() {
         return Ok((
             run_lammps(case, scene, run_dir, opts.mpi_procs)?,
             "live".into(),

@@ -311,7 +311,7 @@ fn refresh_impact2d(
     only: Option<&Path>,
 ) -> Result<ExitCode> {
     use granval::impact2d as i2;
-    let version = granval::engines::lammps::installed_version("lmp")
+    let version = granval::engines::lammps::installed_version(&granval::engines::lammps::binary())
         .context("reference refresh for impact2d needs a live LAMMPS (`apt-get install lammps`)")?;
     println!("using {version}");
     let mut paths = pipeline::suite_cases(cases, suite)?;

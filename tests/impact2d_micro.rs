@@ -78,7 +78,7 @@ fn native_rows(mut sys: System, n: u64, every: u64) -> Vec<(u64, u64, [f64; 5])>
 
 fn lammps_rows(sys: &System, n: u64, every: u64, name: &str) -> Vec<(u64, u64, [f64; 5])> {
     let rec = common::root().join("reference/impact2d/micro").join(name);
-    let live = lammps::installed_version("lmp").is_some();
+    let live = lammps::installed_version(&lammps::binary()).is_some();
     let dump = if live {
         let dir = tempfile::tempdir().unwrap().keep();
         let fin = Lammps::default()

@@ -357,12 +357,9 @@ impl System {
     /// Contact force on the intruder from everything else (gravity excluded).
     pub fn intruder_contact_force(&self) -> [f64; 2] {
         let mut s = [0.0; 2];
-        let mut is_intr = vec![false; 0];
-        if !self.intruder.is_empty() {
-            is_intr.resize(self.disks.len(), false);
-            for &k in &self.intruder {
-                is_intr[k] = true;
-            }
+        let mut is_intr = vec![false; self.disks.len()];
+        for &k in &self.intruder {
+            is_intr[k] = true;
         }
         for (r, &(i, j)) in self.last.iter().zip(&self.list.pairs) {
             if let Some(o) = r {
@@ -387,20 +384,6 @@ impl System {
             .map(|d| {
                 0.5 * d.mass * (d.v[0] * d.v[0] + d.v[1] * d.v[1])
                     + 0.25 * d.mass * d.radius * d.radius * d.omega * d.omega
-            })
-            .sum()
-    }
-
-    /// Normal spring energy `sum k_n x^2 / 2` of the contacts of the last force pass.
-    pub fn elastic_energy(&self) -> f64 {
-        self.last
-            .iter()
-            .zip(&self.list.pairs)
-            .filter_map(|(r, &(i, j))| {
-                r.map(|o| {
-                    let c = self.coeff(self.disks[i as usize].type_, self.disks[j as usize].type_);
-                    0.5 * c.kn * o.overlap * o.overlap
-                })
             })
             .sum()
     }
