@@ -103,3 +103,42 @@ fn bad_inputs_name_file_field_value_and_reason() {
     let e = err(&(t.clone() + "\n[claim]\nkind = \"increasing\"\n"));
     assert!(e.contains("claim") && e.contains("sweep"), "{e}");
 }
+
+/// The CLI turns bad impact2d input into exit code 2 with file, field and reason,
+/// before any simulation starts.
+#[test]
+fn cli_rejects_bad_impact2d_input_with_exit_code_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, ci_text().replacen("\ne_n = 0.5", "\ne_n = 1.5", 1)).unwrap();
+    let exe = env!("CARGO_BIN_EXE_granval");
+    let out = std::process::Command::new(exe)
+        .args([
+            "run",
+            bad.to_str().unwrap(),
+            "--out",
+            dir.path().join("o").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("bad.toml") && err.contains("grains.e_n") && err.contains("1.5"),
+        "{err}"
+    );
+    let ci = common::root().join("cases/impact2d/ci.toml");
+    let out = std::process::Command::new(exe)
+        .args([
+            "run",
+            ci.to_str().unwrap(),
+            "--engine",
+            "liggghts",
+            "--out",
+            dir.path().join("p").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("2D"));
+}
