@@ -11,6 +11,7 @@ pub mod compare;
 pub mod dem;
 pub mod dem2d;
 pub mod engines;
+pub mod impact2d;
 pub mod penetration;
 pub mod pipeline;
 pub mod report;

@@ -27,6 +27,8 @@ struct Cli {
 enum EngineName {
     Native,
     Liggghts,
+    /// LAMMPS (2D impact2d cases).
+    Lammps,
 }
 
 #[derive(Subcommand)]
@@ -135,6 +137,9 @@ enum RefCmd {
         cases: PathBuf,
         #[arg(long, default_value = "reference")]
         reference: PathBuf,
+        /// Only this case file of the suite (impact2d).
+        #[arg(long)]
+        only: Option<PathBuf>,
     },
 }
 
@@ -164,6 +169,17 @@ fn run_suite(
 ) -> Result<ExitCode> {
     let (mut checks, mut runs, mut notes, mut errored) = (vec![], vec![], vec![], false);
     for path in paths {
+        if matches!(
+            granval::case::impact2d::kind_of(path).as_deref(),
+            Ok("impact2d")
+        ) {
+            let r = impact2d_compare(path, opts, report_dir);
+            checks.extend(r.checks);
+            runs.extend(r.run);
+            notes.extend(r.notes);
+            errored |= r.errored;
+            continue;
+        }
         if matches!(
             granval::case::penetration::kind_of(path).as_deref(),
             Ok("penetration")
@@ -317,6 +333,123 @@ fn analyze(dir: &Path, native: bool, opts: &Options, report: &Path) -> Result<Ex
     )
 }
 
+/// `granval compare/check` entry for one impact2d case file.
+fn impact2d_compare(path: &Path, opts: &Options, report_dir: &Path) -> pipeline::CaseResult {
+    match granval::case::impact2d::Impact2dCase::load(path) {
+        Err(e) => pipeline::CaseResult {
+            checks: vec![granval::compare::Check::error(
+                path.display().to_string(),
+                e.to_string(),
+            )],
+            run: None,
+            notes: vec![],
+            errored: true,
+        },
+        Ok(case) => {
+            eprintln!("== {} ({})", case.name, path.display());
+            granval::impact2d::compare_case(&case, opts, &report_dir.join(&case.name))
+        }
+    }
+}
+
+/// `granval run` for an impact2d case: every variant in one engine, from the
+/// natively prepared bed; OUT/<variant>/{intruder,energy}.csv + provenance.json.
+fn run_impact2d(path: &Path, engine: EngineName, out: &Path, np: usize) -> Result<ExitCode> {
+    use granval::impact2d as i2;
+    if matches!(engine, EngineName::Liggghts) {
+        anyhow::bail!("impact2d cases are 2D: use --engine native or --engine lammps");
+    }
+    let case = granval::case::impact2d::Impact2dCase::load(path)?;
+    let beds = i2::prepare_beds(&case, true)?;
+    for (p, b) in &beds.beds {
+        println!("{}", i2::bed_note(&case, *p, b));
+    }
+    for v in &case.variants {
+        let scene = i2::scene(&case, v, &beds)?;
+        let dir = out.join(&v.label);
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        let run = match engine {
+            EngineName::Native => i2::run_native(&case, &scene, true)?,
+            EngineName::Lammps => i2::run_lammps(&case, &scene, &dir.join("lammps-run"), np)?,
+            EngineName::Liggghts => {
+                anyhow::bail!("impact2d cases are 2D: use --engine native or --engine lammps")
+            }
+        };
+        let (o, _) = i2::observe(&case, v, &scene, &run)?;
+        granval::analysis::impact::write_intruder_csv(
+            &dir.join("intruder.csv"),
+            &run.samples,
+            scene.surface,
+            scene.bottom_offset,
+        )?;
+        granval::analysis::impact::write_energy_csv(&dir.join("energy.csv"), &run.energy)?;
+        granval::engines::output::write_provenance(&dir.join("provenance.json"), &run.provenance)?;
+        println!(
+            "{:<24} final depth {:.3} d, max depth {:.3} d ({} engine, {:.1} s) -> {}",
+            v.label,
+            o.final_depth,
+            o.max_depth,
+            run.provenance.engine,
+            run.provenance.wall_time_s,
+            dir.display()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `granval reference refresh --suite impact2d`: record every variant in live LAMMPS
+/// and report the final-depth drift against the previous record.
+fn refresh_impact2d(
+    cases: &Path,
+    suite: &str,
+    reference: &Path,
+    only: Option<&Path>,
+) -> Result<ExitCode> {
+    use granval::impact2d as i2;
+    let version = granval::engines::lammps::installed_version(&granval::engines::lammps::binary())
+        .context("reference refresh for impact2d needs a live LAMMPS (`apt-get install lammps`)")?;
+    println!("using {version}");
+    let mut paths = pipeline::suite_cases(cases, suite)?;
+    if let Some(o) = only {
+        paths.retain(|p| p == o);
+        anyhow::ensure!(
+            !paths.is_empty(),
+            "{} is not a case of suite {suite} in {}",
+            o.display(),
+            cases.display()
+        );
+    }
+    for path in paths {
+        let case = granval::case::impact2d::Impact2dCase::load(&path)?;
+        let beds = i2::prepare_beds(&case, true)?;
+        for v in &case.variants {
+            let scene = i2::scene(&case, v, &beds)?;
+            let rec = i2::record_dir(reference, &case, v);
+            let previous = i2::recorded(&rec, &scene)
+                .ok()
+                .and_then(|r| i2::observe(&case, v, &scene, &r).ok());
+            let tmp = tempfile::tempdir()?;
+            let run = i2::run_lammps(&case, &scene, tmp.path(), 1)?;
+            i2::store_reference(&run, tmp.path(), &rec, &scene)?;
+            let (now, _) = i2::observe(&case, v, &scene, &run)?;
+            let drift = match previous {
+                Some((p, _)) => format!("{:+.2e} d", now.final_depth - p.final_depth),
+                None => "new".into(),
+            };
+            println!(
+                "{:<14} {:<20} final depth {:.3} d, drift vs previous record {drift}, {:.1} s -> {}",
+                case.name,
+                v.label,
+                now.final_depth,
+                run.provenance.wall_time_s,
+                rec.display()
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 fn real_main() -> Result<ExitCode> {
     let cli = Cli::parse();
     match cli.cmd {
@@ -326,6 +459,9 @@ fn real_main() -> Result<ExitCode> {
             out,
             np,
         } => {
+            if granval::case::impact2d::kind_of(&case)? == "impact2d" {
+                return run_impact2d(&case, engine, &out, np);
+            }
             if granval::case::penetration::kind_of(&case)? == "penetration" {
                 return run_penetration(&case, matches!(engine, EngineName::Native), &out);
             }
@@ -343,6 +479,9 @@ fn real_main() -> Result<ExitCode> {
                     ..Liggghts::default()
                 }
                 .run(&case, &out)?,
+                EngineName::Lammps => {
+                    anyhow::bail!("--engine lammps runs 2D impact2d cases only")
+                }
             };
             pipeline::save_run(&out, &result)?;
             println!(
@@ -385,8 +524,12 @@ fn real_main() -> Result<ExitCode> {
                     suite,
                     cases,
                     reference,
+                    only,
                 },
         } => {
+            if suite == "impact2d" {
+                return refresh_impact2d(&cases, &suite, &reference, only.as_deref());
+            }
             let version = liggghts::installed_version("liggghts")
                 .context("reference refresh needs a live LIGGGHTS (`apt-get install liggghts`)")?;
             println!("using {version}");

@@ -1,2 +1,3 @@
 pub mod fdr;
+pub mod impact;
 pub mod malt;

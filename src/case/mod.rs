@@ -2,6 +2,7 @@
 //! (DESIGN.md "Data flow"). All quantities in the validated [`Case`] are SI.
 
 mod error;
+pub mod impact2d;
 pub mod penetration;
 pub(crate) mod schema;
 pub(crate) mod validate;

@@ -56,7 +56,7 @@ pub struct BedSpec {
 }
 
 /// A settled bed: grains (type 0, free) and the bottom wall (type 1, frozen).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Bed {
     pub grains: Vec<Disk>,
     pub wall: Vec<Disk>,
@@ -215,7 +215,6 @@ fn settle(
     let mut sys = system(spec, grains, wall, top);
     sys.setup();
     let check_every = 50u64;
-    // Past the first quarter of the budget the KE is checked only at step multiples.
     let max_steps = (spec.max_settle_time / spec.dt).ceil() as u64;
     let mut ke = sys.kinetic_energy();
     while sys.step < max_steps {
@@ -230,8 +229,6 @@ fn settle(
             );
         }
         progress(sys.time(), ke);
-        // A grain can be lifted above the starting lattice only by a diverging
-        // contact; never silently accept one that escaped.
         if ke < spec.settle_ke && sys.step >= 2 * check_every {
             let t = sys.time();
             let grains = sys.disks.into_iter().take(n).collect();

@@ -68,7 +68,7 @@ pub struct PairOut {
     pub f: [f64; 2],
     pub torque_i: f64,
     pub torque_j: f64,
-    /// Normal overlap `R_i + R_j - r` (for the elastic energy).
+    /// Normal overlap `R_i + R_j - r`.
     pub overlap: f64,
 }
 

@@ -9,6 +9,7 @@
 
 pub mod bed;
 pub mod contact;
+pub mod impact;
 pub mod neighbor;
 
 use contact::{Coeffs, PairIn, PairOut};
@@ -16,7 +17,7 @@ use neighbor::{Box2, Excluded, PairList};
 use rayon::prelude::*;
 
 /// How a disk moves.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Role {
     /// Integrated by velocity Verlet (`fix nve/sphere disc`).
     Free,
@@ -26,7 +27,7 @@ pub enum Role {
     Cluster,
 }
 
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Disk {
     pub id: u64,
     /// 0-based type (coefficient table row).
@@ -64,6 +65,36 @@ pub struct Cluster {
     /// Member offsets from the centre of mass (fixed: no rotation).
     pub displace: Vec<[f64; 2]>,
     pub fcm: [f64; 2],
+}
+
+impl Cluster {
+    /// A rigid cluster of `members` (indices into `disks`, whose role must be
+    /// `Cluster`), centre of mass computed as LAMMPS' `fix rigid` does (mass-weighted).
+    pub fn new(disks: &mut [Disk], members: Vec<usize>, vcm: [f64; 2]) -> Cluster {
+        let mass: f64 = members.iter().map(|&k| disks[k].mass).sum();
+        let mut xcm = [0.0; 2];
+        for &k in &members {
+            xcm[0] += disks[k].mass * disks[k].x[0];
+            xcm[1] += disks[k].mass * disks[k].x[1];
+        }
+        xcm = [xcm[0] / mass, xcm[1] / mass];
+        let displace = members
+            .iter()
+            .map(|&k| [disks[k].x[0] - xcm[0], disks[k].x[1] - xcm[1]])
+            .collect();
+        for &k in &members {
+            disks[k].v = vcm;
+            disks[k].role = Role::Cluster;
+        }
+        Cluster {
+            members,
+            mass,
+            xcm,
+            vcm,
+            displace,
+            fcm: [0.0; 2],
+        }
+    }
 }
 
 struct Exclusions<'a> {
@@ -106,6 +137,9 @@ pub struct System {
 }
 
 impl System {
+    /// Every argument is an independent physical input of the same rank (the state,
+    /// the contact table, the box, gravity, step and skin); a builder would only hide
+    /// which of them a caller forgot.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         disks: Vec<Disk>,
@@ -184,6 +218,8 @@ impl System {
         let out: Vec<(Option<PairOut>, [f64; 2])> = pairs
             .par_iter()
             .zip(self.list.shear.par_iter())
+            // Chunks large enough that small systems do not drown in scheduling.
+            .with_min_len(2048)
             .map(|(&(i, j), &sh)| {
                 let (i, j) = (i as usize, j as usize);
                 let (a, b) = (&disks[i], &disks[j]);
@@ -321,12 +357,9 @@ impl System {
     /// Contact force on the intruder from everything else (gravity excluded).
     pub fn intruder_contact_force(&self) -> [f64; 2] {
         let mut s = [0.0; 2];
-        let mut is_intr = vec![false; 0];
-        if !self.intruder.is_empty() {
-            is_intr.resize(self.disks.len(), false);
-            for &k in &self.intruder {
-                is_intr[k] = true;
-            }
+        let mut is_intr = vec![false; self.disks.len()];
+        for &k in &self.intruder {
+            is_intr[k] = true;
         }
         for (r, &(i, j)) in self.last.iter().zip(&self.list.pairs) {
             if let Some(o) = r {
@@ -351,20 +384,6 @@ impl System {
             .map(|d| {
                 0.5 * d.mass * (d.v[0] * d.v[0] + d.v[1] * d.v[1])
                     + 0.25 * d.mass * d.radius * d.radius * d.omega * d.omega
-            })
-            .sum()
-    }
-
-    /// Normal spring energy `sum k_n x^2 / 2` of the contacts of the last force pass.
-    pub fn elastic_energy(&self) -> f64 {
-        self.last
-            .iter()
-            .zip(&self.list.pairs)
-            .filter_map(|(r, &(i, j))| {
-                r.map(|o| {
-                    let c = self.coeff(self.disks[i as usize].type_, self.disks[j as usize].type_);
-                    0.5 * c.kn * o.overlap * o.overlap
-                })
             })
             .sum()
     }

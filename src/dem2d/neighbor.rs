@@ -185,8 +185,8 @@ impl PairList {
         }
         for i in 0..n {
             if large[i] {
-                for (j, &large_j) in large.iter().enumerate() {
-                    if !large_j || j > i {
+                for (j, &lj) in large.iter().enumerate() {
+                    if !lj || j > i {
                         push(i, j, &mut pairs);
                     }
                 }

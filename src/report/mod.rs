@@ -4,6 +4,7 @@
 
 pub mod progress;
 pub mod svg;
+pub mod svg_impact;
 
 use crate::compare::Check;
 use anyhow::{Context, Result};

@@ -68,7 +68,8 @@ pub fn write_data(sys: &System) -> String {
     let (lo, hi) = (sys.bx.lo, sys.bx.hi);
     let _ = writeln!(s, "{:e} {:e} xlo xhi", lo[0], hi[0]);
     let _ = writeln!(s, "{:e} {:e} ylo yhi", lo[1], hi[1]);
-    let zh = 0.5 * (hi[0] - lo[0]).min(hi[1] - lo[1]) * 1e-3;
+    // z is inert in 2D, but LAMMPS' binning refuses a z extent far below the cutoff.
+    let zh = sys.disks.iter().map(|d| d.radius).fold(0.0, f64::max) * 2.0 + sys.skin;
     let _ = writeln!(s, "{:e} {:e} zlo zhi\n", -zh, zh);
     let _ = writeln!(s, "Atoms # sphere\n");
     for d in &sys.disks {
@@ -241,7 +242,7 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     }
     let _ = writeln!(
         s,
-        "thermo_style custom step atoms ke\nthermo {}",
+        "thermo_style custom step atoms\nthermo {}",
         out.n_steps.clamp(1, 10_000)
     );
     let _ = writeln!(s, "run {}", out.n_steps);

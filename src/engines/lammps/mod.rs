@@ -7,6 +7,7 @@
 //! `lammps.stdout`, `lammps.stderr`, `intruder.txt` (fix ave/time), `snap.dump`.
 
 pub mod deck;
+pub mod impact;
 pub mod parse;
 
 use crate::dem2d::System;
@@ -32,10 +33,16 @@ pub struct Lammps {
     pub timeout: Duration,
 }
 
+/// The LAMMPS executable: `GRANVAL_LMP` if set (a different build, or a missing one to
+/// exercise the recorded fallback), else `lmp`.
+pub fn binary() -> String {
+    std::env::var("GRANVAL_LMP").unwrap_or_else(|_| "lmp".into())
+}
+
 impl Default for Lammps {
     fn default() -> Self {
         Lammps {
-            binary: "lmp".into(),
+            binary: binary(),
             mpi_procs: 1,
             timeout: Duration::from_secs(3600),
         }

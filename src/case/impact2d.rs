@@ -1,0 +1,784 @@
+//! Case kind `impact2d`: a disk or elliptical intruder hitting a 2D bed of disks
+//! (Kondic et al., K Sec. II-III). Case files are written in K's units and converted
+//! to SI once, here:
+//!
+//! - length `d` = mean grain diameter (`units.d`, m),
+//! - mass `m` = mass of a grain of diameter d (`units.mass`, kg); grains are disks of
+//!   uniform areal density `m / (pi d^2/4)`, so a grain of diameter d' has mass m (d'/d)^2,
+//! - `g0` = the gravity that defines the stiffness scale (`units.g`, m/s^2),
+//! - stiffness: the dimensionless `k_n` means `k = k_n m g0 / d` (N/m),
+//! - time: `tau_c = pi sqrt(d / (2 g0 k_n))` (K's binary collision time, for the grains'
+//!   k_n), velocities in d / tau_c,
+//! - damping: `gamma_n = -2 ln(e_n) / tau_c(k_n of the pair)`, `gamma_t = gamma_n / 2`,
+//! - friction models: `static` = K's model 1 (k_t = 0.8 k_n), `kinetic` = model 2 (k_t = 0).
+//!
+//! Gravity can differ from g0 (`simulation.gravity`, in units of g0): K Sec. III B
+//! changes only the gravitational force, never the stiffness.
+//!
+//! Coefficients of a type pair come from the "more special" partner: a wall disk's
+//! (K: mu 0.9, e_n 0.1) for anything touching a wall, else the intruder's for
+//! grain-intruder contacts, else the grains'.
+//!
+//! A case may declare a one-parameter `[sweep]`; each value is one run (variant) from
+//! the same prepared bed (the `packing` sweep prepares one bed per packing), and an
+//! optional `[claim]` turns the variants' final depths into one of K's claims.
+
+use super::error::{CaseError, Ctx};
+use super::validate::{finite, positive};
+use crate::dem2d::bed::Packing;
+use crate::dem2d::contact::{Coeffs, gamma_n_from_restitution};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    case: super::schema::Meta,
+    units: Units,
+    simulation: Sim,
+    grains: MaterialIn,
+    walls: Walls,
+    bed: BedIn,
+    intruder: IntruderIn,
+    analysis: AnalysisIn,
+    #[serde(default)]
+    sweep: Option<SweepIn>,
+    #[serde(default)]
+    claim: Option<Claim>,
+    #[serde(default)]
+    compare: Option<Tolerances>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Units {
+    /// Mean grain diameter d (m). K: 4 mm (photoelastic disks).
+    d: f64,
+    /// Mass of a grain of diameter d (kg).
+    mass: f64,
+    /// g0 (m/s^2) in k = k_n m g0 / d and tau_c.
+    g: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Sim {
+    /// Time step in tau_c.
+    dt: f64,
+    /// Simulated time after the release of the intruder, in tau_c.
+    duration: f64,
+    /// Intruder output every this many steps.
+    output_every: u64,
+    /// Energy output (full snapshot in LAMMPS) every this many steps.
+    energy_every: u64,
+    /// Gravity in units of units.g.
+    gravity: f64,
+    /// Verlet skin in d (cost only, not physics).
+    skin: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Friction {
+    /// K's model 1: k_t = 0.8 k_n, tangential spring with history.
+    Static,
+    /// K's model 2: k_t = 0, viscous tangential force capped at mu |F_n|.
+    Kinetic,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialIn {
+    k_n: f64,
+    e_n: f64,
+    mu: f64,
+    friction: Friction,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Walls {
+    e_n: f64,
+    mu: f64,
+    /// Default: the grains' model.
+    friction: Option<Friction>,
+    /// Default: the grains' k_n.
+    k_n: Option<f64>,
+    /// Wall disk diameter in d.
+    diameter: f64,
+    /// Height of the top wall above the release position of the intruder's top, in d.
+    top_gap: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BedIn {
+    packing: Packing,
+    count: usize,
+    /// Periodic length L in d.
+    length: f64,
+    /// r: diameters uniform in d (1 +- r) (random packing only).
+    #[serde(default)]
+    polydispersity: f64,
+    seed: u64,
+    /// Random initial velocity components uniform in +- this, in d / tau_c.
+    #[serde(default)]
+    initial_speed: f64,
+    /// Settled when the total kinetic energy < this, in m g0 d (K: 1e-10).
+    settle_ke: f64,
+    /// Give up after this much settling time, in tau_c.
+    max_settle_time: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Shape {
+    Disk,
+    Ellipse,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct IntruderIn {
+    shape: Shape,
+    /// Disk diameter D_i in d.
+    diameter: Option<f64>,
+    /// Ellipse semi-axes in d: a horizontal, b vertical.
+    a: Option<f64>,
+    b: Option<f64>,
+    /// Disks on the ellipse outline (K: 360).
+    #[serde(default = "default_cluster")]
+    cluster_count: usize,
+    /// Areal density relative to the grains (disk). The ellipse's mass is that of a
+    /// disk of diameter 2a times this (K Sec. III A).
+    #[serde(default = "one")]
+    density_ratio: f64,
+    /// Impact speed in d / tau_c.
+    speed: f64,
+    /// Gap between the intruder's lowest point and the surface at release, in d (K: 5).
+    release_height: f64,
+    /// Material; each field defaults to the grains' (K Fig 2: "the same as the grains").
+    k_n: Option<f64>,
+    e_n: Option<f64>,
+    mu: Option<f64>,
+    friction: Option<Friction>,
+}
+
+fn default_cluster() -> usize {
+    360
+}
+fn one() -> f64 {
+    1.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AnalysisIn {
+    /// Final depth = mean of D(t) over the last `final_window` tau_c of the run.
+    final_window: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SweepIn {
+    /// speed | e_n | mu | gravity | friction | packing
+    parameter: String,
+    values: Vec<toml::Value>,
+}
+
+#[derive(Debug, Clone, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "snake_case")]
+pub enum Claim {
+    /// Final depth strictly increases along the sweep, each step by at least
+    /// `min_step` d (K: static < kinetic friction, hexagonal < random, grows with e_n).
+    Increasing {
+        #[serde(default)]
+        min_step: f64,
+    },
+    /// Final depth vs sweep value is linear for values >= `from`: R^2 of the
+    /// least-squares line must be >= `r2_min` (K Fig 8b: linear in v for v >= 0.4).
+    Linear { from: f64, r2_min: f64 },
+}
+
+/// Cross-check tolerances (native vs LAMMPS), in d.
+#[derive(Debug, Clone, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tolerances {
+    /// |D_native - D_lammps| of the final depth (default 1.0 d: "about one grain").
+    #[serde(default = "d_final")]
+    pub final_depth_abs: f64,
+    /// RMS of D_native(t) - D_lammps(t) over the run (default 1.0 d).
+    #[serde(default = "d_rms")]
+    pub depth_rms: f64,
+}
+
+fn d_final() -> f64 {
+    1.0
+}
+fn d_rms() -> f64 {
+    1.0
+}
+
+impl Default for Tolerances {
+    fn default() -> Self {
+        Tolerances {
+            final_depth_abs: d_final(),
+            depth_rms: d_rms(),
+        }
+    }
+}
+
+/// K's scales in SI.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Scales {
+    pub d: f64,
+    pub m: f64,
+    pub g0: f64,
+    /// N/m per unit of dimensionless k_n.
+    pub k_unit: f64,
+    /// tau_c of the grains' k_n (s).
+    pub tau_c: f64,
+}
+
+impl Scales {
+    pub fn velocity(&self) -> f64 {
+        self.d / self.tau_c
+    }
+    pub fn tau_of(&self, k_n: f64) -> f64 {
+        std::f64::consts::PI * (self.d / (2.0 * self.g0 * k_n)).sqrt()
+    }
+}
+
+/// One material in K's terms.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Material2d {
+    pub k_n: f64,
+    pub e_n: f64,
+    pub mu: f64,
+    pub friction: Friction,
+}
+
+impl Material2d {
+    /// The LAMMPS-style coefficients (SI) of this material.
+    pub fn coeffs(&self, s: &Scales) -> Coeffs {
+        let kn = self.k_n * s.k_unit;
+        let gamma_n = gamma_n_from_restitution(self.e_n, s.tau_of(self.k_n));
+        Coeffs {
+            kn,
+            kt: match self.friction {
+                Friction::Static => 0.8 * kn,
+                Friction::Kinetic => 0.0,
+            },
+            gamma_n,
+            gamma_t: 0.5 * gamma_n,
+            mu: self.mu,
+        }
+    }
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub enum IntruderShape {
+    /// Radius (m).
+    Disk { radius: f64 },
+    /// Semi-axes (m) and outline disk count.
+    Ellipse { a: f64, b: f64, count: usize },
+}
+
+/// One run: the base case with the sweep value applied.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Variant {
+    /// e.g. `speed=0.7` or `base`.
+    pub label: String,
+    /// The swept value as a number (for claims; 0, 1, ... for text values).
+    pub x: f64,
+    pub packing: Packing,
+    pub grains: Material2d,
+    pub walls: Material2d,
+    pub intruder: Material2d,
+    /// SI.
+    pub gravity: f64,
+    pub speed: f64,
+}
+
+/// A validated impact2d case, SI unless stated.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Impact2dCase {
+    pub name: String,
+    pub description: String,
+    pub source: PathBuf,
+    pub scales: Scales,
+    pub dt: f64,
+    pub n_steps: u64,
+    pub output_every: u64,
+    pub energy_every: u64,
+    pub skin: f64,
+    pub base_packing: Packing,
+    pub count: usize,
+    pub length: f64,
+    pub polydispersity: f64,
+    pub seed: u64,
+    pub initial_speed: f64,
+    pub settle_ke: f64,
+    pub max_settle_time: f64,
+    pub wall_d: f64,
+    pub top_gap: f64,
+    pub shape: IntruderShape,
+    /// Intruder mass (kg).
+    pub intruder_mass: f64,
+    pub release_height: f64,
+    pub final_window: f64,
+    pub sweep_parameter: Option<String>,
+    /// The case without its sweep: beds are prepared with these materials.
+    pub base: Variant,
+    pub variants: Vec<Variant>,
+    pub claim: Option<Claim>,
+    pub tolerances: Tolerances,
+}
+
+/// The `[case] kind` of a case file (same peek as the penetration loader uses).
+pub fn kind_of(path: &Path) -> Result<String, CaseError> {
+    super::penetration::kind_of(path)
+}
+
+fn unit_interval(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
+    if v.is_finite() && v > 0.0 && v <= 1.0 {
+        Ok(v)
+    } else {
+        Err(ctx.bad(field, v, "must lie in (0, 1]"))
+    }
+}
+
+fn non_negative(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(ctx.bad(field, v, "must be >= 0"))
+    }
+}
+
+fn material(ctx: &Ctx, prefix: &str, m: &MaterialIn) -> Result<Material2d, CaseError> {
+    Ok(Material2d {
+        k_n: positive(ctx, &format!("{prefix}.k_n"), m.k_n)?,
+        e_n: unit_interval(ctx, &format!("{prefix}.e_n"), m.e_n)?,
+        mu: non_negative(ctx, &format!("{prefix}.mu"), m.mu)?,
+        friction: m.friction,
+    })
+}
+
+impl Impact2dCase {
+    pub fn load(path: &Path) -> Result<Impact2dCase, CaseError> {
+        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_toml_str(&text, path)
+    }
+
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Impact2dCase, CaseError> {
+        let raw: File = toml::from_str(text).map_err(|e| CaseError::Parse {
+            file: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        let ctx = Ctx {
+            file: path.to_path_buf(),
+        };
+        if raw.case.kind != "impact2d" {
+            return Err(ctx.bad(
+                "case.kind",
+                &raw.case.kind,
+                "this loader reads kind = \"impact2d\"",
+            ));
+        }
+        let d = positive(&ctx, "units.d", raw.units.d)?;
+        let m = positive(&ctx, "units.mass", raw.units.mass)?;
+        let g0 = positive(&ctx, "units.g", raw.units.g)?;
+        let grains = material(&ctx, "grains", &raw.grains)?;
+        let scales = Scales {
+            d,
+            m,
+            g0,
+            k_unit: m * g0 / d,
+            tau_c: std::f64::consts::PI * (d / (2.0 * g0 * grains.k_n)).sqrt(),
+        };
+        let tau = scales.tau_c;
+
+        let w = &raw.walls;
+        let walls = Material2d {
+            k_n: match w.k_n {
+                Some(k) => positive(&ctx, "walls.k_n", k)?,
+                None => grains.k_n,
+            },
+            e_n: unit_interval(&ctx, "walls.e_n", w.e_n)?,
+            mu: non_negative(&ctx, "walls.mu", w.mu)?,
+            friction: w.friction.unwrap_or(grains.friction),
+        };
+        let wall_d = positive(&ctx, "walls.diameter", w.diameter)? * d;
+        let top_gap = positive(&ctx, "walls.top_gap", w.top_gap)? * d;
+
+        let s = &raw.simulation;
+        let dt_tau = positive(&ctx, "simulation.dt", s.dt)?;
+        // Stiffest pair sets the limit: tau_c scales as k_n^-1/2.
+        let k_max = [
+            grains.k_n,
+            walls.k_n,
+            raw.intruder.k_n.unwrap_or(grains.k_n),
+        ]
+        .into_iter()
+        .fold(0.0, f64::max);
+        let tau_min = scales.tau_of(k_max) / tau;
+        if dt_tau > 0.1 * tau_min {
+            return Err(ctx.bad(
+                "simulation.dt",
+                dt_tau,
+                format!("exceeds tau_c/10 of the stiffest contact ({:.4} tau_c); a linear spring needs >= 10 steps per collision (use ~1/50)", 0.1 * tau_min),
+            ));
+        }
+        let dt = dt_tau * tau;
+        let duration = positive(&ctx, "simulation.duration", s.duration)? * tau;
+        let n_steps = (duration / dt).round() as u64;
+        if s.output_every == 0 {
+            return Err(ctx.bad("simulation.output_every", 0, "must be >= 1"));
+        }
+        if s.energy_every == 0 || !s.energy_every.is_multiple_of(s.output_every) {
+            return Err(ctx.bad(
+                "simulation.energy_every",
+                s.energy_every,
+                "must be a positive multiple of simulation.output_every",
+            ));
+        }
+        let gravity = positive(&ctx, "simulation.gravity", s.gravity)? * g0;
+        let skin = positive(&ctx, "simulation.skin", s.skin)? * d;
+
+        let b = &raw.bed;
+        if b.count == 0 {
+            return Err(ctx.bad("bed.count", 0, "must be >= 1"));
+        }
+        let length = positive(&ctx, "bed.length", b.length)? * d;
+        let poly = finite(&ctx, "bed.polydispersity", b.polydispersity)?;
+        if !(0.0..0.5).contains(&poly) {
+            return Err(ctx.bad(
+                "bed.polydispersity",
+                poly,
+                "must lie in [0, 0.5) (K uses 0 to 0.4)",
+            ));
+        }
+        let initial_speed =
+            non_negative(&ctx, "bed.initial_speed", b.initial_speed)? * scales.velocity();
+        let settle_ke = positive(&ctx, "bed.settle_ke", b.settle_ke)? * m * g0 * d;
+        let max_settle_time = positive(&ctx, "bed.max_settle_time", b.max_settle_time)? * tau;
+        if length < 5.0 * d {
+            return Err(ctx.bad("bed.length", b.length, "must be >= 5 d"));
+        }
+
+        let i = &raw.intruder;
+        let areal = m / (std::f64::consts::PI * 0.25 * d * d);
+        let density_ratio = positive(&ctx, "intruder.density_ratio", i.density_ratio)?;
+        let (shape, intruder_mass, width) = match i.shape {
+            Shape::Disk => {
+                let dia = positive(
+                    &ctx,
+                    "intruder.diameter",
+                    i.diameter.ok_or_else(|| {
+                        ctx.bad(
+                            "intruder.diameter",
+                            "missing",
+                            "a disk intruder needs its diameter (in d)",
+                        )
+                    })?,
+                )?;
+                if i.a.is_some() || i.b.is_some() {
+                    return Err(ctx.bad(
+                        "intruder.a",
+                        i.a,
+                        "a and b belong to shape = \"ellipse\"",
+                    ));
+                }
+                let r = 0.5 * dia * d;
+                (
+                    IntruderShape::Disk { radius: r },
+                    density_ratio * areal * std::f64::consts::PI * r * r,
+                    2.0 * r,
+                )
+            }
+            Shape::Ellipse => {
+                let a = positive(
+                    &ctx,
+                    "intruder.a",
+                    i.a.ok_or_else(|| {
+                        ctx.bad(
+                            "intruder.a",
+                            "missing",
+                            "an ellipse needs semi-axes a and b (in d)",
+                        )
+                    })?,
+                )?;
+                let bb = positive(
+                    &ctx,
+                    "intruder.b",
+                    i.b.ok_or_else(|| {
+                        ctx.bad(
+                            "intruder.b",
+                            "missing",
+                            "an ellipse needs semi-axes a and b (in d)",
+                        )
+                    })?,
+                )?;
+                if i.diameter.is_some() {
+                    return Err(ctx.bad(
+                        "intruder.diameter",
+                        i.diameter,
+                        "diameter belongs to shape = \"disk\"",
+                    ));
+                }
+                if a < 1.0 || bb < 1.0 {
+                    return Err(ctx.bad(
+                        "intruder.a",
+                        (a, bb),
+                        "semi-axes must be >= 1 d (the outline disks are d wide)",
+                    ));
+                }
+                if i.cluster_count < 8 {
+                    return Err(ctx.bad("intruder.cluster_count", i.cluster_count, "must be >= 8"));
+                }
+                let (a, bb) = (a * d, bb * d);
+                (
+                    IntruderShape::Ellipse {
+                        a,
+                        b: bb,
+                        count: i.cluster_count,
+                    },
+                    density_ratio * areal * std::f64::consts::PI * a * a,
+                    2.0 * a,
+                )
+            }
+        };
+        if width > 0.8 * length {
+            return Err(ctx.bad(
+                "intruder",
+                width / d,
+                "the intruder must be narrower than 0.8 L",
+            ));
+        }
+        let speed = non_negative(&ctx, "intruder.speed", i.speed)? * scales.velocity();
+        let release_height = positive(&ctx, "intruder.release_height", i.release_height)? * d;
+        let intruder_of = |g: &Material2d| -> Result<Material2d, CaseError> {
+            Ok(Material2d {
+                k_n: match i.k_n {
+                    Some(k) => positive(&ctx, "intruder.k_n", k)?,
+                    None => g.k_n,
+                },
+                e_n: match i.e_n {
+                    Some(e) => unit_interval(&ctx, "intruder.e_n", e)?,
+                    None => g.e_n,
+                },
+                mu: match i.mu {
+                    Some(v) => non_negative(&ctx, "intruder.mu", v)?,
+                    None => g.mu,
+                },
+                friction: i.friction.unwrap_or(g.friction),
+            })
+        };
+        let final_window =
+            positive(&ctx, "analysis.final_window", raw.analysis.final_window)? * tau;
+        if final_window >= duration {
+            return Err(ctx.bad(
+                "analysis.final_window",
+                raw.analysis.final_window,
+                "must be shorter than simulation.duration",
+            ));
+        }
+
+        let base = Variant {
+            label: "base".into(),
+            x: 0.0,
+            packing: b.packing,
+            grains,
+            walls,
+            intruder: intruder_of(&grains)?,
+            gravity,
+            speed,
+        };
+        let mut variants = Vec::new();
+        let sweep_parameter = raw.sweep.as_ref().map(|s| s.parameter.clone());
+        if let Some(sw) = &raw.sweep {
+            if sw.values.len() < 2 {
+                return Err(ctx.bad(
+                    "sweep.values",
+                    sw.values.len(),
+                    "a sweep needs at least two values",
+                ));
+            }
+            for (k, v) in sw.values.iter().enumerate() {
+                let field = format!("sweep.values[{k}]");
+                let num = || -> Result<f64, CaseError> {
+                    v.as_float()
+                        .or_else(|| v.as_integer().map(|n| n as f64))
+                        .ok_or_else(|| {
+                            ctx.bad(
+                                &field,
+                                v.to_string(),
+                                format!("sweep over `{}` takes numbers", sw.parameter),
+                            )
+                        })
+                };
+                let text = || -> Result<String, CaseError> {
+                    v.as_str().map(str::to_string).ok_or_else(|| {
+                        ctx.bad(
+                            &field,
+                            v.to_string(),
+                            format!("sweep over `{}` takes strings", sw.parameter),
+                        )
+                    })
+                };
+                let mut var = base.clone();
+                let label;
+                match sw.parameter.as_str() {
+                    "speed" => {
+                        let x = non_negative(&ctx, &field, num()?)?;
+                        var.speed = x * scales.velocity();
+                        var.x = x;
+                        label = format!("speed={x}");
+                    }
+                    "gravity" => {
+                        let x = positive(&ctx, &field, num()?)?;
+                        var.gravity = x * g0;
+                        var.x = x;
+                        label = format!("gravity={x}");
+                    }
+                    "e_n" => {
+                        let x = unit_interval(&ctx, &field, num()?)?;
+                        var.grains.e_n = x;
+                        var.intruder = intruder_of(&var.grains)?;
+                        var.x = x;
+                        label = format!("e_n={x}");
+                    }
+                    "mu" => {
+                        let x = non_negative(&ctx, &field, num()?)?;
+                        var.grains.mu = x;
+                        var.intruder = intruder_of(&var.grains)?;
+                        var.x = x;
+                        label = format!("mu={x}");
+                    }
+                    "friction" => {
+                        let t = text()?;
+                        var.grains.friction = match t.as_str() {
+                            "static" => Friction::Static,
+                            "kinetic" => Friction::Kinetic,
+                            _ => {
+                                return Err(ctx.bad(
+                                    &field,
+                                    t,
+                                    "friction is \"static\" or \"kinetic\"",
+                                ));
+                            }
+                        };
+                        if w.friction.is_none() {
+                            var.walls.friction = var.grains.friction;
+                        }
+                        var.intruder = intruder_of(&var.grains)?;
+                        var.x = k as f64;
+                        label = format!("friction={t}");
+                    }
+                    "packing" => {
+                        let t = text()?;
+                        var.packing = match t.as_str() {
+                            "random" => Packing::Random,
+                            "hexagonal" => Packing::Hexagonal,
+                            _ => {
+                                return Err(ctx.bad(
+                                    &field,
+                                    t,
+                                    "packing is \"random\" or \"hexagonal\"",
+                                ));
+                            }
+                        };
+                        var.x = k as f64;
+                        label = format!("packing={t}");
+                    }
+                    other => {
+                        return Err(ctx.bad(
+                            "sweep.parameter",
+                            other,
+                            "one of speed, gravity, e_n, mu, friction, packing",
+                        ));
+                    }
+                }
+                var.label = label;
+                if variants.iter().any(|o: &Variant| o.label == var.label) {
+                    return Err(ctx.bad(&field, v.to_string(), "repeated sweep value"));
+                }
+                variants.push(var);
+            }
+        } else {
+            variants.push(base.clone());
+        }
+        let claim = raw.claim.clone();
+        match (&claim, &raw.sweep) {
+            (Some(_), None) => {
+                return Err(ctx.bad(
+                    "claim",
+                    "given",
+                    "a claim compares the variants of a [sweep]; add one",
+                ));
+            }
+            (Some(Claim::Increasing { min_step }), _) => {
+                non_negative(&ctx, "claim.min_step", *min_step)?;
+            }
+            (Some(Claim::Linear { from, r2_min }), _) => {
+                finite(&ctx, "claim.from", *from)?;
+                if !(0.0..=1.0).contains(r2_min) {
+                    return Err(ctx.bad("claim.r2_min", r2_min, "must lie in [0, 1]"));
+                }
+                let n = variants.iter().filter(|v| v.x >= *from).count();
+                if n < 3 {
+                    return Err(ctx.bad("claim.from", from, format!("only {n} sweep values are >= it; a line through fewer than 3 points always fits")));
+                }
+            }
+            (None, _) => {}
+        }
+        if variants.iter().any(|v| v.packing == Packing::Hexagonal) {
+            let n = length / d;
+            if (n - n.round()).abs() > 1e-9 {
+                return Err(ctx.bad(
+                    "bed.length",
+                    b.length,
+                    "a hexagonal bed needs L to be a whole number of d",
+                ));
+            }
+        }
+        let tolerances = raw.compare.unwrap_or_default();
+        positive(&ctx, "compare.final_depth_abs", tolerances.final_depth_abs)?;
+        positive(&ctx, "compare.depth_rms", tolerances.depth_rms)?;
+
+        Ok(Impact2dCase {
+            name: raw.case.name,
+            description: raw.case.description,
+            source: path.to_path_buf(),
+            scales,
+            dt,
+            n_steps,
+            output_every: s.output_every,
+            energy_every: s.energy_every,
+            skin,
+            base_packing: b.packing,
+            count: b.count,
+            length,
+            polydispersity: poly,
+            seed: b.seed,
+            initial_speed,
+            settle_ke,
+            max_settle_time,
+            wall_d,
+            top_gap,
+            shape,
+            intruder_mass,
+            release_height,
+            final_window,
+            sweep_parameter,
+            base,
+            variants,
+            claim,
+            tolerances,
+        })
+    }
+}

@@ -1,0 +1,144 @@
+//! impact2d case files: the shipped cases load, paper units convert to SI as the
+//! module documents, and bad input names file, field, value and reason.
+
+mod common;
+
+use granval::case::impact2d::{Friction, Impact2dCase};
+use std::path::Path;
+
+fn ci_text() -> String {
+    std::fs::read_to_string(common::root().join("cases/impact2d/ci.toml")).unwrap()
+}
+
+fn err(text: &str) -> String {
+    Impact2dCase::from_toml_str(text, Path::new("bad.toml"))
+        .unwrap_err()
+        .to_string()
+}
+
+#[test]
+fn shipped_cases_load() {
+    for p in granval::pipeline::suite_cases(&common::root().join("cases"), "impact2d").unwrap() {
+        Impact2dCase::load(&p).unwrap_or_else(|e| panic!("{e}"));
+    }
+}
+
+#[test]
+fn paper_units_convert_to_si() {
+    let c = Impact2dCase::from_toml_str(&ci_text(), Path::new("ci.toml")).unwrap();
+    let s = c.scales;
+    // tau_c = pi sqrt(d / (2 g k_n)), k = k_n m g / d (K Sec. II).
+    let tau = std::f64::consts::PI * (0.004f64 / (2.0 * 9.81 * 4000.0)).sqrt();
+    assert!((s.tau_c / tau - 1.0).abs() < 1e-14);
+    let co = c.variants[0].grains.coeffs(&s);
+    assert!((co.kn - 4000.0 * 1e-4 * 9.81 / 0.004).abs() < 1e-9);
+    assert_eq!(co.kt, 0.0, "kinetic friction is k_t = 0");
+    assert!((co.gamma_n - (-2.0 * 0.5f64.ln() / tau)).abs() < 1e-9);
+    assert_eq!(co.gamma_t, 0.5 * co.gamma_n);
+    assert!((c.variants[0].speed - 0.7 * 0.004 / tau).abs() < 1e-12);
+    assert!((c.dt - 0.04 * tau).abs() < 1e-18);
+    let st = granval::case::impact2d::Material2d {
+        friction: Friction::Static,
+        ..c.variants[0].grains
+    }
+    .coeffs(&s);
+    assert_eq!(st.kt, 0.8 * st.kn);
+    // Walls: K's mu 0.9, e_n 0.1.
+    let w = c.variants[0].walls.coeffs(&s);
+    assert_eq!(w.mu, 0.9);
+    assert!((w.gamma_n - (-2.0 * 0.1f64.ln() / tau)).abs() < 1e-9);
+}
+
+#[test]
+fn bad_inputs_name_file_field_value_and_reason() {
+    let t = ci_text();
+    for (from, to, field, why) in [
+        ("\ne_n = 0.5", "\ne_n = 1.5", "grains.e_n", "(0, 1]"),
+        ("k_n = 4000.0", "k_n = -1.0", "grains.k_n", "> 0"),
+        ("dt = 0.04 ", "dt = 0.5 ", "simulation.dt", "tau_c/10"),
+        (
+            "polydispersity = 0.2",
+            "polydispersity = 0.7",
+            "bed.polydispersity",
+            "[0, 0.5)",
+        ),
+        (
+            "final_window = 200.0",
+            "final_window = 5000.0",
+            "analysis.final_window",
+            "shorter",
+        ),
+        (
+            "shape = \"disk\"",
+            "shape = \"ellipse\"",
+            "intruder.a",
+            "semi-axes",
+        ),
+        (
+            "energy_every = 1000",
+            "energy_every = 1010",
+            "simulation.energy_every",
+            "multiple",
+        ),
+    ] {
+        assert!(t.contains(from), "{from}");
+        let e = err(&t.replacen(from, to, 1));
+        assert!(
+            e.contains("bad.toml") && e.contains(field) && e.contains(why),
+            "{e}"
+        );
+    }
+    let e = err(&t.replace("friction = \"kinetic\"", "friction = \"sticky\""));
+    assert!(e.contains("bad.toml") && e.contains("sticky"), "{e}");
+    let e = err(&(t.clone() + "\n[sweep]\nparameter = \"colour\"\nvalues = [1, 2]\n"));
+    assert!(e.contains("sweep.parameter") && e.contains("colour"), "{e}");
+    let e = err(&(t.clone()
+        + "\n[sweep]\nparameter = \"speed\"\nvalues = [0.4, 0.7]\n[claim]\nkind = \"linear\"\nfrom = 0.4\nr2_min = 0.9\n"));
+    assert!(
+        e.contains("claim.from") && e.contains("fewer than 3"),
+        "{e}"
+    );
+    let e = err(&t.replace("[analysis]", "[analysis]\nwindow = 3.0"));
+    assert!(e.contains("bad.toml") && e.contains("window"), "{e}");
+    let e = err(&(t.clone() + "\n[claim]\nkind = \"increasing\"\n"));
+    assert!(e.contains("claim") && e.contains("sweep"), "{e}");
+}
+
+/// The CLI turns bad impact2d input into exit code 2 with file, field and reason,
+/// before any simulation starts.
+#[test]
+fn cli_rejects_bad_impact2d_input_with_exit_code_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, ci_text().replacen("\ne_n = 0.5", "\ne_n = 1.5", 1)).unwrap();
+    let exe = env!("CARGO_BIN_EXE_granval");
+    let out = std::process::Command::new(exe)
+        .args([
+            "run",
+            bad.to_str().unwrap(),
+            "--out",
+            dir.path().join("o").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("bad.toml") && err.contains("grains.e_n") && err.contains("1.5"),
+        "{err}"
+    );
+    let ci = common::root().join("cases/impact2d/ci.toml");
+    let out = std::process::Command::new(exe)
+        .args([
+            "run",
+            ci.to_str().unwrap(),
+            "--engine",
+            "liggghts",
+            "--out",
+            dir.path().join("p").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("2D"));
+}
