@@ -13,3 +13,4 @@ pub mod engines;
 pub mod penetration;
 pub mod pipeline;
 pub mod report;
+pub mod stress_fields;

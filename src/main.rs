@@ -75,6 +75,26 @@ enum Cmd {
         #[arg(long, default_value_t = 2000)]
         steps: u64,
     },
+    /// Stress and velocity fields of a penetration case from both engines (issue 4):
+    /// phi per engine, (phi, K_phi) against MALT, CSV/VTK/SVG under OUT.
+    Stress {
+        case: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+        /// MPI processes for LIGGGHTS (at least 2 are used).
+        #[arg(long, default_value_t = 2)]
+        np: usize,
+        /// Re-analyse the snapshots of an earlier run in OUT instead of running again.
+        #[arg(long)]
+        reuse: bool,
+    },
+    /// Coarse-graining throughput: N contacts onto a G^3 grid (all fields).
+    CgBench {
+        #[arg(long, default_value_t = 1_000_000)]
+        contacts: usize,
+        #[arg(long, default_value_t = 50)]
+        grid: usize,
+    },
     /// MALT curve K_phi(phi) of Feng et al. eq 10.
     Malt {
         /// Internal friction angle in degrees: print K_phi(phi).
@@ -345,6 +365,58 @@ fn real_main() -> Result<ExitCode> {
         }
         Cmd::Bench { n, steps } => {
             granval::bench::run(n, steps)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Stress {
+            case,
+            out,
+            np,
+            reuse,
+        } => {
+            let case = granval::case::penetration::PenetrationCase::load(&case)?;
+            let opts = Options {
+                mpi_procs: np,
+                progress: true,
+                ..Options::default()
+            };
+            std::fs::create_dir_all(&out)?;
+            let rep = granval::stress_fields::run_case(&case, &opts, &out, reuse)?;
+            for c in &rep.checks {
+                let verdict = if c.passed { "PASS" } else { "FAIL" };
+                println!(
+                    "{verdict} {}: {} = {:.4} (tolerance {}) {}",
+                    c.name, c.metric, c.value, c.tolerance, c.detail
+                );
+            }
+            let n = &rep.negative_control_check;
+            println!(
+                "negative control (expected FAIL): {} = {:.4} -> {}; {}",
+                n.name,
+                n.value,
+                if n.passed { "PASS (control did not bite)" } else { "FAIL" },
+                n.detail
+            );
+            for p in granval::stress_fields::output_files(&out) {
+                println!("wrote {}", p.display());
+            }
+            Ok(if rep.checks.iter().all(|c| c.passed) {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::from(1)
+            })
+        }
+        Cmd::CgBench { contacts, grid } => {
+            let t = granval::analysis::cg_bench::time_cg(contacts, grid)?;
+            println!(
+                "coarse graining: {} contacts, {} grains onto {} points ({grid}^3), {} threads: setup {:.3} s, fields {:.3} s, total {:.3} s",
+                t.n_contacts,
+                t.n_grains,
+                t.grid_points,
+                rayon::current_num_threads(),
+                t.setup_s,
+                t.eval_s,
+                t.setup_s + t.eval_s
+            );
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Malt { phi, k, table } => {

@@ -139,7 +139,15 @@ struct Intruder {
 struct Analysis {
     /// Regime C, where p = K_phi h + p0 is fitted, starts here (h = depth / R).
     fit_h_min: f64,
+    /// Depths h = depth / R of the contact snapshots for the stress fields (issue 4);
+    /// the final depth (steady state) is always added. Default: Fig. 5's
+    /// [0.24, 0.373, 0.61, 1.0]. An empty list keeps only the final depth.
+    #[serde(default)]
+    snapshot_h: Option<Vec<f64>>,
 }
+
+/// Fig. 5 of Feng et al.: the depths at which the paper shows velocity and gamma fields.
+pub const DEFAULT_SNAPSHOT_H: [f64; 4] = [0.24, 0.373, 0.61, 1.0];
 
 #[derive(Debug, Deserialize, Clone, serde::Serialize)]
 #[serde(deny_unknown_fields)]
@@ -155,6 +163,29 @@ pub struct Tolerances {
     pub h_a_abs: f64,
     #[serde(default = "d_hb")]
     pub h_b_abs: f64,
+    /// |phi_test - phi_ref| in degrees, phi from the stress fields (default 1.5, issue 4).
+    #[serde(default = "d_phi")]
+    pub phi_abs_deg: f64,
+    /// |K_phi / K(phi) - 1| of an engine's (phi, K_phi) point against the MALT curve
+    /// (default 0.25, issue 4's goal).
+    #[serde(default = "d_malt_k")]
+    pub malt_k_rel: f64,
+    /// |phi(K_phi) - phi| in degrees, the same distance measured along phi (default 1.5).
+    #[serde(default = "d_phi")]
+    pub malt_phi_abs_deg: f64,
+    /// Minimum R^2 of the unified FDR fit, eqs 13-15 (default 0.98, issue 4).
+    #[serde(default = "d_r2")]
+    pub unified_r2_min: f64,
+}
+
+fn d_phi() -> f64 {
+    1.5
+}
+fn d_malt_k() -> f64 {
+    0.25
+}
+fn d_r2() -> f64 {
+    0.98
 }
 
 fn d_k() -> f64 {
@@ -177,6 +208,10 @@ impl Default for Tolerances {
             fdr_distance: d_fdr(),
             h_a_abs: d_ha(),
             h_b_abs: d_hb(),
+            phi_abs_deg: d_phi(),
+            malt_k_rel: d_malt_k(),
+            malt_phi_abs_deg: d_phi(),
+            unified_r2_min: d_r2(),
         }
     }
 }
@@ -212,6 +247,8 @@ pub struct PenetrationCase {
     pub final_depth: f64,
     pub force_every: u64,
     pub fit_h_min: f64,
+    /// Snapshot depths in units of R, ascending, the final depth last.
+    pub snapshot_h: Vec<f64>,
     pub tolerances: Tolerances,
     pub rayleigh_time: f64,
 }
@@ -403,9 +440,45 @@ impl PenetrationCase {
             ("compare.fdr_distance", tolerances.fdr_distance),
             ("compare.h_a_abs", tolerances.h_a_abs),
             ("compare.h_b_abs", tolerances.h_b_abs),
+            ("compare.phi_abs_deg", tolerances.phi_abs_deg),
+            ("compare.malt_k_rel", tolerances.malt_k_rel),
+            ("compare.malt_phi_abs_deg", tolerances.malt_phi_abs_deg),
         ] {
             positive(&ctx, f, v)?;
         }
+        if !(tolerances.unified_r2_min > 0.0 && tolerances.unified_r2_min < 1.0) {
+            return Err(ctx.bad(
+                "compare.unified_r2_min",
+                tolerances.unified_r2_min,
+                "must lie in (0, 1)",
+            ));
+        }
+        let h_final = final_depth / intruder_radius;
+        let mut snapshot_h = Vec::new();
+        for (k, &h) in raw
+            .analysis
+            .snapshot_h
+            .as_deref()
+            .unwrap_or(&DEFAULT_SNAPSHOT_H)
+            .iter()
+            .enumerate()
+        {
+            let field = format!("analysis.snapshot_h[{k}]");
+            if !(h.is_finite() && h > 0.0 && h < h_final) {
+                return Err(ctx.bad(
+                    &field,
+                    h,
+                    format!(
+                        "must lie in (0, {h_final:.4}) (depth / R; the final depth {h_final:.4} is always added)"
+                    ),
+                ));
+            }
+            if snapshot_h.last().is_some_and(|&p| h <= p) {
+                return Err(ctx.bad(&field, h, "snapshot depths must be strictly ascending"));
+            }
+            snapshot_h.push(h);
+        }
+        snapshot_h.push(h_final);
 
         Ok(PenetrationCase {
             name: raw.case.name,
@@ -435,6 +508,7 @@ impl PenetrationCase {
             final_depth,
             force_every: i.force_every,
             fit_h_min,
+            snapshot_h,
             tolerances,
             rayleigh_time: rayleigh,
         })

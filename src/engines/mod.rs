@@ -4,6 +4,7 @@
 pub mod liggghts;
 pub mod native;
 pub mod output;
+pub mod snapshot;
 pub mod recorded;
 
 pub use output::{Frame, ParticleState, Provenance, RunOutput};

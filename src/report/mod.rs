@@ -3,7 +3,9 @@
 //! [`Report::exit_code`].
 
 pub mod progress;
+pub mod field_svg;
 pub mod svg;
+pub mod vtk;
 
 use crate::compare::Check;
 use anyhow::{Context, Result};
