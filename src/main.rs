@@ -393,7 +393,11 @@ fn real_main() -> Result<ExitCode> {
                 "negative control (expected FAIL): {} = {:.4} -> {}; {}",
                 n.name,
                 n.value,
-                if n.passed { "PASS (control did not bite)" } else { "FAIL" },
+                if n.passed {
+                    "PASS (control did not bite)"
+                } else {
+                    "FAIL"
+                },
                 n.detail
             );
             for p in granval::stress_fields::output_files(&out) {

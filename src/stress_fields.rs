@@ -10,8 +10,8 @@
 use crate::analysis::coarse_grain::{
     CgParams, CoarseGrainer, Grid3, PointFields, RzField, azimuthal_average,
 };
-use crate::analysis::stress::{self, FieldAnalysis, Mask, principal};
 use crate::analysis::malt;
+use crate::analysis::stress::{self, FieldAnalysis, Mask, principal};
 use crate::case::penetration::{PenetrationCase, Tolerances};
 use crate::compare::Check;
 use crate::dem::Perturbation;
@@ -54,13 +54,7 @@ pub fn snapshot_plan(case: &PenetrationCase, bed: &Bed) -> Vec<SnapshotPlan> {
     out
 }
 
-fn meta(
-    case: &PenetrationCase,
-    bed: &Bed,
-    engine: &str,
-    step: u64,
-    z_bottom: f64,
-) -> SnapshotMeta {
+fn meta(case: &PenetrationCase, bed: &Bed, engine: &str, step: u64, z_bottom: f64) -> SnapshotMeta {
     SnapshotMeta {
         engine: engine.to_string(),
         step,
@@ -143,15 +137,16 @@ pub fn run_liggghts(
     let steps: Vec<u64> = plan.iter().map(|p| p.step).collect();
     let deck = crate::penetration::liggghts_deck(case, bed)?;
     std::fs::create_dir_all(run_dir)?;
-    let (samples, mut provenance) =
-        crate::engines::liggghts::penetration::run_with_snapshots(
-            &deck,
-            run_dir,
-            mpi_procs,
-            std::time::Duration::from_secs(3600),
-            &steps,
-        )?;
-    provenance.notes.push(crate::dem::packing::bed_note(case, bed));
+    let (samples, mut provenance) = crate::engines::liggghts::penetration::run_with_snapshots(
+        &deck,
+        run_dir,
+        mpi_procs,
+        std::time::Duration::from_secs(3600),
+        &steps,
+    )?;
+    provenance
+        .notes
+        .push(crate::dem::packing::bed_note(case, bed));
     let z0 = crate::dem::penetration::start_z(case, bed);
     for (k, &step) in steps.iter().enumerate() {
         let (grains, contacts, dropped) =
@@ -388,11 +383,7 @@ fn rz_csv(path: &Path, f: &SnapshotFields) -> Result<()> {
                 let p = principal(s);
                 write!(w, ",{:e},{:e},{:e},{}", p.s1, p.s2, p.s3, opt(g))?;
             }
-            writeln!(
-                w,
-                ",{},{}",
-                a.yield_basic[c] as u8, a.stagnant[c] as u8
-            )?;
+            writeln!(w, ",{},{}", a.yield_basic[c] as u8, a.stagnant[c] as u8)?;
         }
     }
     w.flush()?;
@@ -475,8 +466,17 @@ fn svg_maps(dir: &Path, k: usize, f: &SnapshotFields) -> Result<()> {
             .map(|(v, &ok)| if ok { v } else { f64::NAN })
             .collect()
     };
-    let g = masked(a.gamma_basic.iter().map(|g| g.unwrap_or(f64::NAN)).collect());
-    let gmax = g.iter().copied().filter(|v| v.is_finite()).fold(0.0, f64::max);
+    let g = masked(
+        a.gamma_basic
+            .iter()
+            .map(|g| g.unwrap_or(f64::NAN))
+            .collect(),
+    );
+    let gmax = g
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
     fn map<'a>(rz: &RzField, m: &SnapshotMeta, rr: f64, values: &'a [f64]) -> RzMap<'a> {
         RzMap {
             nr: rz.nr,
@@ -523,8 +523,16 @@ fn svg_maps(dir: &Path, k: usize, f: &SnapshotFields) -> Result<()> {
             })
             .collect(),
     );
-    let lo = vz.iter().copied().filter(|v| v.is_finite()).fold(-1.0, f64::min);
-    let hi = vz.iter().copied().filter(|v| v.is_finite()).fold(0.1, f64::max);
+    let lo = vz
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(-1.0, f64::min);
+    let hi = vz
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.1, f64::max);
     rz_map(
         &dir.join(format!("velocity_{k:02}.svg")),
         &format!("{}: v_z / intruder speed (eq 7), h = {:.3}", m.engine, m.h),
@@ -558,7 +566,12 @@ pub struct EnginePoint {
 }
 
 /// |phi_test - phi_ref| <= `tol.phi_abs_deg`.
-pub fn phi_check(case: &str, tol: &Tolerances, test: &EnginePoint, reference: &EnginePoint) -> Check {
+pub fn phi_check(
+    case: &str,
+    tol: &Tolerances,
+    test: &EnginePoint,
+    reference: &EnginePoint,
+) -> Check {
     Check::at_most(
         format!("{case}: phi {} vs {}", test.engine, reference.engine),
         "|phi_test - phi_ref| (deg); sin phi = mean gamma over 0.995 gamma_max <= gamma (eqs 8-9)",
@@ -681,11 +694,15 @@ pub fn run_case(
     let ld = out_dir.join("liggghts");
     let (nsnap, lsnap) = (nd.join("snapshots"), ld.join("snapshots"));
     let have = |d: &Path| {
-        d.join("force.csv").exists() && snapshot::list(&d.join("snapshots")).is_ok_and(|v| !v.is_empty())
+        d.join("force.csv").exists()
+            && snapshot::list(&d.join("snapshots")).is_ok_and(|v| !v.is_empty())
     };
     if !(reuse && have(&nd) && have(&ld)) {
         if reuse {
-            eprintln!("--reuse: no complete earlier run in {}; running both engines", out_dir.display());
+            eprintln!(
+                "--reuse: no complete earlier run in {}; running both engines",
+                out_dir.display()
+            );
         }
         if crate::engines::liggghts::installed_version("liggghts").is_none() {
             bail!(
@@ -708,7 +725,12 @@ pub fn run_case(
     }
     let nf = analyse_engine("native", &nsnap, Some(&nd.join("fields")), Forces::Full)?;
     let lf = analyse_engine("liggghts", &lsnap, Some(&ld.join("fields")), Forces::Full)?;
-    let neg = analyse_engine("native (tangential forces dropped)", &nsnap, None, Forces::NormalOnly)?;
+    let neg = analyse_engine(
+        "native (tangential forces dropped)",
+        &nsnap,
+        None,
+        Forces::NormalOnly,
+    )?;
     let m0 = snapshot::read(&nsnap, snapshot::list(&nsnap)?[0])?.meta;
     let read = |d: &Path| crate::penetration::read_force_csv(&d.join("force.csv"));
     let np = engine_point(case, &nf, &read(&nd)?, m0.surface_z, m0.psi)?;

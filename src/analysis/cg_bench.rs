@@ -56,7 +56,11 @@ pub fn synthetic_snapshot(n_contacts: usize, d: f64) -> Snapshot {
                         i: gi.id,
                         j: gj.id,
                         xi: gi.x,
-                        point: [gi.x[0] + 0.5 * b[0], gi.x[1] + 0.5 * b[1], gi.x[2] + 0.5 * b[2]],
+                        point: [
+                            gi.x[0] + 0.5 * b[0],
+                            gi.x[1] + 0.5 * b[1],
+                            gi.x[2] + 0.5 * b[2],
+                        ],
                         branch: b,
                         force: f,
                     });
@@ -116,7 +120,8 @@ pub fn time_cg(n_contacts: usize, n_grid: usize) -> Result<CgTiming> {
     let vals = cg.eval(&pts);
     let eval_s = t1.elapsed().as_secs_f64();
     anyhow::ensure!(
-        vals.iter().all(|v| v.stress_kernel.iter().all(|x| x.is_finite())),
+        vals.iter()
+            .all(|v| v.stress_kernel.iter().all(|x| x.is_finite())),
         "non-finite stress in the benchmark"
     );
     Ok(CgTiming {

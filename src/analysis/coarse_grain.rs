@@ -48,11 +48,11 @@ pub type Sym = [f64; 6];
 
 /// 5-point Gauss-Legendre nodes and weights on [0, 1].
 const GL5: [(f64, f64); 5] = [
-    (0.046_910_077_030_668_0, 0.118_463_442_528_094_5),
+    (0.046_910_077_030_668, 0.118_463_442_528_094_5),
     (0.230_765_344_947_158_5, 0.239_314_335_249_683_2),
     (0.5, 0.284_444_444_444_444_4),
     (0.769_234_655_052_841_5, 0.239_314_335_249_683_2),
-    (0.953_089_922_969_332_0, 0.118_463_442_528_094_5),
+    (0.953_089_922_969_332, 0.118_463_442_528_094_5),
 ];
 
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -246,7 +246,10 @@ impl CoarseGrainer {
     ) -> Result<CoarseGrainer> {
         let density = snap.meta.density;
         if !(density.is_finite() && density > 0.0) {
-            bail!("snapshot step {}: density {density:e} must be positive", snap.meta.step);
+            bail!(
+                "snapshot step {}: density {density:e} must be positive",
+                snap.meta.step
+            );
         }
         let index: HashMap<u64, usize> = snap
             .grains
@@ -609,7 +612,11 @@ mod tests {
         for i in -m..m {
             for j in -m..m {
                 for k in -m..m {
-                    let x = [(i as f64 + 0.5) * h, (j as f64 + 0.5) * h, (k as f64 + 0.5) * h];
+                    let x = [
+                        (i as f64 + 0.5) * h,
+                        (j as f64 + 0.5) * h,
+                        (k as f64 + 0.5) * h,
+                    ];
                     let d2 = dot(x, x);
                     if d2 < p.cutoff * p.cutoff {
                         sum += norm * (-0.5 * d2 / (p.w * p.w)).exp() * h * h * h;

@@ -141,7 +141,8 @@ struct Analysis {
     fit_h_min: f64,
     /// Depths h = depth / R of the contact snapshots for the stress fields (issue 4);
     /// the final depth (steady state) is always added. Default: Fig. 5's
-    /// [0.24, 0.373, 0.61, 1.0]. An empty list keeps only the final depth.
+    /// [0.24, 0.373, 0.61, 1.0], those shallower than the final depth. An empty list
+    /// keeps only the final depth.
     #[serde(default)]
     snapshot_h: Option<Vec<f64>>,
 }
@@ -454,15 +455,18 @@ impl PenetrationCase {
             ));
         }
         let h_final = final_depth / intruder_radius;
+        // The default list is cut at the final depth (a shallow case keeps loading); an
+        // explicit list is validated entry by entry.
+        let requested: Vec<f64> = match raw.analysis.snapshot_h.as_deref() {
+            Some(list) => list.to_vec(),
+            None => DEFAULT_SNAPSHOT_H
+                .iter()
+                .copied()
+                .filter(|&h| h < h_final)
+                .collect(),
+        };
         let mut snapshot_h = Vec::new();
-        for (k, &h) in raw
-            .analysis
-            .snapshot_h
-            .as_deref()
-            .unwrap_or(&DEFAULT_SNAPSHOT_H)
-            .iter()
-            .enumerate()
-        {
+        for (k, &h) in requested.iter().enumerate() {
             let field = format!("analysis.snapshot_h[{k}]");
             if !(h.is_finite() && h > 0.0 && h < h_final) {
                 return Err(ctx.bad(

@@ -4,8 +4,9 @@
 //!
 //! Contact points follow LIGGGHTS 3.8 (checked against `compute pair/gran/local` and
 //! `compute wall/gran/local ... contactPoint` in tests/stress_fields.rs):
-//! - grain-grain: `x_i - e_n (r_i - delta_n / 2)`, `e_n = (x_i - x_j) / |x_i - x_j|`,
-//!   the point the tangential torque acts at (`cri` in the contact law);
+//! - grain-grain: `x_i + (x_j - x_i) r_i / (r_i + r_j)`, the centre line divided in the
+//!   ratio of the radii (measured; for unequal radii this is not the `r_i - delta_n / 2`
+//!   lever arm the contact law uses for the tangential torque);
 //! - grain-wall / grain-intruder: `x_i - delta`, the closest point of the wall surface
 //!   (fix_wall_gran_base.h: `vectorSubtract3D(x, sidata.delta, contactPoint)`).
 
@@ -44,14 +45,11 @@ impl Simulation {
                 continue;
             }
             let (i, j) = (self.pairs.i[k] as usize, self.pairs.j[k] as usize);
-            let delta = sub(self.x[i], self.x[j]);
-            let r = norm(delta);
-            let deltan = self.radius[i] + self.radius[j] - r;
-            let cri = self.radius[i] - 0.5 * deltan;
+            let frac = self.radius[i] / (self.radius[i] + self.radius[j]);
             out.push(ContactRecord {
                 i,
                 other: Touching::Grain(j),
-                point: sub(self.x[i], scale(delta, cri / r)),
+                point: add(self.x[i], scale(sub(self.x[j], self.x[i]), frac)),
                 force_on_i: self.pair_out[k].f_i,
             });
         }

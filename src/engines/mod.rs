@@ -4,8 +4,8 @@
 pub mod liggghts;
 pub mod native;
 pub mod output;
-pub mod snapshot;
 pub mod recorded;
+pub mod snapshot;
 
 pub use output::{Frame, ParticleState, Provenance, RunOutput};
 

@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 use std::io::{BufRead, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ContactKind {
     Pair,
@@ -176,8 +176,7 @@ fn contacts_path(dir: &Path, k: usize) -> PathBuf {
 }
 
 const GRAIN_HEADER: &str = "id,x,y,z,vx,vy,vz,radius";
-const CONTACT_HEADER: &str =
-    "kind,i,j,xi_x,xi_y,xi_z,cx,cy,cz,bx,by,bz,fx,fy,fz";
+const CONTACT_HEADER: &str = "kind,i,j,xi_x,xi_y,xi_z,cx,cy,cz,bx,by,bz,fx,fy,fz";
 
 /// Writes snapshot number `k` into `dir` (created if missing).
 pub fn write(dir: &Path, k: usize, s: &Snapshot) -> Result<()> {
@@ -241,12 +240,16 @@ fn parse_fields<const N: usize>(
     let mut out = [0.0; N];
     for (k, name) in names.iter().enumerate() {
         let t = toks.get(k).copied().unwrap_or("");
-        out[k] = t.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-            anyhow::anyhow!(
-                "{}:{lineno}: column `{name}` = {t:?} is not a finite number (line {line:?})",
-                path.display()
-            )
-        })?;
+        out[k] = t
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "{}:{lineno}: column `{name}` = {t:?} is not a finite number (line {line:?})",
+                    path.display()
+                )
+            })?;
     }
     Ok(out)
 }
@@ -262,17 +265,17 @@ fn parse_id(path: &Path, lineno: usize, col: &str, t: &str) -> Result<u64> {
 
 /// Opens a CSV, checks its header and returns the remaining lines with 1-based numbers;
 /// a read error ends the iteration with that error (never silently).
-fn lines(
-    path: &Path,
-    header: &str,
-) -> Result<impl Iterator<Item = Result<(usize, String)>>> {
+fn lines(path: &Path, header: &str) -> Result<impl Iterator<Item = Result<(usize, String)>>> {
     let f = std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
     let mut it = std::io::BufReader::new(f).lines();
     match it.next() {
         Some(Ok(h)) if h.trim() == header => {}
         Some(Ok(h)) => bail!("{}:1: header {h:?}, expected {header:?}", path.display()),
         Some(Err(e)) => return Err(e).with_context(|| format!("reading {}", path.display())),
-        None => bail!("{}: empty file (expected header {header:?})", path.display()),
+        None => bail!(
+            "{}: empty file (expected header {header:?})",
+            path.display()
+        ),
     }
     let p = path.to_path_buf();
     Ok(it.enumerate().map(move |(n, l)| {
@@ -300,7 +303,13 @@ pub fn read(dir: &Path, k: usize) -> Result<Snapshot> {
             bail!("{}:{n}: {} columns, expected 8", gp.display(), t.len());
         }
         let id = parse_id(&gp, n, "id", t[0])?;
-        let v = parse_fields(&gp, n, &line, &t[1..], &["x", "y", "z", "vx", "vy", "vz", "radius"])?;
+        let v = parse_fields(
+            &gp,
+            n,
+            &line,
+            &t[1..],
+            &["x", "y", "z", "vx", "vy", "vz", "radius"],
+        )?;
         if v[6] <= 0.0 {
             bail!("{}:{n}: radius = {:e} must be positive", gp.display(), v[6]);
         }

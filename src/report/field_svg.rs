@@ -65,7 +65,10 @@ pub fn rz_map(
         );
     }
     let (lo, hi) = range;
-    ensure!(lo < hi && lo.is_finite() && hi.is_finite(), "rz_map: bad colour range {range:?}");
+    ensure!(
+        lo < hi && lo.is_finite() && hi.is_finite(),
+        "rz_map: bad colour range {range:?}"
+    );
     let r1 = map.r0 + map.nr as f64 * map.spacing;
     let z1 = map.z0 + map.nz as f64 * map.spacing;
     let root = SVGBackend::new(path, SIZE).into_drawing_area();
@@ -141,9 +144,8 @@ pub fn rz_map(
                 .draw_series(std::iter::once(PathElement::new(s, style)))
                 .map_err(err("outline"))?;
             if first {
-                a.label(label.clone()).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], style)
-                });
+                a.label(label.clone())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
                 first = false;
             }
         }
@@ -156,7 +158,9 @@ pub fn rz_map(
             )))
             .map_err(err("intruder"))?
             .label("intruder")
-            .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], BLACK.mix(0.25).filled()));
+            .legend(|(x, y)| {
+                Rectangle::new([(x, y - 5), (x + 20, y + 5)], BLACK.mix(0.25).filled())
+            });
     }
     chart
         .configure_series_labels()
@@ -264,7 +268,11 @@ pub fn k_phi_plane_with_errors(
         chart.draw_series(bars).map_err(err("error bars"))?;
         let label = format!("{} ({:.2} deg, {:.2})", p.label, p.phi_deg, p.k);
         chart
-            .draw_series(std::iter::once(Circle::new((p.phi_deg, p.k), 5, col.filled())))
+            .draw_series(std::iter::once(Circle::new(
+                (p.phi_deg, p.k),
+                5,
+                col.filled(),
+            )))
             .map_err(err("points"))?
             .label(label)
             .legend(move |(x, y)| Circle::new((x + 10, y), 5, col.filled()));
@@ -315,7 +323,9 @@ mod tests {
         let svg = std::fs::read_to_string(&p).unwrap();
         assert!(svg.contains("<svg") && svg.contains("yield") && svg.contains("r / R"));
         assert!(rz_map(&p, "x", "x", &map, (1.0, 0.0), &[], None).is_err());
-        let curve: Vec<(f64, f64)> = (0..=40).map(|d| (d as f64, (0.08 * d as f64).exp())).collect();
+        let curve: Vec<(f64, f64)> = (0..=40)
+            .map(|d| (d as f64, (0.08 * d as f64).exp()))
+            .collect();
         let q = dir.path().join("k.svg");
         k_phi_plane_with_errors(
             &q,

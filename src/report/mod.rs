@@ -2,8 +2,8 @@
 //! people) and `report.junit.xml` (for CI dashboards). The exit code follows from
 //! [`Report::exit_code`].
 
-pub mod progress;
 pub mod field_svg;
+pub mod progress;
 pub mod svg;
 pub mod vtk;
 

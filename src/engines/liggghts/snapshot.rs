@@ -7,7 +7,7 @@
 //! - with keywords `pos id force contactPoint` both computes give 15 columns in the
 //!   documented order pos (6), id (3), force (3), contactPoint (3);
 //! - pair rows: `x_i, x_j, id_i, id_j, periodic flag, force on i, contact point`, the
-//!   contact point being `x_i - e_n (r_i - delta_n / 2)`;
+//!   contact point being `x_i + (x_j - x_i) r_i / (r_i + r_j)`;
 //! - wall rows (mesh walls only; primitive walls are skipped with a warning):
 //!   `contact point, x_i, mesh id, triangle id, id_i, force on the grain, 0 0 0` — the
 //!   `pos` slot carries the contact point (`add_wall_1`) and `contactPoint` stays zero;
@@ -248,9 +248,13 @@ impl<R: BufRead> DumpReader<R> {
             let l = self.expect_line("a data row")?;
             let before = values.len();
             for tok in l.split_whitespace() {
-                let v: f64 = tok.parse().ok().filter(|v: &f64| v.is_finite()).ok_or_else(|| {
-                    anyhow::anyhow!("{p}:{}: value {tok:?} is not a finite number", self.lineno)
-                })?;
+                let v: f64 = tok
+                    .parse()
+                    .ok()
+                    .filter(|v: &f64| v.is_finite())
+                    .ok_or_else(|| {
+                        anyhow::anyhow!("{p}:{}: value {tok:?} is not a finite number", self.lineno)
+                    })?;
                 values.push(v);
             }
             if values.len() - before != nc {
@@ -276,14 +280,13 @@ fn read_one(path: &Path, step: u64) -> Result<DumpBlock> {
         .next_block()?
         .with_context(|| format!("{}: no dump block", path.display()))?;
     if b.step != step {
-        bail!(
-            "{}: holds step {}, expected {step}",
-            path.display(),
-            b.step
-        );
+        bail!("{}: holds step {}, expected {step}", path.display(), b.step);
     }
     if r.next_block()?.is_some() {
-        bail!("{}: more than one block (expected one step per file)", path.display());
+        bail!(
+            "{}: more than one block (expected one step per file)",
+            path.display()
+        );
     }
     Ok(b)
 }
