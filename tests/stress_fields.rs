@@ -604,3 +604,92 @@ fn liggghts_snapshot_matches_native_contacts() {
         "LIGGGHTS has extra contacts"
     );
 }
+
+#[test]
+fn snapshot_depths_and_stress_tolerances_are_validated() {
+    let case = tiny_case();
+    // R = 5 mm, final depth 6 mm: h_final = 1.2, the whole default list fits.
+    assert_eq!(case.snapshot_h, vec![0.24, 0.373, 0.61, 1.0, 1.2]);
+    let t = &case.tolerances;
+    assert_eq!(
+        (
+            t.phi_abs_deg,
+            t.malt_k_rel,
+            t.malt_phi_abs_deg,
+            t.unified_r2_min
+        ),
+        (1.5, 0.25, 1.5, 0.98)
+    );
+    // R = 10 mm: h_final = 0.6, the default list is cut there.
+    assert_eq!(tiny_case_with(0.020).snapshot_h, vec![0.24, 0.373, 0.6]);
+    let base = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/penetration/ci.toml"),
+    )
+    .unwrap();
+    let load = |extra_analysis: &str, compare: &str| {
+        let text =
+            base.replace("[analysis]\n", &format!("[analysis]\n{extra_analysis}\n")) + compare;
+        PenetrationCase::from_toml_str(&text, Path::new("ci.toml"))
+    };
+    let ok = load(
+        "snapshot_h = [0.5, 1.2]",
+        "\n[compare]\nphi_abs_deg = 2.0\n",
+    )
+    .unwrap();
+    assert_eq!(ok.snapshot_h, vec![0.5, 1.2, 1.5]);
+    assert_eq!(ok.tolerances.phi_abs_deg, 2.0);
+    for (extra, field, value) in [
+        ("snapshot_h = [0.5, 1.6]", "analysis.snapshot_h[1]", "1.6"),
+        ("snapshot_h = [0.5, 0.4]", "analysis.snapshot_h[1]", "0.4"),
+        ("snapshot_h = [-0.1]", "analysis.snapshot_h[0]", "-0.1"),
+    ] {
+        let e = load(extra, "").unwrap_err().to_string();
+        assert!(
+            e.contains("ci.toml") && e.contains(field) && e.contains(value),
+            "{e}"
+        );
+    }
+    let e = load("", "\n[compare]\nmalt_k_rel = -1\n")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("compare.malt_k_rel"), "{e}");
+    let e = load("", "\n[compare]\nunified_r2_min = 1.5\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("compare.unified_r2_min") && e.contains("1.5"),
+        "{e}"
+    );
+    let e = load("", "\n[compare]\nphi_tol = 1\n")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("phi_tol"), "{e}");
+}
+
+/// The MALT checks pass for Table 3's own point and fail off the curve; the unified-fit
+/// check fails for a poor fit and for a fit that could not be made.
+#[test]
+fn malt_checks_pass_on_the_curve_and_fail_off_it() {
+    let tol = &tiny_case().tolerances;
+    let point = |phi: f64, k: f64, unified| EnginePoint {
+        engine: "test".into(),
+        phi_deg: phi,
+        phi_std_deg: 0.0,
+        k_phi: k,
+        k_phi_se: 0.0,
+        unified,
+    };
+    let on = stress_fields::malt_checks("c", tol, &point(25.94, 23.0, Ok((0.16, 0.61, 0.999))));
+    assert_eq!(on.len(), 3);
+    assert!(on.iter().all(|c| c.passed), "{on:?}");
+    assert!(on[0].value < 2e-3 && on[1].value < 0.01);
+    // K 60 % too high at this phi: about 4 degrees off the curve.
+    let off = stress_fields::malt_checks("c", tol, &point(25.94, 36.8, Ok((0.16, 0.61, 0.95))));
+    assert!(off.iter().all(|c| !c.passed), "{off:?}");
+    assert!((off[0].value - 0.6).abs() < 0.01 && off[1].value > 3.0);
+    let err = stress_fields::malt_checks("c", tol, &point(f64::NAN, 23.0, Err("no phi".into())));
+    assert!(
+        err.iter().all(|c| !c.passed && c.metric == "error"),
+        "{err:?}"
+    );
+}
