@@ -87,6 +87,9 @@ enum Cmd {
         /// Re-analyse the snapshots of an earlier run in OUT instead of running again.
         #[arg(long)]
         reuse: bool,
+        /// Gaussian range w of eq 6 in grain diameters (sensitivity studies only).
+        #[arg(long, default_value_t = granval::stress_fields::DEFAULT_WIDTH_OVER_D)]
+        kernel_width: f64,
     },
     /// Coarse-graining throughput: N contacts onto a G^3 grid (all fields).
     CgBench {
@@ -372,6 +375,7 @@ fn real_main() -> Result<ExitCode> {
             out,
             np,
             reuse,
+            kernel_width,
         } => {
             let case = granval::case::penetration::PenetrationCase::load(&case)?;
             let opts = Options {
@@ -380,7 +384,7 @@ fn real_main() -> Result<ExitCode> {
                 ..Options::default()
             };
             std::fs::create_dir_all(&out)?;
-            let rep = granval::stress_fields::run_case(&case, &opts, &out, reuse)?;
+            let rep = granval::stress_fields::run_case(&case, &opts, &out, reuse, kernel_width)?;
             for c in &rep.checks {
                 let verdict = if c.passed { "PASS" } else { "FAIL" };
                 println!(

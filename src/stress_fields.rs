@@ -27,6 +27,11 @@ use std::path::{Path, PathBuf};
 /// Azimuths sampled per ring of the (r, z) average.
 pub const N_THETA: usize = 32;
 
+/// Gaussian range w of eq 6 in grain diameters (see `analysis::coarse_grain`: cutoff
+/// 3 w = the basic sphere's radius). `granval stress --kernel-width` overrides it for
+/// sensitivity studies; the checks are meant to be run with this value.
+pub const DEFAULT_WIDTH_OVER_D: f64 = 0.5;
+
 /// One requested snapshot: target depth (units of R) and the step that reaches it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct SnapshotPlan {
@@ -238,9 +243,12 @@ pub struct SnapshotFields {
 }
 
 /// Coarse-grains one snapshot (common contact set) and analyses its (r, z) field.
-pub fn snapshot_fields(snap: &Snapshot) -> Result<(CoarseGrainer, SnapshotFields)> {
+pub fn snapshot_fields(
+    snap: &Snapshot,
+    width_over_d: f64,
+) -> Result<(CoarseGrainer, SnapshotFields)> {
     let m = &snap.meta;
-    let params = CgParams::from_grain_diameter(m.mean_diameter)?;
+    let params = CgParams::with_width(m.mean_diameter, width_over_d * m.mean_diameter)?;
     let d_max = snap
         .grains
         .iter()
@@ -281,6 +289,7 @@ pub fn analyse_engine(
     snap_dir: &Path,
     out_dir: Option<&Path>,
     forces: Forces,
+    width_over_d: f64,
 ) -> Result<EngineFields> {
     let ks = snapshot::list(snap_dir)?;
     if ks.is_empty() {
@@ -301,7 +310,7 @@ pub fn analyse_engine(
         if forces == Forces::NormalOnly {
             snap.drop_tangential();
         }
-        let (cg, f) = snapshot_fields(&snap)?;
+        let (cg, f) = snapshot_fields(&snap, width_over_d)?;
         drop(snap);
         if let Some(dir) = out_dir {
             write_outputs(dir, k, &cg, &f)?;
@@ -689,6 +698,7 @@ pub fn run_case(
     opts: &crate::pipeline::Options,
     out_dir: &Path,
     reuse: bool,
+    width_over_d: f64,
 ) -> Result<StressReport> {
     let nd = out_dir.join("native");
     let ld = out_dir.join("liggghts");
@@ -723,13 +733,21 @@ pub fn run_case(
             crate::engines::output::write_provenance(&d.join("provenance.json"), &r.provenance)?;
         }
     }
-    let nf = analyse_engine("native", &nsnap, Some(&nd.join("fields")), Forces::Full)?;
-    let lf = analyse_engine("liggghts", &lsnap, Some(&ld.join("fields")), Forces::Full)?;
+    let w = width_over_d;
+    let nf = analyse_engine("native", &nsnap, Some(&nd.join("fields")), Forces::Full, w)?;
+    let lf = analyse_engine(
+        "liggghts",
+        &lsnap,
+        Some(&ld.join("fields")),
+        Forces::Full,
+        w,
+    )?;
     let neg = analyse_engine(
         "native (tangential forces dropped)",
         &nsnap,
         None,
         Forces::NormalOnly,
+        w,
     )?;
     let m0 = snapshot::read(&nsnap, snapshot::list(&nsnap)?[0])?.meta;
     let read = |d: &Path| crate::penetration::read_force_csv(&d.join("force.csv"));

@@ -421,6 +421,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         &snaps,
         Some(&dir.path().join("fields")),
         Forces::Full,
+        0.5,
     )
     .unwrap();
     for s in &full.snapshots {
@@ -435,7 +436,8 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
     assert!(dir.path().join("fields/fields_04.vtk").exists());
     assert!(dir.path().join("fields/fields_04_rz.csv").exists());
     let normal =
-        stress_fields::analyse_engine("native-normal", &snaps, None, Forces::NormalOnly).unwrap();
+        stress_fields::analyse_engine("native-normal", &snaps, None, Forces::NormalOnly, 0.5)
+            .unwrap();
     eprintln!(
         "tiny bed: phi full {:.2} +- {:.2} deg (kernel {:.2}), normal forces only {:.2} +- {:.2} deg (kernel {:.2})",
         full.phi_deg,
