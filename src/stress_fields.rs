@@ -837,6 +837,7 @@ pub fn run_case(
 /// Output paths of [`run_case`] (for the CLI's summary).
 pub fn output_files(out_dir: &Path) -> Vec<PathBuf> {
     vec![
+        out_dir.join("report.md"),
         out_dir.join("stress.json"),
         out_dir.join("phi_snapshots.csv"),
         out_dir.join("k_phi.svg"),

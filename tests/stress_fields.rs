@@ -695,3 +695,18 @@ fn malt_checks_pass_on_the_curve_and_fail_off_it() {
         "{err:?}"
     );
 }
+
+/// MALT.md's derived numbers: Table 3's K_phi = 23.00 +- 0.15 is phi = 25.94 deg
+/// (25.90-25.99), the frictionless phi = 9 +- 1 deg is K_phi = 2.71 (2.41-3.03).
+#[test]
+fn malt_md_derived_values() {
+    use granval::analysis::malt::{k_phi, phi_of_k};
+    for (k, deg) in [(23.00, 25.94), (22.85, 25.90), (23.15, 25.99)] {
+        let phi = phi_of_k(k).unwrap().to_degrees();
+        assert!((phi - deg).abs() < 0.005, "phi({k}) = {phi}");
+    }
+    for (deg, k) in [(9.0, 2.71), (8.0, 2.41), (10.0, 3.03)] {
+        let q = k_phi(f64::to_radians(deg)).unwrap().value;
+        assert!((q - k).abs() < 0.005, "K({deg}) = {q}");
+    }
+}
