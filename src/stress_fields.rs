@@ -572,6 +572,10 @@ pub struct EnginePoint {
     pub k_phi_se: f64,
     /// Unified fit (eqs 13-15) with phi from the stress field: (h_A, h_B, R^2) or why not.
     pub unified: Result<(f64, f64, f64), String>,
+    /// The same fit with the MALT-consistent phi(K_phi) (issue 3's regime boundaries),
+    /// reported alongside, not gated here.
+    #[serde(default)]
+    pub unified_malt: Option<(f64, f64, f64)>,
 }
 
 /// |phi_test - phi_ref| <= `tol.phi_abs_deg`.
@@ -643,7 +647,12 @@ pub fn malt_checks(case: &str, tol: &Tolerances, p: &EnginePoint) -> Vec<Check> 
             "1 - R^2 of the unified fit, eqs 13-15 (phi from stress)",
             1.0 - r2,
             1.0 - tol.unified_r2_min,
-            format!("R^2 = {r2:.4}, h_A = {ha:.3}, h_B = {hb:.3}"),
+            match p.unified_malt {
+                Some((ma, mb, mr2)) => format!(
+                    "R^2 = {r2:.4}, h_A = {ha:.3}, h_B = {hb:.3}; with phi(K_phi) instead: R^2 = {mr2:.4}, h_A = {ma:.3}, h_B = {mb:.3}"
+                ),
+                None => format!("R^2 = {r2:.4}, h_A = {ha:.3}, h_B = {hb:.3}"),
+            },
         ),
         Err(e) => Check::error(name("unified FDR fit"), e.clone()),
     });
@@ -674,6 +683,7 @@ pub fn engine_point(
         k_phi: obs.fit.k_phi,
         k_phi_se: obs.fit.se_k,
         unified,
+        unified_malt: obs.boundaries.as_ref().map(|b| (b.h_a, b.h_b, b.r2)),
     })
 }
 
@@ -763,6 +773,7 @@ pub fn run_case(
         k_phi: np.k_phi,
         k_phi_se: np.k_phi_se,
         unified: Err("not fitted (negative control)".into()),
+        unified_malt: None,
     };
     let negative_control_check = phi_check(&case.name, &case.tolerances, &negp, &lp);
     let curve: Vec<(f64, f64)> = malt::table(45.0, 0.5)?

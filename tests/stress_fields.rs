@@ -454,6 +454,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         k_phi: 10.0,
         k_phi_se: 0.0,
         unified: Err("n/a".into()),
+        unified_malt: None,
     };
     let tol = &case.tolerances;
     let same = stress_fields::phi_check("tiny", tol, &point(&full), &point(&full));
@@ -680,6 +681,7 @@ fn malt_checks_pass_on_the_curve_and_fail_off_it() {
         k_phi: k,
         k_phi_se: 0.0,
         unified,
+        unified_malt: None,
     };
     let on = stress_fields::malt_checks("c", tol, &point(25.94, 23.0, Ok((0.16, 0.61, 0.999))));
     assert_eq!(on.len(), 3);

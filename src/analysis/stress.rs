@@ -201,14 +201,20 @@ pub fn analyse(
         }
     }
     // Contiguous stagnant cells on the axis column, from just below the bottom down.
+    // The first cells under the face hold little material (the kernel overlaps the
+    // intruder); they are skipped, for at most three cells, before the run must start.
     let mut lowest = None;
+    let mut skipped = 0;
     for k in (0..f.nz).rev() {
         if f.z(k) >= intruder_bottom_z {
             continue;
         }
-        if stagnant[f.idx(0, k)] {
+        let c = f.idx(0, k);
+        if stagnant[c] {
             lowest = Some(k);
-        } else if lowest.is_some() || intruder_bottom_z - f.z(k) > f.spacing {
+        } else if lowest.is_none() && f.solid_fraction[c] < mask.min_solid_fraction && skipped < 3 {
+            skipped += 1;
+        } else {
             break;
         }
     }
