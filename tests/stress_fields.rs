@@ -712,3 +712,84 @@ fn malt_md_derived_values() {
         assert!((q - k).abs() < 0.005, "K({deg}) = {q}");
     }
 }
+
+/// `granval stress` end to end on the tiny bed (live LIGGGHTS): both engines'
+/// snapshots at the same steps, finite phi from each, every gated check present with a
+/// finite value, the outputs written; `--reuse` re-analyses to the same numbers.
+#[test]
+fn stress_pipeline_end_to_end_on_a_tiny_bed() {
+    if granval::engines::liggghts::installed_version("liggghts").is_none() {
+        eprintln!("LIGGGHTS not installed: stress pipeline end to end skipped");
+        return;
+    }
+    let case = tiny_case();
+    let dir = tempfile::tempdir().unwrap();
+    let opts = granval::pipeline::Options {
+        mpi_procs: 1,
+        ..Default::default()
+    };
+    let rep = stress_fields::run_case(&case, &opts, dir.path(), false, 0.5).unwrap();
+    let n_plan = case.snapshot_h.len();
+    for e in [&rep.native, &rep.liggghts] {
+        assert_eq!(e.snapshots.len(), n_plan, "{}", e.engine);
+        assert!(
+            e.phi_deg.is_finite() && e.phi_deg > 0.0,
+            "{}: {}",
+            e.engine,
+            e.phi_deg
+        );
+    }
+    let steps =
+        |e: &stress_fields::EngineFields| e.snapshots.iter().map(|s| s.step).collect::<Vec<_>>();
+    assert_eq!(steps(&rep.native), steps(&rep.liggghts));
+    let names: Vec<&str> = rep.checks.iter().map(|c| c.name.as_str()).collect();
+    for want in [
+        "tiny: phi native vs liggghts",
+        "tiny: native MALT distance in K",
+        "tiny: native MALT distance in phi",
+        "tiny: liggghts MALT distance in K",
+        "tiny: liggghts unified FDR fit",
+    ] {
+        assert!(names.contains(&want), "missing check {want}: {names:?}");
+    }
+    assert!(
+        rep.checks
+            .iter()
+            .filter(|c| c.metric != "error")
+            .all(|c| c.value.is_finite())
+    );
+    eprintln!(
+        "tiny bed: phi native {:.2} +- {:.2}, LIGGGHTS {:.2} +- {:.2}, normal-only {:.2}",
+        rep.native.phi_deg,
+        rep.native.phi_std_deg,
+        rep.liggghts.phi_deg,
+        rep.liggghts.phi_std_deg,
+        rep.native_normal_only.phi_deg
+    );
+    for f in [
+        "stress.json",
+        "phi_snapshots.csv",
+        "k_phi.svg",
+        "native/force.csv",
+        "liggghts/force.csv",
+    ] {
+        assert!(dir.path().join(f).exists(), "{f} not written");
+    }
+    for e in ["native", "liggghts"] {
+        for f in [
+            "gamma_00.svg",
+            "velocity_00.svg",
+            "fields_00.vtk",
+            "fields_00_rz.csv",
+            "fields_00_3d.csv",
+        ] {
+            assert!(
+                dir.path().join(e).join("fields").join(f).exists(),
+                "{e}/{f}"
+            );
+        }
+    }
+    let again = stress_fields::run_case(&case, &opts, dir.path(), true, 0.5).unwrap();
+    assert_eq!(again.native.phi_deg, rep.native.phi_deg);
+    assert_eq!(again.liggghts.phi_deg, rep.liggghts.phi_deg);
+}
