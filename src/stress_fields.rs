@@ -743,6 +743,31 @@ pub fn run_case(
             crate::engines::output::write_provenance(&d.join("provenance.json"), &r.provenance)?;
         }
     }
+    let m0 = snapshot::read(&nsnap, snapshot::list(&nsnap)?[0])?.meta;
+    // A reused directory must hold a run of this case, not of another one.
+    for (what, stored, now) in [
+        ("intruder radius", m0.intruder_radius, case.intruder_radius),
+        (
+            "container radius",
+            m0.container_radius,
+            case.container_radius,
+        ),
+        ("grain density", m0.density, case.density),
+        (
+            "mean grain diameter",
+            m0.mean_diameter,
+            case.diameter.mean(),
+        ),
+        ("intruder speed", -m0.intruder_vz, case.speed),
+    ] {
+        if (stored - now).abs() > 1e-12 * now.abs() {
+            bail!(
+                "{}: snapshots were taken with {what} = {stored:e}, the case {} has {now:e}; run without --reuse",
+                nsnap.display(),
+                case.source.display()
+            );
+        }
+    }
     let w = width_over_d;
     let nf = analyse_engine("native", &nsnap, Some(&nd.join("fields")), Forces::Full, w)?;
     let lf = analyse_engine(
@@ -759,7 +784,6 @@ pub fn run_case(
         Forces::NormalOnly,
         w,
     )?;
-    let m0 = snapshot::read(&nsnap, snapshot::list(&nsnap)?[0])?.meta;
     let read = |d: &Path| crate::penetration::read_force_csv(&d.join("force.csv"));
     let np = engine_point(case, &nf, &read(&nd)?, m0.surface_z, m0.psi)?;
     let lp = engine_point(case, &lf, &read(&ld)?, m0.surface_z, m0.psi)?;
