@@ -238,7 +238,8 @@ pub struct CoarseGrainer {
 }
 
 impl CoarseGrainer {
-    /// Uses the contacts `keep` accepts (normally `Snapshot::common_contacts`).
+    /// Prepares `snap` with the given contacts (normally `Snapshot::common_contacts`: the
+    /// set both engines report); contacts naming unknown grains are an error.
     pub fn new<'a>(
         snap: &Snapshot,
         contacts: impl IntoIterator<Item = &'a Contact>,

@@ -9,7 +9,7 @@
 //! engine, because LIGGGHTS 3.8's `compute wall/gran/local` sees mesh walls only (its
 //! own warning: "output will only happen for mesh wall - particle pairs"). The stress
 //! analysis therefore uses `pair` + `intruder` for both engines and masks the cells the
-//! container walls could reach (see `analysis::coarse_grain`).
+//! container walls could reach (see `analysis::stress::Mask`).
 //!
 //! Files: `snapshot_KK.json` (meta), `snapshot_KK_grains.csv`, `snapshot_KK_contacts.csv`,
 //! all SI, floats in Rust's shortest round-trip `{:e}`. One snapshot is read at a time.
