@@ -768,6 +768,13 @@ pub fn run_case(
             );
         }
     }
+    // Fresh field outputs: a stale file of an earlier run with more snapshots must not
+    // survive next to the new ones.
+    for d in [nd.join("fields"), ld.join("fields")] {
+        if d.exists() {
+            std::fs::remove_dir_all(&d).with_context(|| format!("cannot clear {}", d.display()))?;
+        }
+    }
     let w = width_over_d;
     let nf = analyse_engine("native", &nsnap, Some(&nd.join("fields")), Forces::Full, w)?;
     let lf = analyse_engine(
