@@ -15,3 +15,4 @@ pub mod impact2d;
 pub mod penetration;
 pub mod pipeline;
 pub mod report;
+pub mod stress_fields;

@@ -101,6 +101,29 @@ enum Cmd {
         #[arg(long, default_value_t = 2000)]
         steps: u64,
     },
+    /// Stress and velocity fields of a penetration case from both engines (issue 4):
+    /// phi per engine, (phi, K_phi) against MALT, CSV/VTK/SVG under OUT.
+    Stress {
+        case: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+        /// MPI processes for LIGGGHTS (at least 2 are used).
+        #[arg(long, default_value_t = 2)]
+        np: usize,
+        /// Re-analyse the snapshots of an earlier run in OUT instead of running again.
+        #[arg(long)]
+        reuse: bool,
+        /// Gaussian range w of eq 6 in grain diameters (sensitivity studies only).
+        #[arg(long, default_value_t = granval::stress_fields::DEFAULT_WIDTH_OVER_D)]
+        kernel_width: f64,
+    },
+    /// Coarse-graining throughput: N contacts onto a G^3 grid (all fields).
+    CgBench {
+        #[arg(long, default_value_t = 1_000_000)]
+        contacts: usize,
+        #[arg(long, default_value_t = 50)]
+        grid: usize,
+    },
     /// MALT curve K_phi(phi) of Feng et al. eq 10.
     Malt {
         /// Internal friction angle in degrees: print K_phi(phi).
@@ -573,6 +596,75 @@ fn real_main() -> Result<ExitCode> {
         } => analyze(&dir, !no_native, &options(&common), &report),
         Cmd::Bench { n, steps } => {
             granval::bench::run(n, steps)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Stress {
+            case,
+            out,
+            np,
+            reuse,
+            kernel_width,
+        } => {
+            let case = granval::case::penetration::PenetrationCase::load(&case)?;
+            let opts = Options {
+                mpi_procs: np,
+                progress: true,
+                ..Options::default()
+            };
+            std::fs::create_dir_all(&out)?;
+            let rep = granval::stress_fields::run_case(&case, &opts, &out, reuse, kernel_width)?;
+            let n = &rep.negative_control_check;
+            let notes = vec![
+                format!(
+                    "negative control (must FAIL): {} = {:.3} deg (tolerance {}) -> {}; {}",
+                    n.name,
+                    n.value,
+                    n.tolerance,
+                    if n.passed {
+                        "PASSED: the control did not bite"
+                    } else {
+                        "FAILED as it must"
+                    },
+                    n.detail
+                ),
+                format!(
+                    "kernel method (not gated): phi native {:.2} +- {:.2} deg, LIGGGHTS {:.2} +- {:.2} deg",
+                    rep.native.phi_kernel_deg,
+                    rep.native.phi_kernel_std_deg,
+                    rep.liggghts.phi_kernel_deg,
+                    rep.liggghts.phi_kernel_std_deg
+                ),
+            ];
+            let errored = rep.checks.iter().any(|c| c.metric == "error");
+            let report = Report::new(rep.checks.clone(), vec![], notes.clone(), errored);
+            report.write(&out, &format!("{}: stress fields and MALT", case.name))?;
+            for c in &rep.checks {
+                let verdict = if c.passed { "PASS" } else { "FAIL" };
+                println!(
+                    "{verdict} {}: {} = {:.4} (tolerance {}) {}",
+                    c.name, c.metric, c.value, c.tolerance, c.detail
+                );
+            }
+            for note in &notes {
+                println!("{note}");
+            }
+            for p in granval::stress_fields::output_files(&out) {
+                println!("wrote {}", p.display());
+            }
+            Ok(ExitCode::from(report.exit_code() as u8))
+        }
+        Cmd::CgBench { contacts, grid } => {
+            let t = granval::analysis::cg_bench::time_cg(contacts, grid)?;
+            println!(
+                "coarse graining: {} contacts, {} grains onto {} points ({grid}^3), {} threads: setup {:.3} s, fields {:.3} s, total {:.3} s",
+                t.n_contacts,
+                t.n_grains,
+                t.grid_points,
+                rayon::current_num_threads(),
+                t.setup_s,
+                t.eval_s,
+                t.setup_s + t.eval_s
+            );
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Malt { phi, k, table } => {

@@ -1,3 +1,6 @@
+pub mod cg_bench;
+pub mod coarse_grain;
 pub mod fdr;
 pub mod impact;
 pub mod malt;
+pub mod stress;

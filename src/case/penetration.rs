@@ -174,7 +174,16 @@ struct Analysis {
     /// Width in h of the bins the force series is averaged into while it is read
     /// (default 0.01): memory stays bounded however many samples a run writes.
     h_bin: Option<f64>,
+    /// Depths h = depth / R of the contact snapshots for the stress fields (issue 4);
+    /// the final depth (steady state) is always added. Default: Fig. 5's
+    /// [0.24, 0.373, 0.61, 1.0], those shallower than the final depth. An empty list
+    /// keeps only the final depth.
+    #[serde(default)]
+    snapshot_h: Option<Vec<f64>>,
 }
+
+/// Fig. 5 of Feng et al.: the depths at which the paper shows velocity and gamma fields.
+pub const DEFAULT_SNAPSHOT_H: [f64; 4] = [0.24, 0.373, 0.61, 1.0];
 
 #[derive(Debug, Deserialize, Clone, serde::Serialize)]
 #[serde(deny_unknown_fields)]
@@ -196,6 +205,29 @@ pub struct Tolerances {
     /// |K / K_published - 1| (default 0.10).
     #[serde(default = "d_k")]
     pub published_k_rel: f64,
+    /// |phi_test - phi_ref| in degrees, phi from the stress fields (default 1.5, issue 4).
+    #[serde(default = "d_phi")]
+    pub phi_abs_deg: f64,
+    /// |K_phi / K(phi) - 1| of an engine's (phi, K_phi) point against the MALT curve
+    /// (default 0.25, issue 4's goal).
+    #[serde(default = "d_malt_k")]
+    pub malt_k_rel: f64,
+    /// |phi(K_phi) - phi| in degrees, the same distance measured along phi (default 1.5).
+    #[serde(default = "d_phi")]
+    pub malt_phi_abs_deg: f64,
+    /// Minimum R^2 of the unified FDR fit, eqs 13-15 (default 0.98, issue 4).
+    #[serde(default = "d_r2")]
+    pub unified_r2_min: f64,
+}
+
+fn d_phi() -> f64 {
+    1.5
+}
+fn d_malt_k() -> f64 {
+    0.25
+}
+fn d_r2() -> f64 {
+    0.98
 }
 
 fn d_k() -> f64 {
@@ -220,6 +252,10 @@ impl Default for Tolerances {
             h_b_abs: d_hb(),
             quasi_static_k_rel: d_k(),
             published_k_rel: d_k(),
+            phi_abs_deg: d_phi(),
+            malt_k_rel: d_malt_k(),
+            malt_phi_abs_deg: d_phi(),
+            unified_r2_min: d_r2(),
         }
     }
 }
@@ -256,6 +292,8 @@ pub struct PenetrationCase {
     pub force_every: u64,
     pub fit_h_min: f64,
     pub h_bin: f64,
+    /// Snapshot depths in units of R, ascending, the final depth last.
+    pub snapshot_h: Vec<f64>,
     pub tolerances: Tolerances,
     /// Independent beds (seeds `seed`, `seed + 1`, ...), at least 1.
     pub ensemble_beds: usize,
@@ -461,6 +499,9 @@ impl PenetrationCase {
             ("compare.h_b_abs", tolerances.h_b_abs),
             ("compare.quasi_static_k_rel", tolerances.quasi_static_k_rel),
             ("compare.published_k_rel", tolerances.published_k_rel),
+            ("compare.phi_abs_deg", tolerances.phi_abs_deg),
+            ("compare.malt_k_rel", tolerances.malt_k_rel),
+            ("compare.malt_phi_abs_deg", tolerances.malt_phi_abs_deg),
         ] {
             positive(&ctx, f, v)?;
         }
@@ -502,6 +543,42 @@ impl PenetrationCase {
                 return Err(ctx.bad("published.source", &p.source, "cite the table or figure"));
             }
         }
+        if !(tolerances.unified_r2_min > 0.0 && tolerances.unified_r2_min < 1.0) {
+            return Err(ctx.bad(
+                "compare.unified_r2_min",
+                tolerances.unified_r2_min,
+                "must lie in (0, 1)",
+            ));
+        }
+        let h_final = final_depth / intruder_radius;
+        // The default list is cut at the final depth (a shallow case keeps loading); an
+        // explicit list is validated entry by entry.
+        let requested: Vec<f64> = match raw.analysis.snapshot_h.as_deref() {
+            Some(list) => list.to_vec(),
+            None => DEFAULT_SNAPSHOT_H
+                .iter()
+                .copied()
+                .filter(|&h| h < h_final)
+                .collect(),
+        };
+        let mut snapshot_h = Vec::new();
+        for (k, &h) in requested.iter().enumerate() {
+            let field = format!("analysis.snapshot_h[{k}]");
+            if !(h.is_finite() && h > 0.0 && h < h_final) {
+                return Err(ctx.bad(
+                    &field,
+                    h,
+                    format!(
+                        "must lie in (0, {h_final:.4}) (depth / R; the final depth {h_final:.4} is always added)"
+                    ),
+                ));
+            }
+            if snapshot_h.last().is_some_and(|&p| h <= p) {
+                return Err(ctx.bad(&field, h, "snapshot depths must be strictly ascending"));
+            }
+            snapshot_h.push(h);
+        }
+        snapshot_h.push(h_final);
 
         Ok(PenetrationCase {
             name: raw.case.name,
@@ -532,6 +609,7 @@ impl PenetrationCase {
             force_every: i.force_every,
             fit_h_min,
             h_bin,
+            snapshot_h,
             tolerances,
             ensemble_beds,
             quasi_static_speed,

@@ -6,6 +6,7 @@
 //! of threads (and for a given case, run to run).
 
 pub mod contact;
+pub mod contacts;
 pub mod intruder;
 pub mod neighbor;
 pub mod packing;
@@ -45,6 +46,10 @@ pub struct Simulation {
     walls_stride: usize,
     pairs: PairList,
     pair_out: Vec<ContactForce>,
+    /// Force each wall exerted on each particle in the last force pass (`walls_stride`
+    /// per particle; zero when not touching), kept so [`Simulation::contacts`] reports
+    /// exactly the forces that were integrated, not a re-evaluation.
+    wall_out: Vec<V3>,
     /// Whether each pair touched this step; the gather reads `pair_out` only where set,
     /// so non-touching pairs cost one byte of memory traffic instead of a whole result.
     pair_touch: Vec<bool>,
@@ -169,6 +174,7 @@ impl Simulation {
             walls_stride: stride,
             pairs: PairList::default(),
             pair_out: Vec::new(),
+            wall_out: vec![[0.0; 3]; n * stride],
             pair_touch: Vec::new(),
             near_walls: vec![u64::MAX; n],
             intruder: None,
@@ -325,12 +331,13 @@ impl Simulation {
             &mut self.f,
             &mut self.torque,
             self.wall_hist.par_chunks_mut(self.walls_stride),
+            self.wall_out.par_chunks_mut(self.walls_stride),
             &self.near_walls,
         )
             .into_par_iter()
             .enumerate()
             .with_min_len(PAR_MIN_LEN)
-            .for_each(|(i, (f, t, whist, &near))| {
+            .for_each(|(i, (f, t, whist, wout, &near))| {
                 let mut fi = [0.0; 3];
                 let mut ti = [0.0; 3];
                 for k in pairs.start[i]..pairs.start[i + 1] {
@@ -346,7 +353,13 @@ impl Simulation {
                         add_assign(&mut ti, o.torque_j);
                     }
                 }
-                for (k, (w, hist)) in walls.iter().zip(whist.iter_mut()).enumerate() {
+                for (k, ((w, hist), wo)) in walls
+                    .iter()
+                    .zip(whist.iter_mut())
+                    .zip(wout.iter_mut())
+                    .enumerate()
+                {
+                    *wo = [0.0; 3];
                     if near & (1u64 << k.min(63)) == 0 {
                         continue;
                     }
@@ -368,6 +381,7 @@ impl Simulation {
                             let o = hertz_history(&g, c, rolling, dt, hist, update_history);
                             add_assign(&mut fi, o.f_i);
                             add_assign(&mut ti, o.torque_i);
+                            *wo = o.f_i;
                         }
                         None => *hist = History::default(),
                     }

@@ -35,6 +35,19 @@ pub fn run(
     case: &PenetrationCase,
     bed: &Bed,
     pert: Perturbation,
+    progress: impl FnMut(u64, u64),
+) -> Result<Vec<ForceSample>> {
+    run_with_snapshots(case, bed, pert, &[], |_| Ok(()), progress)
+}
+
+/// [`run`], calling `on_snapshot` after the steps listed in `snapshot_steps` (0 = after
+/// `setup`), with the simulation in the state whose forces were just integrated.
+pub fn run_with_snapshots(
+    case: &PenetrationCase,
+    bed: &Bed,
+    pert: Perturbation,
+    snapshot_steps: &[u64],
+    mut on_snapshot: impl FnMut(&Simulation) -> Result<()>,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<Vec<ForceSample>> {
     let sim_case = container_case(case, bed.particles.clone(), box_top(case, bed));
@@ -53,8 +66,14 @@ pub fn run(
         f: sim.intruder_force(),
     };
     let mut out = vec![sample(&sim)];
+    if snapshot_steps.contains(&0) {
+        on_snapshot(&sim)?;
+    }
     for _ in 0..total {
         sim.step()?;
+        if snapshot_steps.contains(&sim.step) {
+            on_snapshot(&sim)?;
+        }
         if sim.step.is_multiple_of(case.force_every) {
             out.push(sample(&sim));
         }

@@ -6,6 +6,7 @@ pub mod liggghts;
 pub mod native;
 pub mod output;
 pub mod recorded;
+pub mod snapshot;
 
 pub use output::{Frame, ParticleState, Provenance, RunOutput};
 

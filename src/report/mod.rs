@@ -2,9 +2,11 @@
 //! people) and `report.junit.xml` (for CI dashboards). The exit code follows from
 //! [`Report::exit_code`].
 
+pub mod field_svg;
 pub mod progress;
 pub mod svg;
 pub mod svg_impact;
+pub mod vtk;
 
 use crate::compare::Check;
 use anyhow::{Context, Result};

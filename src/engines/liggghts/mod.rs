@@ -11,6 +11,7 @@ mod deck;
 mod dump;
 pub mod penetration;
 pub(crate) mod runner;
+pub mod snapshot;
 pub mod stl;
 
 pub use deck::{

@@ -470,7 +470,14 @@ pub fn expected_samples(d: &PenetrationDeck) -> usize {
 
 /// The deck text (reads `data.bed` and `intruder.stl` from the run directory).
 pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
+    deck_text_with_snapshots(d, &[])
+}
+
+/// [`deck_text`] plus contact/grain dumps at `snapshot_steps` ([`super::snapshot`]);
+/// with no steps the two are byte-identical.
+pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> Result<String> {
     validate(d)?;
+    let snapshots = super::snapshot::deck_block(snapshot_steps, d.n_steps)?;
     let u = d.units;
     let (l, v) = (u.length(), u.velocity());
     let models = model_keywords(d.rolling);
@@ -587,6 +594,7 @@ pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
     writeln!(s, "thermo_style custom step atoms ke cpu")?;
     writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", thermo_every(d.n_steps))?;
+    s.push_str(&snapshots);
     if d.settle.is_some() {
         writeln!(s, "variable pen_steps index {}", d.n_steps)?;
         writeln!(s, "run ${{pen_steps}}")?;
@@ -723,7 +731,16 @@ fn readme_text(d: &PenetrationDeck, segments: usize) -> String {
 /// Writes `in.penetration`, `data.bed`, `intruder.stl` and `README.md` into `dir`
 /// (created if missing). Nothing is written unless the deck validates.
 pub fn write_deck_dir(d: &PenetrationDeck, dir: &Path) -> Result<DeckFiles> {
-    let deck = deck_text(d)?;
+    write_deck_dir_with_snapshots(d, dir, &[])
+}
+
+/// [`write_deck_dir`] with contact snapshots at `snapshot_steps`.
+pub fn write_deck_dir_with_snapshots(
+    d: &PenetrationDeck,
+    dir: &Path,
+    snapshot_steps: &[u64],
+) -> Result<DeckFiles> {
+    let deck = deck_text_with_snapshots(d, snapshot_steps)?;
     let data = data_text(d)?;
     let l = d.units.length();
     let z_stl = if d.settle.is_some() {
@@ -882,7 +899,28 @@ pub fn run(
     mpi_procs: usize,
     timeout: Duration,
 ) -> Result<(Vec<ForceSample>, Provenance)> {
-    let files = write_deck_dir(d, dir)?;
+    run_with_snapshots(d, dir, mpi_procs, timeout, &[])
+}
+
+/// [`run`] with contact snapshots at `snapshot_steps`, left in `dir` for
+/// [`super::snapshot::read_snapshot`] (stale snapshot files are removed first).
+pub fn run_with_snapshots(
+    d: &PenetrationDeck,
+    dir: &Path,
+    mpi_procs: usize,
+    timeout: Duration,
+    snapshot_steps: &[u64],
+) -> Result<(Vec<ForceSample>, Provenance)> {
+    if dir.exists() {
+        for e in std::fs::read_dir(dir)? {
+            let name = e?.file_name().to_string_lossy().to_string();
+            if name.starts_with("snap_") && name.ends_with(".txt") {
+                std::fs::remove_file(dir.join(&name))
+                    .with_context(|| format!("cannot remove stale {name}"))?;
+            }
+        }
+    }
+    let files = write_deck_dir_with_snapshots(d, dir, snapshot_steps)?;
     let (samples, mut prov) = run_existing(d, dir, mpi_procs, timeout)?;
     prov.notes
         .insert(2, format!("intruder STL: {} segments", files.stl_segments));

@@ -1,0 +1,367 @@
+//! Contact snapshots (issue 4): grains and every force-carrying contact at one instant,
+//! the engine-neutral input of the coarse-grained stress and velocity fields.
+//!
+//! **Convention (both engines, identical):** every contact is stored from the side of
+//! grain `i`: `force` is the force ON grain `i`; `branch` runs from grain `i`'s centre
+//! to grain `j`'s centre (grain-grain) or to the contact point (grain-wall,
+//! grain-intruder). Grain-grain contacts appear once. Kinds stored: `pair` and
+//! `intruder` from both engines; `wall` (primitive floor/container) only from the native
+//! engine, because LIGGGHTS 3.8's `compute wall/gran/local` sees mesh walls only (its
+//! own warning: "output will only happen for mesh wall - particle pairs"). The stress
+//! analysis therefore uses `pair` + `intruder` for both engines and masks the cells the
+//! container walls could reach (see `analysis::stress::Mask`).
+//!
+//! Files: `snapshot_KK.json` (meta), `snapshot_KK_grains.csv`, `snapshot_KK_contacts.csv`,
+//! all SI, floats in Rust's shortest round-trip `{:e}`. One snapshot is read at a time.
+
+use crate::dem::vec3::*;
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+use std::io::{BufRead, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactKind {
+    Pair,
+    Intruder,
+    Wall,
+}
+
+impl ContactKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            ContactKind::Pair => "pair",
+            ContactKind::Intruder => "intruder",
+            ContactKind::Wall => "wall",
+        }
+    }
+    fn parse(s: &str) -> Option<ContactKind> {
+        match s {
+            "pair" => Some(ContactKind::Pair),
+            "intruder" => Some(ContactKind::Intruder),
+            "wall" => Some(ContactKind::Wall),
+            _ => None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grain {
+    pub id: u64,
+    pub x: V3,
+    pub v: V3,
+    pub radius: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    pub kind: ContactKind,
+    pub i: u64,
+    /// Second grain id for `pair`, 0 otherwise.
+    pub j: u64,
+    /// Centre of grain i.
+    pub xi: V3,
+    pub point: V3,
+    /// x_j - x_i (pair) or point - x_i (wall, intruder).
+    pub branch: V3,
+    /// Force on grain i.
+    pub force: V3,
+}
+
+impl Contact {
+    /// Unit contact normal pointing from the contact partner towards grain i.
+    pub fn normal(&self) -> V3 {
+        let n = norm(self.branch);
+        if n > 0.0 {
+            scale(self.branch, -1.0 / n)
+        } else {
+            [0.0; 3]
+        }
+    }
+}
+
+/// Where and when a snapshot was taken, and what the analysis needs to know of the setup.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct SnapshotMeta {
+    pub engine: String,
+    pub step: u64,
+    pub t: f64,
+    /// Depth of the intruder's bottom below the bed surface, in intruder radii.
+    pub h: f64,
+    pub intruder_bottom_z: f64,
+    pub intruder_radius: f64,
+    /// Intruder velocity along z (negative: moving down), m/s.
+    pub intruder_vz: f64,
+    pub surface_z: f64,
+    pub container_radius: f64,
+    pub floor_z: f64,
+    /// Grain material density, kg/m^3.
+    pub density: f64,
+    /// Packing fraction of the bed before penetration.
+    pub psi: f64,
+    pub mean_diameter: f64,
+}
+
+#[derive(Debug, Clone)]
+pub struct Snapshot {
+    pub meta: SnapshotMeta,
+    pub grains: Vec<Grain>,
+    pub contacts: Vec<Contact>,
+}
+
+impl Snapshot {
+    /// The contact force with its tangential part removed: the negative control of the
+    /// stress analysis (a stress from normal forces only must give a different phi).
+    pub fn drop_tangential(&mut self) {
+        for c in &mut self.contacts {
+            let n = c.normal();
+            c.force = scale(n, dot(c.force, n));
+        }
+    }
+
+    /// Keeps only the contact kinds both engines report (`pair`, `intruder`).
+    pub fn common_contacts(&self) -> impl Iterator<Item = &Contact> {
+        self.contacts.iter().filter(|c| c.kind != ContactKind::Wall)
+    }
+
+    /// Builds a native snapshot from the simulation's last force pass.
+    pub fn from_native(sim: &crate::dem::Simulation, meta: SnapshotMeta) -> Snapshot {
+        use crate::dem::contacts::Touching;
+        let grains = (0..sim.x.len())
+            .map(|k| Grain {
+                id: sim.id[k],
+                x: sim.x[k],
+                v: sim.v[k],
+                radius: sim.radius[k],
+            })
+            .collect();
+        let contacts = sim
+            .contacts()
+            .into_iter()
+            .map(|c| {
+                let xi = sim.x[c.i];
+                let (kind, j, branch) = match c.other {
+                    Touching::Grain(j) => (ContactKind::Pair, sim.id[j], sub(sim.x[j], xi)),
+                    Touching::Wall(_) => (ContactKind::Wall, 0, sub(c.point, xi)),
+                    Touching::Intruder => (ContactKind::Intruder, 0, sub(c.point, xi)),
+                };
+                Contact {
+                    kind,
+                    i: sim.id[c.i],
+                    j,
+                    xi,
+                    point: c.point,
+                    branch,
+                    force: c.force_on_i,
+                }
+            })
+            .collect();
+        Snapshot {
+            meta,
+            grains,
+            contacts,
+        }
+    }
+}
+
+fn meta_path(dir: &Path, k: usize) -> PathBuf {
+    dir.join(format!("snapshot_{k:02}.json"))
+}
+fn grains_path(dir: &Path, k: usize) -> PathBuf {
+    dir.join(format!("snapshot_{k:02}_grains.csv"))
+}
+fn contacts_path(dir: &Path, k: usize) -> PathBuf {
+    dir.join(format!("snapshot_{k:02}_contacts.csv"))
+}
+
+const GRAIN_HEADER: &str = "id,x,y,z,vx,vy,vz,radius";
+const CONTACT_HEADER: &str = "kind,i,j,xi_x,xi_y,xi_z,cx,cy,cz,bx,by,bz,fx,fy,fz";
+
+/// Writes snapshot number `k` into `dir` (created if missing).
+pub fn write(dir: &Path, k: usize, s: &Snapshot) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mp = meta_path(dir, k);
+    std::fs::write(&mp, serde_json::to_string_pretty(&s.meta)?)
+        .with_context(|| format!("cannot write {}", mp.display()))?;
+    let gp = grains_path(dir, k);
+    let mut w = BufWriter::new(
+        std::fs::File::create(&gp).with_context(|| format!("cannot create {}", gp.display()))?,
+    );
+    writeln!(w, "{GRAIN_HEADER}")?;
+    for g in &s.grains {
+        writeln!(
+            w,
+            "{},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+            g.id, g.x[0], g.x[1], g.x[2], g.v[0], g.v[1], g.v[2], g.radius
+        )?;
+    }
+    w.flush()?;
+    let cp = contacts_path(dir, k);
+    let mut w = BufWriter::new(
+        std::fs::File::create(&cp).with_context(|| format!("cannot create {}", cp.display()))?,
+    );
+    writeln!(w, "{CONTACT_HEADER}")?;
+    for c in &s.contacts {
+        write!(w, "{},{},{}", c.kind.name(), c.i, c.j)?;
+        for v in [c.xi, c.point, c.branch, c.force] {
+            write!(w, ",{:e},{:e},{:e}", v[0], v[1], v[2])?;
+        }
+        writeln!(w)?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
+/// Snapshot numbers present in `dir`, ascending.
+pub fn list(dir: &Path) -> Result<Vec<usize>> {
+    let mut ks = Vec::new();
+    for e in std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))? {
+        let name = e?.file_name().to_string_lossy().to_string();
+        if let Some(k) = name
+            .strip_prefix("snapshot_")
+            .and_then(|r| r.strip_suffix(".json"))
+            .and_then(|r| r.parse::<usize>().ok())
+        {
+            ks.push(k);
+        }
+    }
+    ks.sort_unstable();
+    Ok(ks)
+}
+
+fn parse_fields<const N: usize>(
+    path: &Path,
+    lineno: usize,
+    line: &str,
+    toks: &[&str],
+    names: &[&str; N],
+) -> Result<[f64; N]> {
+    let mut out = [0.0; N];
+    for (k, name) in names.iter().enumerate() {
+        let t = toks.get(k).copied().unwrap_or("");
+        out[k] = t
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "{}:{lineno}: column `{name}` = {t:?} is not a finite number (line {line:?})",
+                    path.display()
+                )
+            })?;
+    }
+    Ok(out)
+}
+
+fn parse_id(path: &Path, lineno: usize, col: &str, t: &str) -> Result<u64> {
+    t.parse::<u64>().with_context(|| {
+        format!(
+            "{}:{lineno}: column `{col}` = {t:?} is not a non-negative integer id",
+            path.display()
+        )
+    })
+}
+
+/// Opens a CSV, checks its header and returns the remaining lines with 1-based numbers;
+/// a read error ends the iteration with that error (never silently).
+fn lines(path: &Path, header: &str) -> Result<impl Iterator<Item = Result<(usize, String)>>> {
+    let f = std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut it = std::io::BufReader::new(f).lines();
+    match it.next() {
+        Some(Ok(h)) if h.trim() == header => {}
+        Some(Ok(h)) => bail!("{}:1: header {h:?}, expected {header:?}", path.display()),
+        Some(Err(e)) => return Err(e).with_context(|| format!("reading {}", path.display())),
+        None => bail!(
+            "{}: empty file (expected header {header:?})",
+            path.display()
+        ),
+    }
+    let p = path.to_path_buf();
+    Ok(it.enumerate().map(move |(n, l)| {
+        l.with_context(|| format!("{}:{}: read error", p.display(), n + 2))
+            .map(|l| (n + 2, l))
+    }))
+}
+
+/// Reads snapshot number `k` from `dir`; errors name file, line, column and value.
+pub fn read(dir: &Path, k: usize) -> Result<Snapshot> {
+    let mp = meta_path(dir, k);
+    let meta: SnapshotMeta = serde_json::from_str(
+        &std::fs::read_to_string(&mp).with_context(|| format!("cannot read {}", mp.display()))?,
+    )
+    .with_context(|| format!("{}: not a snapshot meta file", mp.display()))?;
+    let gp = grains_path(dir, k);
+    let mut grains = Vec::new();
+    for item in lines(&gp, GRAIN_HEADER)? {
+        let (n, line) = item?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let t: Vec<&str> = line.split(',').collect();
+        if t.len() != 8 {
+            bail!("{}:{n}: {} columns, expected 8", gp.display(), t.len());
+        }
+        let id = parse_id(&gp, n, "id", t[0])?;
+        let v = parse_fields(
+            &gp,
+            n,
+            &line,
+            &t[1..],
+            &["x", "y", "z", "vx", "vy", "vz", "radius"],
+        )?;
+        if v[6] <= 0.0 {
+            bail!("{}:{n}: radius = {:e} must be positive", gp.display(), v[6]);
+        }
+        grains.push(Grain {
+            id,
+            x: [v[0], v[1], v[2]],
+            v: [v[3], v[4], v[5]],
+            radius: v[6],
+        });
+    }
+    let cp = contacts_path(dir, k);
+    let mut contacts = Vec::new();
+    for item in lines(&cp, CONTACT_HEADER)? {
+        let (n, line) = item?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let t: Vec<&str> = line.split(',').collect();
+        if t.len() != 15 {
+            bail!("{}:{n}: {} columns, expected 15", cp.display(), t.len());
+        }
+        let kind = ContactKind::parse(t[0]).ok_or_else(|| {
+            anyhow::anyhow!(
+                "{}:{n}: column `kind` = {:?}, expected pair, intruder or wall",
+                cp.display(),
+                t[0]
+            )
+        })?;
+        let i = parse_id(&cp, n, "i", t[1])?;
+        let j = parse_id(&cp, n, "j", t[2])?;
+        let v = parse_fields(
+            &cp,
+            n,
+            &line,
+            &t[3..],
+            &[
+                "xi_x", "xi_y", "xi_z", "cx", "cy", "cz", "bx", "by", "bz", "fx", "fy", "fz",
+            ],
+        )?;
+        contacts.push(Contact {
+            kind,
+            i,
+            j,
+            xi: [v[0], v[1], v[2]],
+            point: [v[3], v[4], v[5]],
+            branch: [v[6], v[7], v[8]],
+            force: [v[9], v[10], v[11]],
+        });
+    }
+    Ok(Snapshot {
+        meta,
+        grains,
+        contacts,
+    })
+}

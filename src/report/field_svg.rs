@@ -1,0 +1,345 @@
+//! SVG figures of the stress-field analysis (issue 4): colour maps of gamma and of the
+//! velocity in the (r, z) plane (the paper's Fig. 5) with the incipient-yield region and
+//! the stagnant zone outlined, and the K-phi plane (Fig. 7) with error bars.
+
+use anyhow::{Result, anyhow, ensure};
+use plotters::prelude::*;
+use std::path::Path;
+
+const SIZE: (u32, u32) = (820, 760);
+const FONT: &str = "sans-serif";
+
+fn err<E: std::fmt::Debug>(what: &'static str) -> impl FnOnce(E) -> anyhow::Error {
+    move |e| anyhow!("{what}: {e:?}")
+}
+
+/// A cell field on the (r, z) plane, r fastest, cell size `spacing`, in units the caller
+/// chooses for the axes (we use intruder radii).
+pub struct RzMap<'a> {
+    pub nr: usize,
+    pub nz: usize,
+    pub r0: f64,
+    pub z0: f64,
+    pub spacing: f64,
+    /// NaN = not shown (masked, no data).
+    pub values: &'a [f64],
+}
+
+/// Blue (low) to red (high) through white, on [lo, hi].
+fn colour(v: f64, lo: f64, hi: f64) -> RGBColor {
+    let t = ((v - lo) / (hi - lo)).clamp(0.0, 1.0);
+    let (r, g, b) = if t < 0.5 {
+        let s = t / 0.5;
+        (40.0 + 215.0 * s, 70.0 + 185.0 * s, 200.0 + 55.0 * s)
+    } else {
+        let s = (t - 0.5) / 0.5;
+        (255.0, 255.0 - 200.0 * s, 255.0 - 215.0 * s)
+    };
+    RGBColor(r as u8, g as u8, b as u8)
+}
+
+/// Colour map with outlines: each outline is a cell set whose boundary edges are drawn;
+/// `intruder` = (radius, bottom z) in axis units draws the intruder's section.
+pub fn rz_map(
+    path: &Path,
+    title: &str,
+    value_label: &str,
+    map: &RzMap<'_>,
+    range: (f64, f64),
+    outlines: &[(&str, &[bool], RGBColor)],
+    intruder: Option<(f64, f64)>,
+) -> Result<()> {
+    ensure!(
+        map.values.len() == map.nr * map.nz && map.nr > 0 && map.nz > 0,
+        "rz_map: {} values for {} x {} cells",
+        map.values.len(),
+        map.nr,
+        map.nz
+    );
+    for (name, cells, _) in outlines {
+        ensure!(
+            cells.len() == map.values.len(),
+            "rz_map: outline {name} has {} cells, the map {}",
+            cells.len(),
+            map.values.len()
+        );
+    }
+    let (lo, hi) = range;
+    ensure!(
+        lo < hi && lo.is_finite() && hi.is_finite(),
+        "rz_map: bad colour range {range:?}"
+    );
+    let r1 = map.r0 + map.nr as f64 * map.spacing;
+    let z1 = map.z0 + map.nz as f64 * map.spacing;
+    let root = SVGBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE).map_err(err("fill"))?;
+    let (main, bar) = root.split_horizontally(SIZE.0 - 110);
+    let mut chart = ChartBuilder::on(&main)
+        .caption(title, (FONT, 20))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(map.r0..r1, map.z0..z1)
+        .map_err(err("chart layout"))?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("r / R")
+        .y_desc("z / R")
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 15))
+        .draw()
+        .map_err(err("axes"))?;
+    let cell = |i: usize, k: usize| {
+        let (x, y) = (
+            map.r0 + i as f64 * map.spacing,
+            map.z0 + k as f64 * map.spacing,
+        );
+        [(x, y), (x + map.spacing, y + map.spacing)]
+    };
+    let mut rects = Vec::new();
+    for k in 0..map.nz {
+        for i in 0..map.nr {
+            let v = map.values[k * map.nr + i];
+            if v.is_finite() {
+                rects.push(Rectangle::new(cell(i, k), colour(v, lo, hi).filled()));
+            }
+        }
+    }
+    chart.draw_series(rects).map_err(err("cells"))?;
+    for (name, cells, col) in outlines {
+        let mut segs: Vec<Vec<(f64, f64)>> = Vec::new();
+        let inside = |i: isize, k: isize| {
+            i >= 0
+                && k >= 0
+                && (i as usize) < map.nr
+                && (k as usize) < map.nz
+                && cells[k as usize * map.nr + i as usize]
+        };
+        for k in 0..map.nz as isize {
+            for i in 0..map.nr as isize {
+                if !inside(i, k) {
+                    continue;
+                }
+                let [(x0, y0), (x1, y1)] = cell(i as usize, k as usize);
+                if !inside(i - 1, k) {
+                    segs.push(vec![(x0, y0), (x0, y1)]);
+                }
+                if !inside(i + 1, k) {
+                    segs.push(vec![(x1, y0), (x1, y1)]);
+                }
+                if !inside(i, k - 1) {
+                    segs.push(vec![(x0, y0), (x1, y0)]);
+                }
+                if !inside(i, k + 1) {
+                    segs.push(vec![(x0, y1), (x1, y1)]);
+                }
+            }
+        }
+        let style = col.stroke_width(2);
+        let label = name.to_string();
+        let mut first = true;
+        for s in segs {
+            let a = chart
+                .draw_series(std::iter::once(PathElement::new(s, style)))
+                .map_err(err("outline"))?;
+            if first {
+                a.label(label.clone())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+                first = false;
+            }
+        }
+    }
+    if let Some((rad, zb)) = intruder {
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(map.r0, zb), (rad, z1)],
+                BLACK.mix(0.25).filled(),
+            )))
+            .map_err(err("intruder"))?
+            .label("intruder")
+            .legend(|(x, y)| {
+                Rectangle::new([(x, y - 5), (x + 20, y + 5)], BLACK.mix(0.25).filled())
+            });
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .label_font((FONT, 13))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(err("legend"))?;
+    // Colour bar.
+    let mut cb = ChartBuilder::on(&bar)
+        .margin_top(60)
+        .margin_bottom(57)
+        .margin_right(10)
+        .y_label_area_size(60)
+        .caption(value_label, (FONT, 13))
+        .build_cartesian_2d(0.0..1.0, lo..hi)
+        .map_err(err("colour bar"))?;
+    cb.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .label_style((FONT, 12))
+        .draw()
+        .map_err(err("colour bar axis"))?;
+    let steps = 100;
+    cb.draw_series((0..steps).map(|s| {
+        let a = lo + (hi - lo) * s as f64 / steps as f64;
+        let b = lo + (hi - lo) * (s + 1) as f64 / steps as f64;
+        Rectangle::new([(0.0, a), (1.0, b)], colour(0.5 * (a + b), lo, hi).filled())
+    }))
+    .map_err(err("colour bar"))?;
+    root.present().map_err(err("write svg"))?;
+    Ok(())
+}
+
+/// A (phi, K_phi) point with its spreads (one standard deviation; 0 = none).
+pub struct KPhiPoint<'a> {
+    pub label: &'a str,
+    pub phi_deg: f64,
+    pub phi_err: f64,
+    pub k: f64,
+    pub k_err: f64,
+}
+
+/// The phi - K_phi plane with the MALT curve `(phi_deg, K)` on a log K axis and points
+/// with error bars (Fig. 7).
+pub fn k_phi_plane_with_errors(
+    path: &Path,
+    curve: &[(f64, f64)],
+    points: &[KPhiPoint<'_>],
+) -> Result<()> {
+    ensure!(!curve.is_empty(), "k_phi_plane: empty MALT curve");
+    let pts: Vec<&KPhiPoint> = points
+        .iter()
+        .filter(|p| p.phi_deg.is_finite() && p.k > 0.0 && p.k.is_finite())
+        .collect();
+    let x1 = pts
+        .iter()
+        .map(|p| p.phi_deg + p.phi_err + 3.0)
+        .fold(curve.last().map(|c| c.0).unwrap_or(40.0), f64::max);
+    let k_hi = curve
+        .iter()
+        .map(|c| c.1)
+        .chain(pts.iter().map(|p| p.k + p.k_err))
+        .fold(1.0, f64::max)
+        * 1.3;
+    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(err("fill"))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("MALT: K_phi vs internal friction angle (eq 10)", (FONT, 20))
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..x1, (0.8..k_hi).log_scale())
+        .map_err(err("chart layout"))?;
+    chart
+        .configure_mesh()
+        .x_desc("phi (deg)")
+        .y_desc("K_phi")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .draw()
+        .map_err(err("axes"))?;
+    chart
+        .draw_series(LineSeries::new(curve.to_vec(), BLACK.stroke_width(2)))
+        .map_err(err("curve"))?
+        .label("MALT, eq 10")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+    for (i, p) in pts.iter().enumerate() {
+        let col = Palette99::pick(i + 1).to_rgba();
+        let style = col.stroke_width(2);
+        let mut bars = Vec::new();
+        if p.phi_err > 0.0 {
+            bars.push(PathElement::new(
+                vec![(p.phi_deg - p.phi_err, p.k), (p.phi_deg + p.phi_err, p.k)],
+                style,
+            ));
+        }
+        if p.k_err > 0.0 && p.k - p.k_err > 0.0 {
+            bars.push(PathElement::new(
+                vec![(p.phi_deg, p.k - p.k_err), (p.phi_deg, p.k + p.k_err)],
+                style,
+            ));
+        }
+        chart.draw_series(bars).map_err(err("error bars"))?;
+        let label = format!("{} ({:.2} deg, {:.2})", p.label, p.phi_deg, p.k);
+        chart
+            .draw_series(std::iter::once(Circle::new(
+                (p.phi_deg, p.k),
+                5,
+                col.filled(),
+            )))
+            .map_err(err("points"))?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 5, col.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .label_font((FONT, 14))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(err("legend"))?;
+    root.present().map_err(err("write svg"))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn maps_and_plane_write_svg() {
+        let dir = tempfile::tempdir().unwrap();
+        let (nr, nz) = (6, 5);
+        let vals: Vec<f64> = (0..nr * nz)
+            .map(|c| if c == 3 { f64::NAN } else { c as f64 / 30.0 })
+            .collect();
+        let yield_: Vec<bool> = (0..nr * nz).map(|c| c % 7 == 0).collect();
+        let p = dir.path().join("g.svg");
+        let map = RzMap {
+            nr,
+            nz,
+            r0: 0.0,
+            z0: 0.0,
+            spacing: 0.25,
+            values: &vals,
+        };
+        rz_map(
+            &p,
+            "gamma",
+            "gamma",
+            &map,
+            (0.0, 1.0),
+            &[("yield", &yield_, RED)],
+            Some((1.0, 0.9)),
+        )
+        .unwrap();
+        let svg = std::fs::read_to_string(&p).unwrap();
+        assert!(svg.contains("<svg") && svg.contains("yield") && svg.contains("r / R"));
+        assert!(rz_map(&p, "x", "x", &map, (1.0, 0.0), &[], None).is_err());
+        let curve: Vec<(f64, f64)> = (0..=40)
+            .map(|d| (d as f64, (0.08 * d as f64).exp()))
+            .collect();
+        let q = dir.path().join("k.svg");
+        k_phi_plane_with_errors(
+            &q,
+            &curve,
+            &[KPhiPoint {
+                label: "native",
+                phi_deg: 25.0,
+                phi_err: 1.0,
+                k: 20.0,
+                k_err: 0.5,
+            }],
+        )
+        .unwrap();
+        let svg = std::fs::read_to_string(&q).unwrap();
+        assert!(svg.contains("native (25.00 deg, 20.00)") && svg.contains("MALT"));
+    }
+}
