@@ -28,14 +28,15 @@ pub struct EnsembleRuns {
 }
 
 /// Bed `k` of the case, its native run(s) and its LIGGGHTS run (live in
-/// `out_dir/bed-k/liggghts`, or the recorded one for the very same bed).
-fn run_bed(
+/// `out_dir/bed-k/`, or the recorded one for the very same bed). Returns the bed, so a
+/// caller can run more native variants on it (negative controls).
+pub fn run_bed(
     case: &PenetrationCase,
     k: usize,
     opts: &Options,
     out_dir: &Path,
     runs: &mut EnsembleRuns,
-) -> Result<()> {
+) -> Result<packing::Bed> {
     let ck = case.realisation(k);
     let bed = prepare_bed(&ck, opts.progress)?;
     let hash = bed_hash(&bed);
@@ -74,7 +75,7 @@ fn run_bed(
             rec_dir.parent().unwrap_or(&rec_dir).display()
         );
     }
-    Ok(())
+    Ok(bed)
 }
 
 /// The native run(s) of one bed — at the case speed and, with `[quasi_static]`, at the
