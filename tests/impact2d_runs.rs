@@ -179,29 +179,21 @@ fn final_depth_grows_as_gravity_drops() {
     claims_pass("ci-gravity.toml");
 }
 
-/// K Fig 8b's "roughly linear in v for v >= 0.4" is NOT reproduced on a single
-/// CI-size bed (measured R^2 0.84 on 450 disks, 0.65 on 900: one realisation, three
-/// points; docs/impact2d.md). What is gated here: every speed agrees between the
-/// engines, and both engines reach the same value and verdict on the claim. The claim
-/// itself stays a gated check of `granval check --suite impact2d`.
+/// Every speed of the CI-size sweep agrees between the engines. K Fig 8b's linearity
+/// claim is gated on the Fig 2 bed (tests/impact2d_fig2.rs): on this 450-disk bed one
+/// realisation gives R^2 0.84 in both engines (docs/impact2d.md).
 #[test]
 fn speed_sweep_agrees_between_engines() {
     let checks = run("ci-speed.toml", Tweak::None);
-    for c in named(&checks, "final depth native vs") {
+    assert!(
+        checks.iter().all(|c| !c.name.contains("claim")),
+        "ci-speed.toml carries no claim"
+    );
+    let depth = named(&checks, "final depth native vs");
+    assert_eq!(depth.len(), 6, "one cross-check per speed");
+    for c in depth {
         assert!(c.passed, "{c:?}");
     }
-    let (n, l) = (
-        named(&checks, "claim (native)")[0],
-        named(&checks, "claim (lammps)")[0],
-    );
-    assert_eq!(
-        n.passed, l.passed,
-        "engines disagree on the claim: {n:?} vs {l:?}"
-    );
-    assert!(
-        (n.value - l.value).abs() < 0.05 || n.value == l.value,
-        "{n:?} vs {l:?}"
-    );
 }
 
 #[test]
