@@ -195,7 +195,7 @@ pub fn reduce_recorded(
     );
     ensure!(
         recorded.notes.iter().any(|n| n.contains(hash)),
-        "{}: recorded from a different bed than the one prepared now (sha256 {hash}); run `granval reference refresh --suite penetration`",
+        "{}: recorded from a different bed than the one prepared now (sha256 {hash}); run `granval reference refresh --suite penetration --only CASE`",
         dir.display()
     );
     let mut run = reduce_liggghts_dir(case, bed, dir)?;

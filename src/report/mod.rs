@@ -87,6 +87,9 @@ impl Report {
             "ERROR"
         } else if self.passed {
             "PASS"
+        } else if self.checks.is_empty() {
+            // Still exit 1 for compare/check: a comparison that checked nothing failed.
+            "NO GATED CHECKS"
         } else {
             "FAIL"
         };

@@ -1076,11 +1076,27 @@ pub fn execute(
 }
 
 /// LIGGGHTS' own "Total wall time: h:mm:ss" (for runs made outside granval).
+/// LIGGGHTS prints "Total wall time" to stdout at exit, after the log file is closed;
+/// a log alone (a run brought back from a cluster) yields the sum of its "Loop time"s,
+/// which leaves out only setup.
 pub fn log_wall_time(log: &str) -> Option<f64> {
-    let l = log
+    let Some(l) = log
         .lines()
         .rev()
-        .find(|l| l.starts_with("Total wall time:"))?;
+        .find(|l| l.starts_with("Total wall time:"))
+    else {
+        let loops: Vec<f64> = log
+            .lines()
+            .filter_map(|l| {
+                l.strip_prefix("Loop time of ")?
+                    .split_whitespace()
+                    .next()?
+                    .parse()
+                    .ok()
+            })
+            .collect();
+        return (!loops.is_empty()).then(|| loops.iter().sum());
+    };
     let t = l.trim_start_matches("Total wall time:").trim();
     let parts: Vec<f64> = t
         .split(':')
@@ -1180,7 +1196,12 @@ pub fn read_outputs(
         command: format!("run outside granval (log says {procs} procs)"),
         input_hash: input_hash(dir),
         date: now_utc(),
-        wall_time_s: log_wall_time(log).unwrap_or(f64::NAN),
+        wall_time_s: if stdout.contains("Total wall time:") {
+            log_wall_time(stdout)
+        } else {
+            log_wall_time(log)
+        }
+        .unwrap_or(f64::NAN),
         threads: procs,
         case_file: dir.join(DECK_FILE).display().to_string(),
         notes,
@@ -1359,5 +1380,20 @@ pub fn parse_bed_dump(path: &Path, units: Units, density: f64) -> Result<Vec<Par
             out.len()
         ),
         None => bail!("{}: no `ITEM: NUMBER OF ATOMS`", path.display()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::log_wall_time;
+
+    #[test]
+    fn wall_time_from_total_or_from_loop_times() {
+        let total = "Loop time of 12.5 on 2 procs for 100 steps\nTotal wall time: 0:01:31\n";
+        assert_eq!(log_wall_time(total), Some(91.0));
+        let loops = "Loop time of 12.5 on 2 procs for 100 steps with 5 atoms\n\
+                     text\nLoop time of 70.25 on 2 procs for 3500 steps with 5 atoms\n";
+        assert_eq!(log_wall_time(loops), Some(82.75));
+        assert_eq!(log_wall_time("no timing here\n"), None);
     }
 }
