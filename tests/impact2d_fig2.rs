@@ -34,6 +34,11 @@ fn fig2_bed_native_matches_lammps_and_depth_is_linear_in_speed() {
             run.wall_time_reference_s
         );
     }
+    // Kept for reading the numbers of a captured (passing) run afterwards.
+    let _ = std::fs::write(
+        out.join("checks.json"),
+        serde_json::to_string_pretty(&r.checks).unwrap_or_default(),
+    );
     for c in &r.checks {
         eprintln!(
             "[fig2-speed] {} {}: {:.4} (tol {}) {}",

@@ -55,13 +55,16 @@ fn ci() -> &'static Ci {
             let wrong = run_native(&ck, &bed, pert, false)
                 .and_then(|r| r.reduce(&ck, &bed))
                 .unwrap_or_else(|e| panic!("bed {k}, mu_gg = {WRONG_MU_GG}: {e:#}"));
-            eprintln!(
-                "bed {k}: native {:.0} s, LIGGGHTS {:.0} s ({}), native at the second speed {:.0} s",
+            let line = format!(
+                "bed {k}: native {:.0} s, LIGGGHTS {:.0} s ({}), native at the second speed {:.0} s, native mu_gg = {WRONG_MU_GG} {:.0} s",
                 runs.native[k].provenance.wall_time_s,
                 runs.reference[k].provenance.wall_time_s,
                 runs.reference_source,
-                runs.native_slow[k].provenance.wall_time_s
+                runs.native_slow[k].provenance.wall_time_s,
+                wrong.provenance.wall_time_s
             );
+            eprintln!("{line}");
+            runs.notes.push(line);
             wrong_mu.push(wrong);
         }
         if runs.reference_source == "live" {
@@ -75,6 +78,7 @@ fn ci() -> &'static Ci {
         for n in &runs.notes {
             eprintln!("[penetration-ci] note: {n}");
         }
+        let _ = std::fs::write(out.join("notes.txt"), runs.notes.join("\n") + "\n");
         Ci {
             case,
             runs,
@@ -84,7 +88,14 @@ fn ci() -> &'static Ci {
     })
 }
 
+/// Prints the checks and keeps them as target/tmp/penetration-ci/<file>.json, so the
+/// numbers of a captured (passing) run can still be read afterwards.
 fn show(label: &str, checks: &[Check]) {
+    let file = label.replace([' ', ',', '='], "_");
+    let _ = std::fs::write(
+        ci().out.join(format!("{file}.json")),
+        serde_json::to_string_pretty(checks).unwrap_or_default(),
+    );
     for c in checks {
         eprintln!(
             "[{label}] {} {}: {:.4} (tol {}) {}",
