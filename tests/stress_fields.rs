@@ -932,6 +932,13 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
             .filter(|c| c.metric != "error")
             .all(|c| c.value.is_finite())
     );
+    // Negative control with the window-averaged estimator: native stress without
+    // tangential forces against LIGGGHTS must fail the phi check.
+    assert!(
+        !rep.negative_control_check.passed,
+        "{:?}",
+        rep.negative_control_check
+    );
     for p in [&rep.native_point, &rep.liggghts_point] {
         assert!(
             p.fdr_source.contains("mean FDR of 2 beds"),
@@ -968,7 +975,7 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
         assert!(out.join(f).exists(), "{f} not written");
     }
     let csv = std::fs::read_to_string(out.join("phi_snapshots.csv")).unwrap();
-    let rows = |kind: &str| csv.lines().filter(|l| l.contains(kind)).count();
+    let rows = |kind: &str| csv.lines().skip(1).filter(|l| l.contains(kind)).count();
     // native, LIGGGHTS and the negative control.
     assert_eq!(rows(",window,"), 3 * n_windows);
     assert_eq!(
