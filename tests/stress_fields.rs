@@ -721,6 +721,14 @@ fn snapshot_depths_and_stress_tolerances_are_validated() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("phi_tol"), "{e}");
+    // The default windows fit every shipped penetration case.
+    for e in
+        std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/penetration")).unwrap()
+    {
+        let p = e.unwrap().path();
+        let c = PenetrationCase::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        assert_eq!(c.snapshot_windows().len(), c.snapshot_h.len());
+    }
     // Windows: defaults 5 snapshots over one grain diameter of travel (d / R = 0.25).
     let ci = load("", "").unwrap();
     assert_eq!((ci.snapshot_window, ci.snapshot_window_h), (5, 0.25));
