@@ -116,6 +116,11 @@ enum Cmd {
         /// Gaussian range w of eq 6 in grain diameters (sensitivity studies only).
         #[arg(long, default_value_t = granval::stress_fields::DEFAULT_WIDTH_OVER_D)]
         kernel_width: f64,
+        /// A `granval compare` output directory of the same case (OUT/bed-K/ with the
+        /// LIGGGHTS outputs, OUT/bed-K/native/): K_phi and the unified fit on its
+        /// ensemble-mean FDR instead of the stress run's single bed.
+        #[arg(long)]
+        fdr_from: Option<PathBuf>,
     },
     /// Coarse-graining throughput: N contacts onto a G^3 grid (all fields).
     CgBench {
@@ -622,6 +627,7 @@ fn real_main() -> Result<ExitCode> {
             np,
             reuse,
             kernel_width,
+            fdr_from,
         } => {
             let case = granval::case::penetration::PenetrationCase::load(&case)?;
             let opts = Options {
@@ -630,9 +636,14 @@ fn real_main() -> Result<ExitCode> {
                 ..Options::default()
             };
             std::fs::create_dir_all(&out)?;
-            let rep = granval::stress_fields::run_case(&case, &opts, &out, reuse, kernel_width)?;
+            let so = granval::stress_fields::StressOptions {
+                reuse,
+                width_over_d: kernel_width,
+                fdr_from,
+            };
+            let rep = granval::stress_fields::run_case(&case, &opts, &out, &so)?;
             let n = &rep.negative_control_check;
-            let notes = vec![
+            let mut notes = vec![
                 format!(
                     "negative control (must FAIL): {} = {:.3} deg (tolerance {}) -> {}; {}",
                     n.name,
@@ -653,6 +664,11 @@ fn real_main() -> Result<ExitCode> {
                     rep.liggghts.phi_kernel_std_deg
                 ),
             ];
+            notes.extend(rep.notes.iter().cloned());
+            notes.push(format!(
+                "wall time: field analysis {:.1} s",
+                rep.analysis_wall_s
+            ));
             let errored = rep.checks.iter().any(|c| c.metric == "error");
             let report = Report::new(rep.checks.clone(), vec![], notes.clone(), errored);
             report.write(&out, &format!("{}: stress fields and MALT", case.name))?;

@@ -4,23 +4,41 @@
 //! 13-15), gated checks, and the outputs (CSV, VTK, SVG).
 //!
 //! Both engines start from the same natively prepared bed and are snapshotted at the
-//! same steps: the steps at which the intruder's bottom reaches the case's
-//! `analysis.snapshot_h` depths (nearest step) and the final step (steady state).
+//! same steps. Per requested depth of `analysis.snapshot_h` (and the final depth) the
+//! run takes a *window* of `analysis.snapshot_window` snapshots spread over
+//! `analysis.snapshot_window_h` of intruder travel (see
+//! [`crate::case::penetration::snapshot_windows`]); each snapshot is the step at which
+//! the intruder's bottom is nearest to its depth, the final window ends at the last step.
+//!
+//! **Time averaging (eq 8's gamma "recorded at each time step").** The fields of a
+//! window's snapshots are averaged *before* principal stresses, gamma, phi, the yield
+//! region and the stagnant zone are computed (see [`window_fields`]). The average is
+//! taken in the frame moving with the intruder: snapshot j's (r, z) grid is shifted by
+//! dz_j = z_bottom,j - mean(z_bottom), so a cell sits at the same position relative to
+//! the intruder's face in every snapshot. Reason: the fields that matter for phi and
+//! the stagnant zone (the stress concentration and the dead cone under the face, the
+//! yield band from its rim) are carried along with the intruder; averaged in the lab
+//! frame they would be smeared over the window's travel (one grain diameter by
+//! default), while the bed far from the intruder is quasi-static in either frame.
+//! Each snapshot's own (instantaneous) phi is computed on the same shifted grid and
+//! reported alongside, so the only difference between the two estimates is the
+//! averaging.
 
 use crate::analysis::coarse_grain::{
-    CgParams, CoarseGrainer, Grid3, PointFields, RzField, azimuthal_average,
+    CgParams, CoarseGrainer, Grid3, PointFields, RzField, Sym, azimuthal_average,
 };
 use crate::analysis::malt;
 use crate::analysis::stress::{self, FieldAnalysis, Mask, principal};
 use crate::case::penetration::{PenetrationCase, Tolerances};
 use crate::compare::Check;
+use crate::compare::penetration::Observables;
 use crate::dem::Perturbation;
 use crate::dem::packing::Bed;
 use crate::engines::output::{ForceSample, Provenance, now_utc, sha256_hex};
 use crate::engines::snapshot::{self, Snapshot, SnapshotMeta};
 use crate::penetration::PenetrationRun;
-use anyhow::{Context, Result, bail};
-use serde::Serialize;
+use anyhow::{Context, Result, bail, ensure};
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -32,31 +50,110 @@ pub const N_THETA: usize = 32;
 /// sensitivity studies; the checks are meant to be run with this value.
 pub const DEFAULT_WIDTH_OVER_D: f64 = 0.5;
 
-/// One requested snapshot: target depth (units of R) and the step that reaches it.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct SnapshotPlan {
+/// The snapshot window of one requested depth: its steps, ascending and distinct.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WindowPlan {
+    /// Requested depth (units of R).
     pub h_target: f64,
-    pub step: u64,
+    pub steps: Vec<u64>,
 }
 
-/// Steps at which the intruder's bottom is nearest to each depth of
-/// `case.snapshot_h` (the last entry, the final depth, is the run's last step).
-pub fn snapshot_plan(case: &PenetrationCase, bed: &Bed) -> Vec<SnapshotPlan> {
+/// Every snapshot a run takes: the windows, and the union of their steps (ascending);
+/// snapshot file `k` holds step `steps[k]`. Stored as [`PLAN_FILE`] next to the
+/// snapshots.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SnapshotPlan {
+    pub windows: Vec<WindowPlan>,
+    pub steps: Vec<u64>,
+}
+
+/// Name of the stored [`SnapshotPlan`] in a snapshot directory.
+pub const PLAN_FILE: &str = "windows.json";
+
+impl SnapshotPlan {
+    /// The snapshot file number of `step`.
+    pub fn index_of(&self, step: u64) -> Option<usize> {
+        self.steps.binary_search(&step).ok()
+    }
+
+    /// Writes the plan into `dir` (created if missing).
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let p = dir.join(PLAN_FILE);
+        std::fs::write(&p, serde_json::to_string_pretty(self)?)
+            .with_context(|| format!("cannot write {}", p.display()))
+    }
+
+    /// The plan stored in `dir`; a directory written before windows existed (no
+    /// [`PLAN_FILE`]) reads as one window per snapshot.
+    pub fn read(dir: &Path) -> Result<SnapshotPlan> {
+        let p = dir.join(PLAN_FILE);
+        if p.exists() {
+            let text = std::fs::read_to_string(&p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            let plan: SnapshotPlan = serde_json::from_str(&text)
+                .with_context(|| format!("{}: not a snapshot plan", p.display()))?;
+            let mut all: Vec<u64> = plan.windows.iter().flat_map(|w| w.steps.clone()).collect();
+            all.sort_unstable();
+            all.dedup();
+            ensure!(
+                all == plan.steps && plan.windows.iter().all(|w| !w.steps.is_empty()),
+                "{}: `steps` is not the union of the windows' steps",
+                p.display()
+            );
+            return Ok(plan);
+        }
+        let mut windows = Vec::new();
+        let mut steps = Vec::new();
+        for k in snapshot::list(dir)? {
+            let m = snapshot::read_meta(dir, k)?;
+            windows.push(WindowPlan {
+                h_target: m.h,
+                steps: vec![m.step],
+            });
+            steps.push(m.step);
+        }
+        Ok(SnapshotPlan { windows, steps })
+    }
+}
+
+/// The snapshot steps of `case` run from `bed`: per window of
+/// [`PenetrationCase::snapshot_windows`] the steps nearest to its depths; the last
+/// depth of the last window (the final depth) is the run's last step.
+pub fn snapshot_plan(case: &PenetrationCase, bed: &Bed) -> SnapshotPlan {
     let n = crate::dem::penetration::n_steps(case, bed);
     let z0 = crate::dem::penetration::start_z(case, bed);
     let per_step = case.speed * case.dt;
-    let mut out: Vec<SnapshotPlan> = Vec::new();
-    for (k, &h) in case.snapshot_h.iter().enumerate() {
-        let step = if k + 1 == case.snapshot_h.len() {
-            n
-        } else {
-            (((z0 - (bed.surface_z - h * case.intruder_radius)) / per_step).round() as u64).min(n)
-        };
-        if out.last().is_none_or(|p| step > p.step) {
-            out.push(SnapshotPlan { h_target: h, step });
+    let windows = case.snapshot_windows();
+    let last = windows.len().saturating_sub(1);
+    let mut out: Vec<WindowPlan> = Vec::new();
+    for (wi, w) in windows.iter().enumerate() {
+        let mut steps: Vec<u64> = Vec::new();
+        for (j, &h) in w.h.iter().enumerate() {
+            let step = if wi == last && j + 1 == w.h.len() {
+                n
+            } else {
+                (((z0 - (bed.surface_z - h * case.intruder_radius)) / per_step)
+                    .round()
+                    .max(0.0) as u64)
+                    .min(n)
+            };
+            if steps.last().is_none_or(|&s| step > s) {
+                steps.push(step);
+            }
         }
+        out.push(WindowPlan {
+            h_target: w.h_target,
+            steps,
+        });
     }
-    out
+    let mut all: Vec<u64> = out.iter().flat_map(|w| w.steps.clone()).collect();
+    all.sort_unstable();
+    all.dedup();
+    SnapshotPlan {
+        windows: out,
+        steps: all,
+    }
 }
 
 fn meta(case: &PenetrationCase, bed: &Bed, engine: &str, step: u64, z_bottom: f64) -> SnapshotMeta {
@@ -77,7 +174,7 @@ fn meta(case: &PenetrationCase, bed: &Bed, engine: &str, step: u64, z_bottom: f6
     }
 }
 
-/// The native penetration run with snapshots written to `snap_dir`.
+/// The native penetration run with snapshots (and the plan) written to `snap_dir`.
 pub fn run_native(
     case: &PenetrationCase,
     bed: &Bed,
@@ -86,7 +183,7 @@ pub fn run_native(
     progress: bool,
 ) -> Result<PenetrationRun> {
     let plan = snapshot_plan(case, bed);
-    let steps: Vec<u64> = plan.iter().map(|p| p.step).collect();
+    let steps = plan.steps.clone();
     let start = std::time::Instant::now();
     let total = crate::dem::penetration::n_steps(case, bed);
     let bar = crate::report::progress::bar(progress, total, "native");
@@ -96,9 +193,8 @@ pub fn run_native(
         pert,
         &steps,
         |sim| {
-            let k = steps
-                .iter()
-                .position(|&s| s == sim.step)
+            let k = plan
+                .index_of(sim.step)
                 .context("snapshot at an unplanned step")?;
             let zb = sim
                 .intruder()
@@ -111,6 +207,7 @@ pub fn run_native(
         |s, _| bar.set_position(s),
     )?;
     bar.finish_and_clear();
+    plan.write(snap_dir)?;
     Ok(PenetrationRun {
         samples,
         provenance: Provenance {
@@ -139,14 +236,14 @@ pub fn run_liggghts(
     mpi_procs: usize,
 ) -> Result<PenetrationRun> {
     let plan = snapshot_plan(case, bed);
-    let steps: Vec<u64> = plan.iter().map(|p| p.step).collect();
+    let steps = plan.steps.clone();
     let deck = crate::penetration::liggghts_deck(case, bed)?;
     std::fs::create_dir_all(run_dir)?;
     let (samples, mut provenance) = crate::engines::liggghts::penetration::run_with_snapshots(
         &deck,
         run_dir,
         mpi_procs,
-        std::time::Duration::from_secs(3600),
+        std::time::Duration::from_secs(4 * 3600),
         &steps,
     )?;
     provenance
@@ -169,6 +266,7 @@ pub fn run_liggghts(
         };
         snapshot::write(snap_dir, k, &snap)?;
     }
+    plan.write(snap_dir)?;
     Ok(PenetrationRun {
         samples: samples
             .iter()
@@ -182,9 +280,10 @@ pub fn run_liggghts(
     })
 }
 
-/// What one snapshot's fields gave.
+/// What one snapshot's own (instantaneous) fields gave.
 #[derive(Debug, Clone, Serialize)]
 pub struct SnapshotSummary {
+    /// Snapshot file number.
     pub k: usize,
     pub step: u64,
     pub h: f64,
@@ -197,15 +296,39 @@ pub struct SnapshotSummary {
     pub error: Option<String>,
 }
 
-/// An engine's phi over its snapshots (mean and sample standard deviation).
+/// What one window's averaged fields gave, with its snapshots' instantaneous results.
+#[derive(Debug, Clone, Serialize)]
+pub struct WindowSummary {
+    pub window: usize,
+    /// Requested depth (units of R).
+    pub h_target: f64,
+    /// Depth of the averaged field: the intruder at its mean bottom over the window.
+    pub h: f64,
+    pub steps: Vec<u64>,
+    /// Window-averaged phi (gated: method `basic`, eq 9).
+    pub phi_basic: Option<stress::PhiEstimate>,
+    pub phi_kernel: Option<stress::PhiEstimate>,
+    pub stagnant_height: f64,
+    pub yield_cells: usize,
+    pub error: Option<String>,
+    pub instantaneous: Vec<SnapshotSummary>,
+}
+
+/// An engine's phi over its requested depths (mean and sample standard deviation):
+/// window-averaged (gated) and, for comparison, over every instantaneous snapshot.
 #[derive(Debug, Clone, Serialize)]
 pub struct EngineFields {
     pub engine: String,
-    pub snapshots: Vec<SnapshotSummary>,
+    pub windows: Vec<WindowSummary>,
     pub phi_deg: f64,
     pub phi_std_deg: f64,
     pub phi_kernel_deg: f64,
     pub phi_kernel_std_deg: f64,
+    /// Mean +- sd of the instantaneous phi (eq 9) over all snapshots of all windows.
+    pub phi_instant_deg: f64,
+    pub phi_instant_std_deg: f64,
+    pub phi_instant_kernel_deg: f64,
+    pub phi_instant_kernel_std_deg: f64,
     pub mask: Option<Mask>,
     pub params: Option<CgParams>,
 }
@@ -231,7 +354,17 @@ pub enum Forces {
     NormalOnly,
 }
 
-/// The CG fields of one snapshot on the (r, z) plane, with its analysis.
+/// The frame a window's snapshots are averaged in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum Frame {
+    /// Moving with the intruder (the analysis' choice, see the module docs).
+    Intruder,
+    /// Fixed in the lab (diagnostics and tests only).
+    Lab,
+}
+
+/// CG fields on the (r, z) plane with their analysis: one snapshot's, or a window's
+/// average (then `snap_meta` places the intruder at its mean bottom over the window).
 pub struct SnapshotFields {
     pub snap_meta: SnapshotMeta,
     pub params: CgParams,
@@ -242,48 +375,284 @@ pub struct SnapshotFields {
     pub n_grains: usize,
 }
 
-/// Coarse-grains one snapshot (common contact set) and analyses its (r, z) field.
-pub fn snapshot_fields(
-    snap: &Snapshot,
-    width_over_d: f64,
-) -> Result<(CoarseGrainer, SnapshotFields)> {
-    let m = &snap.meta;
-    let params = CgParams::with_width(m.mean_diameter, width_over_d * m.mean_diameter)?;
-    let d_max = snap
-        .grains
-        .iter()
-        .map(|g| 2.0 * g.radius)
-        .fold(0.0, f64::max);
-    let cg = CoarseGrainer::new(snap, snap.common_contacts(), params)?;
-    let spacing = params.w;
-    let nr = (m.container_radius / spacing).ceil() as usize;
-    let nz = ((m.surface_z + m.mean_diameter - m.floor_z) / spacing).ceil() as usize;
-    if nr == 0 || nz == 0 {
-        bail!("snapshot step {}: empty (r, z) grid", m.step);
-    }
-    let rz = azimuthal_average(&cg, spacing, nr, nz, m.floor_z, N_THETA);
-    let mask = Mask::for_bed(&params, m.psi, m.container_radius, m.floor_z, d_max);
-    let analysis = stress::analyse(
-        &rz,
-        &mask,
-        m.intruder_bottom_z,
-        m.intruder_radius,
-        m.intruder_vz,
-    );
-    let f = SnapshotFields {
-        snap_meta: m.clone(),
-        params,
-        mask,
-        rz,
-        analysis,
-        n_contacts: cg.n_contacts(),
-        n_grains: snap.grains.len(),
-    };
-    Ok((cg, f))
+/// A window's averaged fields, its instantaneous results and (if asked for) the
+/// averaged 3D grid for the VTK/CSV outputs.
+pub struct WindowFields {
+    pub avg: SnapshotFields,
+    pub steps: Vec<u64>,
+    /// dz_j = z_bottom,j - mean z_bottom by which snapshot j's grid was shifted (0 in
+    /// the lab frame).
+    pub shifts: Vec<f64>,
+    pub instantaneous: Vec<SnapshotSummary>,
+    pub grid3: Option<(Grid3, Vec<PointFields>)>,
 }
 
-/// Analyses every snapshot in `snap_dir`, one at a time; writes the field outputs
-/// into `out_dir` when given.
+/// Running mean that is exact for identical inputs: m_j = m_{j-1} + (x_j - m_{j-1}) / j.
+#[inline]
+fn running(m: &mut f64, x: f64, j: usize) {
+    *m += (x - *m) / j as f64;
+}
+
+fn running_sym(m: &mut Sym, x: &Sym, j: usize) {
+    for q in 0..6 {
+        running(&mut m[q], x[q], j);
+    }
+}
+
+/// Velocity mean over the samples where it is defined (a kernel without grains has
+/// none); NaN where no sample has one. `count` holds the samples averaged so far.
+fn running_velocity(m: &mut [f64; 3], count: &mut usize, x: &[f64; 3]) {
+    if x.iter().all(|v| v.is_finite()) {
+        *count += 1;
+        if *count == 1 {
+            *m = *x;
+        } else {
+            for q in 0..3 {
+                running(&mut m[q], x[q], *count);
+            }
+        }
+    }
+}
+
+/// Cell-by-cell mean of (r, z) fields on the same cells (their own positions may be
+/// shifted); the result is placed at `z0`.
+// One cell index runs over six parallel arrays; iterators would hide that.
+#[allow(clippy::needless_range_loop)]
+fn mean_rz(fields: &[RzField], z0: f64) -> RzField {
+    let first = &fields[0];
+    let n = first.nr * first.nz;
+    let mut out = RzField {
+        spacing: first.spacing,
+        nr: first.nr,
+        nz: first.nz,
+        z0,
+        solid_fraction: vec![0.0; n],
+        velocity: vec![[f64::NAN; 3]; n],
+        stress_basic: vec![[0.0; 6]; n],
+        stress_kernel: vec![[0.0; 6]; n],
+        grains_in_basic: vec![0.0; n],
+    };
+    let mut vcount = vec![0usize; n];
+    for (j, f) in fields.iter().enumerate() {
+        for c in 0..n {
+            running(&mut out.solid_fraction[c], f.solid_fraction[c], j + 1);
+            running(&mut out.grains_in_basic[c], f.grains_in_basic[c], j + 1);
+            running_sym(&mut out.stress_basic[c], &f.stress_basic[c], j + 1);
+            running_sym(&mut out.stress_kernel[c], &f.stress_kernel[c], j + 1);
+            running_velocity(&mut out.velocity[c], &mut vcount[c], &f.velocity[c]);
+        }
+    }
+    out
+}
+
+fn mean_points(sets: &[Vec<PointFields>]) -> Vec<PointFields> {
+    let n = sets[0].len();
+    let mut out: Vec<PointFields> = (0..n)
+        .map(|_| PointFields {
+            solid_fraction: 0.0,
+            velocity: [f64::NAN; 3],
+            stress_basic: [0.0; 6],
+            stress_kernel: [0.0; 6],
+            grains_in_basic: 0,
+        })
+        .collect();
+    let mut vcount = vec![0usize; n];
+    let mut gib = vec![0.0; n];
+    for (j, s) in sets.iter().enumerate() {
+        for (c, p) in s.iter().enumerate() {
+            let o = &mut out[c];
+            running(&mut o.solid_fraction, p.solid_fraction, j + 1);
+            running(&mut gib[c], p.grains_in_basic as f64, j + 1);
+            running_sym(&mut o.stress_basic, &p.stress_basic, j + 1);
+            running_sym(&mut o.stress_kernel, &p.stress_kernel, j + 1);
+            running_velocity(&mut o.velocity, &mut vcount[c], &p.velocity);
+        }
+    }
+    for (o, g) in out.iter_mut().zip(gib) {
+        o.grains_in_basic = g.round() as u32;
+    }
+    out
+}
+
+/// The 3D output grid of a snapshot (spacing d_g over the container), its z shifted by
+/// `dz`.
+fn output_grid(m: &SnapshotMeta, dz: f64) -> Grid3 {
+    let d = m.mean_diameter;
+    let rc = m.container_radius;
+    let n_xy = (2.0 * rc / d).ceil() as usize;
+    let nz = ((m.surface_z + d - m.floor_z) / d).ceil() as usize;
+    Grid3 {
+        lo: [
+            -0.5 * n_xy as f64 * d,
+            -0.5 * n_xy as f64 * d,
+            m.floor_z + dz,
+        ],
+        spacing: d,
+        n: [n_xy, n_xy, nz],
+    }
+}
+
+fn summary(k: usize, f: &SnapshotFields) -> SnapshotSummary {
+    let a = &f.analysis;
+    SnapshotSummary {
+        k,
+        step: f.snap_meta.step,
+        h: f.snap_meta.h,
+        n_grains: f.n_grains,
+        n_contacts_used: f.n_contacts,
+        phi_basic: a.phi_basic.as_ref().ok().copied(),
+        phi_kernel: a.phi_kernel.as_ref().ok().copied(),
+        stagnant_height: a.stagnant_height,
+        yield_cells: a.yield_basic.iter().filter(|&&y| y).count(),
+        error: a
+            .phi_basic
+            .as_ref()
+            .err()
+            .or(a.phi_kernel.as_ref().err())
+            .cloned(),
+    }
+}
+
+/// Coarse-grains the snapshots of one window (common contact set) in `frame`, analyses
+/// each snapshot's own field (instantaneous phi, on its shifted grid, masked in its own
+/// lab position) and the window average: solid fraction, velocity (mean over the
+/// snapshots where it is defined) and both stress tensors (cylindrical components)
+/// averaged cell by cell, then principal stresses, gamma, phi, yield region and
+/// stagnant zone from the averages. The average's mask keeps a cell only if the
+/// geometric mask (floor, container wall) holds for it in every snapshot, plus the
+/// solid-fraction threshold on the averaged solid fraction. `ks` are the snapshot file
+/// numbers (for the summaries); `with_grid3` also averages the 3D output grid.
+pub fn window_fields(
+    snaps: &[Snapshot],
+    ks: &[usize],
+    width_over_d: f64,
+    frame: Frame,
+    with_grid3: bool,
+) -> Result<WindowFields> {
+    ensure!(!snaps.is_empty(), "a window needs at least one snapshot");
+    ensure!(
+        ks.len() == snaps.len(),
+        "{} snapshots but {} numbers",
+        snaps.len(),
+        ks.len()
+    );
+    let m0 = &snaps[0].meta;
+    for s in &snaps[1..] {
+        let m = &s.meta;
+        for (what, a, b) in [
+            ("mean grain diameter", m.mean_diameter, m0.mean_diameter),
+            ("container radius", m.container_radius, m0.container_radius),
+            ("floor", m.floor_z, m0.floor_z),
+            ("bed surface", m.surface_z, m0.surface_z),
+            ("packing fraction", m.psi, m0.psi),
+            ("intruder radius", m.intruder_radius, m0.intruder_radius),
+            ("intruder velocity", m.intruder_vz, m0.intruder_vz),
+        ] {
+            ensure!(
+                a == b,
+                "snapshot steps {} and {} of one window differ in {what}: {b:e} vs {a:e}",
+                m0.step,
+                m.step
+            );
+        }
+    }
+    let mut zb_ref = 0.0;
+    let mut t_ref = 0.0;
+    for (j, s) in snaps.iter().enumerate() {
+        running(&mut zb_ref, s.meta.intruder_bottom_z, j + 1);
+        running(&mut t_ref, s.meta.t, j + 1);
+    }
+    let shifts: Vec<f64> = snaps
+        .iter()
+        .map(|s| match frame {
+            Frame::Intruder => s.meta.intruder_bottom_z - zb_ref,
+            Frame::Lab => 0.0,
+        })
+        .collect();
+    let params = CgParams::with_width(m0.mean_diameter, width_over_d * m0.mean_diameter)?;
+    let spacing = params.w;
+    let max_shift = shifts.iter().fold(0.0, |a: f64, s| a.max(s.abs()));
+    let nr = (m0.container_radius / spacing).ceil() as usize;
+    let nz = ((m0.surface_z + m0.mean_diameter + max_shift - m0.floor_z) / spacing).ceil() as usize;
+    if nr == 0 || nz == 0 {
+        bail!("snapshot step {}: empty (r, z) grid", m0.step);
+    }
+    let mut rzs = Vec::with_capacity(snaps.len());
+    let mut grids = Vec::new();
+    let mut instantaneous = Vec::with_capacity(snaps.len());
+    let mut d_max: f64 = 0.0;
+    let (mut n_contacts, mut n_grains) = (0, 0);
+    for ((s, &dz), &k) in snaps.iter().zip(&shifts).zip(ks) {
+        let m = &s.meta;
+        let dm = s.grains.iter().map(|g| 2.0 * g.radius).fold(0.0, f64::max);
+        d_max = d_max.max(dm);
+        let cg = CoarseGrainer::new(s, s.common_contacts(), params)?;
+        let rz = azimuthal_average(&cg, spacing, nr, nz, m.floor_z + dz, N_THETA);
+        let mask = Mask::for_bed(&params, m.psi, m.container_radius, m.floor_z, dm);
+        let analysis = stress::analyse(
+            &rz,
+            &mask,
+            m.intruder_bottom_z,
+            m.intruder_radius,
+            m.intruder_vz,
+        );
+        let f = SnapshotFields {
+            snap_meta: m.clone(),
+            params,
+            mask,
+            rz,
+            analysis,
+            n_contacts: cg.n_contacts(),
+            n_grains: s.grains.len(),
+        };
+        instantaneous.push(summary(k, &f));
+        n_contacts = n_contacts.max(f.n_contacts);
+        n_grains = n_grains.max(f.n_grains);
+        if with_grid3 {
+            grids.push(cg.eval(&output_grid(m, dz).points()));
+        }
+        rzs.push(f.rz);
+    }
+    let rz = mean_rz(&rzs, m0.floor_z);
+    drop(rzs);
+    let base = Mask::for_bed(&params, m0.psi, m0.container_radius, m0.floor_z, d_max);
+    // Cell z (reference frame) is at z + dz_j in snapshot j: above the floor limit in
+    // every snapshot iff z >= z_min - min_j dz_j.
+    let lowest = shifts.iter().fold(0.0, |a: f64, &s| a.min(s));
+    let mask = Mask {
+        z_min: base.z_min - lowest,
+        ..base
+    };
+    let analysis = stress::analyse(&rz, &mask, zb_ref, m0.intruder_radius, m0.intruder_vz);
+    let mid = snaps.len() / 2;
+    let snap_meta = SnapshotMeta {
+        step: snaps[mid].meta.step,
+        t: t_ref,
+        h: (m0.surface_z - zb_ref) / m0.intruder_radius,
+        intruder_bottom_z: zb_ref,
+        ..m0.clone()
+    };
+    let grid3 = with_grid3.then(|| (output_grid(&snap_meta, 0.0), mean_points(&grids)));
+    Ok(WindowFields {
+        avg: SnapshotFields {
+            snap_meta,
+            params,
+            mask,
+            rz,
+            analysis,
+            n_contacts,
+            n_grains,
+        },
+        steps: snaps.iter().map(|s| s.meta.step).collect(),
+        shifts,
+        instantaneous,
+        grid3,
+    })
+}
+
+/// Analyses every window of the snapshots in `snap_dir` (one window in memory at a
+/// time; the plan from [`PLAN_FILE`]); writes the window-averaged field outputs into
+/// `out_dir` when given (files numbered by window).
 pub fn analyse_engine(
     engine: &str,
     snap_dir: &Path,
@@ -291,63 +660,91 @@ pub fn analyse_engine(
     forces: Forces,
     width_over_d: f64,
 ) -> Result<EngineFields> {
-    let ks = snapshot::list(snap_dir)?;
-    if ks.is_empty() {
+    let plan = SnapshotPlan::read(snap_dir)?;
+    if plan.steps.is_empty() {
         bail!("{}: no snapshots (snapshot_KK.json)", snap_dir.display());
     }
     let mut out = EngineFields {
         engine: engine.to_string(),
-        snapshots: Vec::new(),
+        windows: Vec::new(),
         phi_deg: f64::NAN,
         phi_std_deg: f64::NAN,
         phi_kernel_deg: f64::NAN,
         phi_kernel_std_deg: f64::NAN,
+        phi_instant_deg: f64::NAN,
+        phi_instant_std_deg: f64::NAN,
+        phi_instant_kernel_deg: f64::NAN,
+        phi_instant_kernel_std_deg: f64::NAN,
         mask: None,
         params: None,
     };
-    for k in ks {
-        let mut snap = snapshot::read(snap_dir, k)?;
-        if forces == Forces::NormalOnly {
-            snap.drop_tangential();
+    for (wi, w) in plan.windows.iter().enumerate() {
+        let mut snaps = Vec::with_capacity(w.steps.len());
+        let mut ks = Vec::with_capacity(w.steps.len());
+        for &step in &w.steps {
+            let k = plan.index_of(step).with_context(|| {
+                format!(
+                    "{}: window {wi} names step {step}, not a snapshot of the plan",
+                    snap_dir.join(PLAN_FILE).display()
+                )
+            })?;
+            let mut snap = snapshot::read(snap_dir, k)?;
+            if snap.meta.step != step {
+                bail!(
+                    "{}: snapshot {k} holds step {}, the plan says {step}",
+                    snap_dir.display(),
+                    snap.meta.step
+                );
+            }
+            if forces == Forces::NormalOnly {
+                snap.drop_tangential();
+            }
+            snaps.push(snap);
+            ks.push(k);
         }
-        let (cg, f) = snapshot_fields(&snap, width_over_d)?;
-        drop(snap);
+        let wf = window_fields(
+            &snaps,
+            &ks,
+            width_over_d,
+            Frame::Intruder,
+            out_dir.is_some(),
+        )?;
+        drop(snaps);
         if let Some(dir) = out_dir {
-            write_outputs(dir, k, &cg, &f)?;
+            write_outputs(dir, wi, &wf)?;
         }
-        out.mask = Some(f.mask);
-        out.params = Some(f.params);
-        let a = &f.analysis;
-        out.snapshots.push(SnapshotSummary {
-            k,
-            step: f.snap_meta.step,
-            h: f.snap_meta.h,
-            n_grains: f.n_grains,
-            n_contacts_used: f.n_contacts,
-            phi_basic: a.phi_basic.as_ref().ok().copied(),
-            phi_kernel: a.phi_kernel.as_ref().ok().copied(),
+        let a = summary(wi, &wf.avg);
+        out.mask = Some(wf.avg.mask);
+        out.params = Some(wf.avg.params);
+        out.windows.push(WindowSummary {
+            window: wi,
+            h_target: w.h_target,
+            h: wf.avg.snap_meta.h,
+            steps: wf.steps,
+            phi_basic: a.phi_basic,
+            phi_kernel: a.phi_kernel,
             stagnant_height: a.stagnant_height,
-            yield_cells: a.yield_basic.iter().filter(|&&y| y).count(),
-            error: a
-                .phi_basic
-                .as_ref()
-                .err()
-                .or(a.phi_kernel.as_ref().err())
-                .cloned(),
+            yield_cells: a.yield_cells,
+            error: a.error,
+            instantaneous: wf.instantaneous,
         });
     }
-    let b: Vec<f64> = out
-        .snapshots
-        .iter()
-        .filter_map(|s| s.phi_basic.map(|p| p.phi_deg))
-        .collect();
-    let kk: Vec<f64> = out
-        .snapshots
-        .iter()
-        .filter_map(|s| s.phi_kernel.map(|p| p.phi_deg))
-        .collect();
+    let collect = |f: &dyn Fn(&WindowSummary) -> Vec<Option<stress::PhiEstimate>>| -> Vec<f64> {
+        out.windows
+            .iter()
+            .flat_map(f)
+            .flatten()
+            .map(|p| p.phi_deg)
+            .collect()
+    };
+    let b = collect(&|w| vec![w.phi_basic]);
+    let kk = collect(&|w| vec![w.phi_kernel]);
+    let ib = collect(&|w| w.instantaneous.iter().map(|s| s.phi_basic).collect());
+    let ik = collect(&|w| w.instantaneous.iter().map(|s| s.phi_kernel).collect());
     (out.phi_deg, out.phi_std_deg) = mean_std(&b);
     (out.phi_kernel_deg, out.phi_kernel_std_deg) = mean_std(&kk);
+    (out.phi_instant_deg, out.phi_instant_std_deg) = mean_std(&ib);
+    (out.phi_instant_kernel_deg, out.phi_instant_kernel_std_deg) = mean_std(&ik);
     Ok(out)
 }
 
@@ -399,18 +796,15 @@ fn rz_csv(path: &Path, f: &SnapshotFields) -> Result<()> {
     Ok(())
 }
 
-fn grid3_outputs(dir: &Path, k: usize, cg: &CoarseGrainer, m: &SnapshotMeta) -> Result<()> {
-    let d = m.mean_diameter;
-    let rc = m.container_radius;
-    let n_xy = (2.0 * rc / d).ceil() as usize;
-    let nz = ((m.surface_z + d - m.floor_z) / d).ceil() as usize;
-    let grid = Grid3 {
-        lo: [-0.5 * n_xy as f64 * d, -0.5 * n_xy as f64 * d, m.floor_z],
-        spacing: d,
-        n: [n_xy, n_xy, nz],
-    };
+/// VTK and CSV of the (window-averaged) 3D grid; `m` places the intruder.
+fn grid3_outputs(
+    dir: &Path,
+    k: usize,
+    grid: &Grid3,
+    vals: &[PointFields],
+    m: &SnapshotMeta,
+) -> Result<()> {
     let pts = grid.points();
-    let vals: Vec<PointFields> = cg.eval(&pts);
     let sf: Vec<f64> = vals.iter().map(|v| v.solid_fraction).collect();
     let vel: Vec<[f64; 3]> = vals.iter().map(|v| v.velocity).collect();
     let sb: Vec<[f64; 6]> = vals.iter().map(|v| v.stress_basic).collect();
@@ -424,10 +818,10 @@ fn grid3_outputs(dir: &Path, k: usize, cg: &CoarseGrainer, m: &SnapshotMeta) -> 
     crate::report::vtk::write_structured_points(
         &dir.join(format!("fields_{k:02}.vtk")),
         &format!(
-            "granval CG fields, {} step {} h = {:.4}, SI, compressive stress positive",
-            m.engine, m.step, m.h
+            "granval CG fields, {} h = {:.4} (window average), SI, compressive stress positive",
+            m.engine, m.h
         ),
-        &grid,
+        grid,
         &crate::report::vtk::GridData {
             scalars: vec![
                 ("solid_fraction", &sf),
@@ -554,11 +948,13 @@ fn svg_maps(dir: &Path, k: usize, f: &SnapshotFields) -> Result<()> {
     Ok(())
 }
 
-fn write_outputs(dir: &Path, k: usize, cg: &CoarseGrainer, f: &SnapshotFields) -> Result<()> {
+fn write_outputs(dir: &Path, k: usize, w: &WindowFields) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    rz_csv(&dir.join(format!("fields_{k:02}_rz.csv")), f)?;
-    grid3_outputs(dir, k, cg, &f.snap_meta)?;
-    svg_maps(dir, k, f)?;
+    rz_csv(&dir.join(format!("fields_{k:02}_rz.csv")), &w.avg)?;
+    if let Some((grid, vals)) = &w.grid3 {
+        grid3_outputs(dir, k, grid, vals, &w.avg.snap_meta)?;
+    }
+    svg_maps(dir, k, &w.avg)?;
     Ok(())
 }
 
@@ -576,6 +972,8 @@ pub struct EnginePoint {
     /// reported alongside, not gated here.
     #[serde(default)]
     pub unified_malt: Option<(f64, f64, f64)>,
+    /// Which force-depth relation K_phi and the unified fit come from.
+    pub fdr_source: String,
 }
 
 /// |phi_test - phi_ref| <= `tol.phi_abs_deg`.
@@ -591,7 +989,7 @@ pub fn phi_check(
         (test.phi_deg - reference.phi_deg).abs(),
         tol.phi_abs_deg,
         format!(
-            "phi: {} {:.2} +- {:.2} deg, {} {:.2} +- {:.2} deg (mean +- sd over snapshots)",
+            "phi: {} {:.2} +- {:.2} deg, {} {:.2} +- {:.2} deg (mean +- sd over depths of the window-averaged phi)",
             test.engine,
             test.phi_deg,
             test.phi_std_deg,
@@ -659,14 +1057,19 @@ pub fn malt_checks(case: &str, tol: &Tolerances, p: &EnginePoint) -> Vec<Check> 
     out
 }
 
-/// Reduces an engine's FDR and phi to its (phi, K_phi) point.
-pub fn engine_point(
+/// One engine's FDR reduced to its observables, with where it came from.
+pub struct FdrObservables {
+    pub obs: Observables,
+    pub source: String,
+}
+
+/// The observables of a single run's force samples (the stress run's own bed).
+pub fn single_bed_fdr(
     case: &PenetrationCase,
-    fields: &EngineFields,
     samples: &[ForceSample],
     surface_z: f64,
     psi: f64,
-) -> Result<EnginePoint> {
+) -> Result<FdrObservables> {
     let mut binner = crate::analysis::fdr::FdrBinner::new(
         &crate::analysis::fdr::Scales {
             rho_g: case.density,
@@ -680,7 +1083,134 @@ pub fn engine_point(
     for s in samples {
         binner.push(s.z_bottom, s.f[2])?;
     }
-    let obs = crate::compare::penetration::observables(case, &binner.fdr())?;
+    Ok(FdrObservables {
+        obs: crate::compare::penetration::observables(case, &binner.fdr())?,
+        source: "bed 0 only (the stress run's own FDR)".into(),
+    })
+}
+
+/// Fields of a case that do not change what the engines ran (analysis settings,
+/// tolerances, metadata); everything else must agree for runs to be reused.
+const ANALYSIS_ONLY: [&str; 12] = [
+    "name",
+    "description",
+    "source",
+    "fit_h_min",
+    "h_bin",
+    "snapshot_h",
+    "snapshot_window",
+    "snapshot_window_h",
+    "tolerances",
+    "quasi_static_speed",
+    "published",
+    "ensemble_beds",
+];
+
+/// Errors unless `stored` describes the same runs as `case` (up to [`ANALYSIS_ONLY`]).
+fn same_runs(case: &PenetrationCase, stored: &PenetrationCase, stored_path: &Path) -> Result<()> {
+    let strip = |c: &PenetrationCase| -> Result<serde_json::Map<String, serde_json::Value>> {
+        let mut v = match serde_json::to_value(c)? {
+            serde_json::Value::Object(m) => m,
+            _ => bail!("a case serialises to an object"),
+        };
+        for k in ANALYSIS_ONLY {
+            v.remove(k);
+        }
+        Ok(v)
+    };
+    let (a, b) = (strip(case)?, strip(stored)?);
+    let differ: Vec<&String> = a.keys().filter(|k| a.get(*k) != b.get(*k)).collect();
+    if !differ.is_empty() {
+        bail!(
+            "{}: ran a different experiment than {} (fields {:?} differ)",
+            stored_path.display(),
+            case.source.display(),
+            differ
+        );
+    }
+    Ok(())
+}
+
+/// Both engines' ensemble-mean FDRs from the per-bed outputs `granval compare` left in
+/// `dir` (the deck-directory layout: `dir/case.toml`, `dir/bed-K/` with the LIGGGHTS
+/// outputs, `dir/bed-K/native/force.csv`). Every bed is reduced as `granval compare`
+/// reduces it (its own surface and psi from `data.bed`); bed 0 must be the bed the
+/// stress run used (`surface_z`, `psi`). Returns (native, LIGGGHTS, notes).
+pub fn ensemble_fdr(
+    case: &PenetrationCase,
+    dir: &Path,
+    surface_z: f64,
+    psi: f64,
+) -> Result<(FdrObservables, FdrObservables, Vec<String>)> {
+    use crate::penetration::deck_dir;
+    let stored_path = dir.join(deck_dir::CASE_FILE);
+    let stored = PenetrationCase::load(&stored_path)
+        .with_context(|| format!("--fdr-from {}", dir.display()))?;
+    same_runs(case, &stored, &stored_path)?;
+    let beds = deck_dir::bed_dirs(dir)?;
+    ensure!(
+        beds.len() == stored.ensemble_beds,
+        "--fdr-from {}: {} bed directories, {} declares ensemble.beds = {}",
+        dir.display(),
+        beds.len(),
+        stored_path.display(),
+        stored.ensemble_beds
+    );
+    let (mut nat, mut lig, mut notes) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, bdir) in beds.iter().enumerate() {
+        let ck = case.realisation(k);
+        let bed = deck_dir::read_bed(&ck, bdir)?;
+        if k == 0 {
+            ensure!(
+                (bed.surface_z - surface_z).abs() <= 1e-12 * surface_z.abs()
+                    && (bed.psi - psi).abs() <= 1e-12,
+                "--fdr-from {}: bed 0 (surface {:e} m, psi {:.6}) is not the bed of the stress run (surface {surface_z:e} m, psi {psi:.6})",
+                bdir.display(),
+                bed.surface_z,
+                bed.psi
+            );
+        }
+        lig.push(
+            deck_dir::reduce_liggghts_dir(&ck, &bed, bdir)
+                .with_context(|| format!("--fdr-from: bed {k}"))?
+                .fdr,
+        );
+        let np = bdir.join("native").join("force.csv");
+        let samples = crate::penetration::read_force_csv(&np)
+            .with_context(|| format!("--fdr-from: native run of bed {k}"))?;
+        ensure!(!samples.is_empty(), "{}: no force samples", np.display());
+        let mut b = crate::penetration::binner(&ck, &bed)?;
+        for s in &samples {
+            b.push(s.z_bottom, s.f[2])?;
+        }
+        nat.push(b.fdr());
+        notes.push(format!(
+            "FDR bed {k}: {} (psi {:.4}), LIGGGHTS outputs and {}",
+            bdir.display(),
+            bed.psi,
+            np.display()
+        ));
+    }
+    let obs = |fdrs: &[crate::analysis::fdr::Fdr]| -> Result<FdrObservables> {
+        let o = crate::compare::penetration::ensemble(case, &fdrs.iter().collect::<Vec<_>>())?;
+        let source = format!(
+            "mean FDR of {} beds in {} (single beds K_phi {:?})",
+            fdrs.len(),
+            dir.display(),
+            o.members
+                .iter()
+                .map(|m| (m.0 * 100.0).round() / 100.0)
+                .collect::<Vec<_>>()
+        );
+        Ok(FdrObservables { obs: o, source })
+    };
+    Ok((obs(&nat)?, obs(&lig)?, notes))
+}
+
+/// An engine's (phi, K_phi) point: phi from its stress fields, K_phi and the unified
+/// fit (eqs 13-15, with that phi) from the given FDR.
+pub fn engine_point(fields: &EngineFields, fdr: &FdrObservables) -> EnginePoint {
+    let obs = &fdr.obs;
     let unified = if fields.phi_deg.is_finite() {
         let c = obs.fdr.contact_only();
         malt::fit_unified_fdr(&c.h, &c.p, obs.fit.k_phi, fields.phi_deg.to_radians())
@@ -689,7 +1219,7 @@ pub fn engine_point(
     } else {
         Err("phi undefined".to_string())
     };
-    Ok(EnginePoint {
+    EnginePoint {
         engine: fields.engine.clone(),
         phi_deg: fields.phi_deg,
         phi_std_deg: fields.phi_std_deg,
@@ -697,7 +1227,8 @@ pub fn engine_point(
         k_phi_se: obs.fit.se_k,
         unified,
         unified_malt: obs.boundaries.as_ref().map(|b| (b.h_a, b.h_b, b.r2)),
-    })
+        fdr_source: fdr.source.clone(),
+    }
 }
 
 /// Everything `granval stress` produced, also written as `stress.json`.
@@ -712,6 +1243,31 @@ pub struct StressReport {
     pub native_normal_only: EngineFields,
     pub negative_control_check: Check,
     pub checks: Vec<Check>,
+    pub notes: Vec<String>,
+    /// Wall time of the field analysis of both engines and the negative control (s).
+    pub analysis_wall_s: f64,
+}
+
+/// How `granval stress` runs.
+#[derive(Debug, Clone)]
+pub struct StressOptions {
+    /// Re-analyse the snapshots of an earlier run in the output directory.
+    pub reuse: bool,
+    /// Gaussian range w of eq 6 in grain diameters.
+    pub width_over_d: f64,
+    /// A `granval compare` output directory of the same case: K_phi and the unified fit
+    /// on its ensemble-mean FDR instead of the stress run's single bed.
+    pub fdr_from: Option<PathBuf>,
+}
+
+impl Default for StressOptions {
+    fn default() -> Self {
+        StressOptions {
+            reuse: false,
+            width_over_d: DEFAULT_WIDTH_OVER_D,
+            fdr_from: None,
+        }
+    }
 }
 
 /// Runs (or, with `reuse`, re-reads from `out_dir`) both engines with snapshots and
@@ -720,8 +1276,7 @@ pub fn run_case(
     case: &PenetrationCase,
     opts: &crate::pipeline::Options,
     out_dir: &Path,
-    reuse: bool,
-    width_over_d: f64,
+    so: &StressOptions,
 ) -> Result<StressReport> {
     let nd = out_dir.join("native");
     let ld = out_dir.join("liggghts");
@@ -730,8 +1285,8 @@ pub fn run_case(
         d.join("force.csv").exists()
             && snapshot::list(&d.join("snapshots")).is_ok_and(|v| !v.is_empty())
     };
-    if !(reuse && have(&nd) && have(&ld)) {
-        if reuse {
+    if !(so.reuse && have(&nd) && have(&ld)) {
+        if so.reuse {
             eprintln!(
                 "--reuse: no complete earlier run in {}; running both engines",
                 out_dir.display()
@@ -756,7 +1311,7 @@ pub fn run_case(
             crate::engines::output::write_provenance(&d.join("provenance.json"), &r.provenance)?;
         }
     }
-    let m0 = snapshot::read(&nsnap, snapshot::list(&nsnap)?[0])?.meta;
+    let m0 = snapshot::read_meta(&nsnap, snapshot::list(&nsnap)?[0])?;
     // A reused directory must hold a run of this case, not of another one.
     for (what, stored, now) in [
         ("intruder radius", m0.intruder_radius, case.intruder_radius),
@@ -781,6 +1336,37 @@ pub fn run_case(
             );
         }
     }
+    // ... and with this case's windows, identical in both engines.
+    let want = case.snapshot_windows();
+    let nplan = SnapshotPlan::read(&nsnap)?;
+    let lplan = SnapshotPlan::read(&lsnap)?;
+    if nplan != lplan {
+        bail!(
+            "{} and {}: the engines' snapshot plans differ; run without --reuse",
+            nsnap.join(PLAN_FILE).display(),
+            lsnap.join(PLAN_FILE).display()
+        );
+    }
+    let same_windows = nplan.windows.len() == want.len()
+        && nplan
+            .windows
+            .iter()
+            .zip(&want)
+            .all(|(p, w)| (p.h_target - w.h_target).abs() < 1e-9 && p.steps.len() == w.h.len());
+    if !same_windows {
+        bail!(
+            "{}: snapshots were taken in windows {:?} (depth: steps), the case {} asks for depths {:?} with {} snapshots each; run without --reuse",
+            nsnap.display(),
+            nplan
+                .windows
+                .iter()
+                .map(|w| (w.h_target, w.steps.len()))
+                .collect::<Vec<_>>(),
+            case.source.display(),
+            want.iter().map(|w| w.h_target).collect::<Vec<_>>(),
+            case.snapshot_window
+        );
+    }
     // Fresh field outputs: a stale file of an earlier run with more snapshots must not
     // survive next to the new ones.
     for d in [nd.join("fields"), ld.join("fields")] {
@@ -788,7 +1374,8 @@ pub fn run_case(
             std::fs::remove_dir_all(&d).with_context(|| format!("cannot clear {}", d.display()))?;
         }
     }
-    let w = width_over_d;
+    let t_analysis = std::time::Instant::now();
+    let w = so.width_over_d;
     let nf = analyse_engine("native", &nsnap, Some(&nd.join("fields")), Forces::Full, w)?;
     let lf = analyse_engine(
         "liggghts",
@@ -804,9 +1391,38 @@ pub fn run_case(
         Forces::NormalOnly,
         w,
     )?;
-    let read = |d: &Path| crate::penetration::read_force_csv(&d.join("force.csv"));
-    let np = engine_point(case, &nf, &read(&nd)?, m0.surface_z, m0.psi)?;
-    let lp = engine_point(case, &lf, &read(&ld)?, m0.surface_z, m0.psi)?;
+    let analysis_wall_s = t_analysis.elapsed().as_secs_f64();
+    let mut notes = vec![format!(
+        "phi per engine: mean +- sd over {} depths of the phi of {}-snapshot windows averaged in the intruder's frame (span {:.4} R of travel); instantaneous phi over all {} snapshots: native {:.2} +- {:.2} deg, LIGGGHTS {:.2} +- {:.2} deg",
+        nplan.windows.len(),
+        case.snapshot_window,
+        case.snapshot_window_h,
+        nplan.steps.len(),
+        nf.phi_instant_deg,
+        nf.phi_instant_std_deg,
+        lf.phi_instant_deg,
+        lf.phi_instant_std_deg
+    )];
+    let (nfdr, lfdr) = match &so.fdr_from {
+        Some(dir) => {
+            let (a, b, n) = ensemble_fdr(case, dir, m0.surface_z, m0.psi)?;
+            notes.extend(n);
+            (a, b)
+        }
+        None => {
+            let read = |d: &Path| crate::penetration::read_force_csv(&d.join("force.csv"));
+            notes.push(
+                "K_phi and the unified fit (eqs 13-15) on the FDR of the stress run's single bed (bed 0): no --fdr-from COMPARE_DIR given, so the ensemble-mean FDR of the case's beds was not used"
+                    .into(),
+            );
+            (
+                single_bed_fdr(case, &read(&nd)?, m0.surface_z, m0.psi)?,
+                single_bed_fdr(case, &read(&ld)?, m0.surface_z, m0.psi)?,
+            )
+        }
+    };
+    let np = engine_point(&nf, &nfdr);
+    let lp = engine_point(&lf, &lfdr);
     let mut checks = vec![phi_check(&case.name, &case.tolerances, &np, &lp)];
     checks.extend(malt_checks(&case.name, &case.tolerances, &np));
     checks.extend(malt_checks(&case.name, &case.tolerances, &lp));
@@ -818,6 +1434,7 @@ pub fn run_case(
         k_phi_se: np.k_phi_se,
         unified: Err("not fitted (negative control)".into()),
         unified_malt: None,
+        fdr_source: np.fdr_source.clone(),
     };
     let negative_control_check = phi_check(&case.name, &case.tolerances, &negp, &lp);
     let curve: Vec<(f64, f64)> = malt::table(45.0, 0.5)?
@@ -852,26 +1469,7 @@ pub fn run_case(
             },
         ],
     )?;
-    let mut w = std::io::BufWriter::new(std::fs::File::create(out_dir.join("phi_snapshots.csv"))?);
-    writeln!(
-        w,
-        "engine,k,step,h,phi_basic_deg,gamma_max_basic,n_top_basic,n_cells,phi_kernel_deg,stagnant_height_over_R,yield_cells"
-    )?;
-    for e in [&nf, &lf, &neg] {
-        for s in &e.snapshots {
-            let pb = s.phi_basic.map_or(f64::NAN, |p| p.phi_deg);
-            let gm = s.phi_basic.map_or(f64::NAN, |p| p.gamma_max);
-            let nt = s.phi_basic.map_or(0, |p| p.n_top);
-            let nc = s.phi_basic.map_or(0, |p| p.n_cells);
-            let pk = s.phi_kernel.map_or(f64::NAN, |p| p.phi_deg);
-            writeln!(
-                w,
-                "{},{},{},{:e},{:e},{:e},{},{},{:e},{:e},{}",
-                e.engine, s.k, s.step, s.h, pb, gm, nt, nc, pk, s.stagnant_height, s.yield_cells
-            )?;
-        }
-    }
-    w.flush()?;
+    write_phi_csv(&out_dir.join("phi_snapshots.csv"), &[&nf, &lf, &neg])?;
     let report = StressReport {
         case: case.name.clone(),
         native: nf,
@@ -881,12 +1479,77 @@ pub fn run_case(
         native_normal_only: neg,
         negative_control_check,
         checks,
+        notes,
+        analysis_wall_s,
     };
     std::fs::write(
         out_dir.join("stress.json"),
         serde_json::to_string_pretty(&report)?,
     )?;
     Ok(report)
+}
+
+/// `phi_snapshots.csv`: one row per instantaneous snapshot (`kind` = instantaneous) and
+/// one per window average (`kind` = window, `k` empty, `step` the middle snapshot's).
+fn write_phi_csv(path: &Path, engines: &[&EngineFields]) -> Result<()> {
+    let mut w = std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
+    );
+    writeln!(
+        w,
+        "engine,window,h_target,kind,k,step,h,phi_basic_deg,gamma_max_basic,n_top_basic,n_cells,phi_kernel_deg,stagnant_height_over_R,yield_cells"
+    )?;
+    let row = |w: &mut std::io::BufWriter<std::fs::File>,
+               prefix: &str,
+               step: u64,
+               h: f64,
+               pb: Option<stress::PhiEstimate>,
+               pk: Option<stress::PhiEstimate>,
+               sh: f64,
+               yc: usize|
+     -> Result<()> {
+        writeln!(
+            w,
+            "{prefix},{step},{h:e},{:e},{:e},{},{},{:e},{sh:e},{yc}",
+            pb.map_or(f64::NAN, |p| p.phi_deg),
+            pb.map_or(f64::NAN, |p| p.gamma_max),
+            pb.map_or(0, |p| p.n_top),
+            pb.map_or(0, |p| p.n_cells),
+            pk.map_or(f64::NAN, |p| p.phi_deg),
+        )?;
+        Ok(())
+    };
+    for e in engines {
+        for win in &e.windows {
+            for s in &win.instantaneous {
+                row(
+                    &mut w,
+                    &format!(
+                        "{},{},{:e},instantaneous,{}",
+                        e.engine, win.window, win.h_target, s.k
+                    ),
+                    s.step,
+                    s.h,
+                    s.phi_basic,
+                    s.phi_kernel,
+                    s.stagnant_height,
+                    s.yield_cells,
+                )?;
+            }
+            row(
+                &mut w,
+                &format!("{},{},{:e},window,", e.engine, win.window, win.h_target),
+                win.steps[win.steps.len() / 2],
+                win.h,
+                win.phi_basic,
+                win.phi_kernel,
+                win.stagnant_height,
+                win.yield_cells,
+            )?;
+        }
+    }
+    w.flush()?;
+    Ok(())
 }
 
 /// Output paths of [`run_case`] (for the CLI's summary).

@@ -297,6 +297,11 @@ fn tiny_case() -> PenetrationCase {
 }
 
 fn tiny_case_with(intruder_diameter: f64) -> PenetrationCase {
+    tiny_case_text(intruder_diameter, "", "")
+}
+
+/// The tiny case's TOML, `analysis` lines added to `[analysis]` and `tail` appended.
+fn tiny_case_text_raw(intruder_diameter: f64, analysis: &str, tail: &str) -> String {
     let text = r#"
 [case]
 name = "tiny"
@@ -355,38 +360,62 @@ force_every = 10
 [analysis]
 fit_h_min = 0.5
 "#;
-    let text = text.replace("INTRUDER_D", &format!("{intruder_diameter:e}"));
+    text.replace("INTRUDER_D", &format!("{intruder_diameter:e}"))
+        .replace(
+            "fit_h_min = 0.5\n",
+            &format!("fit_h_min = 0.5\n{analysis}\n"),
+        )
+        + tail
+}
+
+fn tiny_case_text(intruder_diameter: f64, analysis: &str, tail: &str) -> PenetrationCase {
+    let text = tiny_case_text_raw(intruder_diameter, analysis, tail);
     PenetrationCase::from_toml_str(&text, Path::new("tiny.toml")).unwrap()
 }
 
-/// Native snapshots on the tiny bed: the snapshot's intruder contacts carry exactly the
-/// force the run records, and every snapshot yields a finite phi; with the tangential
-/// forces dropped phi changes and the engine-comparison check fails (negative control).
+/// Native snapshots on the tiny bed: every window holds `snapshot_window` snapshots at
+/// the steps nearest to its depths; each snapshot's intruder contacts carry exactly the
+/// force the run records; every window yields a finite window-averaged phi with its
+/// instantaneous phis alongside; with the tangential forces dropped the averaged phi
+/// changes and the engine-comparison check fails (negative control).
 #[test]
 fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
     let case = tiny_case();
     assert_eq!(case.snapshot_h, vec![0.24, 0.373, 0.61, 1.0, 1.2]);
+    assert_eq!(case.snapshot_window, 5);
     let bed = granval::penetration::prepare_bed(&case, false).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let snaps = dir.path().join("snapshots");
     let run = stress_fields::run_native(&case, &bed, Default::default(), &snaps, false).unwrap();
     let plan = stress_fields::snapshot_plan(&case, &bed);
-    assert_eq!(snapshot::list(&snaps).unwrap().len(), plan.len());
-    for (k, p) in plan.iter().enumerate() {
+    assert_eq!(stress_fields::SnapshotPlan::read(&snaps).unwrap(), plan);
+    assert_eq!(snapshot::list(&snaps).unwrap().len(), plan.steps.len());
+    let windows = case.snapshot_windows();
+    assert_eq!(plan.windows.len(), windows.len());
+    let travel = case.speed * case.dt / case.intruder_radius;
+    for (w, want) in plan.windows.iter().zip(&windows) {
+        assert_eq!(w.steps.len(), case.snapshot_window, "{w:?}");
+        for (&step, &h) in w.steps.iter().zip(&want.h) {
+            let s = snapshot::read(&snaps, plan.index_of(step).unwrap()).unwrap();
+            assert_eq!(s.meta.step, step);
+            // The nearest step: within half a step of travel (the last one: the run's end,
+            // within one step).
+            assert!(
+                (s.meta.h - h).abs() <= travel + 1e-12,
+                "h {} vs {h} (step {step})",
+                s.meta.h
+            );
+        }
+    }
+    for (k, &step) in plan.steps.iter().enumerate() {
         let s = snapshot::read(&snaps, k).unwrap();
-        assert_eq!(s.meta.step, p.step);
-        assert!(
-            (s.meta.h - p.h_target).abs() < 0.01,
-            "h {} vs {}",
-            s.meta.h,
-            p.h_target
-        );
+        assert_eq!(s.meta.step, step);
         // Reaction of the intruder contacts = the recorded intruder force, exactly.
-        if p.step % case.force_every == 0 {
+        if step % case.force_every == 0 {
             let sample = run
                 .samples
                 .iter()
-                .find(|x| (x.t / case.dt).round() as u64 == p.step)
+                .find(|x| (x.t / case.dt).round() as u64 == step)
                 .unwrap();
             let mut sum = [0.0; 3];
             for c in s
@@ -401,8 +430,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
             for a in 0..3 {
                 assert!(
                     (sum[a] - sample.f[a]).abs() <= 1e-12 * sample.f[2].abs().max(1e-9),
-                    "step {}: {sum:?} vs {:?}",
-                    p.step,
+                    "step {step}: {sum:?} vs {:?}",
                     sample.f
                 );
             }
@@ -424,38 +452,50 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         0.5,
     )
     .unwrap();
-    for s in &full.snapshots {
-        let p = s.phi_basic.expect("phi from eq 9");
+    assert_eq!(full.windows.len(), plan.windows.len());
+    for w in &full.windows {
+        let p = w.phi_basic.expect("window-averaged phi from eq 9");
         assert!(
             p.phi_deg.is_finite() && p.phi_deg > 0.0 && p.n_cells > 0,
-            "{s:?}"
+            "{w:?}"
         );
-        assert!(s.phi_kernel.is_some());
+        assert!(w.phi_kernel.is_some());
+        assert_eq!(w.instantaneous.len(), case.snapshot_window);
+        assert_eq!(
+            w.instantaneous.iter().map(|s| s.step).collect::<Vec<_>>(),
+            w.steps
+        );
+        // The average lies between the window's (shifted) snapshots.
+        let lo = w
+            .instantaneous
+            .iter()
+            .map(|s| s.h)
+            .fold(f64::INFINITY, f64::min);
+        let hi = w.instantaneous.iter().map(|s| s.h).fold(0.0, f64::max);
+        assert!(w.h > lo && w.h < hi, "{} not in ({lo}, {hi})", w.h);
     }
+    assert!(full.phi_instant_deg.is_finite());
     assert!(dir.path().join("fields/gamma_04.svg").exists());
     assert!(dir.path().join("fields/fields_04.vtk").exists());
     assert!(dir.path().join("fields/fields_04_rz.csv").exists());
+    // Outputs are per window, not per snapshot.
+    assert!(!dir.path().join("fields/fields_05_rz.csv").exists());
     let normal =
         stress_fields::analyse_engine("native-normal", &snaps, None, Forces::NormalOnly, 0.5)
             .unwrap();
     eprintln!(
-        "tiny bed: phi full {:.2} +- {:.2} deg (kernel {:.2}), normal forces only {:.2} +- {:.2} deg (kernel {:.2})",
+        "tiny bed, window-averaged: phi full {:.2} +- {:.2} deg (kernel {:.2}), normal forces only {:.2} +- {:.2} deg (kernel {:.2}); instantaneous: full {:.2} +- {:.2}, normal only {:.2} +- {:.2}",
         full.phi_deg,
         full.phi_std_deg,
         full.phi_kernel_deg,
         normal.phi_deg,
         normal.phi_std_deg,
-        normal.phi_kernel_deg
+        normal.phi_kernel_deg,
+        full.phi_instant_deg,
+        full.phi_instant_std_deg,
+        normal.phi_instant_deg,
+        normal.phi_instant_std_deg
     );
-    let point = |f: &stress_fields::EngineFields| EnginePoint {
-        engine: f.engine.clone(),
-        phi_deg: f.phi_deg,
-        phi_std_deg: f.phi_std_deg,
-        k_phi: 10.0,
-        k_phi_se: 0.0,
-        unified: Err("n/a".into()),
-        unified_malt: None,
-    };
     let tol = &case.tolerances;
     let same = stress_fields::phi_check("tiny", tol, &point(&full), &point(&full));
     assert!(same.passed && same.value == 0.0);
@@ -464,6 +504,19 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         !neg.passed,
         "dropping tangential forces must fail the phi check: {neg:?}"
     );
+}
+
+fn point(f: &stress_fields::EngineFields) -> EnginePoint {
+    EnginePoint {
+        engine: f.engine.clone(),
+        phi_deg: f.phi_deg,
+        phi_std_deg: f.phi_std_deg,
+        k_phi: 10.0,
+        k_phi_se: 0.0,
+        unified: Err("n/a".into()),
+        unified_malt: None,
+        fdr_source: "n/a".into(),
+    }
 }
 
 /// One settled bed read by both engines, 0 steps, the intruder placed 1.5 mm into the
@@ -639,10 +692,11 @@ fn snapshot_depths_and_stress_tolerances_are_validated() {
         "\n[compare]\nphi_abs_deg = 2.0\n",
     )
     .unwrap();
-    assert_eq!(ok.snapshot_h, vec![0.5, 1.2, 1.5]);
+    // ci.toml: R = 8 mm, final depth 20 mm, h_final = 2.5.
+    assert_eq!(ok.snapshot_h, vec![0.5, 1.2, 2.5]);
     assert_eq!(ok.tolerances.phi_abs_deg, 2.0);
     for (extra, field, value) in [
-        ("snapshot_h = [0.5, 1.6]", "analysis.snapshot_h[1]", "1.6"),
+        ("snapshot_h = [0.5, 2.6]", "analysis.snapshot_h[1]", "2.6"),
         ("snapshot_h = [0.5, 0.4]", "analysis.snapshot_h[1]", "0.4"),
         ("snapshot_h = [-0.1]", "analysis.snapshot_h[0]", "-0.1"),
     ] {
@@ -667,6 +721,90 @@ fn snapshot_depths_and_stress_tolerances_are_validated() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("phi_tol"), "{e}");
+    // The default windows fit every shipped penetration case.
+    for e in
+        std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/penetration")).unwrap()
+    {
+        let p = e.unwrap().path();
+        let c = PenetrationCase::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        assert_eq!(c.snapshot_windows().len(), c.snapshot_h.len());
+    }
+    // Windows: defaults 5 snapshots over one grain diameter of travel (d / R = 0.25).
+    let ci = load("", "").unwrap();
+    assert_eq!((ci.snapshot_window, ci.snapshot_window_h), (5, 0.25));
+    let w = load("snapshot_window = 3\nsnapshot_window_h = 0.1", "").unwrap();
+    assert_eq!((w.snapshot_window, w.snapshot_window_h), (3, 0.1));
+    for (extra, field, value, why) in [
+        (
+            "snapshot_window = 0",
+            "analysis.snapshot_window",
+            "0",
+            ">= 1",
+        ),
+        (
+            "snapshot_window_h = -0.1",
+            "analysis.snapshot_window_h",
+            "-0.1",
+            "",
+        ),
+        (
+            "snapshot_window_h = 2.5",
+            "analysis.snapshot_window_h",
+            "2.5",
+            "shorter than the whole travel",
+        ),
+        // 0.25 R = 2 mm of travel at 0.6 um per step: 3334 steps; 4000 snapshots cannot
+        // be distinct steps.
+        (
+            "snapshot_window = 4000",
+            "analysis.snapshot_window",
+            "4000",
+            "less than one time step",
+        ),
+        ("snapshot_window = 2.5", "snapshot_window", "2.5", ""),
+    ] {
+        let e = load(extra, "").unwrap_err().to_string();
+        assert!(
+            e.contains("ci.toml") && e.contains(field) && e.contains(value) && e.contains(why),
+            "{extra}: {e}"
+        );
+    }
+}
+
+/// Where the windows' snapshots go: centred on the requested depth, evenly spaced, an
+/// odd count hitting the depth itself; the final window ends at the final depth; a
+/// window reaching h <= 0 is cut there; one snapshot per window = the requested depths.
+#[test]
+fn snapshot_windows_are_centred_and_clipped() {
+    use granval::case::penetration::snapshot_windows;
+    let close = |a: &[f64], b: &[f64]| {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
+    };
+    let w = snapshot_windows(&[0.24, 1.0, 1.5], 1.5, 5, 0.25);
+    assert!(
+        close(&w[0].h, &[0.115, 0.1775, 0.24, 0.3025, 0.365]),
+        "{w:?}"
+    );
+    assert!(
+        close(&w[1].h, &[0.875, 0.9375, 1.0, 1.0625, 1.125]),
+        "{w:?}"
+    );
+    // The final window ends exactly at h_final: [h_final - span / 2, h_final].
+    assert!(
+        close(&w[2].h, &[1.375, 1.40625, 1.4375, 1.46875, 1.5]),
+        "{w:?}"
+    );
+    assert_eq!(*w[2].h.last().unwrap(), 1.5);
+    // Reaching below the surface: spread over (0, upper end].
+    let w = snapshot_windows(&[0.1], 1.5, 4, 0.4);
+    assert!(close(&w[0].h, &[0.075, 0.15, 0.225, 0.3]), "{w:?}");
+    // One snapshot per window: the requested depths, nothing else.
+    let w = snapshot_windows(&[0.24, 0.61, 1.5], 1.5, 1, 0.25);
+    assert_eq!(
+        w.iter().map(|w| w.h.clone()).collect::<Vec<_>>(),
+        vec![vec![0.24], vec![0.61], vec![1.5]]
+    );
+    assert_eq!(w[1].h_target, 0.61);
 }
 
 /// The MALT checks pass for Table 3's own point and fail off the curve; the unified-fit
@@ -682,6 +820,7 @@ fn malt_checks_pass_on_the_curve_and_fail_off_it() {
         k_phi_se: 0.0,
         unified,
         unified_malt: None,
+        fdr_source: "test".into(),
     };
     let on = stress_fields::malt_checks("c", tol, &point(25.94, 23.0, Ok((0.16, 0.61, 0.999))));
     assert_eq!(on.len(), 3);
@@ -713,25 +852,51 @@ fn malt_md_derived_values() {
     }
 }
 
-/// `granval stress` end to end on the tiny bed (live LIGGGHTS): both engines'
-/// snapshots at the same steps, finite phi from each, every gated check present with a
-/// finite value, the outputs written; `--reuse` re-analyses to the same numbers.
+/// `granval stress` end to end on the tiny bed (live LIGGGHTS): both engines take
+/// `snapshot_window` snapshots per depth at identical steps, finite phi from each, every
+/// gated check present with a finite value, the outputs written; `--fdr-from` a
+/// `granval compare` directory of the same case (2 beds) fits K_phi and the unified FDR
+/// on the ensemble mean; `--reuse` without it re-analyses to the same phi, on bed 0's
+/// FDR with a note saying so.
 #[test]
 fn stress_pipeline_end_to_end_on_a_tiny_bed() {
     if granval::engines::liggghts::installed_version("liggghts").is_none() {
         eprintln!("LIGGGHTS not installed: stress pipeline end to end skipped");
         return;
     }
-    let case = tiny_case();
+    let case = tiny_case_text(0.010, "", "\n[ensemble]\nbeds = 2\n");
     let dir = tempfile::tempdir().unwrap();
     let opts = granval::pipeline::Options {
         mpi_procs: 1,
         ..Default::default()
     };
-    let rep = stress_fields::run_case(&case, &opts, dir.path(), false, 0.5).unwrap();
-    let n_plan = case.snapshot_h.len();
+    // The case file must exist for `granval compare` (it copies it into its output).
+    let case_file = dir.path().join("tiny.toml");
+    std::fs::write(
+        &case_file,
+        tiny_case_text_raw(0.010, "", "\n[ensemble]\nbeds = 2\n"),
+    )
+    .unwrap();
+    let case = granval::case::penetration::PenetrationCase {
+        source: case_file.clone(),
+        ..case
+    };
+    let cmp = dir.path().join("compare");
+    let res = granval::penetration::ensemble::compare_case(&case, &opts, &cmp);
+    assert!(!res.errored, "{:?}", res.checks);
+    let out = dir.path().join("stress");
+    let so = stress_fields::StressOptions {
+        fdr_from: Some(cmp.clone()),
+        ..Default::default()
+    };
+    let rep = stress_fields::run_case(&case, &opts, &out, &so).unwrap();
+    let n_windows = case.snapshot_h.len();
     for e in [&rep.native, &rep.liggghts] {
-        assert_eq!(e.snapshots.len(), n_plan, "{}", e.engine);
+        assert_eq!(e.windows.len(), n_windows, "{}", e.engine);
+        for w in &e.windows {
+            assert_eq!(w.steps.len(), case.snapshot_window, "{}: {w:?}", e.engine);
+            assert_eq!(w.instantaneous.len(), case.snapshot_window);
+        }
         assert!(
             e.phi_deg.is_finite() && e.phi_deg > 0.0,
             "{}: {}",
@@ -739,9 +904,26 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
             e.phi_deg
         );
     }
-    let steps =
-        |e: &stress_fields::EngineFields| e.snapshots.iter().map(|s| s.step).collect::<Vec<_>>();
+    let steps = |e: &stress_fields::EngineFields| {
+        e.windows
+            .iter()
+            .map(|w| w.steps.clone())
+            .collect::<Vec<_>>()
+    };
     assert_eq!(steps(&rep.native), steps(&rep.liggghts));
+    // LIGGGHTS really wrote every planned step (not just the plan file).
+    let plan = stress_fields::SnapshotPlan::read(&out.join("liggghts/snapshots")).unwrap();
+    for (k, &step) in plan.steps.iter().enumerate() {
+        assert_eq!(
+            snapshot::read_meta(&out.join("liggghts/snapshots"), k)
+                .unwrap()
+                .step,
+            step
+        );
+        assert!(
+            granval::engines::liggghts::snapshot::pair_file(&out.join("liggghts"), step).exists()
+        );
+    }
     let names: Vec<&str> = rep.checks.iter().map(|c| c.name.as_str()).collect();
     for want in [
         "tiny: phi native vs liggghts",
@@ -758,13 +940,38 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
             .filter(|c| c.metric != "error")
             .all(|c| c.value.is_finite())
     );
+    // Negative control with the window-averaged estimator: native stress without
+    // tangential forces against LIGGGHTS must fail the phi check.
+    assert!(
+        !rep.negative_control_check.passed,
+        "{:?}",
+        rep.negative_control_check
+    );
+    for p in [&rep.native_point, &rep.liggghts_point] {
+        assert!(
+            p.fdr_source.contains("mean FDR of 2 beds"),
+            "{}",
+            p.fdr_source
+        );
+    }
     eprintln!(
-        "tiny bed: phi native {:.2} +- {:.2}, LIGGGHTS {:.2} +- {:.2}, normal-only {:.2}",
+        "tiny bed: phi native {:.2} +- {:.2} (instantaneous {:.2} +- {:.2}), LIGGGHTS {:.2} +- {:.2} (instantaneous {:.2} +- {:.2}), normal-only {:.2}; negative control {:?}; K_phi native {:.2}, LIGGGHTS {:.2} ({})",
         rep.native.phi_deg,
         rep.native.phi_std_deg,
+        rep.native.phi_instant_deg,
+        rep.native.phi_instant_std_deg,
         rep.liggghts.phi_deg,
         rep.liggghts.phi_std_deg,
-        rep.native_normal_only.phi_deg
+        rep.liggghts.phi_instant_deg,
+        rep.liggghts.phi_instant_std_deg,
+        rep.native_normal_only.phi_deg,
+        (
+            rep.negative_control_check.value,
+            rep.negative_control_check.passed
+        ),
+        rep.native_point.k_phi,
+        rep.liggghts_point.k_phi,
+        rep.native_point.fdr_source
     );
     for f in [
         "stress.json",
@@ -773,8 +980,16 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
         "native/force.csv",
         "liggghts/force.csv",
     ] {
-        assert!(dir.path().join(f).exists(), "{f} not written");
+        assert!(out.join(f).exists(), "{f} not written");
     }
+    let csv = std::fs::read_to_string(out.join("phi_snapshots.csv")).unwrap();
+    let rows = |kind: &str| csv.lines().skip(1).filter(|l| l.contains(kind)).count();
+    // native, LIGGGHTS and the negative control.
+    assert_eq!(rows(",window,"), 3 * n_windows);
+    assert_eq!(
+        rows(",instantaneous,"),
+        3 * n_windows * case.snapshot_window
+    );
     for e in ["native", "liggghts"] {
         for f in [
             "gamma_00.svg",
@@ -783,13 +998,263 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
             "fields_00_rz.csv",
             "fields_00_3d.csv",
         ] {
-            assert!(
-                dir.path().join(e).join("fields").join(f).exists(),
-                "{e}/{f}"
-            );
+            assert!(out.join(e).join("fields").join(f).exists(), "{e}/{f}");
         }
     }
-    let again = stress_fields::run_case(&case, &opts, dir.path(), true, 0.5).unwrap();
+    let again = stress_fields::run_case(
+        &case,
+        &opts,
+        &out,
+        &stress_fields::StressOptions {
+            reuse: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     assert_eq!(again.native.phi_deg, rep.native.phi_deg);
     assert_eq!(again.liggghts.phi_deg, rep.liggghts.phi_deg);
+    assert!(again.native_point.fdr_source.contains("bed 0 only"));
+    assert!(again.notes.iter().any(|n| n.contains("no --fdr-from")));
+    // --reuse refuses snapshots taken with other windows.
+    let other = granval::case::penetration::PenetrationCase {
+        snapshot_window: 3,
+        ..case.clone()
+    };
+    let e = stress_fields::run_case(
+        &other,
+        &opts,
+        &out,
+        &stress_fields::StressOptions {
+            reuse: true,
+            ..Default::default()
+        },
+    )
+    .expect_err("other windows must be refused")
+    .to_string();
+    assert!(
+        e.contains("windows") && e.contains("without --reuse"),
+        "{e}"
+    );
+    // --fdr-from refuses a directory of another experiment.
+    let mut changed = case.clone();
+    changed.speed *= 2.0;
+    let e = stress_fields::ensemble_fdr(&changed, &cmp, 0.0, 0.0)
+        .err()
+        .expect("another experiment must be refused")
+        .to_string();
+    assert!(
+        e.contains("different experiment") && e.contains("speed"),
+        "{e}"
+    );
+}
+
+/// A lattice bed around the z axis under the stress `SIGMA` scaled by (1 + z / 5 mm)
+/// (a field that varies along z, so a lab-frame average of translated copies differs
+/// from each copy), with an intruder face at 30 mm; everything shifted up by `dz`.
+fn bed_snapshot(dz: f64, step: u64) -> Snapshot {
+    let d = 2e-3;
+    let n = 14;
+    let mut s = lattice(n, d, SIGMA, [0.0, 0.0, -0.01]);
+    // Off the 3D output grid's planes (spacing d from -16 mm): a grid point exactly at
+    // the kernel cutoff from a site would make round-off decide whether it counts.
+    let c = 6.5 * d + 0.31e-3;
+    let z0 = 8e-3 + 0.23e-3;
+    let scale = |z: f64| 1.0 + (z - z0) / 5e-3;
+    let shift = |x: &mut [f64; 3]| {
+        x[0] -= c;
+        x[1] -= c;
+        x[2] += z0 + dz;
+    };
+    for g in &mut s.grains {
+        shift(&mut g.x);
+    }
+    for k in &mut s.contacts {
+        shift(&mut k.xi);
+        shift(&mut k.point);
+        let f = scale(k.point[2] - dz);
+        for a in 0..3 {
+            k.force[a] *= f;
+        }
+    }
+    s.meta = SnapshotMeta {
+        engine: "synthetic".into(),
+        step,
+        t: step as f64 * 1e-5,
+        h: 0.0,
+        intruder_bottom_z: 30e-3 + dz,
+        intruder_radius: 5e-3,
+        intruder_vz: -0.02,
+        surface_z: 36e-3,
+        container_radius: 16e-3,
+        floor_z: 0.0,
+        density: 2500.0,
+        psi: 0.5,
+        mean_diameter: d,
+    };
+    s
+}
+
+/// NaN-aware bitwise equality of two float slices.
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
+fn rz_values(f: &granval::analysis::coarse_grain::RzField, nz: usize) -> Vec<Vec<f64>> {
+    let n = f.nr * nz;
+    let mut out = vec![
+        f.solid_fraction[..n].to_vec(),
+        f.grains_in_basic[..n].to_vec(),
+    ];
+    for q in 0..3 {
+        out.push(f.velocity[..n].iter().map(|v| v[q]).collect());
+    }
+    for q in 0..6 {
+        out.push(f.stress_basic[..n].iter().map(|s| s[q]).collect());
+        out.push(f.stress_kernel[..n].iter().map(|s| s[q]).collect());
+    }
+    out
+}
+
+/// Averaging N identical snapshots reproduces the single snapshot's fields and analysis
+/// exactly (bit for bit), in both frames, on the (r, z) plane and the 3D grid.
+#[test]
+fn averaging_identical_snapshots_is_exact() {
+    let s = bed_snapshot(0.0, 100);
+    let one = stress_fields::window_fields(
+        std::slice::from_ref(&s),
+        &[0],
+        0.5,
+        stress_fields::Frame::Intruder,
+        true,
+    )
+    .unwrap();
+    let five: Vec<Snapshot> = (0..5).map(|_| s.clone()).collect();
+    for frame in [stress_fields::Frame::Intruder, stress_fields::Frame::Lab] {
+        let avg = stress_fields::window_fields(&five, &[0, 1, 2, 3, 4], 0.5, frame, true).unwrap();
+        assert_eq!(avg.shifts, vec![0.0; 5]);
+        let (a, b) = (&avg.avg, &one.avg);
+        assert_eq!((a.rz.nr, a.rz.nz, a.rz.z0), (b.rz.nr, b.rz.nz, b.rz.z0));
+        for (x, y) in rz_values(&a.rz, a.rz.nz)
+            .iter()
+            .zip(&rz_values(&b.rz, b.rz.nz))
+        {
+            assert!(same_bits(x, y));
+        }
+        assert_eq!(a.mask, b.mask);
+        assert_eq!(a.analysis.gamma_basic, b.analysis.gamma_basic);
+        assert_eq!(a.analysis.gamma_kernel, b.analysis.gamma_kernel);
+        assert_eq!(a.analysis.phi_basic, b.analysis.phi_basic);
+        assert_eq!(a.analysis.phi_kernel, b.analysis.phi_kernel);
+        assert_eq!(a.analysis.stagnant, b.analysis.stagnant);
+        assert_eq!(a.snap_meta.intruder_bottom_z, b.snap_meta.intruder_bottom_z);
+        let p = a.analysis.phi_basic.as_ref().unwrap();
+        assert!(p.phi_deg > 0.0 && p.n_cells > 10, "{p:?}");
+        // Each instantaneous estimate is the single snapshot's.
+        for i in &avg.instantaneous {
+            assert_eq!(i.phi_basic, one.instantaneous[0].phi_basic);
+        }
+        let (ga, gb) = (
+            &avg.grid3.as_ref().unwrap().1,
+            &one.grid3.as_ref().unwrap().1,
+        );
+        assert_eq!(ga.len(), gb.len());
+        let flat = |g: &[granval::analysis::coarse_grain::PointFields]| -> Vec<f64> {
+            g.iter()
+                .flat_map(|p| {
+                    let mut v = vec![p.solid_fraction, p.grains_in_basic as f64];
+                    v.extend(p.velocity);
+                    v.extend(p.stress_basic);
+                    v.extend(p.stress_kernel);
+                    v
+                })
+                .collect()
+        };
+        assert!(same_bits(&flat(ga), &flat(gb)));
+    }
+}
+
+/// The frame shift: five copies of a bed translated with the intruder (by -2..2 times
+/// 0.37 grain diameters, not a lattice period) average, in the intruder's frame, to the
+/// untranslated bed's own fields (to round-off); averaged in the lab frame they do not.
+#[test]
+fn a_field_translated_with_the_intruder_averages_to_itself() {
+    let d = 2e-3;
+    let step = 0.37 * d;
+    let snaps: Vec<Snapshot> = (0..5)
+        .map(|j| bed_snapshot((j as f64 - 2.0) * step, 100 + j as u64))
+        .collect();
+    let reference = stress_fields::window_fields(
+        &snaps[2..3],
+        &[2],
+        0.5,
+        stress_fields::Frame::Intruder,
+        true,
+    )
+    .unwrap();
+    let nz = reference.avg.rz.nz;
+    let want = rz_values(&reference.avg.rz, nz);
+    let err = |frame| {
+        let w = stress_fields::window_fields(&snaps, &[0, 1, 2, 3, 4], 0.5, frame, true).unwrap();
+        assert!(w.avg.rz.nz >= nz);
+        assert_eq!(w.avg.rz.z0, reference.avg.rz.z0);
+        let got = rz_values(&w.avg.rz, nz);
+        // Largest difference relative to each quantity's largest magnitude, over the
+        // cells with material (the solid fraction above the mask threshold).
+        // Quantities: 0 solid fraction, 1 grains in the basic sphere, 2-4 velocity,
+        // 5.. stress (basic and kernel interleaved); a component is compared against the
+        // largest magnitude of its group (structurally zero components like sigma_rt
+        // are round-off, so their own maximum is no scale).
+        let group = |q: usize| match q {
+            0 => 0,
+            1 => 1,
+            2..=4 => 2,
+            q => 3 + (q - 5) % 2,
+        };
+        let mut scale = [0.0f64; 5];
+        for (q, r) in want.iter().enumerate() {
+            for x in r.iter().filter(|x| x.is_finite()) {
+                scale[group(q)] = scale[group(q)].max(x.abs());
+            }
+        }
+        let mut worst: f64 = 0.0;
+        for (q, (g, r)) in got.iter().zip(&want).enumerate() {
+            for c in 0..g.len() {
+                if want[0][c] < w.avg.mask.min_solid_fraction {
+                    continue;
+                }
+                worst = worst.max((g[c] - r[c]).abs() / scale[group(q)]);
+            }
+        }
+        (w, worst)
+    };
+    let (w, moving) = err(stress_fields::Frame::Intruder);
+    assert!(
+        w.shifts
+            .iter()
+            .zip([-2.0, -1.0, 0.0, 1.0, 2.0])
+            .all(|(s, j)| (s - j * step).abs() < 1e-15),
+        "{:?}",
+        w.shifts
+    );
+    assert!((w.avg.snap_meta.intruder_bottom_z - 30e-3).abs() < 1e-15);
+    assert!(
+        moving < 1e-9,
+        "intruder frame: worst relative difference {moving:e}"
+    );
+    let (_, fixed) = err(stress_fields::Frame::Lab);
+    eprintln!("translated copies: intruder frame {moving:.1e}, lab frame {fixed:.1e}");
+    assert!(fixed > 1e-2, "lab frame: {fixed:e}");
+    // The averaged mask keeps only cells above the floor limit in every copy.
+    assert!((w.avg.mask.z_min - (reference.avg.mask.z_min + 2.0 * step)).abs() < 1e-15);
+    // The 3D grid too.
+    let g_ref = &reference.grid3.as_ref().unwrap().1;
+    let g_avg = &w.grid3.as_ref().unwrap().1;
+    let smax = g_ref
+        .iter()
+        .map(|p| p.stress_kernel[2].abs())
+        .fold(0.0, f64::max);
+    for (a, b) in g_avg.iter().zip(g_ref) {
+        assert!((a.stress_kernel[2] - b.stress_kernel[2]).abs() < 1e-9 * smax);
+        assert!((a.solid_fraction - b.solid_fraction).abs() < 1e-9);
+    }
 }

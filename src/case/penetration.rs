@@ -180,6 +180,60 @@ struct Analysis {
     /// keeps only the final depth.
     #[serde(default)]
     snapshot_h: Option<Vec<f64>>,
+    /// Snapshots per requested depth, averaged in the intruder's frame (default 5; 1 =
+    /// one instantaneous snapshot per depth).
+    #[serde(default)]
+    snapshot_window: Option<usize>,
+    /// Intruder travel (in h = depth / R) each window spans, centred on its depth
+    /// (default one mean grain diameter, d_mean / R).
+    #[serde(default)]
+    snapshot_window_h: Option<f64>,
+}
+
+/// Default number of snapshots per time-averaging window.
+pub const DEFAULT_SNAPSHOT_WINDOW: usize = 5;
+
+/// One time-averaging window of contact snapshots around a requested depth.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SnapshotWindow {
+    /// The requested depth (h = depth / R) the window belongs to.
+    pub h_target: f64,
+    /// Depths of the window's snapshots, ascending.
+    pub h: Vec<f64>,
+}
+
+/// The windows of `n` snapshots spanning `span` (in h) around each of `centres`,
+/// clipped to (0, `h_final`]: a window reaching past the final depth ends at `h_final`
+/// (so the last window ends with the run's last step); a window reaching h <= 0 is cut
+/// there and its snapshots spread evenly over (0, upper end]. Otherwise the snapshots
+/// are evenly spaced from `h - span / 2` to `h + span / 2`, both ends included, so an
+/// odd `n` has one at the requested depth itself. `n = 1` gives the requested depths.
+pub fn snapshot_windows(centres: &[f64], h_final: f64, n: usize, span: f64) -> Vec<SnapshotWindow> {
+    centres
+        .iter()
+        .map(|&c| {
+            let h = if n <= 1 {
+                vec![c]
+            } else {
+                let hi = (c + 0.5 * span).min(h_final);
+                let lo = c - 0.5 * span;
+                if lo > 0.0 {
+                    (0..n)
+                        .map(|j| {
+                            if j + 1 == n {
+                                hi
+                            } else {
+                                lo + (hi - lo) * j as f64 / (n - 1) as f64
+                            }
+                        })
+                        .collect()
+                } else {
+                    (0..n).map(|j| hi * (j + 1) as f64 / n as f64).collect()
+                }
+            };
+            SnapshotWindow { h_target: c, h }
+        })
+        .collect()
 }
 
 /// Fig. 5 of Feng et al.: the depths at which the paper shows velocity and gamma fields.
@@ -294,6 +348,10 @@ pub struct PenetrationCase {
     pub h_bin: f64,
     /// Snapshot depths in units of R, ascending, the final depth last.
     pub snapshot_h: Vec<f64>,
+    /// Snapshots per depth (time-averaging window), >= 1.
+    pub snapshot_window: usize,
+    /// Intruder travel (units of R) each window spans.
+    pub snapshot_window_h: f64,
     pub tolerances: Tolerances,
     /// Independent beds (seeds `seed`, `seed + 1`, ...), at least 1.
     pub ensemble_beds: usize,
@@ -324,6 +382,16 @@ pub fn kind_of(path: &Path) -> Result<String, CaseError> {
 }
 
 impl PenetrationCase {
+    /// The time-averaging windows of the contact snapshots, one per `snapshot_h` entry.
+    pub fn snapshot_windows(&self) -> Vec<SnapshotWindow> {
+        snapshot_windows(
+            &self.snapshot_h,
+            self.final_depth / self.intruder_radius,
+            self.snapshot_window,
+            self.snapshot_window_h,
+        )
+    }
+
     /// Bed `k` of the ensemble: the same case with seed `seed + k`.
     pub fn realisation(&self, k: usize) -> PenetrationCase {
         PenetrationCase {
@@ -579,6 +647,48 @@ impl PenetrationCase {
             snapshot_h.push(h);
         }
         snapshot_h.push(h_final);
+        let snapshot_window = match raw.analysis.snapshot_window {
+            Some(0) => {
+                return Err(ctx.bad(
+                    "analysis.snapshot_window",
+                    0,
+                    "must be >= 1 (snapshots per depth; 1 = no time averaging)",
+                ));
+            }
+            Some(n) => n,
+            None => DEFAULT_SNAPSHOT_WINDOW,
+        };
+        let (snapshot_window_h, span_origin) = match raw.analysis.snapshot_window_h {
+            Some(w) => (positive(&ctx, "analysis.snapshot_window_h", w)?, ""),
+            None => (d_mean / intruder_radius, " (the default, d_mean / R)"),
+        };
+        if snapshot_window_h >= h_final {
+            return Err(ctx.bad(
+                "analysis.snapshot_window_h",
+                snapshot_window_h,
+                format!(
+                    "must be shorter than the whole travel h_final = {h_final:.4}{span_origin}: a window would average over the entire penetration"
+                ),
+            ));
+        }
+        // Distinct snapshots need at least one time step of travel between them.
+        let travel_per_step = speed * dt / intruder_radius;
+        for w in snapshot_windows(&snapshot_h, h_final, snapshot_window, snapshot_window_h) {
+            let gap =
+                w.h.windows(2)
+                    .map(|p| p[1] - p[0])
+                    .fold(f64::INFINITY, f64::min);
+            if gap < travel_per_step {
+                return Err(ctx.bad(
+                    "analysis.snapshot_window",
+                    snapshot_window,
+                    format!(
+                        "the window around h = {:.4} spaces its snapshots {gap:.3e} R apart, less than one time step of travel ({travel_per_step:.3e} R); use fewer snapshots or a wider analysis.snapshot_window_h (now {snapshot_window_h:.4}{span_origin})",
+                        w.h_target
+                    ),
+                ));
+            }
+        }
 
         Ok(PenetrationCase {
             name: raw.case.name,
@@ -610,6 +720,8 @@ impl PenetrationCase {
             fit_h_min,
             h_bin,
             snapshot_h,
+            snapshot_window,
+            snapshot_window_h,
             tolerances,
             ensemble_beds,
             quasi_static_speed,

@@ -284,13 +284,18 @@ fn lines(path: &Path, header: &str) -> Result<impl Iterator<Item = Result<(usize
     }))
 }
 
-/// Reads snapshot number `k` from `dir`; errors name file, line, column and value.
-pub fn read(dir: &Path, k: usize) -> Result<Snapshot> {
+/// The meta file of snapshot number `k` in `dir` (without its grains and contacts).
+pub fn read_meta(dir: &Path, k: usize) -> Result<SnapshotMeta> {
     let mp = meta_path(dir, k);
-    let meta: SnapshotMeta = serde_json::from_str(
+    serde_json::from_str(
         &std::fs::read_to_string(&mp).with_context(|| format!("cannot read {}", mp.display()))?,
     )
-    .with_context(|| format!("{}: not a snapshot meta file", mp.display()))?;
+    .with_context(|| format!("{}: not a snapshot meta file", mp.display()))
+}
+
+/// Reads snapshot number `k` from `dir`; errors name file, line, column and value.
+pub fn read(dir: &Path, k: usize) -> Result<Snapshot> {
+    let meta = read_meta(dir, k)?;
     let gp = grains_path(dir, k);
     let mut grains = Vec::new();
     for item in lines(&gp, GRAIN_HEADER)? {
