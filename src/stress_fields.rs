@@ -34,7 +34,7 @@ use crate::compare::Check;
 use crate::compare::penetration::Observables;
 use crate::dem::Perturbation;
 use crate::dem::packing::Bed;
-use crate::engines::output::{ForceSample, Provenance, now_utc, sha256_hex};
+use crate::engines::output::ForceSample;
 use crate::engines::snapshot::{self, Snapshot, SnapshotMeta};
 use crate::penetration::PenetrationRun;
 use anyhow::{Context, Result, bail, ensure};
@@ -210,20 +210,12 @@ pub fn run_native(
     plan.write(snap_dir)?;
     Ok(PenetrationRun {
         samples,
-        provenance: Provenance {
-            engine: "native".into(),
-            version: format!("granval {} native DEM", env!("CARGO_PKG_VERSION")),
-            command: "in-process".into(),
-            input_hash: sha256_hex(&std::fs::read(&case.source).unwrap_or_default()),
-            date: now_utc(),
-            wall_time_s: start.elapsed().as_secs_f64(),
-            threads: rayon::current_num_threads(),
-            case_file: case.source.display().to_string(),
-            notes: vec![
-                crate::dem::packing::bed_note(case, bed),
-                format!("snapshots at steps {steps:?}"),
-            ],
-        },
+        provenance: crate::penetration::native_provenance(
+            case,
+            bed,
+            start,
+            vec![format!("snapshots at steps {steps:?}")],
+        ),
     })
 }
 

@@ -97,18 +97,31 @@ pub fn run_native(
     bar.finish_and_clear();
     Ok(PenetrationRun {
         samples,
-        provenance: Provenance {
-            engine: "native".into(),
-            version: format!("granval {} native DEM", env!("CARGO_PKG_VERSION")),
-            command: "in-process".into(),
-            input_hash: sha256_hex(&std::fs::read(&case.source).unwrap_or_default()),
-            date: now_utc(),
-            wall_time_s: start.elapsed().as_secs_f64(),
-            threads: rayon::current_num_threads(),
-            case_file: case.source.display().to_string(),
-            notes: vec![packing::bed_note(case, bed)],
-        },
+        provenance: native_provenance(case, bed, start, vec![]),
     })
+}
+
+/// Provenance of an in-process native run of `case` from `bed` that began at `start`;
+/// `notes` follow the bed's description.
+pub fn native_provenance(
+    case: &PenetrationCase,
+    bed: &Bed,
+    start: std::time::Instant,
+    notes: Vec<String>,
+) -> Provenance {
+    Provenance {
+        engine: "native".into(),
+        version: format!("granval {} native DEM", env!("CARGO_PKG_VERSION")),
+        command: "in-process".into(),
+        input_hash: sha256_hex(&std::fs::read(&case.source).unwrap_or_default()),
+        date: now_utc(),
+        wall_time_s: start.elapsed().as_secs_f64(),
+        threads: rayon::current_num_threads(),
+        case_file: case.source.display().to_string(),
+        notes: std::iter::once(packing::bed_note(case, bed))
+            .chain(notes)
+            .collect(),
+    }
 }
 
 /// The LIGGGHTS deck of a penetration case started from `bed` (identical grains,
