@@ -124,7 +124,7 @@ fn observables(case: &PenetrationCase, runs: &[EngineRun]) -> cp::Observables {
 fn native_matches_liggghts_on_the_ci_case() {
     let ci = ci();
     let (checks, notes, errored) = ensemble::verdicts(&ci.case, &ci.runs, &ci.out.join("report"));
-    for n in notes {
+    for n in &notes {
         eprintln!("[penetration-ci] {n}");
     }
     show("penetration-ci", &checks);
@@ -133,14 +133,26 @@ fn native_matches_liggghts_on_the_ci_case() {
         let c = named(&checks, suffix);
         assert!(c.passed, "{c:?}");
     }
-    // h_A and h_B stay gated checks of `granval compare` (so it exits 1 on this case),
-    // but they are not asserted here: at CI scale the unified fit (eqs 13-15) locates
-    // them poorly — measured native 0.26 / 0.91 vs LIGGGHTS 1.11 / 1.43 on the same
-    // three beds while K_phi agrees to 2.7 %, and they move by tenths with phi at the
-    // same R^2 (docs/stress.md). They must at least exist in both engines.
-    for suffix in [": h_A", ": h_B"] {
-        let c = named(&checks, suffix);
-        assert!(c.value.is_finite(), "{c:?}");
+    // h_A and h_B are gated at grain resolution (compare::penetration::resolved_boundaries):
+    // compared when both mean FDRs resolve three regimes, failed when only one does, and
+    // otherwise reported as NOT COMPARED with each engine's reason. Whatever the outcome
+    // on these beds, no boundary check may fail.
+    let boundary: Vec<_> = checks
+        .iter()
+        .filter(|c| {
+            c.name.ends_with(": h_A")
+                || c.name.ends_with(": h_B")
+                || c.name.ends_with(": regime boundaries")
+        })
+        .collect();
+    for c in &boundary {
+        assert!(c.passed, "{c:?}");
+    }
+    if boundary.is_empty() {
+        assert!(
+            notes.iter().any(|n| n.contains("h_A / h_B NOT COMPARED")),
+            "no boundary check and no note saying why"
+        );
     }
 }
 

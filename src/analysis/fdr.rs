@@ -3,8 +3,9 @@
 //! a force-depth series, independent of the engine that produced it.
 //!
 //! Pipeline: [`nondimensionalise`] (eq 5) -> [`steady_state_fit`] (the
-//! regime-C line `p = K_phi h + p0` of Table 3) -> [`regime_boundaries`]
-//! (`h_A`, `h_B`) -> comparison of two FDRs on a common grid
+//! regime-C line `p = K_phi h + p0` of Table 3, with [`two_segment_fit`] to
+//! say how straight it is) -> [`regime_boundaries_piecewise`] and
+//! [`regime_boundaries`] (`h_A`, `h_B`) -> comparison of two FDRs on a common grid
 //! ([`resample`], [`rms_distance_over_mean`]) and [`write_csv`].
 //!
 //! Conventions: `h` is depth in units of the intruder radius `R`, `p` the
@@ -254,16 +255,17 @@ pub struct RegimeBoundaries {
     pub slopes: Option<[f64; 3]>,
 }
 
-/// Default regime-boundary detection: [`regime_boundaries_unified`].
+/// The paper's regime boundaries: [`regime_boundaries_unified`].
 ///
-/// The unified fit is the default because `h_A` and `h_B` are *defined* by
-/// the paper through eqs 12-15 (Fig. 8 reads 0.16 / 0.61 off that fit) and
-/// because eq 12's Gaussian growth makes `h_B` invisible to a model-free
-/// kink detector: the regime-B gradient `f(h)` of eq 13 already reaches
-/// ~K_phi at `h_A + 0.5 (h_B - h_A)` for typical `phi`, so the FDR looks
-/// straight well before `h_B`. The piecewise-linear method is the
-/// model-free cross-check; it locates `h_A` equally well but systematically
-/// reports the *visible* end of regime B, which lies before eq 12's `h_B`.
+/// `h_A` and `h_B` are *defined* by the paper through eqs 12-15 (Fig. 8
+/// reads 0.16 / 0.61 off that fit), and eq 12's Gaussian growth makes `h_B`
+/// invisible to a model-free kink detector: the regime-B gradient `f(h)` of
+/// eq 13 already reaches ~K_phi at `h_A + 0.5 (h_B - h_A)` for typical
+/// `phi`, so the FDR looks straight well before `h_B`. The piecewise-linear
+/// method locates `h_A` equally well but reports the *visible* end of
+/// regime B. The engine-vs-engine comparison gates the piecewise one
+/// nevertheless (`compare::penetration::resolved_boundaries`): the unified
+/// fit is ill-conditioned when regimes span few grains.
 pub fn regime_boundaries(fdr: &Fdr, steady: &LinearFit) -> Result<RegimeBoundaries> {
     regime_boundaries_unified(fdr, steady.k_phi)
 }
@@ -331,28 +333,162 @@ pub fn moving_average(h: &[f64], p: &[f64], window: f64) -> Vec<f64> {
 }
 
 /// Least squares of the continuous piecewise-linear model
-/// `c0 + c1 h + c2 (h-b1)+ + c3 (h-b2)+`; returns (SSE, slopes).
-fn hinge_fit(h: &[f64], p: &[f64], b1: f64, b2: f64) -> Option<(f64, [f64; 3])> {
-    use nalgebra::{Matrix4, Vector4};
-    let mut ata = Matrix4::<f64>::zeros();
-    let mut atb = Vector4::<f64>::zeros();
+/// `c0 + c1 (h-h0) + sum_k c_{k+2} (h-b_k)+` with the given breakpoints;
+/// returns (SSE, slope of each of the `breaks.len() + 1` segments).
+fn hinge_fit(h: &[f64], p: &[f64], breaks: &[f64]) -> Option<(f64, Vec<f64>)> {
+    use nalgebra::{DMatrix, DVector};
+    let m = breaks.len() + 2;
     let h0 = h[0];
+    let row = |x: f64| {
+        DVector::from_fn(m, |i, _| match i {
+            0 => 1.0,
+            1 => x - h0,
+            k => (x - breaks[k - 2]).max(0.0),
+        })
+    };
+    let mut ata = DMatrix::<f64>::zeros(m, m);
+    let mut atb = DVector::<f64>::zeros(m);
     for (&x, &y) in h.iter().zip(p) {
-        let row = Vector4::new(1.0, x - h0, (x - b1).max(0.0), (x - b2).max(0.0));
-        ata += row * row.transpose();
-        atb += row * y;
+        let r = row(x);
+        ata.ger(1.0, &r, &r, 1.0);
+        atb.axpy(y, &r, 1.0);
     }
     let c = ata.cholesky()?.solve(&atb);
     let sse: f64 = h
         .iter()
         .zip(p)
-        .map(|(&x, &y)| {
-            let m = c[0] + c[1] * (x - h0) + c[2] * (x - b1).max(0.0) + c[3] * (x - b2).max(0.0);
-            (y - m).powi(2)
-        })
+        .map(|(&x, &y)| (y - row(x).dot(&c)).powi(2))
         .sum();
-    let s = [c[1], c[1] + c[2], c[1] + c[2] + c[3]];
-    sse.is_finite().then_some((sse, s))
+    let slopes = (0..m - 1).map(|k| c.rows(1, k + 1).sum()).collect();
+    sse.is_finite().then_some((sse, slopes))
+}
+
+/// The contact part of `fdr`, sorted, smoothed with [`moving_average`] over
+/// `window` and averaged into at most 400 consecutive bins: what the
+/// piecewise-linear detectors fit. Errors on fewer than `min_points` contact
+/// points or no spread in h.
+fn piecewise_input(fdr: &Fdr, window: f64, min_points: usize) -> Result<(Vec<f64>, Vec<f64>)> {
+    fdr.validate()?;
+    ensure!(
+        window.is_finite() && window >= 0.0,
+        "smoothing window = {window} must be finite and >= 0"
+    );
+    let s = fdr.contact_only().sorted();
+    ensure!(
+        s.h.len() >= min_points,
+        "piecewise-linear detection needs at least {min_points} contact points, got {}",
+        s.h.len()
+    );
+    let smooth = moving_average(&s.h, &s.p, window);
+    let nb = s.h.len().min(PIECEWISE_MAX_POINTS);
+    let (mut h, mut p) = (Vec::with_capacity(nb), Vec::with_capacity(nb));
+    for b in 0..nb {
+        let (lo, hi) = (b * s.h.len() / nb, (b + 1) * s.h.len() / nb);
+        let k = (hi - lo) as f64;
+        h.push(s.h[lo..hi].iter().sum::<f64>() / k);
+        p.push(smooth[lo..hi].iter().sum::<f64>() / k);
+    }
+    ensure!(
+        h[h.len() - 1] > h[0],
+        "all contact depths equal h = {}; no regimes to detect",
+        h[0]
+    );
+    Ok((h, p))
+}
+
+fn r2_of(p: &[f64], sse: f64) -> f64 {
+    let pm = p.iter().sum::<f64>() / p.len() as f64;
+    let sst: f64 = p.iter().map(|v| (v - pm).powi(2)).sum();
+    if sst > 0.0 { 1.0 - sse / sst } else { f64::NAN }
+}
+
+/// Best continuous two-segment line through an FDR ([`two_segment_fit`]).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct TwoSegment {
+    /// Breakpoint, in units of R.
+    pub h_break: f64,
+    /// Slopes before and after `h_break`.
+    pub slopes: [f64; 2],
+    /// R^2 of the two-segment fit to the smoothed data.
+    pub r2: f64,
+}
+
+/// Breakpoints of the one-breakpoint search.
+const TRANSIENT_GRID: usize = 200;
+
+/// Straightness diagnostic of regime C: the least-squares continuous
+/// two-segment fit to the FDR restricted to `h >= h_min`, smoothed over
+/// `window` (see [`piecewise_input`]), both segments at least `min_segment`
+/// long (pass one grain diameter `d/R`: no kink is located more finely than
+/// the grain scale). A straight regime C gives two nearly equal slopes; a
+/// markedly steeper second one says the FDR curves up before the final
+/// depth (e.g. the container bottom felt through the stagnant zone), which
+/// is what lowers the R^2 of the straight-line fit.
+///
+/// Procedure: least SSE over a 200-point breakpoint grid, then two 10x
+/// refinements around the best.
+pub fn two_segment_fit(fdr: &Fdr, h_min: f64, window: f64, min_segment: f64) -> Result<TwoSegment> {
+    ensure!(
+        min_segment.is_finite() && min_segment >= 0.0,
+        "minimum segment length = {min_segment} must be finite and >= 0"
+    );
+    let part = Fdr {
+        h: fdr
+            .h
+            .iter()
+            .zip(&fdr.p)
+            .filter(|(h, _)| **h >= h_min)
+            .map(|(h, _)| *h)
+            .collect(),
+        p: fdr
+            .h
+            .iter()
+            .zip(&fdr.p)
+            .filter(|(h, _)| **h >= h_min)
+            .map(|(_, p)| *p)
+            .collect(),
+    };
+    let (h, p) = piecewise_input(&part, window, 2 * PIECEWISE_MIN_SEG)?;
+    let (h_first, h_last) = (h[0], h[h.len() - 1]);
+    let admissible = |b: f64| {
+        let n = h.partition_point(|&v| v <= b);
+        b - h_first >= min_segment
+            && h_last - b >= min_segment
+            && n >= PIECEWISE_MIN_SEG
+            && h.len() - n >= PIECEWISE_MIN_SEG
+    };
+    let eval = |b: f64| admissible(b).then(|| hinge_fit(&h, &p, &[b])).flatten();
+    let mut best: Option<(f64, f64, Vec<f64>)> = None;
+    let consider = |b: f64, best: &mut Option<(f64, f64, Vec<f64>)>| {
+        if let Some((sse, sl)) = eval(b)
+            && best.as_ref().is_none_or(|x| sse < x.1)
+        {
+            *best = Some((b, sse, sl));
+        }
+    };
+    let mut step = (h_last - h_first) / TRANSIENT_GRID as f64;
+    for i in 1..TRANSIENT_GRID {
+        consider(h_first + i as f64 * step, &mut best);
+    }
+    let Some(mut b) = best else {
+        bail!(
+            "no admissible breakpoint: the contact range [{h_first:.3}, {h_last:.3}] is shorter than two segments of {min_segment:.3}"
+        );
+    };
+    for _ in 0..2 {
+        let c = b.0;
+        step /= 10.0;
+        let mut cand = Some(b.clone());
+        for i in -10..=10 {
+            consider(c + i as f64 * step, &mut cand);
+        }
+        b = cand.unwrap_or(b);
+    }
+    Ok(TwoSegment {
+        h_break: b.0,
+        slopes: [b.2[0], b.2[1]],
+        r2: r2_of(&p, b.1),
+    })
 }
 
 /// Model-free `h_A`, `h_B`: continuous three-segment piecewise-linear fit
@@ -365,7 +501,8 @@ fn hinge_fit(h: &[f64], p: &[f64], b1: f64, b2: f64) -> Option<(f64, [f64; 3])> 
 ///    (use [`SMOOTH_WINDOW_H`]; 0 disables);
 /// 2. average consecutive points into at most 400 bins;
 /// 3. for every breakpoint pair `b1 < b2` on an 80-point uniform grid over
-///    the data range (>= 3 points on every segment) solve the linear least
+///    the data range (>= 3 points and >= `min_segment` in h on every
+///    segment; pass one grain diameter `d/R`) solve the linear least
 ///    squares of the hinge model and keep the admissible pair (middle slope
 ///    below both outer slopes) of least residual sum of squares;
 /// 4. refine twice on a 21 x 21 grid of 1/10 the previous step around the best pair;
@@ -379,39 +516,25 @@ fn hinge_fit(h: &[f64], p: &[f64], b1: f64, b2: f64) -> Option<(f64, [f64; 3])> 
 /// growth precedes the model's `h_B`. Errors if fewer than 12 contact
 /// points, no admissible pair exists or step 5 rejects the fit (e.g.
 /// frictionless grains: no regime B).
-pub fn regime_boundaries_piecewise(fdr: &Fdr, window: f64) -> Result<RegimeBoundaries> {
-    fdr.validate()?;
+pub fn regime_boundaries_piecewise(
+    fdr: &Fdr,
+    window: f64,
+    min_segment: f64,
+) -> Result<RegimeBoundaries> {
     ensure!(
-        window.is_finite() && window >= 0.0,
-        "smoothing window = {window} must be finite and >= 0"
+        min_segment.is_finite() && min_segment >= 0.0,
+        "minimum segment length = {min_segment} must be finite and >= 0"
     );
-    let s = fdr.contact_only().sorted();
-    ensure!(
-        s.h.len() >= 4 * PIECEWISE_MIN_SEG,
-        "piecewise-linear detection needs at least {} contact points, got {}",
-        4 * PIECEWISE_MIN_SEG,
-        s.h.len()
-    );
-    let smooth = moving_average(&s.h, &s.p, window);
-    // Bin means, keeping order.
-    let nb = s.h.len().min(PIECEWISE_MAX_POINTS);
-    let (mut h, mut p) = (Vec::with_capacity(nb), Vec::with_capacity(nb));
-    for b in 0..nb {
-        let (lo, hi) = (b * s.h.len() / nb, (b + 1) * s.h.len() / nb);
-        let k = (hi - lo) as f64;
-        h.push(s.h[lo..hi].iter().sum::<f64>() / k);
-        p.push(smooth[lo..hi].iter().sum::<f64>() / k);
-    }
+    let (h, p) = piecewise_input(fdr, window, 4 * PIECEWISE_MIN_SEG)?;
     let (h_first, h_last) = (h[0], h[h.len() - 1]);
-    ensure!(
-        h_last > h_first,
-        "all contact depths equal h = {h_first}; no regimes to detect"
-    );
     // Admissible breakpoints leave >= PIECEWISE_MIN_SEG points on every segment.
     let count_le = |b: f64| h.partition_point(|&v| v <= b);
     let admissible = |b1: f64, b2: f64| {
         let (n1, n2) = (count_le(b1), count_le(b2));
         b1 < b2
+            && b1 - h_first >= min_segment
+            && b2 - b1 >= min_segment
+            && h_last - b2 >= min_segment
             && n1 >= PIECEWISE_MIN_SEG
             && n2 - n1 >= PIECEWISE_MIN_SEG
             && h.len() - n2 >= PIECEWISE_MIN_SEG
@@ -422,10 +545,11 @@ pub fn regime_boundaries_piecewise(fdr: &Fdr, window: f64) -> Result<RegimeBound
         if !admissible(b1, b2) {
             return None;
         }
-        let (sse, sl) = hinge_fit(&h, &p, b1, b2)?;
+        let (sse, sl) = hinge_fit(&h, &p, &[b1, b2])?;
         free_best.set(free_best.get().min(sse));
         let outer = sl[0].min(sl[2]);
-        (outer > 0.0 && sl[1] < (1.0 - PIECEWISE_MIN_CONTRAST) * outer).then_some((sse, sl))
+        (outer > 0.0 && sl[1] < (1.0 - PIECEWISE_MIN_CONTRAST) * outer)
+            .then_some((sse, [sl[0], sl[1], sl[2]]))
     };
     let mut best: Option<(f64, f64, f64, [f64; 3])> = None;
     let consider = |b1: f64, b2: f64, best: &mut Option<(f64, f64, f64, [f64; 3])>| {
@@ -467,13 +591,11 @@ pub fn regime_boundaries_piecewise(fdr: &Fdr, window: f64) -> Result<RegimeBound
         b.1,
         b.2 / free_best.get()
     );
-    let pm = p.iter().sum::<f64>() / p.len() as f64;
-    let sst: f64 = p.iter().map(|v| (v - pm).powi(2)).sum();
     Ok(RegimeBoundaries {
         method: BoundaryMethod::PiecewiseLinear,
         h_a: b.0,
         h_b: b.1,
-        r2: if sst > 0.0 { 1.0 - b.2 / sst } else { f64::NAN },
+        r2: r2_of(&p, b.2),
         unified: None,
         slopes: Some(b.3),
     })
@@ -930,7 +1052,7 @@ mod tests {
         let w = m.h_b - m.h_a;
         for noise_rel in [0.0, 0.02] {
             let fdr = synthetic(&m, noise_rel);
-            let rb = regime_boundaries_piecewise(&fdr, SMOOTH_WINDOW_H).unwrap();
+            let rb = regime_boundaries_piecewise(&fdr, SMOOTH_WINDOW_H, 0.0).unwrap();
             assert_eq!(rb.method, BoundaryMethod::PiecewiseLinear);
             let s = rb.slopes.unwrap();
             eprintln!(
@@ -947,14 +1069,71 @@ mod tests {
         // Negative controls: no regime B, no three-regime structure.
         let h: Vec<f64> = (0..=160).map(|i| i as f64 * 0.0125).collect();
         let line = Fdr::new(h.clone(), h.iter().map(|x| 23.0 * x + 1.0).collect()).unwrap();
-        assert!(regime_boundaries_piecewise(&line, SMOOTH_WINDOW_H).is_err());
+        assert!(regime_boundaries_piecewise(&line, SMOOTH_WINDOW_H, 0.0).is_err());
         let sat = Fdr::new(
             h.clone(),
             h.iter().map(|x| 30.0 * (1.0 - (-x / 0.5).exp())).collect(),
         )
         .unwrap();
-        let e = regime_boundaries_piecewise(&sat, SMOOTH_WINDOW_H).unwrap_err();
+        let e = regime_boundaries_piecewise(&sat, SMOOTH_WINDOW_H, 0.0).unwrap_err();
         assert!(e.to_string().contains("three-regime"), "{e}");
+    }
+
+    /// A force drop far shorter than a grain diameter is a narrow "regime B"
+    /// to a detector without a length scale; with one grain diameter as the
+    /// minimum regime length no regime can be that narrow (smoothing over a
+    /// grain spreads the drop into a shallow dip, which may still be found,
+    /// but only as a regime at least a grain long).
+    #[test]
+    fn piecewise_minimum_segment_ignores_force_drops() {
+        let h: Vec<f64> = (0..=200).map(|i| i as f64 * 0.0125).collect();
+        // Straight line with a 0.05-wide drop of 8 at h = 1.5 (a chain failure).
+        let p: Vec<f64> = h
+            .iter()
+            .map(|&x| 30.0 * x - if (1.5..1.55).contains(&x) { 8.0 } else { 0.0 })
+            .collect();
+        let f = Fdr::new(h, p).unwrap();
+        let fine = regime_boundaries_piecewise(&f, 0.0, 0.0).unwrap();
+        assert!((1.4..1.6).contains(&fine.h_a), "{fine:?}");
+        assert!(fine.h_b - fine.h_a < 0.15, "{fine:?}");
+        if let Ok(rb) = regime_boundaries_piecewise(&f, 0.25, 0.25) {
+            assert!(rb.h_a >= 0.25 && rb.h_b - rb.h_a >= 0.25, "{rb:?}");
+        }
+        // The paper-like FDR keeps its boundaries at the paper's grain
+        // resolution (d/R = 2/15).
+        let m = paper_like();
+        let g = 2.0 / 15.0;
+        let rb = regime_boundaries_piecewise(&synthetic(&m, 0.02), g, g).unwrap();
+        assert!((rb.h_a - m.h_a).abs() < 0.15 * m.h_a, "{rb:?}");
+        assert!(rb.h_b > rb.h_a + g && rb.h_b < m.h_b, "{rb:?}");
+        assert!(regime_boundaries_piecewise(&f, 0.0, f64::NAN).is_err());
+    }
+
+    #[test]
+    fn two_segment_fit_finds_the_kink_and_not_one_on_a_line() {
+        let h: Vec<f64> = (0..=200).map(|i| i as f64 * 0.0125).collect();
+        let u = noise(h.len(), 11);
+        let kinked: Vec<f64> = h
+            .iter()
+            .zip(&u)
+            .map(|(&x, e)| 28.0 * x + 30.0 * (x - 2.2).max(0.0) + 0.3 * e)
+            .collect();
+        let f = Fdr::new(h.clone(), kinked).unwrap();
+        let t = two_segment_fit(&f, 1.0, 0.0, 0.25).unwrap();
+        assert!((t.h_break - 2.2).abs() < 0.03, "{t:?}");
+        assert!(
+            (t.slopes[0] - 28.0).abs() < 0.3 && (t.slopes[1] - 58.0).abs() < 1.5,
+            "{t:?}"
+        );
+        let line = Fdr::new(
+            h.clone(),
+            h.iter().zip(&u).map(|(&x, e)| 28.0 * x + 0.3 * e).collect(),
+        )
+        .unwrap();
+        let t = two_segment_fit(&line, 1.0, 0.25, 0.25).unwrap();
+        assert!((t.slopes[1] / t.slopes[0] - 1.0).abs() < 0.1, "{t:?}");
+        // Segments longer than half the range cannot fit.
+        assert!(two_segment_fit(&line, 1.0, 0.0, 0.8).is_err());
     }
 
     #[test]
@@ -963,7 +1142,7 @@ mod tests {
         let fdr = synthetic(&paper_like(), 0.02);
         let lf = steady_state_fit(&fdr, 1.0, f64::INFINITY).unwrap();
         let u = regime_boundaries(&fdr, &lf).unwrap();
-        let pw = regime_boundaries_piecewise(&fdr, SMOOTH_WINDOW_H).unwrap();
+        let pw = regime_boundaries_piecewise(&fdr, SMOOTH_WINDOW_H, 0.0).unwrap();
         assert!((u.h_a - pw.h_a).abs() < 0.02, "{u:?} {pw:?}");
         assert!(u.h_b - pw.h_b > 0.15, "{u:?} {pw:?}");
     }

@@ -177,6 +177,7 @@ pub fn verdicts(
                         .map(|m| format!("K {:.2} R^2 {:.3}", m.0, m.1))
                         .collect::<Vec<_>>()
                 ));
+                notes.push(format!("{label}: {}", cp::shape_text(o)));
                 if let Some(c) = cp::published(case, o, label) {
                     checks.push(c);
                 }
@@ -198,6 +199,7 @@ pub fn verdicts(
     }
     if let (Some(Ok(a)), Some(Ok(b))) = (&native, &reference) {
         checks.extend(cp::compare(case, a, b));
+        notes.extend(cp::boundaries_not_compared(a, b));
     }
     if let (Some(v2), Some(Ok(a))) = (case.quasi_static_speed, &native) {
         match obs(&runs.native_slow) {
