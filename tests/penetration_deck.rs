@@ -35,7 +35,7 @@ fn liggghts_or_skip(test: &str) -> bool {
 fn tiny_case(dir: &Path) -> PenetrationCase {
     let text = std::fs::read_to_string(root().join("tests/data/penetration-tiny.toml")).unwrap();
     let path = dir.join("tiny.toml");
-    std::fs::write(&path, text).unwrap();
+    std::fs::write(&path, text + "\n[ensemble]\nbeds = 2\n").unwrap();
     PenetrationCase::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }
 

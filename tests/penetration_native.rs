@@ -1,71 +1,13 @@
 //! Fast checks of the native penetration pieces on a tiny bed: preparation protocol,
 //! packing fraction, intruder kinematics and the sign of the resistance.
 
+mod common;
+
 use granval::case::penetration::PenetrationCase;
 use std::path::Path;
 
 fn tiny(extra: &str) -> String {
-    format!(
-        r#"
-[case]
-name = "tiny"
-kind = "penetration"
-[simulation]
-dt = 4.0e-5
-gravity = 9.81
-[models]
-normal = "hertz"
-tangential = "history"
-rolling = "cdt"
-[[materials]]
-type = 1
-youngs_modulus = 5.2e6
-poisson_ratio = 0.3
-[[materials]]
-type = 2
-youngs_modulus = 5.2e6
-poisson_ratio = 0.3
-[[interactions]]
-types = [1, 1]
-restitution = 0.5
-friction = 0.5
-rolling_friction = 0.01
-[[interactions]]
-types = [1, 2]
-restitution = 0.5
-friction = 0.3
-rolling_friction = 0.01
-[[interactions]]
-types = [2, 2]
-restitution = 0.5
-friction = 0.3
-rolling_friction = 0.01
-[container]
-diameter = 0.032
-height = 0.05
-type = 1
-[bed]
-type = 1
-density = 2500.0
-diameter = {{ kind = "uniform", mean = 4.0e-3, half_width = 0.2e-3 }}
-count = 300
-seed = 7
-[preparation]
-settle_ke_ratio = 1.0e-6
-max_settle_time = 1.0
-[intruder]
-diameter = 0.010
-length = 0.03
-type = 2
-speed = 0.1
-start_gap = 1.0e-3
-final_depth = 0.006
-force_every = 10
-[analysis]
-fit_h_min = 0.5
-{extra}
-"#
-    )
+    common::tiny_penetration_toml(0.010, extra, "")
 }
 
 #[test]

@@ -5,6 +5,8 @@
 // Component loops index several arrays at once; iterators would obscure the tensor algebra.
 #![allow(clippy::needless_range_loop)]
 
+mod common;
+
 use granval::analysis::coarse_grain::{CgParams, CoarseGrainer, azimuthal_average};
 use granval::analysis::stress;
 use granval::case::penetration::PenetrationCase;
@@ -302,70 +304,7 @@ fn tiny_case_with(intruder_diameter: f64) -> PenetrationCase {
 
 /// The tiny case's TOML, `analysis` lines added to `[analysis]` and `tail` appended.
 fn tiny_case_text_raw(intruder_diameter: f64, analysis: &str, tail: &str) -> String {
-    let text = r#"
-[case]
-name = "tiny"
-kind = "penetration"
-[simulation]
-dt = 4.0e-5
-gravity = 9.81
-[models]
-normal = "hertz"
-tangential = "history"
-rolling = "cdt"
-[[materials]]
-type = 1
-youngs_modulus = 5.2e6
-poisson_ratio = 0.3
-[[materials]]
-type = 2
-youngs_modulus = 5.2e6
-poisson_ratio = 0.3
-[[interactions]]
-types = [1, 1]
-restitution = 0.5
-friction = 0.5
-rolling_friction = 0.01
-[[interactions]]
-types = [1, 2]
-restitution = 0.5
-friction = 0.3
-rolling_friction = 0.01
-[[interactions]]
-types = [2, 2]
-restitution = 0.5
-friction = 0.3
-rolling_friction = 0.01
-[container]
-diameter = 0.032
-height = 0.05
-type = 1
-[bed]
-type = 1
-density = 2500.0
-diameter = { kind = "uniform", mean = 4.0e-3, half_width = 0.2e-3 }
-count = 300
-seed = 7
-[preparation]
-settle_ke_ratio = 1.0e-6
-max_settle_time = 1.0
-[intruder]
-diameter = INTRUDER_D
-length = 0.03
-type = 2
-speed = 0.1
-start_gap = 1.0e-3
-final_depth = 0.006
-force_every = 10
-[analysis]
-fit_h_min = 0.5
-"#;
-    text.replace("INTRUDER_D", &format!("{intruder_diameter:e}"))
-        .replace(
-            "fit_h_min = 0.5\n",
-            &format!("fit_h_min = 0.5\n{analysis}\n"),
-        )
-        + tail
+    common::tiny_penetration_toml(intruder_diameter, analysis, tail)
 }
 
 fn tiny_case_text(intruder_diameter: f64, analysis: &str, tail: &str) -> PenetrationCase {

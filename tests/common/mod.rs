@@ -51,3 +51,22 @@ pub fn reference_frames(case: &Case, scratch: &Path) -> Vec<Frame> {
 pub fn require_live() -> bool {
     std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1")
 }
+
+/// The 300-grain penetration case of `tests/data/penetration-tiny.toml` (E above
+/// LIGGGHTS' 5e6 Pa floor, seconds per engine) with the intruder diameter set,
+/// `analysis` lines added to `[analysis]` and `tail` appended.
+pub fn tiny_penetration_toml(intruder_diameter: f64, analysis: &str, tail: &str) -> String {
+    let text = std::fs::read_to_string(root().join("tests/data/penetration-tiny.toml")).unwrap();
+    let (intruder, fit) = ("[intruder]\ndiameter = 0.010\n", "fit_h_min = 0.5\n");
+    assert!(
+        text.contains(intruder) && text.contains(fit),
+        "tests/data/penetration-tiny.toml changed shape"
+    );
+    text.replacen(
+        intruder,
+        &format!("[intruder]\ndiameter = {intruder_diameter:e}\n"),
+        1,
+    )
+    .replacen(fit, &format!("{fit}{analysis}\n"), 1)
+        + tail
+}
