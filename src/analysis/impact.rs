@@ -13,7 +13,7 @@
 //!   excluded).
 
 use crate::dem2d::neighbor::{Box2, Excluded, PairList};
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
@@ -216,28 +216,49 @@ pub fn write_intruder_csv(
     Ok(())
 }
 
+/// One row of `intruder.csv` (the `depth` column is derived, not read back).
+#[derive(Deserialize)]
+struct IntruderRow {
+    t: f64,
+    step: u64,
+    x: f64,
+    y: f64,
+    vx: f64,
+    vy: f64,
+    fx: f64,
+    fy: f64,
+}
+
+/// One row of `energy.csv`.
+#[derive(Deserialize)]
+struct EnergyRow {
+    t: f64,
+    step: u64,
+    kinetic: f64,
+    potential_abs: f64,
+    elastic: f64,
+}
+
+/// Every row of a headed CSV file; an error names the file (csv names line and field).
+fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
+    let mut r =
+        csv::Reader::from_path(path).with_context(|| format!("cannot open {}", path.display()))?;
+    r.deserialize()
+        .map(|row| row.with_context(|| format!("{}", path.display())))
+        .collect()
+}
+
 pub fn read_intruder_csv(path: &Path) -> Result<Vec<IntruderSample>> {
-    let mut r = csv::Reader::from_path(path)
-        .map_err(|e| anyhow::anyhow!("cannot open {}: {e}", path.display()))?;
-    let mut out = Vec::new();
-    for (k, rec) in r.records().enumerate() {
-        let rec = rec?;
-        let f = |i: usize| -> Result<f64> {
-            rec[i].parse::<f64>().map_err(|e| {
-                anyhow::anyhow!("{}: line {}: column {}: {e}", path.display(), k + 2, i + 1)
-            })
-        };
-        out.push(IntruderSample {
-            t: f(0)?,
-            step: rec[1]
-                .parse()
-                .map_err(|e| anyhow::anyhow!("{}: line {}: step: {e}", path.display(), k + 2))?,
-            x: [f(2)?, f(3)?],
-            v: [f(4)?, f(5)?],
-            f: [f(6)?, f(7)?],
-        });
-    }
-    Ok(out)
+    Ok(read_rows::<IntruderRow>(path)?
+        .into_iter()
+        .map(|r| IntruderSample {
+            t: r.t,
+            step: r.step,
+            x: [r.x, r.y],
+            v: [r.vx, r.vy],
+            f: [r.fx, r.fy],
+        })
+        .collect())
 }
 
 /// `energy.csv`: t, step, kinetic, potential (relative to the first), elastic.
@@ -255,25 +276,47 @@ pub fn write_energy_csv(path: &Path, e: &[EnergySample]) -> Result<()> {
 }
 
 pub fn read_energy_csv(path: &Path) -> Result<Vec<EnergySample>> {
-    let mut r = csv::Reader::from_path(path)
-        .map_err(|e| anyhow::anyhow!("cannot open {}: {e}", path.display()))?;
-    let mut out = Vec::new();
-    for (k, rec) in r.records().enumerate() {
-        let rec = rec?;
-        let f = |i: usize| -> Result<f64> {
-            rec[i].parse::<f64>().map_err(|e| {
-                anyhow::anyhow!("{}: line {}: column {}: {e}", path.display(), k + 2, i + 1)
-            })
-        };
-        out.push(EnergySample {
-            t: f(0)?,
-            step: rec[1]
-                .parse()
-                .map_err(|e| anyhow::anyhow!("{}: line {}: step: {e}", path.display(), k + 2))?,
-            kinetic: f(2)?,
-            potential: f(3)?,
-            elastic: f(4)?,
-        });
+    Ok(read_rows::<EnergyRow>(path)?
+        .into_iter()
+        .map(|r| EnergySample {
+            t: r.t,
+            step: r.step,
+            kinetic: r.kinetic,
+            potential: r.potential_abs,
+            elastic: r.elastic,
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_round_trip_is_exact_and_errors_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = [IntruderSample {
+            step: 7,
+            t: 0.1 + 0.2,
+            x: [1.0 / 3.0, -2.5e-3],
+            v: [0.0, -0.7],
+            f: [1e-300, 3.0],
+        }];
+        let p = dir.path().join("intruder.csv");
+        write_intruder_csv(&p, &s, 0.1, 0.01).unwrap();
+        assert_eq!(read_intruder_csv(&p).unwrap(), s);
+        let e = [EnergySample {
+            step: 3,
+            t: 0.5,
+            kinetic: 2.0 / 7.0,
+            potential: -1.0,
+            elastic: 0.0,
+        }];
+        let q = dir.path().join("energy.csv");
+        write_energy_csv(&q, &e).unwrap();
+        assert_eq!(read_energy_csv(&q).unwrap(), e);
+        std::fs::write(&q, "t,step,kinetic,potential_abs,elastic\n0.5,x,1,2,3\n").unwrap();
+        let err = format!("{:#}", read_energy_csv(&q).unwrap_err());
+        assert!(err.contains("energy.csv") && err.contains("line: 2"), "{err}");
     }
-    Ok(out)
 }
