@@ -317,6 +317,9 @@ mod tests {
         assert_eq!(read_energy_csv(&q).unwrap(), e);
         std::fs::write(&q, "t,step,kinetic,potential_abs,elastic\n0.5,x,1,2,3\n").unwrap();
         let err = format!("{:#}", read_energy_csv(&q).unwrap_err());
-        assert!(err.contains("energy.csv") && err.contains("line: 2"), "{err}");
+        assert!(
+            err.contains("energy.csv") && err.contains("line: 2"),
+            "{err}"
+        );
     }
 }
