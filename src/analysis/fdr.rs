@@ -365,13 +365,22 @@ fn hinge_fit(h: &[f64], p: &[f64], breaks: &[f64]) -> Option<(f64, Vec<f64>)> {
 
 /// The contact part of `fdr`, sorted, smoothed with [`moving_average`] over
 /// `window` and averaged into at most 400 consecutive bins: what the
-/// piecewise-linear detectors fit. Errors on fewer than `min_points` contact
-/// points or no spread in h.
-fn piecewise_input(fdr: &Fdr, window: f64, min_points: usize) -> Result<(Vec<f64>, Vec<f64>)> {
+/// piecewise-linear detectors fit. Errors on an invalid window or minimum
+/// segment length, fewer than `min_points` contact points or no spread in h.
+fn piecewise_input(
+    fdr: &Fdr,
+    window: f64,
+    min_segment: f64,
+    min_points: usize,
+) -> Result<(Vec<f64>, Vec<f64>)> {
     fdr.validate()?;
     ensure!(
         window.is_finite() && window >= 0.0,
         "smoothing window = {window} must be finite and >= 0"
+    );
+    ensure!(
+        min_segment.is_finite() && min_segment >= 0.0,
+        "minimum segment length = {min_segment} must be finite and >= 0"
     );
     let s = fdr.contact_only().sorted();
     ensure!(
@@ -414,7 +423,7 @@ pub struct TwoSegment {
 }
 
 /// Breakpoints of the one-breakpoint search.
-const TRANSIENT_GRID: usize = 200;
+const TWO_SEGMENT_GRID: usize = 200;
 
 /// Straightness diagnostic of regime C: the least-squares continuous
 /// two-segment fit to the FDR restricted to `h >= h_min`, smoothed over
@@ -428,27 +437,14 @@ const TRANSIENT_GRID: usize = 200;
 /// Procedure: least SSE over a 200-point breakpoint grid, then two 10x
 /// refinements around the best.
 pub fn two_segment_fit(fdr: &Fdr, h_min: f64, window: f64, min_segment: f64) -> Result<TwoSegment> {
-    ensure!(
-        min_segment.is_finite() && min_segment >= 0.0,
-        "minimum segment length = {min_segment} must be finite and >= 0"
-    );
-    let part = Fdr {
-        h: fdr
-            .h
-            .iter()
-            .zip(&fdr.p)
-            .filter(|(h, _)| **h >= h_min)
-            .map(|(h, _)| *h)
-            .collect(),
-        p: fdr
-            .h
-            .iter()
-            .zip(&fdr.p)
-            .filter(|(h, _)| **h >= h_min)
-            .map(|(_, p)| *p)
-            .collect(),
-    };
-    let (h, p) = piecewise_input(&part, window, 2 * PIECEWISE_MIN_SEG)?;
+    let (h, p): (Vec<f64>, Vec<f64>) = fdr
+        .h
+        .iter()
+        .zip(&fdr.p)
+        .filter(|(h, _)| **h >= h_min)
+        .unzip();
+    let part = Fdr { h, p };
+    let (h, p) = piecewise_input(&part, window, min_segment, 2 * PIECEWISE_MIN_SEG)?;
     let (h_first, h_last) = (h[0], h[h.len() - 1]);
     let admissible = |b: f64| {
         let n = h.partition_point(|&v| v <= b);
@@ -466,8 +462,8 @@ pub fn two_segment_fit(fdr: &Fdr, h_min: f64, window: f64, min_segment: f64) -> 
             *best = Some((b, sse, sl));
         }
     };
-    let mut step = (h_last - h_first) / TRANSIENT_GRID as f64;
-    for i in 1..TRANSIENT_GRID {
+    let mut step = (h_last - h_first) / TWO_SEGMENT_GRID as f64;
+    for i in 1..TWO_SEGMENT_GRID {
         consider(h_first + i as f64 * step, &mut best);
     }
     let Some(mut b) = best else {
@@ -521,11 +517,7 @@ pub fn regime_boundaries_piecewise(
     window: f64,
     min_segment: f64,
 ) -> Result<RegimeBoundaries> {
-    ensure!(
-        min_segment.is_finite() && min_segment >= 0.0,
-        "minimum segment length = {min_segment} must be finite and >= 0"
-    );
-    let (h, p) = piecewise_input(fdr, window, 4 * PIECEWISE_MIN_SEG)?;
+    let (h, p) = piecewise_input(fdr, window, min_segment, 4 * PIECEWISE_MIN_SEG)?;
     let (h_first, h_last) = (h[0], h[h.len() - 1]);
     // Admissible breakpoints leave >= PIECEWISE_MIN_SEG points on every segment.
     let count_le = |b: f64| h.partition_point(|&v| v <= b);
