@@ -2,16 +2,12 @@
 //! velocity in the (r, z) plane (the paper's Fig. 5) with the incipient-yield region and
 //! the stagnant zone outlined, and the K-phi plane (Fig. 7) with error bars.
 
-use anyhow::{Result, anyhow, ensure};
+use super::plot::{FONT, err, legend};
+use anyhow::{Result, ensure};
 use plotters::prelude::*;
 use std::path::Path;
 
 const SIZE: (u32, u32) = (820, 760);
-const FONT: &str = "sans-serif";
-
-fn err<E: std::fmt::Debug>(what: &'static str) -> impl FnOnce(E) -> anyhow::Error {
-    move |e| anyhow!("{what}: {e:?}")
-}
 
 /// A cell field on the (r, z) plane, r fastest, cell size `spacing`, in units the caller
 /// chooses for the axes (we use intruder radii).
@@ -162,14 +158,7 @@ pub fn rz_map(
                 Rectangle::new([(x, y - 5), (x + 20, y + 5)], BLACK.mix(0.25).filled())
             });
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .label_font((FONT, 13))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err("legend"))?;
+    legend(&mut chart, SeriesLabelPosition::LowerRight, 13)?;
     // Colour bar.
     let mut cb = ChartBuilder::on(&bar)
         .margin_top(60)
@@ -207,11 +196,7 @@ pub struct KPhiPoint<'a> {
 
 /// The phi - K_phi plane with the MALT curve `(phi_deg, K)` on a log K axis and points
 /// with error bars (Fig. 7).
-pub fn k_phi_plane_with_errors(
-    path: &Path,
-    curve: &[(f64, f64)],
-    points: &[KPhiPoint<'_>],
-) -> Result<()> {
+pub fn k_phi_plane(path: &Path, curve: &[(f64, f64)], points: &[KPhiPoint<'_>]) -> Result<()> {
     ensure!(!curve.is_empty(), "k_phi_plane: empty MALT curve");
     let pts: Vec<&KPhiPoint> = points
         .iter()
@@ -277,14 +262,7 @@ pub fn k_phi_plane_with_errors(
             .label(label)
             .legend(move |(x, y)| Circle::new((x + 10, y), 5, col.filled()));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .label_font((FONT, 14))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err("legend"))?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
     root.present().map_err(err("write svg"))?;
     Ok(())
 }
@@ -327,7 +305,7 @@ mod tests {
             .map(|d| (d as f64, (0.08 * d as f64).exp()))
             .collect();
         let q = dir.path().join("k.svg");
-        k_phi_plane_with_errors(
+        k_phi_plane(
             &q,
             &curve,
             &[KPhiPoint {

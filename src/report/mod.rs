@@ -3,6 +3,7 @@
 //! [`Report::exit_code`].
 
 pub mod field_svg;
+pub mod plot;
 pub mod progress;
 pub mod svg;
 pub mod svg_impact;

@@ -1,23 +1,14 @@
 //! SVG figures of the penetration observables, drawn with plotters' SVG
-//! backend: FDR overlays (the paper's Figs. 2-3 and 8) and the `phi - K_phi`
-//! plane against the MALT curve (Fig. 7).
-//!
-//! Text: without the `ttf` feature plotters estimates text extents with a
-//! crude fixed-width rule and emits plain `<text>` elements with a generic
-//! font family, which every SVG viewer renders; no font files are needed.
+//! backend: FDR overlays (the paper's Figs. 2-3 and 8).
+//! The K-phi plane of the stress analysis is drawn in `field_svg`.
 
+use super::plot::{FONT, err, legend};
 use crate::analysis::fdr::LinearFit;
-use anyhow::{Result, anyhow, ensure};
+use anyhow::{Result, ensure};
 use plotters::prelude::*;
 use std::path::Path;
 
 const SIZE: (u32, u32) = (900, 600);
-const FONT: &str = "sans-serif";
-
-/// plotters' drawing errors carry a backend type parameter; flatten them.
-fn err<E: std::fmt::Debug>(what: &'static str) -> impl FnOnce(E) -> anyhow::Error {
-    move |e| anyhow!("{what}: {e:?}")
-}
 
 /// `(lo, hi)` padded by 5% of the span (or by 1 if the span is zero).
 fn padded(lo: f64, hi: f64) -> (f64, f64) {
@@ -116,93 +107,9 @@ pub fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], title: &str) -> Result
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
         }
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .label_font((FONT, 14))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err("legend"))?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
     root.present().map_err(err("write svg"))?;
     Ok(())
-}
-
-/// The `phi - K_phi` plane (paper Fig. 7): MALT curve `(phi_deg, K)` as a
-/// line on a logarithmic K axis, plus labelled points `(label, phi_deg, K)`.
-pub fn k_phi_plane(path: &Path, curve: &[(f64, f64)], points: &[(&str, f64, f64)]) -> Result<()> {
-    ensure!(
-        !curve.is_empty() || !points.is_empty(),
-        "k_phi_plane: nothing to plot"
-    );
-    let xs: Vec<f64> = curve
-        .iter()
-        .map(|c| c.0)
-        .chain(points.iter().map(|p| p.1))
-        .collect();
-    let ks: Vec<f64> = curve
-        .iter()
-        .map(|c| c.1)
-        .chain(points.iter().map(|p| p.2))
-        .filter(|k| *k > 0.0)
-        .collect();
-    let (x0, x1) = padded_pair(range(xs.iter(), "phi")?);
-    let (k0, k1) = range(ks.iter(), "positive K")?;
-    let (k0, k1) = (k0 / 1.3, k1 * 1.3);
-
-    let root = SVGBackend::new(path, SIZE).into_drawing_area();
-    root.fill(&WHITE).map_err(err("fill"))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption("MALT: K_phi vs internal friction angle", (FONT, 22))
-        .margin(15)
-        .x_label_area_size(50)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, (k0..k1).log_scale())
-        .map_err(err("chart layout"))?;
-    chart
-        .configure_mesh()
-        .x_desc("phi (deg)")
-        .y_desc("K_phi")
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
-        .draw()
-        .map_err(err("axes"))?;
-    if !curve.is_empty() {
-        let line: Vec<(f64, f64)> = curve.iter().copied().filter(|c| c.1 > 0.0).collect();
-        chart
-            .draw_series(LineSeries::new(line, BLACK.stroke_width(2)))
-            .map_err(err("curve"))?
-            .label("MALT, eq 10")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-    }
-    for (i, (label, phi, k)) in points.iter().enumerate() {
-        if !(*k > 0.0 && phi.is_finite()) {
-            continue;
-        }
-        let color = Palette99::pick(i).to_rgba();
-        let text = label.to_string();
-        chart
-            .draw_series(std::iter::once(
-                EmptyElement::at((*phi, *k))
-                    + Circle::new((0, 0), 5, color.filled())
-                    + Text::new(text, (8, -14), (FONT, 13).into_font()),
-            ))
-            .map_err(err("points"))?;
-    }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .label_font((FONT, 14))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err("legend"))?;
-    root.present().map_err(err("write svg"))?;
-    Ok(())
-}
-
-fn padded_pair((lo, hi): (f64, f64)) -> (f64, f64) {
-    padded(lo, hi)
 }
 
 #[cfg(test)]
@@ -248,25 +155,5 @@ mod tests {
         }
         assert!(fdr_overlay(&path, &[], "x").is_err());
         assert!(fdr_overlay(&path, &[("bad", &h, &pa[..3], None)], "x").is_err());
-    }
-
-    #[test]
-    fn k_phi_plane_writes_svg() {
-        let dir = tempfile::tempdir().unwrap();
-        let curve: Vec<(f64, f64)> = (0..=40)
-            .map(|d| (d as f64, (0.078 * d as f64).exp()))
-            .collect();
-        let path = dir.path().join("kphi.svg");
-        k_phi_plane(
-            &path,
-            &curve,
-            &[("Table 3", 25.94, 23.0), ("frictionless", 9.0, 2.71)],
-        )
-        .unwrap();
-        let svg = std::fs::read_to_string(&path).unwrap();
-        assert!(!svg.is_empty() && svg.contains("<svg"));
-        for needle in ["phi (deg)", "K_phi", "Table 3", "frictionless", "<circle"] {
-            assert!(svg.contains(needle), "missing {needle}");
-        }
     }
 }

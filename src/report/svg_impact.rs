@@ -1,7 +1,8 @@
 //! D(t) overlay of impact runs (K Fig 2 style): penetration depth in grain diameters
 //! against time in tau_c, one line per engine/variant, depth increasing downwards.
 
-use anyhow::{Result, anyhow, ensure};
+use super::plot::{FONT, err, legend};
+use anyhow::{Result, ensure};
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -31,41 +32,33 @@ pub fn depth_overlay(path: &Path, series: &[DepthSeries<'_>], title: &str) -> Re
     ensure!(x0 < x1, "depth_overlay: no finite points");
     let pad = 0.05 * (y1 - y0).max(1.0);
     let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
-    let e = |w: &'static str| move |err: DrawingAreaErrorKind<_>| anyhow!("{w}: {err:?}");
-    root.fill(&WHITE).map_err(e("fill"))?;
+    root.fill(&WHITE).map_err(err("fill"))?;
     // Depth grows downwards, as in K's figures of the bed.
     let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
+        .caption(title, (FONT, 22))
         .margin(15)
         .x_label_area_size(50)
         .y_label_area_size(60)
         .build_cartesian_2d(x0..x1, (y1 + pad)..(y0 - pad))
-        .map_err(e("layout"))?;
+        .map_err(err("layout"))?;
     chart
         .configure_mesh()
         .x_desc("t / tau_c")
         .y_desc("D / d (below the initial surface)")
-        .label_style(("sans-serif", 14))
+        .label_style((FONT, 14))
         .draw()
-        .map_err(e("axes"))?;
+        .map_err(err("axes"))?;
     for (i, (label, s)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
         chart
             .draw_series(LineSeries::new(s.iter().copied(), color.stroke_width(2)))
-            .map_err(e("series"))?
+            .map_err(err("series"))?
             .label(*label)
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
             });
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .label_font(("sans-serif", 14))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(e("legend"))?;
-    root.present().map_err(e("write"))?;
+    legend(&mut chart, SeriesLabelPosition::LowerRight, 14)?;
+    root.present().map_err(err("write"))?;
     Ok(())
 }
