@@ -27,6 +27,7 @@ const INERTIA: f64 = 0.4;
 /// Pairs below this count are handled by one thread: spawning costs more than it saves.
 const PAR_MIN_LEN: usize = 2048;
 
+#[derive(Clone)]
 pub struct Simulation {
     pub id: Vec<u64>,
     pub type_: Vec<usize>,
@@ -92,6 +93,7 @@ impl Default for Perturbation {
 /// intruder). Grains see it as a moving wall with the wall contact law, like LIGGGHTS'
 /// `fix move/mesh` + `fix wall/gran ... mesh`; the force on it is the sum of the
 /// reactions, summed in particle order so it is deterministic.
+#[derive(Clone)]
 pub struct MovingIntruder {
     pub body: intruder::FlatCylinder,
     pub velocity: V3,

@@ -6,7 +6,7 @@
 use super::contact::History;
 use super::vec3::V3;
 
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub struct PairList {
     /// `start[i]..start[i+1]` are the pairs whose first particle is i.
     pub start: Vec<usize>,

@@ -125,7 +125,9 @@ impl Snapshot {
         self.contacts.iter().filter(|c| c.kind != ContactKind::Wall)
     }
 
-    /// Builds a native snapshot from the simulation's last force pass.
+    /// Builds a native snapshot with the contacts as LIGGGHTS would dump them at this
+    /// step ([`crate::dem::Simulation::contacts_as_dumped`]), so both engines' stress
+    /// fields are measured the same way.
     pub fn from_native(sim: &crate::dem::Simulation, meta: SnapshotMeta) -> Snapshot {
         use crate::dem::contacts::Touching;
         let grains = (0..sim.x.len())
@@ -137,7 +139,7 @@ impl Snapshot {
             })
             .collect();
         let contacts = sim
-            .contacts()
+            .contacts_as_dumped()
             .into_iter()
             .map(|c| {
                 let xi = sim.x[c.i];
