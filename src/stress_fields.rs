@@ -956,6 +956,10 @@ pub struct EnginePoint {
     pub engine: String,
     pub phi_deg: f64,
     pub phi_std_deg: f64,
+    /// The window-averaged phi of each requested depth (NaN where undefined): both
+    /// engines snapshot the same steps, so their difference can be taken window by
+    /// window, which removes the depth-to-depth variation both share.
+    pub phi_by_window: Vec<f64>,
     pub k_phi: f64,
     pub k_phi_se: f64,
     /// Unified fit (eqs 13-15) with phi from the stress field: (h_A, h_B, R^2) or why not.
@@ -981,13 +985,19 @@ pub fn phi_check(
         (test.phi_deg - reference.phi_deg).abs(),
         tol.phi_abs_deg,
         format!(
-            "phi: {} {:.2} +- {:.2} deg, {} {:.2} +- {:.2} deg (mean +- sd over depths of the window-averaged phi)",
+            "phi: {} {:.2} +- {:.2} deg, {} {:.2} +- {:.2} deg (mean +- sd over depths of the window-averaged phi){}",
             test.engine,
             test.phi_deg,
             test.phi_std_deg,
             reference.engine,
             reference.phi_deg,
-            reference.phi_std_deg
+            reference.phi_std_deg,
+            match paired_difference(&test.phi_by_window, &reference.phi_by_window) {
+                Some((m, se, n)) => format!(
+                    "; window by window over {n} depths: difference {m:+.2} +- {se:.2} deg (mean +- standard error)"
+                ),
+                None => String::new(),
+            }
         ),
     )
 }
@@ -1199,6 +1209,32 @@ pub fn ensemble_fdr(
     Ok((obs(&nat)?, obs(&lig)?, notes))
 }
 
+fn phi_by_window(fields: &EngineFields) -> Vec<f64> {
+    fields
+        .windows
+        .iter()
+        .map(|w| w.phi_basic.as_ref().map_or(f64::NAN, |p| p.phi_deg))
+        .collect()
+}
+
+/// Mean and standard error of `test - reference` over the windows where both are
+/// defined; None with fewer than two such windows or different window counts.
+pub fn paired_difference(test: &[f64], reference: &[f64]) -> Option<(f64, f64, usize)> {
+    if test.len() != reference.len() {
+        return None;
+    }
+    let d: Vec<f64> = test
+        .iter()
+        .zip(reference)
+        .map(|(a, b)| a - b)
+        .filter(|x| x.is_finite())
+        .collect();
+    (d.len() >= 2).then(|| {
+        let (m, s) = mean_std(&d);
+        (m, s / (d.len() as f64).sqrt(), d.len())
+    })
+}
+
 /// An engine's (phi, K_phi) point: phi from its stress fields, K_phi and the unified
 /// fit (eqs 13-15, with that phi) from the given FDR.
 pub fn engine_point(fields: &EngineFields, fdr: &FdrObservables) -> EnginePoint {
@@ -1215,6 +1251,7 @@ pub fn engine_point(fields: &EngineFields, fdr: &FdrObservables) -> EnginePoint 
         engine: fields.engine.clone(),
         phi_deg: fields.phi_deg,
         phi_std_deg: fields.phi_std_deg,
+        phi_by_window: phi_by_window(fields),
         k_phi: obs.fit.k_phi,
         k_phi_se: obs.fit.se_k,
         unified,
@@ -1422,6 +1459,7 @@ pub fn run_case(
         engine: neg.engine.clone(),
         phi_deg: neg.phi_deg,
         phi_std_deg: neg.phi_std_deg,
+        phi_by_window: phi_by_window(&neg),
         k_phi: np.k_phi,
         k_phi_se: np.k_phi_se,
         unified: Err("not fitted (negative control)".into()),
@@ -1433,8 +1471,8 @@ pub fn run_case(
         .into_iter()
         .filter(|(_, k)| *k <= 2e3)
         .collect();
-    use crate::report::field_svg::{KPhiPoint, k_phi_plane_with_errors};
-    k_phi_plane_with_errors(
+    use crate::report::field_svg::{KPhiPoint, k_phi_plane};
+    k_phi_plane(
         &out_dir.join("k_phi.svg"),
         &curve,
         &[

@@ -450,6 +450,11 @@ fn point(f: &stress_fields::EngineFields) -> EnginePoint {
         engine: f.engine.clone(),
         phi_deg: f.phi_deg,
         phi_std_deg: f.phi_std_deg,
+        phi_by_window: f
+            .windows
+            .iter()
+            .map(|w| w.phi_basic.as_ref().map_or(f64::NAN, |p| p.phi_deg))
+            .collect(),
         k_phi: 10.0,
         k_phi_se: 0.0,
         unified: Err("n/a".into()),
@@ -755,6 +760,7 @@ fn malt_checks_pass_on_the_curve_and_fail_off_it() {
         engine: "test".into(),
         phi_deg: phi,
         phi_std_deg: 0.0,
+        phi_by_window: vec![phi],
         k_phi: k,
         k_phi_se: 0.0,
         unified,
@@ -1196,4 +1202,18 @@ fn a_field_translated_with_the_intruder_averages_to_itself() {
         assert!((a.stress_kernel[2] - b.stress_kernel[2]).abs() < 1e-9 * smax);
         assert!((a.solid_fraction - b.solid_fraction).abs() < 1e-9);
     }
+}
+
+/// The window-by-window difference the phi check reports next to its gate value.
+#[test]
+fn paired_difference_of_window_phis() {
+    let (m, se, n) =
+        stress_fields::paired_difference(&[30.0, 32.0, f64::NAN, 35.0], &[31.0, 34.0, 33.0, 36.0])
+            .unwrap();
+    assert_eq!(n, 3, "the undefined window is left out");
+    assert!((m + 4.0 / 3.0).abs() < 1e-12);
+    // differences -1, -2, -1: sd = sqrt(1/3), se = sd / sqrt(3) = 1/3
+    assert!((se - 1.0 / 3.0).abs() < 1e-12);
+    assert!(stress_fields::paired_difference(&[1.0, 2.0], &[1.0]).is_none());
+    assert!(stress_fields::paired_difference(&[1.0], &[2.0]).is_none());
 }
