@@ -38,6 +38,7 @@ fn ci() -> &'static Ci {
         );
         let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("penetration-ci");
         let _ = std::fs::remove_dir_all(&out);
+        ensemble::start_out_dir(&case, &out).expect("output directory");
         let opts = granval::pipeline::Options {
             mpi_procs: 2,
             ..common::options()

@@ -6,11 +6,12 @@ use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CaseError {
-    #[error("{file}: cannot read: {source}")]
+    /// The I/O error is part of the message, not a `source`: chained printing
+    /// (`{:#}`) would otherwise say it twice.
+    #[error("{file}: cannot read: {error}")]
     Io {
         file: PathBuf,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("{file}: {message}")]
     Parse { file: PathBuf, message: String },

@@ -367,9 +367,9 @@ fn material(ctx: &Ctx, prefix: &str, m: &MaterialIn) -> Result<Material2d, CaseE
 
 impl Impact2dCase {
     pub fn load(path: &Path) -> Result<Impact2dCase, CaseError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+        let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
             file: path.to_path_buf(),
-            source,
+            error,
         })?;
         Self::from_toml_str(&text, path)
     }

@@ -145,9 +145,9 @@ pub struct Case {
 
 impl Case {
     pub fn load(path: &Path) -> Result<Case, CaseError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+        let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
             file: path.to_path_buf(),
-            source,
+            error,
         })?;
         Case::from_toml_str(&text, path)
     }

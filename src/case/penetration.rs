@@ -370,9 +370,9 @@ pub fn kind_of(path: &Path) -> Result<String, CaseError> {
     struct PeekCase {
         kind: String,
     }
-    let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+    let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
         file: path.to_path_buf(),
-        source,
+        error,
     })?;
     let p: Peek = toml::from_str(&text).map_err(|e| CaseError::Parse {
         file: path.to_path_buf(),
@@ -401,9 +401,9 @@ impl PenetrationCase {
     }
 
     pub fn load(path: &Path) -> Result<PenetrationCase, CaseError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+        let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
             file: path.to_path_buf(),
-            source,
+            error,
         })?;
         Self::from_toml_str(&text, path)
     }

@@ -224,13 +224,17 @@ pub fn verdicts(
     (checks, notes, errored)
 }
 
+/// Creates `out_dir` with the case file in it, so that the per-bed outputs that follow
+/// make it a deck directory (`granval analyze`, `granval stress --fdr-from` re-read it).
+pub fn start_out_dir(case: &PenetrationCase, out_dir: &Path) -> std::io::Result<()> {
+    std::fs::create_dir_all(out_dir)?;
+    std::fs::copy(&case.source, out_dir.join(deck_dir::CASE_FILE)).map(|_| ())
+}
+
 /// `granval compare` / `check` for a penetration case: N beds, both engines on each.
 pub fn compare_case(case: &PenetrationCase, opts: &Options, out_dir: &Path) -> CaseResult {
     let mut runs = EnsembleRuns::default();
-    // The output directory doubles as a deck directory (`granval analyze` re-reads it).
-    if let Err(e) = std::fs::create_dir_all(out_dir)
-        .and_then(|_| std::fs::copy(&case.source, out_dir.join(deck_dir::CASE_FILE)))
-    {
+    if let Err(e) = start_out_dir(case, out_dir) {
         runs.notes.push(format!(
             "case file not copied to {}: {e}",
             out_dir.display()
