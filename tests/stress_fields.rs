@@ -346,10 +346,14 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
             );
         }
     }
+    // Reaction of the intruder contacts vs the recorded (integrated) intruder force. The
+    // snapshot holds the contact law re-evaluated at the end of the step, as LIGGGHTS
+    // dumps it (dem::contacts): the elastic parts are the same, the damping sees the
+    // end-of-step velocities, so the two differ by a little, and not by nothing.
+    let mut worst: f64 = 0.0;
     for (k, &step) in plan.steps.iter().enumerate() {
         let s = snapshot::read(&snaps, k).unwrap();
         assert_eq!(s.meta.step, step);
-        // Reaction of the intruder contacts = the recorded intruder force, exactly.
         if step % case.force_every == 0 {
             let sample = run
                 .samples
@@ -366,13 +370,26 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
                     sum[a] -= c.force[a];
                 }
             }
-            for a in 0..3 {
-                assert!(
-                    (sum[a] - sample.f[a]).abs() <= 1e-12 * sample.f[2].abs().max(1e-9),
-                    "step {step}: {sum:?} vs {:?}",
-                    sample.f
-                );
-            }
+            // Measured on this bed (2-8 intruder contacts, e = 0.5): up to 3.9e-2 of F_z
+            // vertically and 0.12 of the summed contact-force magnitudes sideways, where
+            // a few sliding contacts carry the end-of-step damping. A sign or a lost
+            // contact would be off by the order of the force itself.
+            let magnitudes: f64 = s
+                .contacts
+                .iter()
+                .filter(|c| c.kind == ContactKind::Intruder)
+                .map(|c| c.force.iter().map(|x| x * x).sum::<f64>().sqrt())
+                .sum();
+            let dz = (sum[2] - sample.f[2]).abs() / sample.f[2].abs().max(1e-9);
+            let dxy = (0..2)
+                .map(|a| (sum[a] - sample.f[a]).abs() / magnitudes.max(1e-12))
+                .fold(0.0, f64::max);
+            worst = worst.max(dz).max(dxy);
+            assert!(
+                dz <= 0.1 && dxy <= 0.25,
+                "step {step}: snapshot reaction {sum:?} vs integrated {:?}",
+                sample.f
+            );
         }
         assert!(s.contacts.iter().any(|c| c.kind == ContactKind::Wall));
         assert!(
@@ -383,6 +400,13 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
                 > 300
         );
     }
+    eprintln!(
+        "snapshot intruder reaction vs integrated force: worst relative difference {worst:.2e}"
+    );
+    assert!(
+        worst > 1e-9,
+        "the snapshot must be a re-evaluation, not the integrated force"
+    );
     let full = stress_fields::analyse_engine(
         "native",
         &snaps,
