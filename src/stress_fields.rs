@@ -325,6 +325,16 @@ pub struct EngineFields {
     pub params: Option<CgParams>,
 }
 
+impl EngineFields {
+    /// The window-averaged phi of each requested depth, NaN where it is undefined.
+    pub fn phi_by_window(&self) -> Vec<f64> {
+        self.windows
+            .iter()
+            .map(|w| w.phi_basic.as_ref().map_or(f64::NAN, |p| p.phi_deg))
+            .collect()
+    }
+}
+
 fn mean_std(v: &[f64]) -> (f64, f64) {
     if v.is_empty() {
         return (f64::NAN, f64::NAN);
@@ -1209,14 +1219,6 @@ pub fn ensemble_fdr(
     Ok((obs(&nat)?, obs(&lig)?, notes))
 }
 
-fn phi_by_window(fields: &EngineFields) -> Vec<f64> {
-    fields
-        .windows
-        .iter()
-        .map(|w| w.phi_basic.as_ref().map_or(f64::NAN, |p| p.phi_deg))
-        .collect()
-}
-
 /// Mean and standard error of `test - reference` over the windows where both are
 /// defined; None with fewer than two such windows or different window counts.
 pub fn paired_difference(test: &[f64], reference: &[f64]) -> Option<(f64, f64, usize)> {
@@ -1251,7 +1253,7 @@ pub fn engine_point(fields: &EngineFields, fdr: &FdrObservables) -> EnginePoint 
         engine: fields.engine.clone(),
         phi_deg: fields.phi_deg,
         phi_std_deg: fields.phi_std_deg,
-        phi_by_window: phi_by_window(fields),
+        phi_by_window: fields.phi_by_window(),
         k_phi: obs.fit.k_phi,
         k_phi_se: obs.fit.se_k,
         unified,
@@ -1459,7 +1461,7 @@ pub fn run_case(
         engine: neg.engine.clone(),
         phi_deg: neg.phi_deg,
         phi_std_deg: neg.phi_std_deg,
-        phi_by_window: phi_by_window(&neg),
+        phi_by_window: neg.phi_by_window(),
         k_phi: np.k_phi,
         k_phi_se: np.k_phi_se,
         unified: Err("not fitted (negative control)".into()),

@@ -346,30 +346,59 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
             );
         }
     }
-    // Reaction of the intruder contacts vs the recorded (integrated) intruder force. The
-    // snapshot holds the contact law re-evaluated at the end of the step, as LIGGGHTS
-    // dumps it (dem::contacts): the elastic parts are the same, the damping sees the
-    // end-of-step velocities, so the two differ by a little, and not by nothing.
+    // The snapshot files hold exactly `contacts_as_dumped` (kinds, signs, every contact):
+    // an independent run of the same bed sums its intruder reactions at the same steps.
+    let mut dumped_reaction = HashMap::new();
+    granval::dem::penetration::run_with_snapshots(
+        &case,
+        &bed,
+        Default::default(),
+        &plan.steps,
+        |sim| {
+            let mut f = [0.0; 3];
+            for c in sim.contacts_as_dumped() {
+                if c.other == granval::dem::contacts::Touching::Intruder {
+                    for a in 0..3 {
+                        f[a] -= c.force_on_i[a];
+                    }
+                }
+            }
+            dumped_reaction.insert(sim.step, f);
+            Ok(())
+        },
+        |_, _| {},
+    )
+    .unwrap();
+    // Against the recorded (integrated) intruder force the re-evaluated reaction differs
+    // by a little, and not by nothing: the elastic parts are the same, the damping sees
+    // the end-of-step velocities (dem::contacts).
     let mut worst: f64 = 0.0;
     for (k, &step) in plan.steps.iter().enumerate() {
         let s = snapshot::read(&snaps, k).unwrap();
         assert_eq!(s.meta.step, step);
+        let mut sum = [0.0; 3];
+        for c in s
+            .contacts
+            .iter()
+            .filter(|c| c.kind == ContactKind::Intruder)
+        {
+            for a in 0..3 {
+                sum[a] -= c.force[a];
+            }
+        }
+        let want = dumped_reaction[&step];
+        for a in 0..3 {
+            assert!(
+                (sum[a] - want[a]).abs() <= 1e-12 * want[2].abs().max(1e-9),
+                "step {step}: snapshot file {sum:?} vs contacts_as_dumped {want:?}"
+            );
+        }
         if step % case.force_every == 0 {
             let sample = run
                 .samples
                 .iter()
                 .find(|x| (x.t / case.dt).round() as u64 == step)
                 .unwrap();
-            let mut sum = [0.0; 3];
-            for c in s
-                .contacts
-                .iter()
-                .filter(|c| c.kind == ContactKind::Intruder)
-            {
-                for a in 0..3 {
-                    sum[a] -= c.force[a];
-                }
-            }
             // Measured on this bed (2-8 intruder contacts, e = 0.5): up to 3.9e-2 of F_z
             // vertically and 0.12 of the summed contact-force magnitudes sideways, where
             // a few sliding contacts carry the end-of-step damping. A sign or a lost
@@ -474,11 +503,7 @@ fn point(f: &stress_fields::EngineFields) -> EnginePoint {
         engine: f.engine.clone(),
         phi_deg: f.phi_deg,
         phi_std_deg: f.phi_std_deg,
-        phi_by_window: f
-            .windows
-            .iter()
-            .map(|w| w.phi_basic.as_ref().map_or(f64::NAN, |p| p.phi_deg))
-            .collect(),
+        phi_by_window: f.phi_by_window(),
         k_phi: 10.0,
         k_phi_se: 0.0,
         unified: Err("n/a".into()),
