@@ -101,8 +101,9 @@ enum Cmd {
         #[arg(long, default_value_t = 2000)]
         steps: u64,
     },
-    /// Stress and velocity fields of a penetration case from both engines (issue 4):
-    /// phi per engine, (phi, K_phi) against MALT, CSV/VTK/SVG under OUT.
+    /// Stress and velocity fields of a penetration case from both engines (issue 4),
+    /// every bed of its ensemble (OUT/bed-K/): phi per engine, (phi, K_phi) against
+    /// MALT, CSV/VTK/SVG under OUT.
     Stress {
         case: PathBuf,
         #[arg(long)]
@@ -118,7 +119,7 @@ enum Cmd {
         kernel_width: f64,
         /// A `granval compare` output directory of the same case (OUT/bed-K/ with the
         /// LIGGGHTS outputs, OUT/bed-K/native/): K_phi and the unified fit on its
-        /// ensemble-mean FDR instead of the stress run's single bed.
+        /// ensemble-mean FDR instead of the mean FDR of the stress run's own beds.
         #[arg(long)]
         fdr_from: Option<PathBuf>,
     },
@@ -657,11 +658,19 @@ fn real_main() -> Result<ExitCode> {
                     n.detail
                 ),
                 format!(
-                    "kernel method (not gated): phi native {:.2} +- {:.2} deg, LIGGGHTS {:.2} +- {:.2} deg",
-                    rep.native.phi_kernel_deg,
-                    rep.native.phi_kernel_std_deg,
-                    rep.liggghts.phi_kernel_deg,
-                    rep.liggghts.phi_kernel_std_deg
+                    "kernel method (not gated), phi over depths: {}",
+                    rep.beds
+                        .iter()
+                        .map(|b| format!(
+                            "bed {} native {:.2} +- {:.2} deg, LIGGGHTS {:.2} +- {:.2} deg",
+                            b.bed,
+                            b.native.phi_kernel_deg,
+                            b.native.phi_kernel_std_deg,
+                            b.liggghts.phi_kernel_deg,
+                            b.liggghts.phi_kernel_std_deg
+                        ))
+                        .collect::<Vec<_>>()
+                        .join("; ")
                 ),
             ];
             notes.extend(rep.notes.iter().cloned());
@@ -682,7 +691,7 @@ fn real_main() -> Result<ExitCode> {
             for note in &notes {
                 println!("{note}");
             }
-            for p in granval::stress_fields::output_files(&out) {
+            for p in granval::stress_fields::output_files(&out, rep.beds.len()) {
                 println!("wrote {}", p.display());
             }
             Ok(ExitCode::from(report.exit_code() as u8))

@@ -964,12 +964,18 @@ fn write_outputs(dir: &Path, k: usize, w: &WindowFields) -> Result<()> {
 #[derive(Debug, Clone, Serialize)]
 pub struct EnginePoint {
     pub engine: String,
+    /// Mean and sample sd of the window-averaged phi over every depth of every bed.
     pub phi_deg: f64,
     pub phi_std_deg: f64,
-    /// The window-averaged phi of each requested depth (NaN where undefined): both
-    /// engines snapshot the same steps, so their difference can be taken window by
-    /// window, which removes the depth-to-depth variation both share.
+    /// The window-averaged phi of each requested depth of each bed, bed by bed (NaN
+    /// where undefined): both engines snapshot the same steps of the same beds, so their
+    /// difference can be taken window by window, which removes the depth-to-depth
+    /// variation both share.
     pub phi_by_window: Vec<f64>,
+    /// Each bed's phi (mean over its depths). The bed-by-bed difference is the honest
+    /// measure of the engines' agreement: windows of one bed share its history and are
+    /// not independent.
+    pub phi_by_bed: Vec<f64>,
     pub k_phi: f64,
     pub k_phi_se: f64,
     /// Unified fit (eqs 13-15) with phi from the stress field: (h_A, h_B, R^2) or why not.
@@ -982,32 +988,43 @@ pub struct EnginePoint {
     pub fdr_source: String,
 }
 
-/// |phi_test - phi_ref| <= `tol.phi_abs_deg`.
+/// |phi_test - phi_ref| <= `tol.phi_abs_deg`, phi pooled over all beds' windows; the
+/// detail gives the bed-by-bed and window-by-window paired differences.
 pub fn phi_check(
     case: &str,
     tol: &Tolerances,
     test: &EnginePoint,
     reference: &EnginePoint,
 ) -> Check {
+    let beds = test.phi_by_bed.len();
+    let paired = |what: &str, a: &[f64], b: &[f64]| match paired_difference(a, b) {
+        Some((m, se, n)) => format!(
+            "; {what} by {what} over {n}: difference {m:+.2} +- {se:.2} deg (mean +- standard error)"
+        ),
+        None => String::new(),
+    };
+    let per_bed = test
+        .phi_by_bed
+        .iter()
+        .zip(&reference.phi_by_bed)
+        .map(|(a, b)| format!("{:+.2}", a - b))
+        .collect::<Vec<_>>()
+        .join(", ");
     Check::at_most(
         format!("{case}: phi {} vs {}", test.engine, reference.engine),
         "|phi_test - phi_ref| (deg); sin phi = mean gamma over 0.995 gamma_max <= gamma (eqs 8-9)",
         (test.phi_deg - reference.phi_deg).abs(),
         tol.phi_abs_deg,
         format!(
-            "phi: {} {:.2} +- {:.2} deg, {} {:.2} +- {:.2} deg (mean +- sd over depths of the window-averaged phi){}",
+            "phi: {} {:.2} +- {:.2} deg, {} {:.2} +- {:.2} deg (mean +- sd over {beds} bed(s) x depths of the window-averaged phi); per bed difference [{per_bed}]{}{}",
             test.engine,
             test.phi_deg,
             test.phi_std_deg,
             reference.engine,
             reference.phi_deg,
             reference.phi_std_deg,
-            match paired_difference(&test.phi_by_window, &reference.phi_by_window) {
-                Some((m, se, n)) => format!(
-                    "; window by window over {n} depths: difference {m:+.2} +- {se:.2} deg (mean +- standard error)"
-                ),
-                None => String::new(),
-            }
+            paired("bed", &test.phi_by_bed, &reference.phi_by_bed),
+            paired("window", &test.phi_by_window, &reference.phi_by_window),
         ),
     )
 }
@@ -1237,23 +1254,31 @@ pub fn paired_difference(test: &[f64], reference: &[f64]) -> Option<(f64, f64, u
     })
 }
 
-/// An engine's (phi, K_phi) point: phi from its stress fields, K_phi and the unified
-/// fit (eqs 13-15, with that phi) from the given FDR.
-pub fn engine_point(fields: &EngineFields, fdr: &FdrObservables) -> EnginePoint {
+/// An engine's (phi, K_phi) point: phi pooled over the stress fields of its beds, K_phi
+/// and the unified fit (eqs 13-15, with that phi) from the given FDR.
+pub fn engine_point(beds: &[&EngineFields], fdr: &FdrObservables) -> EnginePoint {
+    let phi_by_window: Vec<f64> = beds.iter().flat_map(|f| f.phi_by_window()).collect();
+    let finite: Vec<f64> = phi_by_window
+        .iter()
+        .copied()
+        .filter(|x| x.is_finite())
+        .collect();
+    let (phi_deg, phi_std_deg) = mean_std(&finite);
     let obs = &fdr.obs;
-    let unified = if fields.phi_deg.is_finite() {
+    let unified = if phi_deg.is_finite() {
         let c = obs.fdr.contact_only();
-        malt::fit_unified_fdr(&c.h, &c.p, obs.fit.k_phi, fields.phi_deg.to_radians())
+        malt::fit_unified_fdr(&c.h, &c.p, obs.fit.k_phi, phi_deg.to_radians())
             .map(|(u, r2)| (u.h_a, u.h_b, r2))
             .map_err(|e| format!("{e:#}"))
     } else {
         Err("phi undefined".to_string())
     };
     EnginePoint {
-        engine: fields.engine.clone(),
-        phi_deg: fields.phi_deg,
-        phi_std_deg: fields.phi_std_deg,
-        phi_by_window: fields.phi_by_window(),
+        engine: beds.first().map_or(String::new(), |f| f.engine.clone()),
+        phi_deg,
+        phi_std_deg,
+        phi_by_window,
+        phi_by_bed: beds.iter().map(|f| f.phi_deg).collect(),
         k_phi: obs.fit.k_phi,
         k_phi_se: obs.fit.se_k,
         unified,
@@ -1266,16 +1291,17 @@ pub fn engine_point(fields: &EngineFields, fdr: &FdrObservables) -> EnginePoint 
 #[derive(Debug, Serialize)]
 pub struct StressReport {
     pub case: String,
-    pub native: EngineFields,
-    pub liggghts: EngineFields,
+    /// Every bed's fields, bed 0 first.
+    pub beds: Vec<BedStress>,
+    /// The engines' points, phi pooled over all beds' windows.
     pub native_point: EnginePoint,
     pub liggghts_point: EnginePoint,
-    /// Negative control: native stress with tangential forces dropped.
-    pub native_normal_only: EngineFields,
+    /// Negative control: native stress with tangential forces dropped, all beds.
     pub negative_control_check: Check,
     pub checks: Vec<Check>,
     pub notes: Vec<String>,
-    /// Wall time of the field analysis of both engines and the negative control (s).
+    /// Wall time of the field analysis of both engines and the negative control, all
+    /// beds (s).
     pub analysis_wall_s: f64,
 }
 
@@ -1287,7 +1313,7 @@ pub struct StressOptions {
     /// Gaussian range w of eq 6 in grain diameters.
     pub width_over_d: f64,
     /// A `granval compare` output directory of the same case: K_phi and the unified fit
-    /// on its ensemble-mean FDR instead of the stress run's single bed.
+    /// on its ensemble-mean FDR instead of the mean FDR of the stress run's own beds.
     pub fdr_from: Option<PathBuf>,
 }
 
@@ -1301,16 +1327,35 @@ impl Default for StressOptions {
     }
 }
 
-/// Runs (or, with `reuse`, re-reads from `out_dir`) both engines with snapshots and
-/// produces the stress/MALT checks and outputs under `out_dir`.
-pub fn run_case(
+/// One bed of a stress run: both engines' fields and the negative control.
+#[derive(Debug, Clone, Serialize)]
+pub struct BedStress {
+    /// Bed number K (seed `bed.seed + K`, directory `OUT/bed-K/`).
+    pub bed: usize,
+    pub seed: u64,
+    pub native: EngineFields,
+    pub liggghts: EngineFields,
+    /// Negative control: native stress with tangential forces dropped.
+    pub native_normal_only: EngineFields,
+    /// The bed's surface and packing fraction, for its force-depth relation.
+    pub surface_z: f64,
+    pub psi: f64,
+    pub n_windows: usize,
+    pub n_snapshots: usize,
+    /// Wall time of this bed's field analysis (both engines and the control), s.
+    pub analysis_wall_s: f64,
+}
+
+/// Runs (or with `--reuse` re-reads) bed `k` of `case` into `dir` and analyses it.
+fn run_bed(
     case: &PenetrationCase,
+    k: usize,
     opts: &crate::pipeline::Options,
-    out_dir: &Path,
+    dir: &Path,
     so: &StressOptions,
-) -> Result<StressReport> {
-    let nd = out_dir.join("native");
-    let ld = out_dir.join("liggghts");
+) -> Result<BedStress> {
+    let nd = dir.join("native");
+    let ld = dir.join("liggghts");
     let (nsnap, lsnap) = (nd.join("snapshots"), ld.join("snapshots"));
     let have = |d: &Path| {
         d.join("force.csv").exists()
@@ -1320,7 +1365,7 @@ pub fn run_case(
         if so.reuse {
             eprintln!(
                 "--reuse: no complete earlier run in {}; running both engines",
-                out_dir.display()
+                dir.display()
             );
         }
         if crate::engines::liggghts::installed_version("liggghts").is_none() {
@@ -1405,68 +1450,136 @@ pub fn run_case(
             std::fs::remove_dir_all(&d).with_context(|| format!("cannot clear {}", d.display()))?;
         }
     }
-    let t_analysis = std::time::Instant::now();
     let w = so.width_over_d;
-    let nf = analyse_engine("native", &nsnap, Some(&nd.join("fields")), Forces::Full, w)?;
-    let lf = analyse_engine(
-        "liggghts",
-        &lsnap,
-        Some(&ld.join("fields")),
-        Forces::Full,
-        w,
-    )?;
-    let neg = analyse_engine(
-        "native (tangential forces dropped)",
-        &nsnap,
-        None,
-        Forces::NormalOnly,
-        w,
-    )?;
-    let analysis_wall_s = t_analysis.elapsed().as_secs_f64();
+    let t_analysis = std::time::Instant::now();
+    let mut bed = BedStress {
+        bed: k,
+        seed: case.seed,
+        native: analyse_engine("native", &nsnap, Some(&nd.join("fields")), Forces::Full, w)?,
+        liggghts: analyse_engine(
+            "liggghts",
+            &lsnap,
+            Some(&ld.join("fields")),
+            Forces::Full,
+            w,
+        )?,
+        native_normal_only: analyse_engine(
+            "native (tangential forces dropped)",
+            &nsnap,
+            None,
+            Forces::NormalOnly,
+            w,
+        )?,
+        surface_z: m0.surface_z,
+        psi: m0.psi,
+        n_windows: nplan.windows.len(),
+        n_snapshots: nplan.steps.len(),
+        analysis_wall_s: 0.0,
+    };
+    bed.analysis_wall_s = t_analysis.elapsed().as_secs_f64();
+    Ok(bed)
+}
+
+/// Directory of bed `k` in a stress run's output directory.
+pub fn bed_dir(out_dir: &Path, k: usize) -> PathBuf {
+    out_dir.join(format!("bed-{k}"))
+}
+
+/// Both engines' mean FDR over the stress run's own beds (each reduced with its own
+/// surface and psi, as `granval compare` does).
+fn own_fdr(
+    case: &PenetrationCase,
+    out_dir: &Path,
+    beds: &[BedStress],
+) -> Result<(FdrObservables, FdrObservables)> {
+    let mut fdrs = [Vec::new(), Vec::new()];
+    for b in beds {
+        for (e, fdr) in ["native", "liggghts"].iter().zip(&mut fdrs) {
+            let path = bed_dir(out_dir, b.bed).join(e).join("force.csv");
+            let samples = crate::penetration::read_force_csv(&path)?;
+            ensure!(!samples.is_empty(), "{}: no force samples", path.display());
+            fdr.push(single_bed_fdr(case, &samples, b.surface_z, b.psi)?.obs.fdr);
+        }
+    }
+    let obs = |f: &[crate::analysis::fdr::Fdr]| -> Result<FdrObservables> {
+        let o = crate::compare::penetration::ensemble(case, &f.iter().collect::<Vec<_>>())?;
+        let source = format!(
+            "mean FDR of the stress run's {} bed(s) (single beds K_phi {:?})",
+            f.len(),
+            o.members
+                .iter()
+                .map(|m| (m.0 * 100.0).round() / 100.0)
+                .collect::<Vec<_>>()
+        );
+        Ok(FdrObservables { obs: o, source })
+    };
+    Ok((obs(&fdrs[0])?, obs(&fdrs[1])?))
+}
+
+/// Runs every bed of the case's ensemble (`[ensemble] beds`) in both engines, analyses
+/// each, and checks phi pooled over the beds: at CI scale one bed's phi differs between
+/// the engines by about 2.4 deg (sd over beds, measured), chaos alone, so a single bed
+/// cannot resolve a 1.5 deg tolerance.
+pub fn run_case(
+    case: &PenetrationCase,
+    opts: &crate::pipeline::Options,
+    out_dir: &Path,
+    so: &StressOptions,
+) -> Result<StressReport> {
+    let beds = (0..case.ensemble_beds.max(1))
+        .map(|k| {
+            run_bed(&case.realisation(k), k, opts, &bed_dir(out_dir, k), so)
+                .with_context(|| format!("bed {k}"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let b0 = &beds[0];
     let mut notes = vec![format!(
-        "phi per engine: mean +- sd over {} depths of the phi of {}-snapshot windows averaged in the intruder's frame (span {:.4} R of travel); instantaneous phi over all {} snapshots: native {:.2} +- {:.2} deg, LIGGGHTS {:.2} +- {:.2} deg",
-        nplan.windows.len(),
+        "phi per engine: mean +- sd over {} beds x {} depths of the phi of {}-snapshot windows averaged in the intruder's frame (span {:.4} R of travel)",
+        beds.len(),
+        b0.n_windows,
         case.snapshot_window,
         case.snapshot_window_h,
-        nplan.steps.len(),
-        nf.phi_instant_deg,
-        nf.phi_instant_std_deg,
-        lf.phi_instant_deg,
-        lf.phi_instant_std_deg
     )];
+    for b in &beds {
+        notes.push(format!(
+            "bed {} (seed {}): phi native {:.2} +- {:.2} deg, LIGGGHTS {:.2} +- {:.2} deg (over depths); instantaneous phi over all {} snapshots: native {:.2} +- {:.2}, LIGGGHTS {:.2} +- {:.2}",
+            b.bed,
+            b.seed,
+            b.native.phi_deg,
+            b.native.phi_std_deg,
+            b.liggghts.phi_deg,
+            b.liggghts.phi_std_deg,
+            b.n_snapshots,
+            b.native.phi_instant_deg,
+            b.native.phi_instant_std_deg,
+            b.liggghts.phi_instant_deg,
+            b.liggghts.phi_instant_std_deg
+        ));
+    }
     let (nfdr, lfdr) = match &so.fdr_from {
         Some(dir) => {
-            let (a, b, n) = ensemble_fdr(case, dir, m0.surface_z, m0.psi)?;
+            let (a, b, n) = ensemble_fdr(case, dir, b0.surface_z, b0.psi)?;
             notes.extend(n);
             (a, b)
         }
         None => {
-            let read = |d: &Path| crate::penetration::read_force_csv(&d.join("force.csv"));
             notes.push(
-                "K_phi and the unified fit (eqs 13-15) on the FDR of the stress run's single bed (bed 0): no --fdr-from COMPARE_DIR given, so the ensemble-mean FDR of the case's beds was not used"
+                "K_phi and the unified fit (eqs 13-15) on the mean FDR of the stress run's own beds (no --fdr-from COMPARE_DIR given)"
                     .into(),
             );
-            (
-                single_bed_fdr(case, &read(&nd)?, m0.surface_z, m0.psi)?,
-                single_bed_fdr(case, &read(&ld)?, m0.surface_z, m0.psi)?,
-            )
+            own_fdr(case, out_dir, &beds)?
         }
     };
-    let np = engine_point(&nf, &nfdr);
-    let lp = engine_point(&lf, &lfdr);
+    let pick = |f: fn(&BedStress) -> &EngineFields| beds.iter().map(f).collect::<Vec<_>>();
+    let np = engine_point(&pick(|b| &b.native), &nfdr);
+    let lp = engine_point(&pick(|b| &b.liggghts), &lfdr);
     let mut checks = vec![phi_check(&case.name, &case.tolerances, &np, &lp)];
     checks.extend(malt_checks(&case.name, &case.tolerances, &np));
     checks.extend(malt_checks(&case.name, &case.tolerances, &lp));
     let negp = EnginePoint {
-        engine: neg.engine.clone(),
-        phi_deg: neg.phi_deg,
-        phi_std_deg: neg.phi_std_deg,
-        phi_by_window: neg.phi_by_window(),
-        k_phi: np.k_phi,
-        k_phi_se: np.k_phi_se,
         unified: Err("not fitted (negative control)".into()),
         unified_malt: None,
-        fdr_source: np.fdr_source.clone(),
+        ..engine_point(&pick(|b| &b.native_normal_only), &nfdr)
     };
     let negative_control_check = phi_check(&case.name, &case.tolerances, &negp, &lp);
     let curve: Vec<(f64, f64)> = malt::table(45.0, 0.5)?
@@ -1501,18 +1614,17 @@ pub fn run_case(
             },
         ],
     )?;
-    write_phi_csv(&out_dir.join("phi_snapshots.csv"), &[&nf, &lf, &neg])?;
+    write_phi_csv(&out_dir.join("phi_snapshots.csv"), &beds)?;
+    let beds_wall: f64 = beds.iter().map(|b| b.analysis_wall_s).sum();
     let report = StressReport {
         case: case.name.clone(),
-        native: nf,
-        liggghts: lf,
+        beds,
         native_point: np,
         liggghts_point: lp,
-        native_normal_only: neg,
         negative_control_check,
         checks,
         notes,
-        analysis_wall_s,
+        analysis_wall_s: beds_wall,
     };
     std::fs::write(
         out_dir.join("stress.json"),
@@ -1523,13 +1635,13 @@ pub fn run_case(
 
 /// `phi_snapshots.csv`: one row per instantaneous snapshot (`kind` = instantaneous) and
 /// one per window average (`kind` = window, `k` empty, `step` the middle snapshot's).
-fn write_phi_csv(path: &Path, engines: &[&EngineFields]) -> Result<()> {
+fn write_phi_csv(path: &Path, beds: &[BedStress]) -> Result<()> {
     let mut w = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
     );
     writeln!(
         w,
-        "engine,window,h_target,kind,k,step,h,phi_basic_deg,gamma_max_basic,n_top_basic,n_cells,phi_kernel_deg,stagnant_height_over_R,yield_cells"
+        "bed,engine,window,h_target,kind,k,step,h,phi_basic_deg,gamma_max_basic,n_top_basic,n_cells,phi_kernel_deg,stagnant_height_over_R,yield_cells"
     )?;
     let row = |w: &mut std::io::BufWriter<std::fs::File>,
                prefix: &str,
@@ -1551,13 +1663,16 @@ fn write_phi_csv(path: &Path, engines: &[&EngineFields]) -> Result<()> {
         )?;
         Ok(())
     };
-    for e in engines {
+    let engines = beds
+        .iter()
+        .flat_map(|b| [&b.native, &b.liggghts, &b.native_normal_only].map(|e| (b.bed, e)));
+    for (bed, e) in engines {
         for win in &e.windows {
             for s in &win.instantaneous {
                 row(
                     &mut w,
                     &format!(
-                        "{},{},{:e},instantaneous,{}",
+                        "{bed},{},{},{:e},instantaneous,{}",
                         e.engine, win.window, win.h_target, s.k
                     ),
                     s.step,
@@ -1570,7 +1685,10 @@ fn write_phi_csv(path: &Path, engines: &[&EngineFields]) -> Result<()> {
             }
             row(
                 &mut w,
-                &format!("{},{},{:e},window,", e.engine, win.window, win.h_target),
+                &format!(
+                    "{bed},{},{},{:e},window,",
+                    e.engine, win.window, win.h_target
+                ),
                 win.steps[win.steps.len() / 2],
                 win.h,
                 win.phi_basic,
@@ -1584,14 +1702,18 @@ fn write_phi_csv(path: &Path, engines: &[&EngineFields]) -> Result<()> {
     Ok(())
 }
 
-/// Output paths of [`run_case`] (for the CLI's summary).
-pub fn output_files(out_dir: &Path) -> Vec<PathBuf> {
-    vec![
+/// Output paths of [`run_case`] with `beds` beds (for the CLI's summary).
+pub fn output_files(out_dir: &Path, beds: usize) -> Vec<PathBuf> {
+    let mut out = vec![
         out_dir.join("report.md"),
         out_dir.join("stress.json"),
         out_dir.join("phi_snapshots.csv"),
         out_dir.join("k_phi.svg"),
-        out_dir.join("native/fields"),
-        out_dir.join("liggghts/fields"),
-    ]
+    ];
+    for k in 0..beds {
+        for e in ["native", "liggghts"] {
+            out.push(bed_dir(out_dir, k).join(e).join("fields"));
+        }
+    }
+    out
 }

@@ -61,6 +61,42 @@ fn penetration_case_errors_name_field() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("interactions[0].friction"), "{e}");
+    for (value, why) in [("0.0", "must be > 0"), ("0.2", "must be below 0.1")] {
+        let bad = tiny("").replace(
+            "force_every = 10",
+            &format!("force_every = 10\nstl_rim_error = {value}"),
+        );
+        let e = PenetrationCase::from_toml_str(&bad, Path::new("tiny.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("intruder.stl_rim_error") && e.contains(why),
+            "{e}"
+        );
+    }
+}
+
+/// The STL's rim error reaches the LIGGGHTS deck: 24 segments by default, 72 at 0.001.
+#[test]
+fn stl_rim_error_sets_the_segment_count() {
+    use granval::engines::liggghts::stl::segments_for_rim_error;
+    let case = PenetrationCase::from_toml_str(&tiny(""), Path::new("tiny.toml")).unwrap();
+    assert_eq!(case.stl_rim_error, 0.01);
+    let text = tiny("").replace("force_every = 10", "force_every = 10\nstl_rim_error = 1e-3");
+    let fine = PenetrationCase::from_toml_str(&text, Path::new("tiny.toml")).unwrap();
+    let bed = granval::dem::packing::Bed {
+        particles: vec![],
+        surface_z: 0.01,
+        psi: 0.0,
+        ke_ratio: 0.0,
+        settle_time: 0.0,
+        ke_at_end_of_pour: 0.0,
+    };
+    let segments = |c: &PenetrationCase| {
+        let d = granval::penetration::liggghts_deck(c, &bed).unwrap();
+        segments_for_rim_error(d.rim_error_frac)
+    };
+    assert_eq!((segments(&case), segments(&fine)), (24, 72));
 }
 
 #[test]

@@ -504,6 +504,7 @@ fn point(f: &stress_fields::EngineFields) -> EnginePoint {
         phi_deg: f.phi_deg,
         phi_std_deg: f.phi_std_deg,
         phi_by_window: f.phi_by_window(),
+        phi_by_bed: vec![f.phi_deg],
         k_phi: 10.0,
         k_phi_se: 0.0,
         unified: Err("n/a".into()),
@@ -671,10 +672,19 @@ fn snapshot_depths_and_stress_tolerances_are_validated() {
     );
     // R = 10 mm: h_final = 0.6, the default list is cut there.
     assert_eq!(tiny_case_with(0.020).snapshot_h, vec![0.24, 0.373, 0.6]);
-    let base = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/penetration/ci.toml"),
-    )
-    .unwrap();
+    let ci = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/penetration/ci.toml");
+    // The CI case asks for 11 depths and the final one (docs/stress.md); below, its
+    // snapshot lines are removed so that the defaults apply.
+    assert_eq!(
+        PenetrationCase::load(&ci).unwrap().snapshot_windows().len(),
+        12
+    );
+    let base: String = std::fs::read_to_string(&ci)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with("snapshot_"))
+        .map(|l| format!("{l}\n"))
+        .collect();
     let load = |extra_analysis: &str, compare: &str| {
         let text =
             base.replace("[analysis]\n", &format!("[analysis]\n{extra_analysis}\n")) + compare;
@@ -714,7 +724,7 @@ fn snapshot_depths_and_stress_tolerances_are_validated() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("phi_tol"), "{e}");
-    // The default windows fit every shipped penetration case.
+    // The windows fit every shipped penetration case.
     for e in
         std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/penetration")).unwrap()
     {
@@ -810,6 +820,7 @@ fn malt_checks_pass_on_the_curve_and_fail_off_it() {
         phi_deg: phi,
         phi_std_deg: 0.0,
         phi_by_window: vec![phi],
+        phi_by_bed: vec![phi],
         k_phi: k,
         k_phi_se: 0.0,
         unified,
@@ -846,12 +857,13 @@ fn malt_md_derived_values() {
     }
 }
 
-/// `granval stress` end to end on the tiny bed (live LIGGGHTS): both engines take
-/// `snapshot_window` snapshots per depth at identical steps, finite phi from each, every
-/// gated check present with a finite value, the outputs written; `--fdr-from` a
-/// `granval compare` directory of the same case (2 beds) fits K_phi and the unified FDR
-/// on the ensemble mean; `--reuse` without it re-analyses to the same phi, on bed 0's
-/// FDR with a note saying so.
+/// `granval stress` end to end on the tiny case's 2 beds (live LIGGGHTS): per bed both
+/// engines take `snapshot_window` snapshots per depth at identical steps, finite phi
+/// from each; each engine's phi pools both beds; every gated check present with a
+/// finite value, the outputs written; `--fdr-from` a `granval compare` directory of the
+/// same case fits K_phi and the unified FDR on its ensemble mean; `--reuse` without it
+/// re-analyses to the same phi, on the mean FDR of the stress run's own beds with a note
+/// saying so.
 #[test]
 fn stress_pipeline_end_to_end_on_a_tiny_bed() {
     if granval::engines::liggghts::installed_version("liggghts").is_none() {
@@ -885,38 +897,56 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
     };
     let rep = stress_fields::run_case(&case, &opts, &out, &so).unwrap();
     let n_windows = case.snapshot_h.len();
-    for e in [&rep.native, &rep.liggghts] {
-        assert_eq!(e.windows.len(), n_windows, "{}", e.engine);
-        for w in &e.windows {
-            assert_eq!(w.steps.len(), case.snapshot_window, "{}: {w:?}", e.engine);
-            assert_eq!(w.instantaneous.len(), case.snapshot_window);
+    assert_eq!(rep.beds.len(), 2, "every bed of the ensemble");
+    for (k, b) in rep.beds.iter().enumerate() {
+        assert_eq!((b.bed, b.seed), (k, case.seed + k as u64));
+        for e in [&b.native, &b.liggghts] {
+            assert_eq!(e.windows.len(), n_windows, "{}", e.engine);
+            for w in &e.windows {
+                assert_eq!(w.steps.len(), case.snapshot_window, "{}: {w:?}", e.engine);
+                assert_eq!(w.instantaneous.len(), case.snapshot_window);
+            }
+            assert!(
+                e.phi_deg.is_finite() && e.phi_deg > 0.0,
+                "{}: {}",
+                e.engine,
+                e.phi_deg
+            );
         }
-        assert!(
-            e.phi_deg.is_finite() && e.phi_deg > 0.0,
-            "{}: {}",
-            e.engine,
-            e.phi_deg
-        );
+        let steps = |e: &stress_fields::EngineFields| {
+            e.windows
+                .iter()
+                .map(|w| w.steps.clone())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(steps(&b.native), steps(&b.liggghts));
+        // LIGGGHTS really wrote every planned step (not just the plan file).
+        let ld = stress_fields::bed_dir(&out, k).join("liggghts");
+        let plan = stress_fields::SnapshotPlan::read(&ld.join("snapshots")).unwrap();
+        for (i, &step) in plan.steps.iter().enumerate() {
+            assert_eq!(
+                snapshot::read_meta(&ld.join("snapshots"), i).unwrap().step,
+                step
+            );
+            assert!(granval::engines::liggghts::snapshot::pair_file(&ld, step).exists());
+        }
     }
-    let steps = |e: &stress_fields::EngineFields| {
-        e.windows
-            .iter()
-            .map(|w| w.steps.clone())
-            .collect::<Vec<_>>()
-    };
-    assert_eq!(steps(&rep.native), steps(&rep.liggghts));
-    // LIGGGHTS really wrote every planned step (not just the plan file).
-    let plan = stress_fields::SnapshotPlan::read(&out.join("liggghts/snapshots")).unwrap();
-    for (k, &step) in plan.steps.iter().enumerate() {
-        assert_eq!(
-            snapshot::read_meta(&out.join("liggghts/snapshots"), k)
-                .unwrap()
-                .step,
-            step
-        );
-        assert!(
-            granval::engines::liggghts::snapshot::pair_file(&out.join("liggghts"), step).exists()
-        );
+    // The beds are different beds: their phis differ.
+    assert_ne!(rep.beds[0].native.phi_deg, rep.beds[1].native.phi_deg);
+    // Each engine's point pools both beds' windows.
+    for (p, pick) in [
+        (
+            &rep.native_point,
+            (|b: &stress_fields::BedStress| b.native.phi_by_window()) as fn(&_) -> Vec<f64>,
+        ),
+        (&rep.liggghts_point, |b| b.liggghts.phi_by_window()),
+    ] {
+        let pooled: Vec<f64> = rep.beds.iter().flat_map(pick).collect();
+        assert_eq!(p.phi_by_window.len(), 2 * n_windows);
+        let finite: Vec<f64> = pooled.into_iter().filter(|x| x.is_finite()).collect();
+        let mean = finite.iter().sum::<f64>() / finite.len() as f64;
+        assert!((p.phi_deg - mean).abs() < 1e-12, "{} vs {mean}", p.phi_deg);
+        assert_eq!(p.phi_by_bed.len(), 2);
     }
     let names: Vec<&str> = rep.checks.iter().map(|c| c.name.as_str()).collect();
     for want in [
@@ -928,6 +958,11 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
     ] {
         assert!(names.contains(&want), "missing check {want}: {names:?}");
     }
+    assert!(
+        rep.checks[0].detail.contains("bed by bed over 2"),
+        "{}",
+        rep.checks[0].detail
+    );
     assert!(
         rep.checks
             .iter()
@@ -949,51 +984,57 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
         );
     }
     eprintln!(
-        "tiny bed: phi native {:.2} +- {:.2} (instantaneous {:.2} +- {:.2}), LIGGGHTS {:.2} +- {:.2} (instantaneous {:.2} +- {:.2}), normal-only {:.2}; negative control {:?}; K_phi native {:.2}, LIGGGHTS {:.2} ({})",
-        rep.native.phi_deg,
-        rep.native.phi_std_deg,
-        rep.native.phi_instant_deg,
-        rep.native.phi_instant_std_deg,
-        rep.liggghts.phi_deg,
-        rep.liggghts.phi_std_deg,
-        rep.liggghts.phi_instant_deg,
-        rep.liggghts.phi_instant_std_deg,
-        rep.native_normal_only.phi_deg,
+        "tiny beds: phi native {:.2} +- {:.2}, LIGGGHTS {:.2} +- {:.2}; negative control {:?}; K_phi native {:.2}, LIGGGHTS {:.2} ({}); {}",
+        rep.native_point.phi_deg,
+        rep.native_point.phi_std_deg,
+        rep.liggghts_point.phi_deg,
+        rep.liggghts_point.phi_std_deg,
         (
             rep.negative_control_check.value,
             rep.negative_control_check.passed
         ),
         rep.native_point.k_phi,
         rep.liggghts_point.k_phi,
-        rep.native_point.fdr_source
+        rep.native_point.fdr_source,
+        rep.checks[0].detail
     );
-    for f in [
-        "stress.json",
-        "phi_snapshots.csv",
-        "k_phi.svg",
-        "native/force.csv",
-        "liggghts/force.csv",
-    ] {
+    for f in ["stress.json", "phi_snapshots.csv", "k_phi.svg"] {
         assert!(out.join(f).exists(), "{f} not written");
     }
     let csv = std::fs::read_to_string(out.join("phi_snapshots.csv")).unwrap();
     let rows = |kind: &str| csv.lines().skip(1).filter(|l| l.contains(kind)).count();
-    // native, LIGGGHTS and the negative control.
-    assert_eq!(rows(",window,"), 3 * n_windows);
+    // Two beds of native, LIGGGHTS and the negative control.
+    assert_eq!(rows(",window,"), 2 * 3 * n_windows);
     assert_eq!(
         rows(",instantaneous,"),
-        3 * n_windows * case.snapshot_window
+        2 * 3 * n_windows * case.snapshot_window
     );
-    for e in ["native", "liggghts"] {
-        for f in [
-            "gamma_00.svg",
-            "velocity_00.svg",
-            "fields_00.vtk",
-            "fields_00_rz.csv",
-            "fields_00_3d.csv",
-        ] {
-            assert!(out.join(e).join("fields").join(f).exists(), "{e}/{f}");
+    assert_eq!(
+        csv.lines().filter(|l| l.starts_with("1,")).count(),
+        3 * n_windows * (1 + case.snapshot_window)
+    );
+    for k in 0..2 {
+        for e in ["native", "liggghts"] {
+            let d = stress_fields::bed_dir(&out, k).join(e);
+            assert!(d.join("force.csv").exists(), "bed {k} {e} force.csv");
+            for f in [
+                "gamma_00.svg",
+                "velocity_00.svg",
+                "fields_00.vtk",
+                "fields_00_rz.csv",
+                "fields_00_3d.csv",
+            ] {
+                assert!(d.join("fields").join(f).exists(), "bed {k} {e}/{f}");
+            }
         }
+    }
+    // report.md is written by the CLI, everything else by run_case.
+    for p in stress_fields::output_files(&out, 2) {
+        assert!(
+            p.exists() || p.ends_with("report.md"),
+            "{} listed but not written",
+            p.display()
+        );
     }
     let again = stress_fields::run_case(
         &case,
@@ -1005,10 +1046,24 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
         },
     )
     .unwrap();
-    assert_eq!(again.native.phi_deg, rep.native.phi_deg);
-    assert_eq!(again.liggghts.phi_deg, rep.liggghts.phi_deg);
-    assert!(again.native_point.fdr_source.contains("bed 0 only"));
+    for (a, b) in again.beds.iter().zip(&rep.beds) {
+        assert_eq!(a.native.phi_deg, b.native.phi_deg);
+        assert_eq!(a.liggghts.phi_deg, b.liggghts.phi_deg);
+    }
+    // Without --fdr-from: the mean FDR of the stress run's own beds, the same beds
+    // `compare` ran, so natively the same K_phi (LIGGGHTS ran at np 1 in `compare`, at
+    // np 2 here: other round-off, another trajectory).
+    assert!(
+        again
+            .native_point
+            .fdr_source
+            .contains("stress run's 2 bed(s)"),
+        "{}",
+        again.native_point.fdr_source
+    );
     assert!(again.notes.iter().any(|n| n.contains("no --fdr-from")));
+    let (a, b) = (again.native_point.k_phi, rep.native_point.k_phi);
+    assert!((a / b - 1.0).abs() < 1e-9, "{a} vs {b}");
     // --reuse refuses snapshots taken with other windows.
     let other = granval::case::penetration::PenetrationCase {
         snapshot_window: 3,
@@ -1023,10 +1078,10 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
             ..Default::default()
         },
     )
-    .expect_err("other windows must be refused")
-    .to_string();
+    .expect_err("other windows must be refused");
+    let e = format!("{e:#}");
     assert!(
-        e.contains("windows") && e.contains("without --reuse"),
+        e.starts_with("bed 0: ") && e.contains("windows") && e.contains("without --reuse"),
         "{e}"
     );
     // --fdr-from refuses a directory of another experiment.
@@ -1265,4 +1320,38 @@ fn paired_difference_of_window_phis() {
     assert!((se - 1.0 / 3.0).abs() < 1e-12);
     assert!(stress_fields::paired_difference(&[1.0, 2.0], &[1.0]).is_none());
     assert!(stress_fields::paired_difference(&[1.0], &[2.0]).is_none());
+}
+
+/// The phi check gates the pooled phi and reports the bed-by-bed differences: three
+/// beds whose differences -1.86, +2.85, +0.06 (the CI case's, measured) average to
+/// +0.35 +- 1.37.
+#[test]
+fn phi_check_reports_beds() {
+    let tol = &tiny_case().tolerances;
+    let point = |by_bed: [f64; 3]| EnginePoint {
+        engine: "e".into(),
+        phi_deg: by_bed.iter().sum::<f64>() / 3.0,
+        phi_std_deg: 0.0,
+        phi_by_window: by_bed.to_vec(),
+        phi_by_bed: by_bed.to_vec(),
+        k_phi: 10.0,
+        k_phi_se: 0.0,
+        unified: Err("n/a".into()),
+        unified_malt: None,
+        fdr_source: "n/a".into(),
+    };
+    let c = stress_fields::phi_check(
+        "c",
+        tol,
+        &point([34.51, 35.81, 35.74]),
+        &point([36.37, 32.96, 35.68]),
+    );
+    assert!(c.passed && (c.value - 0.35).abs() < 1e-9, "{c:?}");
+    assert!(
+        c.detail.contains("[-1.86, +2.85, +0.06]")
+            && c.detail
+                .contains("bed by bed over 3: difference +0.35 +- 1.37 deg"),
+        "{}",
+        c.detail
+    );
 }

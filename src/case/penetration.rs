@@ -164,6 +164,14 @@ struct Intruder {
     final_depth: f64,
     /// Force output every this many steps.
     force_every: u64,
+    /// LIGGGHTS' STL intruder: largest rim error of its inscribed polygon as a fraction
+    /// of R (default 0.01, 24 segments). The native intruder is an exact cylinder.
+    #[serde(default = "default_stl_rim_error")]
+    stl_rim_error: f64,
+}
+
+fn default_stl_rim_error() -> f64 {
+    0.01
 }
 
 #[derive(Debug, Deserialize)]
@@ -344,6 +352,8 @@ pub struct PenetrationCase {
     pub start_gap: f64,
     pub final_depth: f64,
     pub force_every: u64,
+    /// Rim error of LIGGGHTS' STL polygon as a fraction of R.
+    pub stl_rim_error: f64,
     pub fit_h_min: f64,
     pub h_bin: f64,
     /// Snapshot depths in units of R, ascending, the final depth last.
@@ -526,6 +536,14 @@ impl PenetrationCase {
         let final_depth = positive(&ctx, "intruder.final_depth", i.final_depth)?;
         if i.force_every == 0 {
             return Err(ctx.bad("intruder.force_every", 0, "must be >= 1"));
+        }
+        let stl_rim_error = positive(&ctx, "intruder.stl_rim_error", i.stl_rim_error)?;
+        if stl_rim_error >= 0.1 {
+            return Err(ctx.bad(
+                "intruder.stl_rim_error",
+                stl_rim_error,
+                "must be below 0.1 (an STL that far inside the cylinder is not the same intruder)",
+            ));
         }
         if intruder_radius >= container_radius {
             return Err(ctx.bad(
@@ -717,6 +735,7 @@ impl PenetrationCase {
             start_gap,
             final_depth,
             force_every: i.force_every,
+            stl_rim_error,
             fit_h_min,
             h_bin,
             snapshot_h,

@@ -157,7 +157,7 @@ pub fn liggghts_deck(
         n_steps: dem::penetration::n_steps(case, bed),
         force_every: case.force_every,
         neighbor_skin: case.neighbor_skin,
-        rim_error_frac: 0.01,
+        rim_error_frac: case.stl_rim_error,
         wall_type: case.wall_type,
         soft_particles: soft,
         hard_particles: hard,
