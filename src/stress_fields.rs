@@ -156,7 +156,15 @@ pub fn snapshot_plan(case: &PenetrationCase, bed: &Bed) -> SnapshotPlan {
     }
 }
 
-fn meta(case: &PenetrationCase, bed: &Bed, engine: &str, step: u64, z_bottom: f64) -> SnapshotMeta {
+/// The metadata of a snapshot of `case` from `bed` at `step`, the intruder's bottom at
+/// `z_bottom`.
+pub fn snapshot_meta(
+    case: &PenetrationCase,
+    bed: &Bed,
+    engine: &str,
+    step: u64,
+    z_bottom: f64,
+) -> SnapshotMeta {
     SnapshotMeta {
         engine: engine.to_string(),
         step,
@@ -201,7 +209,7 @@ pub fn run_native(
                 .context("penetration run without intruder")?
                 .body
                 .bottom_z();
-            let snap = Snapshot::from_native(sim, meta(case, bed, "native", sim.step, zb));
+            let snap = Snapshot::from_native(sim, snapshot_meta(case, bed, "native", sim.step, zb));
             snapshot::write(snap_dir, k, &snap)
         },
         |s, _| bar.set_position(s),
@@ -252,7 +260,7 @@ pub fn run_liggghts(
         }
         let zb = z0 - case.speed * case.dt * step as f64;
         let snap = Snapshot {
-            meta: meta(case, bed, "liggghts", step, zb),
+            meta: snapshot_meta(case, bed, "liggghts", step, zb),
             grains,
             contacts,
         };
@@ -1220,20 +1228,29 @@ pub fn ensemble_fdr(
             np.display()
         ));
     }
-    let obs = |fdrs: &[crate::analysis::fdr::Fdr]| -> Result<FdrObservables> {
-        let o = crate::compare::penetration::ensemble(case, &fdrs.iter().collect::<Vec<_>>())?;
-        let source = format!(
-            "mean FDR of {} beds in {} (single beds K_phi {:?})",
-            fdrs.len(),
-            dir.display(),
-            o.members
-                .iter()
-                .map(|m| (m.0 * 100.0).round() / 100.0)
-                .collect::<Vec<_>>()
-        );
-        Ok(FdrObservables { obs: o, source })
-    };
-    Ok((obs(&nat)?, obs(&lig)?, notes))
+    let origin = format!("mean FDR of {} beds in {}", nat.len(), dir.display());
+    Ok((
+        mean_fdr(case, &nat, &origin)?,
+        mean_fdr(case, &lig, &origin)?,
+        notes,
+    ))
+}
+
+/// The observables of the ensemble-mean FDR of `fdrs`, its source named `origin`.
+fn mean_fdr(
+    case: &PenetrationCase,
+    fdrs: &[crate::analysis::fdr::Fdr],
+    origin: &str,
+) -> Result<FdrObservables> {
+    let o = crate::compare::penetration::ensemble(case, &fdrs.iter().collect::<Vec<_>>())?;
+    let source = format!(
+        "{origin} (single beds K_phi {:?})",
+        o.members
+            .iter()
+            .map(|m| (m.0 * 100.0).round() / 100.0)
+            .collect::<Vec<_>>()
+    );
+    Ok(FdrObservables { obs: o, source })
 }
 
 /// Mean and standard error of `test - reference` over the windows where both are
@@ -1501,19 +1518,11 @@ fn own_fdr(
             fdr.push(single_bed_fdr(case, &samples, b.surface_z, b.psi)?.obs.fdr);
         }
     }
-    let obs = |f: &[crate::analysis::fdr::Fdr]| -> Result<FdrObservables> {
-        let o = crate::compare::penetration::ensemble(case, &f.iter().collect::<Vec<_>>())?;
-        let source = format!(
-            "mean FDR of the stress run's {} bed(s) (single beds K_phi {:?})",
-            f.len(),
-            o.members
-                .iter()
-                .map(|m| (m.0 * 100.0).round() / 100.0)
-                .collect::<Vec<_>>()
-        );
-        Ok(FdrObservables { obs: o, source })
-    };
-    Ok((obs(&fdrs[0])?, obs(&fdrs[1])?))
+    let origin = format!("mean FDR of the stress run's {} bed(s)", beds.len());
+    Ok((
+        mean_fdr(case, &fdrs[0], &origin)?,
+        mean_fdr(case, &fdrs[1], &origin)?,
+    ))
 }
 
 /// Runs every bed of the case's ensemble (`[ensemble] beds`) in both engines, analyses

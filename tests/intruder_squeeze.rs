@@ -22,7 +22,7 @@ mod common;
 use granval::case::Particle;
 use granval::case::penetration::PenetrationCase;
 use granval::dem::packing::Bed;
-use granval::engines::snapshot::{Contact, ContactKind, Grain, Snapshot, SnapshotMeta};
+use granval::engines::snapshot::{Contact, ContactKind, Grain, Snapshot};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -104,21 +104,6 @@ fn for_steps(mut case: PenetrationCase, bed: &Bed) -> PenetrationCase {
 }
 
 fn native(case: &PenetrationCase, bed: &Bed) -> Vec<Snapshot> {
-    let meta = SnapshotMeta {
-        engine: "native".into(),
-        step: 0,
-        t: 0.0,
-        h: 0.0,
-        intruder_bottom_z: 0.0,
-        intruder_radius: case.intruder_radius,
-        intruder_vz: -case.speed,
-        surface_z: bed.surface_z,
-        container_radius: case.container_radius,
-        floor_z: 0.0,
-        density: case.density,
-        psi: 0.0,
-        mean_diameter: D,
-    };
     let mut out = Vec::new();
     granval::dem::penetration::run_with_snapshots(
         case,
@@ -126,7 +111,9 @@ fn native(case: &PenetrationCase, bed: &Bed) -> Vec<Snapshot> {
         Default::default(),
         &STEPS,
         |sim| {
-            out.push(Snapshot::from_native(sim, meta.clone()));
+            let zb = sim.intruder().unwrap().body.bottom_z();
+            let meta = granval::stress_fields::snapshot_meta(case, bed, "native", sim.step, zb);
+            out.push(Snapshot::from_native(sim, meta));
             Ok(())
         },
         |_, _| {},
