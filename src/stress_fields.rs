@@ -1527,8 +1527,8 @@ fn own_fdr(
 
 /// Runs every bed of the case's ensemble (`[ensemble] beds`) in both engines, analyses
 /// each, and checks phi pooled over the beds: at CI scale one bed's phi differs between
-/// the engines by about 2.4 deg (sd over beds, measured), chaos alone, so a single bed
-/// cannot resolve a 1.5 deg tolerance.
+/// the engines by about 1.5 deg (sd over 10 beds, measured), chaos alone, so a single
+/// bed cannot resolve a 1.5 deg tolerance.
 pub fn run_case(
     case: &PenetrationCase,
     opts: &crate::pipeline::Options,
