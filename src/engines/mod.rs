@@ -5,6 +5,7 @@ pub mod lammps;
 pub mod liggghts;
 pub mod native;
 pub mod output;
+pub mod process;
 pub mod recorded;
 pub mod snapshot;
 

@@ -10,7 +10,6 @@
 mod deck;
 mod dump;
 pub mod penetration;
-pub(crate) mod runner;
 pub mod snapshot;
 pub mod stl;
 
@@ -23,6 +22,7 @@ pub use dump::parse_dump;
 use crate::case::Case;
 use crate::engines::Engine;
 use crate::engines::output::{Provenance, RunOutput, now_utc, sha256_hex};
+use crate::engines::process::{self, Transcript, TranscriptFiles};
 use anyhow::{Context, Result};
 use std::path::Path;
 use std::time::Duration;
@@ -33,6 +33,14 @@ pub const DUMP_FILE: &str = "dump.granval";
 pub const LOG_FILE: &str = "log.liggghts";
 pub const STDOUT_FILE: &str = "liggghts.stdout";
 pub const STDERR_FILE: &str = "liggghts.stderr";
+
+/// Where a LIGGGHTS run directory keeps its transcript.
+pub(crate) const TRANSCRIPT: TranscriptFiles = TranscriptFiles {
+    engine: "LIGGGHTS",
+    log: LOG_FILE,
+    stdout: &[STDOUT_FILE],
+    stderr: STDERR_FILE,
+};
 
 /// Prefix of the banner line LIGGGHTS prints first (screen and log).
 const VERSION_PREFIX: &str = "LIGGGHTS (Version";
@@ -61,11 +69,7 @@ impl Default for Liggghts {
 impl Liggghts {
     /// The exact argument vector, run inside the run directory.
     pub fn argv(&self) -> Vec<String> {
-        let mut argv: Vec<String> = Vec::new();
-        if self.mpi_procs > 1 {
-            argv.extend(["mpirun", "--allow-run-as-root", "-np"].map(String::from));
-            argv.push(self.mpi_procs.to_string());
-        }
+        let mut argv = process::mpi_prefix(self.mpi_procs);
         argv.push(self.binary.clone());
         argv.extend(["-in", DECK_FILE, "-log", LOG_FILE].map(String::from));
         argv
@@ -73,76 +77,9 @@ impl Liggghts {
 }
 
 /// The version banner (e.g. `LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, compiled ...)`) if
-/// `binary` is installed and runs; `None` otherwise. Runs an empty deck with no log file
-/// in a scratch directory (well under a second).
+/// `binary` is installed and runs; `None` otherwise (well under a second).
 pub fn installed_version(binary: &str) -> Option<String> {
-    let dir = tempfile::tempdir().ok()?;
-    let argv: Vec<String> = [binary, "-in", "/dev/null", "-log", "none", "-echo", "none"]
-        .map(String::from)
-        .to_vec();
-    let (out, err) = (dir.path().join("stdout"), dir.path().join("stderr"));
-    let fin = runner::run(&argv, dir.path(), &out, &err, Duration::from_secs(60)).ok()?;
-    match fin.outcome {
-        runner::Outcome::Exited(s) if s.success() => {}
-        _ => return None,
-    }
-    version_line(&read_lossy(&out))
-}
-
-fn version_line(text: &str) -> Option<String> {
-    text.lines()
-        .map(str::trim)
-        .find(|l| l.starts_with(VERSION_PREFIX))
-        .map(str::to_string)
-}
-
-fn read_lossy(path: &Path) -> String {
-    std::fs::read(path)
-        .map(|b| String::from_utf8_lossy(&b).into_owned())
-        .unwrap_or_default()
-}
-
-/// Distinct lines starting with `ERROR` (MPI ranks may each print the same one).
-fn error_lines(texts: &[&str]) -> Vec<String> {
-    let mut out: Vec<String> = Vec::new();
-    for t in texts {
-        for l in t.lines() {
-            let l = l.trim();
-            if l.starts_with("ERROR") && !out.iter().any(|o| o == l) {
-                out.push(l.to_string());
-            }
-        }
-    }
-    out
-}
-
-/// Distinct LIGGGHTS warnings; a bare `WARNING:` line takes its text from the next line.
-fn warnings(text: &str) -> Vec<String> {
-    let lines: Vec<&str> = text.lines().collect();
-    let mut out: Vec<String> = Vec::new();
-    for (k, l) in lines.iter().enumerate() {
-        if let Some(rest) = l.trim().strip_prefix("WARNING:") {
-            let msg = if rest.trim().is_empty() {
-                lines.get(k + 1).map(|s| s.trim()).unwrap_or("")
-            } else {
-                rest.trim()
-            };
-            let msg = format!("LIGGGHTS warning: {msg}");
-            if !out.contains(&msg) {
-                out.push(msg);
-            }
-        }
-    }
-    out
-}
-
-fn tail(text: &str, n: usize) -> String {
-    let lines: Vec<&str> = text.lines().collect();
-    let start = lines.len().saturating_sub(n);
-    lines[start..]
-        .iter()
-        .map(|l| format!("  | {l}\n"))
-        .collect()
+    process::installed_banner(binary, VERSION_PREFIX)
 }
 
 impl Engine for Liggghts {
@@ -155,22 +92,15 @@ impl Engine for Liggghts {
         let data = write_data_file(case)?;
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create run directory {}", dir.display()))?;
-        // A stale dump or log from an earlier run must never be mistaken for this one.
-        for f in [DUMP_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE] {
-            let p = dir.join(f);
-            if p.exists() {
-                std::fs::remove_file(&p)
-                    .with_context(|| format!("cannot remove stale {}", p.display()))?;
-            }
-        }
+        process::remove_stale(dir, &[DUMP_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE])?;
         for (name, text) in [(DECK_FILE, &deck), (DATA_FILE, &data)] {
             let p = dir.join(name);
             std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
         }
 
         let argv = self.argv();
-        let command = runner::command_line(&argv);
-        let fin = runner::run(
+        let command = process::command_line(&argv);
+        let fin = process::run(
             &argv,
             dir,
             &dir.join(STDOUT_FILE),
@@ -184,28 +114,10 @@ impl Engine for Liggghts {
             )
         })?;
 
-        let tr = Transcript::read(dir);
-        let (log, stdout, errors) = (&tr.log, &tr.stdout, &tr.errors);
+        let tr = Transcript::read(TRANSCRIPT, dir);
         let what = format!("LIGGGHTS run of case {}", case.source.display());
+        tr.check_exit(&fin, self.timeout, &what, &command, dir)?;
         let fail = |reason: String| tr.failure(&what, &command, dir, &reason);
-
-        match fin.outcome {
-            runner::Outcome::TimedOut => {
-                return Err(fail(format!(
-                    "timed out after {:.1} s; the process was killed",
-                    self.timeout.as_secs_f64()
-                )));
-            }
-            runner::Outcome::Exited(s) if !s.success() => {
-                return Err(fail(format!("exited with {s}")));
-            }
-            runner::Outcome::Exited(_) => {}
-        }
-        if !errors.is_empty() {
-            return Err(fail(
-                "ERROR in the LIGGGHTS output although the exit status was 0".to_string(),
-            ));
-        }
         let dump_path = dir.join(DUMP_FILE);
         match std::fs::metadata(&dump_path) {
             Err(_) => {
@@ -256,16 +168,9 @@ impl Engine for Liggghts {
             }
         }
 
-        let version = log
-            .lines()
-            .next()
-            .map(str::trim)
-            .filter(|l| l.starts_with(VERSION_PREFIX))
-            .map(str::to_string)
-            .or_else(|| version_line(stdout))
-            .unwrap_or_else(|| "LIGGGHTS (version line not found in log)".to_string());
+        let version = tr.version(VERSION_PREFIX);
         let mut notes = vec![format!("run directory: {}", dir.display())];
-        notes.extend(warnings(log));
+        notes.extend(tr.warnings());
         Ok(RunOutput {
             frames,
             provenance: Provenance {
@@ -280,63 +185,5 @@ impl Engine for Liggghts {
                 notes,
             },
         })
-    }
-}
-
-/// What a finished LIGGGHTS process left behind, read once; every adapter turns a
-/// failed run into the same error text from it.
-pub(crate) struct Transcript {
-    pub log: String,
-    pub stdout: String,
-    pub stderr: String,
-    /// `ERROR` lines from all three.
-    pub errors: Vec<String>,
-}
-
-impl Transcript {
-    pub(crate) fn read(dir: &Path) -> Transcript {
-        let log = read_lossy(&dir.join(LOG_FILE));
-        let stdout = read_lossy(&dir.join(STDOUT_FILE));
-        let stderr = read_lossy(&dir.join(STDERR_FILE));
-        let errors = error_lines(&[&log, &stdout, &stderr]);
-        Transcript {
-            log,
-            stdout,
-            stderr,
-            errors,
-        }
-    }
-
-    /// "`what` failed: `reason`", the command, LIGGGHTS' ERROR lines and the tails of
-    /// its log (or stdout when the log is empty) and stderr.
-    pub(crate) fn failure(
-        &self,
-        what: &str,
-        command: &str,
-        dir: &Path,
-        reason: &str,
-    ) -> anyhow::Error {
-        let mut m = format!(
-            "{what} failed: {reason}\n  command: `{command}` in {}\n",
-            dir.display()
-        );
-        if !self.errors.is_empty() {
-            m += "LIGGGHTS reported:\n";
-            for e in &self.errors {
-                m += &format!("  {e}\n");
-            }
-        }
-        let (name, text) = if self.log.trim().is_empty() {
-            (STDOUT_FILE, &self.stdout)
-        } else {
-            (LOG_FILE, &self.log)
-        };
-        if !text.trim().is_empty() {
-            m += &format!("last lines of {name}:\n{}", tail(text, 15));
-        }
-        if !self.stderr.trim().is_empty() {
-            m += &format!("last lines of {STDERR_FILE}:\n{}", tail(&self.stderr, 10));
-        }
-        anyhow::anyhow!(m.trim_end().to_string())
     }
 }

@@ -27,10 +27,10 @@
 //! frame; pushing down into a bed gives `f[2] > 0` (the bed resists, pushing up).
 
 use super::deck::{f, join, model_keywords, write_contact_model};
-use super::runner;
-use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE, VERSION_PREFIX};
+use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE, TRANSCRIPT, VERSION_PREFIX};
 use crate::case::{Material, PairTable, Particle, RollingModel};
 use crate::engines::output::{Provenance, now_utc, sha256_hex};
+use crate::engines::process::{self, Transcript};
 use anyhow::{Context, Result, bail};
 use std::fmt::Write as _;
 use std::io::BufRead;
@@ -880,11 +880,7 @@ fn have_stdbuf() -> bool {
 /// "Cannot open mesh file") end in `MPI_Abort`, which discards a fully buffered stdout and
 /// log, so without line buffering the `ERROR` line is lost (measured on 3.8.0).
 pub fn argv(mpi_procs: usize) -> Vec<String> {
-    let mut argv: Vec<String> = Vec::new();
-    if mpi_procs > 1 {
-        argv.extend(["mpirun", "--allow-run-as-root", "-np"].map(String::from));
-        argv.push(mpi_procs.to_string());
-    }
+    let mut argv = process::mpi_prefix(mpi_procs);
     if have_stdbuf() {
         argv.extend(["stdbuf", "-oL"].map(String::from));
     }
@@ -1027,21 +1023,15 @@ pub fn execute(
     mut progress: impl FnMut(u64),
     visit: impl FnMut(&ForceSample) -> Result<()>,
 ) -> Result<Provenance> {
-    for name in [FORCE_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE] {
-        let p = dir.join(name);
-        if p.exists() {
-            std::fs::remove_file(&p)
-                .with_context(|| format!("cannot remove stale {}", p.display()))?;
-        }
-    }
+    process::remove_stale(dir, &[FORCE_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE])?;
     let argv = argv(mpi_procs);
-    let command = runner::command_line(&argv);
+    let command = process::command_line(&argv);
     let mut follower = LogFollower {
         path: dir.join(LOG_FILE),
         offset: 0,
         partial: String::new(),
     };
-    let fin = runner::run_with(
+    let fin = process::run_with(
         &argv,
         dir,
         &dir.join(STDOUT_FILE),
@@ -1054,20 +1044,10 @@ pub fn execute(
         },
     )
     .context("LIGGGHTS penetration run failed to start")?;
-    let tr = super::Transcript::read(dir);
-    let fail = |reason: String| tr.failure("LIGGGHTS penetration run", &command, dir, &reason);
-    match fin.outcome {
-        runner::Outcome::TimedOut => {
-            return Err(fail(format!(
-                "timed out after {:.1} s; the process was killed",
-                timeout.as_secs_f64()
-            )));
-        }
-        runner::Outcome::Exited(s) if !s.success() => {
-            return Err(fail(format!("exited with {s}")));
-        }
-        runner::Outcome::Exited(_) => {}
-    }
+    let what = "LIGGGHTS penetration run";
+    let tr = Transcript::read(TRANSCRIPT, dir);
+    tr.check_exit(&fin, timeout, what, &command, dir)?;
+    let fail = |reason: String| tr.failure(what, &command, dir, &reason);
     let mut prov = read_outputs(d, dir, visit).map_err(|e| fail(format!("{e:#}")))?;
     prov.command = command;
     prov.wall_time_s = fin.wall_time_s;
@@ -1115,7 +1095,7 @@ pub fn read_outputs(
     dir: &Path,
     mut visit: impl FnMut(&ForceSample) -> Result<()>,
 ) -> Result<Provenance> {
-    let tr = super::Transcript::read(dir);
+    let tr = Transcript::read(TRANSCRIPT, dir);
     let (log, stdout, errors) = (&tr.log, &tr.stdout, &tr.errors);
     if log.is_empty() && stdout.is_empty() {
         bail!(
@@ -1152,14 +1132,7 @@ pub fn read_outputs(
             d.force_every
         );
     }
-    let version = log
-        .lines()
-        .next()
-        .map(str::trim)
-        .filter(|l| l.starts_with(VERSION_PREFIX))
-        .map(str::to_string)
-        .or_else(|| super::version_line(stdout))
-        .unwrap_or_else(|| "LIGGGHTS (version line not found in log)".to_string());
+    let version = tr.version(VERSION_PREFIX);
     let mut notes = vec![
         format!("run directory: {}", dir.display()),
         format!(
@@ -1179,7 +1152,7 @@ pub fn read_outputs(
                 .to_string(),
         );
     }
-    notes.extend(super::warnings(log));
+    notes.extend(tr.warnings());
     let procs = log
         .lines()
         .find_map(|l| {
