@@ -164,14 +164,14 @@ pub fn remove_stale(dir: &Path, names: &[&str]) -> Result<()> {
 }
 
 /// A file's text, invalid UTF-8 replaced, empty when it is missing.
-pub fn read_lossy(path: &Path) -> String {
+fn read_lossy(path: &Path) -> String {
     std::fs::read(path)
         .map(|b| String::from_utf8_lossy(&b).into_owned())
         .unwrap_or_default()
 }
 
 /// The first line of `text` that starts with `prefix` (an engine's version banner).
-pub fn banner_line(text: &str, prefix: &str) -> Option<String> {
+fn banner_line(text: &str, prefix: &str) -> Option<String> {
     text.lines()
         .map(str::trim)
         .find(|l| l.starts_with(prefix))
@@ -227,7 +227,7 @@ pub struct TranscriptFiles {
 /// What a finished engine process left behind, read once; every adapter turns a failed
 /// run into the same error text from it.
 pub struct Transcript {
-    pub files: TranscriptFiles,
+    files: TranscriptFiles,
     pub log: String,
     pub stdout: String,
     pub stderr: String,
