@@ -6,10 +6,11 @@
 //! LIGGGHTS' time is its own "Loop time" from the log, so its start-up and file
 //! output are not charged to it.
 
+use crate::case::Perturbation;
 use crate::case::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances, Wall};
-use crate::dem::{Perturbation, Simulation};
 use crate::engines::Engine;
 use crate::engines::liggghts::{self, Liggghts};
+use crate::physics::dem::Simulation;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::time::Instant;

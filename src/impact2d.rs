@@ -6,10 +6,12 @@ use crate::analysis::impact::{self as obs, EnergyModel, EnergySample, IntruderSa
 use crate::case::impact2d::{Impact2dCase, Variant};
 use crate::compare::Check;
 use crate::compare::impact2d::{self as cmp, VariantObs};
-use crate::dem2d::bed::{self, Bed, Packing};
-use crate::dem2d::impact::{self as scene_mod, Scene};
 use crate::engines::lammps::{self, Lammps};
-use crate::engines::output::{Provenance, now_utc, read_provenance, sha256_hex, write_provenance};
+use crate::physics::dem2d::bed::{self, Bed, Packing};
+use crate::physics::dem2d::impact::{self as scene_mod, Scene};
+use crate::rundata::provenance::{
+    Provenance, now_utc, read_provenance, sha256_hex, write_provenance,
+};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 

@@ -275,19 +275,23 @@ fn run_penetration(case: &Path, native: bool, out: &Path) -> Result<ExitCode> {
     let bed = granval::penetration::prepare_bed(&case, true)?;
     println!(
         "{} (prepared in {:.1} s)",
-        granval::dem::packing::bed_note(&case, &bed),
+        granval::physics::dem::packing::bed_note(&case, &bed),
         t0.elapsed().as_secs_f64()
     );
-    let run =
-        granval::penetration::run_native(&case, &bed, granval::dem::Perturbation::default(), true)?;
+    let run = granval::penetration::run_native(
+        &case,
+        &bed,
+        granval::case::Perturbation::default(),
+        true,
+    )?;
     if case.ensemble_beds > 1 {
         println!(
             "note: `granval run` penetrates bed 0 only; `granval compare` runs all {} beds",
             case.ensemble_beds
         );
     }
-    granval::penetration::write_force_csv(&out.join("force.csv"), &run.samples)?;
-    granval::engines::output::write_provenance(&out.join("provenance.json"), &run.provenance)?;
+    granval::rundata::force::write_force_csv(&out.join("force.csv"), &run.samples)?;
+    granval::rundata::provenance::write_provenance(&out.join("provenance.json"), &run.provenance)?;
     println!(
         "{} force samples written to {} ({:.1} s)",
         run.samples.len(),
@@ -314,7 +318,10 @@ fn refresh_penetration(path: &Path, reference: &Path) -> Result<()> {
         let dir = root.join(deck_dir::bed_dir_name(k));
         let bed = pen::prepare_bed(&ck, true)?;
         let run = pen::run_liggghts(&ck, &bed, &dir, 2, true)?;
-        granval::engines::output::write_provenance(&dir.join("provenance.json"), &run.provenance)?;
+        granval::rundata::provenance::write_provenance(
+            &dir.join("provenance.json"),
+            &run.provenance,
+        )?;
         println!(
             "{:<32} bed {k}: {} force samples recorded in {} ({:.0} s)",
             case.name,
@@ -421,7 +428,10 @@ fn run_impact2d(path: &Path, engine: EngineName, out: &Path, np: usize) -> Resul
             scene.bottom_offset,
         )?;
         granval::analysis::impact::write_energy_csv(&dir.join("energy.csv"), &run.energy)?;
-        granval::engines::output::write_provenance(&dir.join("provenance.json"), &run.provenance)?;
+        granval::rundata::provenance::write_provenance(
+            &dir.join("provenance.json"),
+            &run.provenance,
+        )?;
         println!(
             "{:<24} final depth {:.3} d, max depth {:.3} d ({} engine, {:.1} s) -> {}",
             v.label,

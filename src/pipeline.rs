@@ -6,10 +6,11 @@ use crate::case::Case;
 use crate::compare::{Check, trajectory};
 use crate::engines::liggghts::{self, Liggghts};
 use crate::engines::native::Native;
-use crate::engines::output::{write_particles_csv, write_provenance};
 use crate::engines::recorded::Recorded;
 use crate::engines::{Engine, RunOutput};
 use crate::report::CaseRun;
+use crate::rundata::frames::write_particles_csv;
+use crate::rundata::provenance::write_provenance;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Clone)]

@@ -29,14 +29,14 @@ use crate::analysis::coarse_grain::{
 };
 use crate::analysis::malt;
 use crate::analysis::stress::{self, FieldAnalysis, Mask, principal};
+use crate::case::Perturbation;
 use crate::case::penetration::{PenetrationCase, Tolerances};
 use crate::compare::Check;
 use crate::compare::penetration::Observables;
-use crate::dem::Perturbation;
-use crate::dem::packing::Bed;
-use crate::engines::output::ForceSample;
-use crate::engines::snapshot::{self, Snapshot, SnapshotMeta};
 use crate::penetration::PenetrationRun;
+use crate::physics::dem::packing::Bed;
+use crate::rundata::force::ForceSample;
+use crate::rundata::snapshot::{self, Snapshot, SnapshotMeta};
 use anyhow::{Context, Result, bail, ensure};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -121,8 +121,8 @@ impl SnapshotPlan {
 /// [`PenetrationCase::snapshot_windows`] the steps nearest to its depths; the last
 /// depth of the last window (the final depth) is the run's last step.
 pub fn snapshot_plan(case: &PenetrationCase, bed: &Bed) -> SnapshotPlan {
-    let n = crate::dem::penetration::n_steps(case, bed);
-    let z0 = crate::dem::penetration::start_z(case, bed);
+    let n = crate::physics::dem::penetration::n_steps(case, bed);
+    let z0 = crate::physics::dem::penetration::start_z(case, bed);
     let per_step = case.speed * case.dt;
     let windows = case.snapshot_windows();
     let last = windows.len().saturating_sub(1);
@@ -193,9 +193,9 @@ pub fn run_native(
     let plan = snapshot_plan(case, bed);
     let steps = plan.steps.clone();
     let start = std::time::Instant::now();
-    let total = crate::dem::penetration::n_steps(case, bed);
+    let total = crate::physics::dem::penetration::n_steps(case, bed);
     let bar = crate::report::progress::bar(progress, total, "native");
-    let samples = crate::dem::penetration::run_with_snapshots(
+    let samples = crate::physics::dem::penetration::run_with_snapshots(
         case,
         bed,
         pert,
@@ -209,7 +209,7 @@ pub fn run_native(
                 .context("penetration run without intruder")?
                 .body
                 .bottom_z();
-            let snap = Snapshot::from_native(sim, snapshot_meta(case, bed, "native", sim.step, zb));
+            let snap = sim.snapshot(snapshot_meta(case, bed, "native", sim.step, zb));
             snapshot::write(snap_dir, k, &snap)
         },
         |s, _| bar.set_position(s),
@@ -248,8 +248,8 @@ pub fn run_liggghts(
     )?;
     provenance
         .notes
-        .push(crate::dem::packing::bed_note(case, bed));
-    let z0 = crate::dem::penetration::start_z(case, bed);
+        .push(crate::physics::dem::packing::bed_note(case, bed));
+    let z0 = crate::physics::dem::penetration::start_z(case, bed);
     for (k, &step) in steps.iter().enumerate() {
         let (grains, contacts, dropped) =
             crate::engines::liggghts::snapshot::read_snapshot(run_dir, step, deck.units)?;
@@ -1213,7 +1213,7 @@ pub fn ensemble_fdr(
                 .fdr,
         );
         let np = bdir.join("native").join("force.csv");
-        let samples = crate::penetration::read_force_csv(&np)
+        let samples = crate::rundata::force::read_force_csv(&np)
             .with_context(|| format!("--fdr-from: native run of bed {k}"))?;
         ensure!(!samples.is_empty(), "{}: no force samples", np.display());
         let mut b = crate::penetration::binner(&ck, &bed)?;
@@ -1400,8 +1400,11 @@ fn run_bed(
         let native = run_native(case, &bed, opts.native.perturbation, &nsnap, opts.progress)?;
         let lig = run_liggghts(case, &bed, &ld, &lsnap, opts.mpi_procs.max(2))?;
         for (d, r) in [(&nd, &native), (&ld, &lig)] {
-            crate::penetration::write_force_csv(&d.join("force.csv"), &r.samples)?;
-            crate::engines::output::write_provenance(&d.join("provenance.json"), &r.provenance)?;
+            crate::rundata::force::write_force_csv(&d.join("force.csv"), &r.samples)?;
+            crate::rundata::provenance::write_provenance(
+                &d.join("provenance.json"),
+                &r.provenance,
+            )?;
         }
     }
     let m0 = snapshot::read_meta(&nsnap, snapshot::list(&nsnap)?[0])?;
@@ -1513,7 +1516,7 @@ fn own_fdr(
     for b in beds {
         for (e, fdr) in ["native", "liggghts"].iter().zip(&mut fdrs) {
             let path = bed_dir(out_dir, b.bed).join(e).join("force.csv");
-            let samples = crate::penetration::read_force_csv(&path)?;
+            let samples = crate::rundata::force::read_force_csv(&path)?;
             ensure!(!samples.is_empty(), "{}: no force samples", path.display());
             fdr.push(single_bed_fdr(case, &samples, b.surface_z, b.psi)?.obs.fdr);
         }

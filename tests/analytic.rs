@@ -5,7 +5,9 @@
 mod common;
 
 use granval::case::Case;
-use granval::dem::{Perturbation, Simulation, vec3};
+use granval::case::Perturbation;
+use granval::numerics::vec3;
+use granval::physics::dem::Simulation;
 use std::path::Path;
 
 const R: f64 = 1.0e-3;
@@ -234,7 +236,7 @@ fn intruder_face_is_a_plane_wall() {
     let run = |case: &Case, intruder: bool| {
         let mut sim = Simulation::from_case(case);
         if intruder {
-            let body = granval::dem::intruder::FlatCylinder::new(0.02, 0.005, [0.0; 3]);
+            let body = granval::physics::dem::intruder::FlatCylinder::new(0.02, 0.005, [0.0; 3]);
             sim.set_intruder(body, [0.0; 3], 1);
         }
         sim.setup().unwrap();

@@ -4,9 +4,11 @@
 //! m_eff), so its contact time and restitution are known in closed form; and a run is
 //! independent of the number of threads.
 
-use granval::dem2d::contact::{Coeffs, contact_time_of, gamma_n_from_restitution, restitution_of};
-use granval::dem2d::neighbor::Box2;
-use granval::dem2d::{Disk, Role, System};
+use granval::physics::dem2d::contact::{
+    Coeffs, contact_time_of, gamma_n_from_restitution, restitution_of,
+};
+use granval::physics::dem2d::neighbor::Box2;
+use granval::physics::dem2d::{Disk, Role, System};
 
 fn pair(e_n: f64, kt_ratio: f64, v0: f64, dt: f64) -> (System, f64, f64) {
     let (m, r, kn): (f64, f64, f64) = (2e-3, 0.002, 5e3);
@@ -114,8 +116,8 @@ fn tangential_spring_does_not_change_a_head_on_collision() {
 /// threads: bit-for-bit identical.
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
-    let spec = granval::dem2d::bed::BedSpec {
-        packing: granval::dem2d::bed::Packing::Random,
+    let spec = granval::physics::dem2d::bed::BedSpec {
+        packing: granval::physics::dem2d::bed::Packing::Random,
         count: 1500,
         length: 0.2,
         d: 0.004,
@@ -146,7 +148,7 @@ fn results_do_not_depend_on_the_thread_count() {
             .build()
             .unwrap();
         pool.install(|| {
-            let grains = granval::dem2d::bed::prepare(&spec, |_, _| {})
+            let grains = granval::physics::dem2d::bed::prepare(&spec, |_, _| {})
                 .unwrap()
                 .grains;
             grains

@@ -2,8 +2,8 @@
 //! criterion, smoothing and packing fraction; the hexagonal lattice; and the impact
 //! scene built on top (release height, walls, LAMMPS data file round trip).
 
-use granval::dem2d::bed::{self, BedSpec, Packing};
-use granval::dem2d::contact::Coeffs;
+use granval::physics::dem2d::bed::{self, BedSpec, Packing};
+use granval::physics::dem2d::contact::Coeffs;
 
 fn spec(packing: Packing) -> BedSpec {
     let d = 0.004;

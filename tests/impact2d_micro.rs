@@ -4,10 +4,10 @@
 
 mod common;
 
-use granval::dem2d::contact::Coeffs;
-use granval::dem2d::neighbor::Box2;
-use granval::dem2d::{Disk, Role, System, lammps_mass};
 use granval::engines::lammps::{self, Lammps, Outputs, parse};
+use granval::physics::dem2d::contact::Coeffs;
+use granval::physics::dem2d::neighbor::Box2;
+use granval::physics::dem2d::{Disk, Role, System, lammps_mass};
 use std::path::Path;
 
 const DT: f64 = 1e-5;
@@ -16,7 +16,7 @@ fn coeffs(kt_ratio: f64, mu: f64, e_n: f64) -> Coeffs {
     let kn: f64 = 2.0e3;
     let m_eff: f64 = 0.5 * 1e-3;
     let tau = std::f64::consts::PI * (m_eff / kn).sqrt();
-    let gamma_n = granval::dem2d::contact::gamma_n_from_restitution(e_n, tau);
+    let gamma_n = granval::physics::dem2d::contact::gamma_n_from_restitution(e_n, tau);
     Coeffs {
         kn,
         kt: kt_ratio * kn,
@@ -129,18 +129,18 @@ fn record(dir: &Path, rec: &Path, fin: &lammps::Finished) {
     ] {
         std::fs::copy(dir.join(f), rec.join(f)).unwrap();
     }
-    let p = granval::engines::output::Provenance {
+    let p = granval::rundata::provenance::Provenance {
         engine: "lammps".into(),
         version: fin.version.clone(),
         command: fin.command.clone(),
         input_hash: fin.input_hash.clone(),
-        date: granval::engines::output::now_utc(),
+        date: granval::rundata::provenance::now_utc(),
         wall_time_s: fin.wall_time_s,
         threads: 1,
         case_file: "tests/impact2d_micro.rs".into(),
         notes: vec![],
     };
-    granval::engines::output::write_provenance(&rec.join("provenance.json"), &p).unwrap();
+    granval::rundata::provenance::write_provenance(&rec.join("provenance.json"), &p).unwrap();
 }
 
 /// Largest |native - lammps| / scale over all rows, per column scale = max |lammps|.
@@ -276,7 +276,7 @@ fn rigid_cluster_on_a_grain_with_gravity() {
             Role::Cluster,
         ));
     }
-    let cluster = granval::dem2d::Cluster::new(&mut disks, members.clone(), [0.0, -0.3]);
+    let cluster = granval::physics::dem2d::Cluster::new(&mut disks, members.clone(), [0.0, -0.3]);
     let bx = Box2 {
         lo: [0.0, 0.0],
         hi: [0.05, 0.05],

@@ -21,8 +21,8 @@ mod common;
 
 use granval::case::Particle;
 use granval::case::penetration::PenetrationCase;
-use granval::dem::packing::Bed;
-use granval::engines::snapshot::{Contact, ContactKind, Grain, Snapshot};
+use granval::physics::dem::packing::Bed;
+use granval::rundata::snapshot::{Contact, ContactKind, Grain, Snapshot};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -93,11 +93,11 @@ fn bed(turn_deg: f64) -> Bed {
 
 /// `case` with `final_depth` set so that the run lasts the last of [`STEPS`].
 fn for_steps(mut case: PenetrationCase, bed: &Bed) -> PenetrationCase {
-    let start = granval::dem::penetration::start_z(&case, bed);
+    let start = granval::physics::dem::penetration::start_z(&case, bed);
     let travel = case.speed * case.dt * (*STEPS.last().unwrap() as f64 - 0.5);
     case.final_depth = travel - (start - bed.surface_z);
     assert_eq!(
-        granval::dem::penetration::n_steps(&case, bed),
+        granval::physics::dem::penetration::n_steps(&case, bed),
         *STEPS.last().unwrap()
     );
     case
@@ -105,7 +105,7 @@ fn for_steps(mut case: PenetrationCase, bed: &Bed) -> PenetrationCase {
 
 fn native(case: &PenetrationCase, bed: &Bed) -> Vec<Snapshot> {
     let mut out = Vec::new();
-    granval::dem::penetration::run_with_snapshots(
+    granval::physics::dem::penetration::run_with_snapshots(
         case,
         bed,
         Default::default(),
@@ -113,7 +113,7 @@ fn native(case: &PenetrationCase, bed: &Bed) -> Vec<Snapshot> {
         |sim| {
             let zb = sim.intruder().unwrap().body.bottom_z();
             let meta = granval::stress_fields::snapshot_meta(case, bed, "native", sim.step, zb);
-            out.push(Snapshot::from_native(sim, meta));
+            out.push(sim.snapshot(meta));
             Ok(())
         },
         |_, _| {},

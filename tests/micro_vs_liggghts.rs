@@ -3,8 +3,9 @@
 
 mod common;
 
+use granval::case::Perturbation;
 use granval::compare::trajectory;
-use granval::dem::{self, Perturbation};
+use granval::physics::dem;
 
 #[test]
 fn every_micro_case_matches_liggghts() {
@@ -18,7 +19,20 @@ fn every_micro_case_matches_liggghts() {
     for case in &cases {
         let dir = tempfile::tempdir().unwrap();
         let reference = common::reference_frames(case, dir.path());
-        let native = dem::run(case, Perturbation::default(), |_| {}).unwrap();
+        let native = {
+            let mut v = Vec::new();
+            dem::run(
+                case,
+                Perturbation::default(),
+                |_| {},
+                |f| {
+                    v.push(f);
+                    Ok(())
+                },
+            )
+            .unwrap();
+            v
+        };
         for c in trajectory::compare(case, &native, &reference) {
             eprintln!(
                 "  {:<40} {:>10.3e} (tol {:.0e}) {}",

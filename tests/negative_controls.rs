@@ -3,8 +3,9 @@
 
 mod common;
 
+use granval::case::Perturbation;
 use granval::compare::trajectory;
-use granval::dem::{self, Perturbation};
+use granval::physics::dem;
 
 /// Runs the whole micro suite with a perturbed native engine; returns the cases caught.
 fn caught(pert: Perturbation) -> Vec<String> {
@@ -12,7 +13,20 @@ fn caught(pert: Perturbation) -> Vec<String> {
     for case in common::micro_cases() {
         let dir = tempfile::tempdir().unwrap();
         let reference = common::reference_frames(&case, dir.path());
-        let native = dem::run(&case, pert, |_| {}).unwrap();
+        let native = {
+            let mut v = Vec::new();
+            dem::run(
+                &case,
+                pert,
+                |_| {},
+                |f| {
+                    v.push(f);
+                    Ok(())
+                },
+            )
+            .unwrap();
+            v
+        };
         if trajectory::compare(&case, &native, &reference)
             .iter()
             .any(|c| !c.passed)

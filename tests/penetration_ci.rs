@@ -10,9 +10,9 @@
 
 mod common;
 
+use granval::case::Perturbation;
 use granval::case::penetration::PenetrationCase;
 use granval::compare::{Check, penetration as cp};
-use granval::dem::Perturbation;
 use granval::penetration::{EngineRun, ensemble, run_native};
 use std::path::PathBuf;
 use std::sync::OnceLock;

@@ -14,7 +14,7 @@ fn tiny(extra: &str) -> String {
 fn bed_settles_and_intruder_meets_resistance() {
     let case = PenetrationCase::from_toml_str(&tiny(""), Path::new("tiny.toml")).unwrap();
     let bed = granval::penetration::prepare_bed(&case, false).unwrap();
-    eprintln!("{}", granval::dem::packing::bed_note(&case, &bed));
+    eprintln!("{}", granval::physics::dem::packing::bed_note(&case, &bed));
     assert!(bed.ke_ratio < 1e-6);
     assert!(
         bed.psi > 0.45 && bed.psi < 0.70,
@@ -84,7 +84,7 @@ fn stl_rim_error_sets_the_segment_count() {
     assert_eq!(case.stl_rim_error, 0.01);
     let text = tiny("").replace("force_every = 10", "force_every = 10\nstl_rim_error = 1e-3");
     let fine = PenetrationCase::from_toml_str(&text, Path::new("tiny.toml")).unwrap();
-    let bed = granval::dem::packing::Bed {
+    let bed = granval::physics::dem::packing::Bed {
         particles: vec![],
         surface_z: 0.01,
         psi: 0.0,

@@ -10,7 +10,7 @@ mod common;
 use granval::analysis::coarse_grain::{CgParams, CoarseGrainer, azimuthal_average};
 use granval::analysis::stress;
 use granval::case::penetration::PenetrationCase;
-use granval::engines::snapshot::{self, Contact, ContactKind, Grain, Snapshot, SnapshotMeta};
+use granval::rundata::snapshot::{self, Contact, ContactKind, Grain, Snapshot, SnapshotMeta};
 use granval::stress_fields::{self, EnginePoint, Forces};
 use std::collections::HashMap;
 use std::path::Path;
@@ -349,7 +349,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
     // The snapshot files hold exactly `contacts_as_dumped` (kinds, signs, every contact):
     // an independent run of the same bed sums its intruder reactions at the same steps.
     let mut dumped_reaction = HashMap::new();
-    granval::dem::penetration::run_with_snapshots(
+    granval::physics::dem::penetration::run_with_snapshots(
         &case,
         &bed,
         Default::default(),
@@ -357,7 +357,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         |sim| {
             let mut f = [0.0; 3];
             for c in sim.contacts_as_dumped() {
-                if c.other == granval::dem::contacts::Touching::Intruder {
+                if c.other == granval::physics::dem::contacts::Touching::Intruder {
                     for a in 0..3 {
                         f[a] -= c.force_on_i[a];
                     }
@@ -526,19 +526,19 @@ fn liggghts_snapshot_matches_native_contacts() {
         eprintln!("LIGGGHTS not installed: live snapshot round trip skipped");
         return;
     }
-    use granval::dem::intruder::FlatCylinder;
+    use granval::physics::dem::intruder::FlatCylinder;
     // A wide intruder (R = 10 mm, 2.5 grain diameters) so that grains touch the interior
     // of its bottom face, away from the rim.
     let case = tiny_case_with(0.020);
     let bed = granval::penetration::prepare_bed(&case, false).unwrap();
-    let top = granval::dem::penetration::start_z(&case, &bed) - case.start_gap;
+    let top = granval::physics::dem::penetration::start_z(&case, &bed) - case.start_gap;
     let zb = top - 1.5e-3;
-    let sim_case = granval::dem::packing::container_case(
+    let sim_case = granval::physics::dem::packing::container_case(
         &case,
         bed.particles.clone(),
-        granval::dem::penetration::box_top(&case, &bed),
+        granval::physics::dem::penetration::box_top(&case, &bed),
     );
-    let mut sim = granval::dem::Simulation::from_case(&sim_case);
+    let mut sim = granval::physics::dem::Simulation::from_case(&sim_case);
     // At rest: LIGGGHTS' `move/mesh` gives the mesh its velocity only once the run
     // steps, so its setup forces see a wall at rest (measured: with the native intruder
     // moving, the normal damping differs by ~0.4 % and nothing else does).
@@ -548,7 +548,7 @@ fn liggghts_snapshot_matches_native_contacts() {
         case.intruder_type,
     );
     sim.setup().unwrap();
-    let nat = Snapshot::from_native(&sim, meta(4e-3));
+    let nat = sim.snapshot(meta(4e-3));
     let mut deck = granval::penetration::liggghts_deck(&case, &bed).unwrap();
     deck.intruder_bottom_z0 = zb;
     deck.n_steps = 10;

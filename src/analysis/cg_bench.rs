@@ -3,7 +3,7 @@
 //! by `granval cg-bench` and `benches/coarse_grain.rs`.
 
 use super::coarse_grain::{CgParams, CoarseGrainer, Grid3};
-use crate::engines::snapshot::{Contact, ContactKind, Grain, Snapshot, SnapshotMeta};
+use crate::rundata::snapshot::{Contact, ContactKind, Grain, Snapshot, SnapshotMeta};
 use anyhow::Result;
 use rand::{Rng, SeedableRng};
 

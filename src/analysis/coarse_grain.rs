@@ -36,8 +36,8 @@
 //! evaluation point is independent (rayon over points), each sums its neighbours in a
 //! fixed order, so the result does not depend on the thread count.
 
-use crate::dem::vec3::*;
-use crate::engines::snapshot::{Contact, Grain, Snapshot};
+use crate::numerics::vec3::*;
+use crate::rundata::snapshot::{Contact, Grain, Snapshot};
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -288,7 +288,7 @@ impl CoarseGrainer {
                 )
             })?;
             add_moment(&mut gmoment[i], c.force, sub(c.point, c.xi));
-            if c.kind == crate::engines::snapshot::ContactKind::Pair {
+            if c.kind == crate::rundata::snapshot::ContactKind::Pair {
                 let j = *index.get(&c.j).ok_or_else(|| {
                     anyhow::anyhow!(
                         "snapshot step {}: contact names grain {} which is not in the snapshot",

@@ -25,9 +25,8 @@
 
 use super::error::{CaseError, Ctx};
 use super::validate::{finite, positive};
-use crate::dem2d::bed::Packing;
-use crate::dem2d::contact::{Coeffs, gamma_n_from_restitution};
 use serde::Deserialize;
+use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Deserialize)]
@@ -781,4 +780,38 @@ impl Impact2dCase {
             tolerances,
         })
     }
+}
+
+/// How a bed is built: random polydisperse (K Sec. II) or a hexagonal lattice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Packing {
+    Random,
+    Hexagonal,
+}
+
+/// Coefficients of one type pair in the units LAMMPS takes them: `k_n`, `k_t` in N/m,
+/// `gamma_n`, `gamma_t` in 1/s (multiplied by m_eff inside the force law).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Coeffs {
+    pub kn: f64,
+    pub kt: f64,
+    pub gamma_n: f64,
+    pub gamma_t: f64,
+    pub mu: f64,
+}
+
+impl Coeffs {
+    /// Tangential spring with history (K's model 1, "static friction") or not (model 2).
+    pub fn history(&self) -> bool {
+        self.kt > 0.0
+    }
+}
+
+/// `gamma_n = -2 ln(e_n) / tau_c` (K Sec. II), with `tau_c = pi sqrt(m_eff / k)` the
+/// undamped binary collision time. The restitution that results is
+/// [`restitution_of`]`(gamma_n, omega_0)`, slightly below e_n (K's relation neglects
+/// the damping's shift of the collision time).
+pub fn gamma_n_from_restitution(e_n: f64, tau_c: f64) -> f64 {
+    -2.0 * e_n.ln() / tau_c
 }

@@ -9,6 +9,28 @@ pub(crate) mod validate;
 
 pub use error::CaseError;
 
+/// Overridable knobs for negative controls and experiments: the native engine run with
+/// deliberately wrong physics must make the comparison fail.
+#[derive(Debug, Clone, Copy)]
+pub struct Perturbation {
+    pub friction_factor: f64,
+    pub restitution_shift: f64,
+    pub poisson_shift: f64,
+    /// Replaces the sliding friction of one type pair (0-based types), e.g. mu_gg.
+    pub pair_friction: Option<(usize, usize, f64)>,
+}
+
+impl Default for Perturbation {
+    fn default() -> Self {
+        Perturbation {
+            friction_factor: 1.0,
+            restitution_shift: 0.0,
+            poisson_shift: 0.0,
+            pair_friction: None,
+        }
+    }
+}
+
 use std::path::{Path, PathBuf};
 
 /// Which contact models a case uses; names follow LIGGGHTS' `pair_style gran` keywords.

@@ -12,8 +12,8 @@
 
 use super::Check;
 use crate::case::Case;
-use crate::dem::vec3::{norm, sub};
 use crate::engines::Frame;
+use crate::numerics::vec3::{norm, sub};
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Worst {

@@ -1,9 +1,11 @@
 //! The in-process Rust DEM as an [`Engine`].
 
 use super::Engine;
-use super::output::{Provenance, RunOutput, now_utc, sha256_hex};
+use super::RunOutput;
 use crate::case::Case;
-use crate::dem::{self, Perturbation};
+use crate::case::Perturbation;
+use crate::physics::dem;
+use crate::rundata::provenance::{Provenance, now_utc, sha256_hex};
 use std::path::Path;
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -21,11 +23,20 @@ impl Engine for Native {
     fn run(&self, case: &Case, _dir: &Path) -> anyhow::Result<RunOutput> {
         let start = std::time::Instant::now();
         let bar = crate::report::progress::bar(self.progress, case.n_steps, "native");
-        let frames = dem::run(case, self.perturbation, |s| {
-            if s.is_multiple_of(1000) {
-                bar.set_position(s);
-            }
-        })?;
+        let mut frames = Vec::new();
+        dem::run(
+            case,
+            self.perturbation,
+            |s| {
+                if s.is_multiple_of(1000) {
+                    bar.set_position(s);
+                }
+            },
+            |f| {
+                frames.push(f);
+                Ok(())
+            },
+        )?;
         bar.finish_and_clear();
         let case_text = std::fs::read(&case.source).unwrap_or_default();
         let p = self.perturbation;

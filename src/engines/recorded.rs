@@ -3,8 +3,10 @@
 //! must name a real reference engine and its version line.
 
 use super::Engine;
-use super::output::{RunOutput, read_particles_csv, read_provenance};
+use super::RunOutput;
 use crate::case::Case;
+use crate::rundata::frames::read_particles_csv;
+use crate::rundata::provenance::read_provenance;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Clone)]

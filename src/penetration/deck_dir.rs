@@ -13,9 +13,9 @@
 
 use super::{EngineRun, PenetrationRun, bed_hash, binner, liggghts_deck, prepare_bed};
 use crate::case::penetration::PenetrationCase;
-use crate::dem::packing::{self, Bed};
 use crate::engines::liggghts::penetration::{self as lp, Units};
-use crate::engines::output::{Provenance, read_provenance, write_provenance};
+use crate::physics::dem::packing::{self, Bed};
+use crate::rundata::provenance::{Provenance, read_provenance, write_provenance};
 use anyhow::{Context, Result, bail, ensure};
 use std::path::{Path, PathBuf};
 
@@ -28,7 +28,7 @@ pub fn bed_dir_name(k: usize) -> String {
 /// `force.csv` + `provenance.json` of a native run.
 pub fn save_native(dir: &Path, run: &PenetrationRun) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    super::write_force_csv(&dir.join("force.csv"), &run.samples)?;
+    crate::rundata::force::write_force_csv(&dir.join("force.csv"), &run.samples)?;
     write_provenance(&dir.join("provenance.json"), &run.provenance)
 }
 

@@ -10,7 +10,7 @@
 use super::{EngineRun, bed_hash, deck_dir, prepare_bed, run_liggghts, run_native};
 use crate::case::penetration::PenetrationCase;
 use crate::compare::{Check, penetration as cp};
-use crate::dem::packing;
+use crate::physics::dem::packing;
 use crate::pipeline::{CaseResult, Options};
 use crate::report::CaseRun;
 use anyhow::Result;

@@ -7,12 +7,13 @@
 pub mod deck_dir;
 pub mod ensemble;
 
+use crate::case::Perturbation;
 use crate::case::penetration::PenetrationCase;
-use crate::dem::packing::{self, Bed};
-use crate::dem::{self, Perturbation};
-use crate::engines::output::{ForceSample, Provenance, now_utc, sha256_hex};
-use anyhow::{Context, Result};
-use std::io::Write;
+use crate::physics::dem;
+use crate::physics::dem::packing::{self, Bed};
+use crate::rundata::force::ForceSample;
+use crate::rundata::provenance::{Provenance, now_utc, sha256_hex};
+use anyhow::Result;
 use std::path::Path;
 
 pub struct PenetrationRun {
@@ -56,22 +57,6 @@ impl PenetrationRun {
             provenance: self.provenance,
         })
     }
-}
-
-/// Writes `force.csv` (t, z_bottom, fx, fy, fz; SI, full precision).
-pub fn write_force_csv(path: &Path, samples: &[ForceSample]) -> Result<()> {
-    let mut w = std::io::BufWriter::new(
-        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
-    );
-    writeln!(w, "t,z_bottom,fx,fy,fz")?;
-    for s in samples {
-        writeln!(
-            w,
-            "{:e},{:e},{:e},{:e},{:e}",
-            s.t, s.z_bottom, s.f[0], s.f[1], s.f[2]
-        )?;
-    }
-    Ok(())
 }
 
 /// Prepares the bed natively (pour + settle to the case's KE criterion).
@@ -196,33 +181,6 @@ pub fn run_liggghts(
         samples: b.samples(),
         provenance,
     })
-}
-
-/// Reads a `force.csv` written by [`write_force_csv`].
-pub fn read_force_csv(path: &Path) -> Result<Vec<ForceSample>> {
-    let mut r =
-        csv::Reader::from_path(path).with_context(|| format!("cannot open {}", path.display()))?;
-    let mut out = Vec::new();
-    for (k, rec) in r.records().enumerate() {
-        let rec = rec.with_context(|| format!("{}: record {}", path.display(), k + 2))?;
-        let v = |i: usize| -> Result<f64> {
-            rec[i].parse::<f64>().with_context(|| {
-                format!(
-                    "{}: line {}: column {} = {:?}",
-                    path.display(),
-                    k + 2,
-                    i + 1,
-                    &rec[i]
-                )
-            })
-        };
-        out.push(ForceSample {
-            t: v(0)?,
-            z_bottom: v(1)?,
-            f: [v(2)?, v(3)?, v(4)?],
-        });
-    }
-    Ok(out)
 }
 
 /// Fingerprint of a bed (positions, radii, velocities), so a recorded LIGGGHTS run is

@@ -3,7 +3,7 @@
 //! `{:e}`; NaN (no grains within the kernel) is written as `nan`.
 
 use crate::analysis::coarse_grain::{Grid3, Sym};
-use crate::dem::vec3::V3;
+use crate::numerics::vec3::V3;
 use anyhow::{Context, Result, ensure};
 use std::io::{BufWriter, Write};
 use std::path::Path;

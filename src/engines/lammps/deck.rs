@@ -10,7 +10,7 @@
 //! not integrated; grains and a disk intruder are `fix nve/sphere disc` (I = m r^2/2);
 //! a cluster intruder is `fix rigid single` with all torque components off.
 
-use crate::dem2d::{Role, System, sphere_volume};
+use crate::physics::dem2d::{Role, System, sphere_volume};
 use anyhow::{Result, bail};
 use std::fmt::Write as _;
 

@@ -3,7 +3,7 @@
 
 use super::{Finished, Lammps, Outputs, parse};
 use crate::analysis::impact::{EnergyModel, EnergySample, IntruderSample, SnapDisk, energies};
-use crate::dem2d::impact::Scene;
+use crate::physics::dem2d::impact::Scene;
 use anyhow::{Result, bail};
 use std::path::Path;
 

@@ -10,9 +10,9 @@ pub mod deck;
 pub mod impact;
 pub mod parse;
 
-use crate::dem2d::System;
-use crate::engines::output::sha256_hex;
 use crate::engines::process::{self, Transcript, TranscriptFiles};
+use crate::physics::dem2d::System;
+use crate::rundata::provenance::sha256_hex;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::time::Duration;

@@ -13,7 +13,7 @@
 //!
 //! Columns are mapped by the names in the `ITEM: ATOMS` header, never by position.
 
-use crate::engines::output::{Frame, ParticleState};
+use crate::rundata::frames::{Frame, ParticleState};
 use anyhow::{Context, Result, bail};
 use std::io::{BufRead, BufReader};
 use std::path::Path;

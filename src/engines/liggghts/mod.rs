@@ -21,8 +21,9 @@ pub use dump::parse_dump;
 
 use crate::case::Case;
 use crate::engines::Engine;
-use crate::engines::output::{Provenance, RunOutput, now_utc, sha256_hex};
+use crate::engines::RunOutput;
 use crate::engines::process::{self, Transcript, TranscriptFiles};
+use crate::rundata::provenance::{Provenance, now_utc, sha256_hex};
 use anyhow::{Context, Result};
 use std::path::Path;
 use std::time::Duration;

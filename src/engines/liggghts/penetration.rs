@@ -29,8 +29,8 @@
 use super::deck::{f, join, model_keywords, write_contact_model};
 use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE, TRANSCRIPT, VERSION_PREFIX};
 use crate::case::{Material, PairTable, Particle, RollingModel};
-use crate::engines::output::{Provenance, now_utc, sha256_hex};
 use crate::engines::process::{self, Transcript};
+use crate::rundata::provenance::{Provenance, now_utc, sha256_hex};
 use anyhow::{Context, Result, bail};
 use std::fmt::Write as _;
 use std::io::BufRead;

@@ -16,7 +16,7 @@
 //! - `%.17g` formats round-trip an f64.
 
 use super::penetration::Units;
-use crate::engines::snapshot::{Contact, ContactKind, Grain};
+use crate::rundata::snapshot::{Contact, ContactKind, Grain};
 use anyhow::{Context, Result, bail};
 use std::collections::HashSet;
 use std::fmt::Write as _;

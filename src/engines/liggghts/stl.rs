@@ -1,6 +1,6 @@
 //! ASCII STL of the penetration intruder for LIGGGHTS
 //! (`fix mesh/surface/stress file intruder.stl ...`): a closed, flat-bottomed cylinder,
-//! the mesh counterpart of [`crate::dem::intruder::FlatCylinder`].
+//! the mesh counterpart of [`crate::physics::dem::intruder::FlatCylinder`].
 //!
 //! The rim circles are regular n-gons inscribed in the circle of radius R, so the mesh
 //! lies inside the true cylinder by at most the sagitta `R (1 - cos(pi/n))` (midpoints of

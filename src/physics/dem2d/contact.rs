@@ -24,25 +24,7 @@
 //!   separating contact is briefly attractive, as in K's eq for F_n. `gran/hooke/history` with k_t = 0
 //!   divides by k_t on sliding, so LAMMPS' k_t = 0 model must be `gran/hooke`.
 
-use serde::Serialize;
-
-/// Coefficients of one type pair in the units LAMMPS takes them: `k_n`, `k_t` in N/m,
-/// `gamma_n`, `gamma_t` in 1/s (multiplied by m_eff inside the force law).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Coeffs {
-    pub kn: f64,
-    pub kt: f64,
-    pub gamma_n: f64,
-    pub gamma_t: f64,
-    pub mu: f64,
-}
-
-impl Coeffs {
-    /// Tangential spring with history (K's model 1, "static friction") or not (model 2).
-    pub fn history(&self) -> bool {
-        self.kt > 0.0
-    }
-}
+pub use crate::case::impact2d::{Coeffs, gamma_n_from_restitution};
 
 /// The two disks of a contact as the force law sees them; `del = x_i - x_j`
 /// (minimum image across the periodic boundary).
@@ -157,14 +139,6 @@ pub fn hooke(
         torque_j: -p.rj * tor3,
         overlap: radsum - r,
     })
-}
-
-/// `gamma_n = -2 ln(e_n) / tau_c` (K Sec. II), with `tau_c = pi sqrt(m_eff / k)` the
-/// undamped binary collision time. The restitution that results is
-/// [`restitution_of`]`(gamma_n, omega_0)`, slightly below e_n (K's relation neglects
-/// the damping's shift of the collision time).
-pub fn gamma_n_from_restitution(e_n: f64, tau_c: f64) -> f64 {
-    -2.0 * e_n.ln() / tau_c
 }
 
 /// Restitution of a linear spring-dashpot `x'' + gamma x' + omega_0^2 x = 0`:

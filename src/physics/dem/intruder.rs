@@ -27,7 +27,7 @@
 //! the contact law valid, and the force stays continuous and monotone as the centre moves
 //! in. Use [`FlatCylinder::signed_distance`] to detect such (unphysical) deep penetrations.
 
-use super::vec3::V3;
+use crate::numerics::vec3::V3;
 
 /// Floor of the returned centre-surface distance, as a fraction of the sphere radius, once
 /// the centre reaches the surface or enters the solid.
@@ -206,8 +206,8 @@ impl FlatCylinder {
 mod tests {
     use super::*;
     use crate::case::RollingModel;
-    use crate::dem::contact::{ContactGeom, History, PairCoeffs, hertz_history};
-    use crate::dem::vec3::{dot, norm, sub};
+    use crate::numerics::vec3::{dot, norm, sub};
+    use crate::physics::dem::contact::{ContactGeom, History, PairCoeffs, hertz_history};
     use approx::assert_abs_diff_eq;
 
     const R: f64 = 0.015;

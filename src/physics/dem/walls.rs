@@ -2,8 +2,8 @@
 //! (primitive_wall_definitions.h): the contact vector points from the wall to the
 //! particle centre and its length is the centre-wall distance.
 
-use super::vec3::V3;
 use crate::case::{Axis, Wall};
+use crate::numerics::vec3::V3;
 
 /// Wall-to-particle vector and its length if the sphere of radius `r` touches the wall.
 #[inline]

@@ -26,7 +26,8 @@
 //!   (fix_wall_gran_base.h: `vectorSubtract3D(x, sidata.delta, contactPoint)`).
 
 use super::Simulation;
-use super::vec3::*;
+use crate::numerics::vec3::*;
+use crate::rundata::snapshot::{Contact, ContactKind, Grain, Snapshot, SnapshotMeta};
 
 /// What a grain touches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -188,5 +189,48 @@ mod tests {
             dumped_over > touching / 4,
             "the dumped force must show the LIGGGHTS effect"
         );
+    }
+}
+
+impl Simulation {
+    /// Builds a native snapshot with the contacts as LIGGGHTS would dump them at this
+    /// step ([`crate::physics::dem::Simulation::contacts_as_dumped`]), so both engines' stress
+    /// fields are measured the same way.
+    pub fn snapshot(&self, meta: SnapshotMeta) -> Snapshot {
+        let sim = self;
+        let grains = (0..sim.x.len())
+            .map(|k| Grain {
+                id: sim.id[k],
+                x: sim.x[k],
+                v: sim.v[k],
+                radius: sim.radius[k],
+            })
+            .collect();
+        let contacts = sim
+            .contacts_as_dumped()
+            .into_iter()
+            .map(|c| {
+                let xi = sim.x[c.i];
+                let (kind, j, branch) = match c.other {
+                    Touching::Grain(j) => (ContactKind::Pair, sim.id[j], sub(sim.x[j], xi)),
+                    Touching::Wall(_) => (ContactKind::Wall, 0, sub(c.point, xi)),
+                    Touching::Intruder => (ContactKind::Intruder, 0, sub(c.point, xi)),
+                };
+                Contact {
+                    kind,
+                    i: sim.id[c.i],
+                    j,
+                    xi,
+                    point: c.point,
+                    branch,
+                    force: c.force_on_i,
+                }
+            })
+            .collect();
+        Snapshot {
+            meta,
+            grains,
+            contacts,
+        }
     }
 }

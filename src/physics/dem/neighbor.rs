@@ -4,7 +4,7 @@
 //! history transfer after a rebuild is a linear merge.
 
 use super::contact::History;
-use super::vec3::V3;
+use crate::numerics::vec3::V3;
 
 #[derive(Debug, Default, Clone)]
 pub struct PairList {
@@ -240,8 +240,8 @@ mod tests {
         let mut brute = 0;
         for i in 0..x.len() {
             for j in i + 1..x.len() {
-                let d = super::super::vec3::sub(x[i], x[j]);
-                if super::super::vec3::dot(d, d) < (1.2e-3f64).powi(2) {
+                let d = crate::numerics::vec3::sub(x[i], x[j]);
+                if crate::numerics::vec3::dot(d, d) < (1.2e-3f64).powi(2) {
                     brute += 1;
                 }
             }

@@ -9,23 +9,26 @@ pub mod contact;
 pub mod contacts;
 pub mod intruder;
 pub mod neighbor;
+mod overlap;
 pub mod packing;
 pub mod penetration;
-pub mod vec3;
 pub mod walls;
 
-use crate::case::{Case, RollingModel, Wall};
-use crate::engines::output::{Frame, ParticleState};
+use crate::case::{Case, Perturbation, RollingModel, Wall};
+use crate::numerics::vec3::*;
+use crate::rundata::frames::{Frame, ParticleState};
 use contact::{ContactForce, ContactGeom, History, PairCoeffs, hertz_history};
 use neighbor::PairList;
 use rayon::prelude::*;
-use vec3::*;
 
 /// Moment-of-inertia factor of a solid sphere, LIGGGHTS' `INERTIA` in fix_nve_sphere.
 const INERTIA: f64 = 0.4;
 
 /// Pairs below this count are handled by one thread: spawning costs more than it saves.
 const PAR_MIN_LEN: usize = 2048;
+
+/// Largest initial overlap accepted, as a fraction of the smaller radius.
+pub const MAX_INITIAL_OVERLAP: f64 = 0.05;
 
 #[derive(Clone)]
 pub struct Simulation {
@@ -65,28 +68,6 @@ pub struct Simulation {
     lo: V3,
     hi: V3,
     pub step: u64,
-}
-
-/// Overridable knobs for negative controls and experiments: the native engine run with
-/// deliberately wrong physics must make the comparison fail.
-#[derive(Debug, Clone, Copy)]
-pub struct Perturbation {
-    pub friction_factor: f64,
-    pub restitution_shift: f64,
-    pub poisson_shift: f64,
-    /// Replaces the sliding friction of one type pair (0-based types), e.g. mu_gg.
-    pub pair_friction: Option<(usize, usize, f64)>,
-}
-
-impl Default for Perturbation {
-    fn default() -> Self {
-        Perturbation {
-            friction_factor: 1.0,
-            restitution_shift: 0.0,
-            poisson_shift: 0.0,
-            pair_friction: None,
-        }
-    }
 }
 
 /// A rigid body driven at constant velocity through the grains (the penetration
@@ -193,6 +174,7 @@ impl Simulation {
     /// LIGGGHTS' `Verlet::setup` does before step 1 (and before the step-0 dump).
     pub fn setup(&mut self) -> anyhow::Result<()> {
         self.check_domain()?;
+        self.check_initial_overlaps()?;
         self.rebuild();
         self.compute_forces(false);
         Ok(())
@@ -255,7 +237,54 @@ impl Simulation {
 
     /// LIGGGHTS runs with `boundary f f f`: an atom leaving the box is lost and the run
     /// stops with an error. Do the same instead of silently integrating it.
+    /// Refuses a start with grains (or a grain and a wall) overlapping by more than
+    /// [`MAX_INITIAL_OVERLAP`] of the smaller radius: Hertz forces at such overlaps fling
+    /// grains out at once and the run would end with a meaningless "left the domain"
+    /// error. Checked with a hash grid, so a case with 1e6 coincident grains fails fast
+    /// in O(N) memory instead of building an N^2 neighbour list.
+    fn check_initial_overlaps(&self) -> anyhow::Result<()> {
+        if let Some((i, j, overlap)) =
+            overlap::first_overlap(&self.x, &self.radius, MAX_INITIAL_OVERLAP)
+        {
+            anyhow::bail!(
+                "particles id {} and id {} overlap by {overlap:.3e} m ({:.1} % of the smaller radius {:.3e} m) at the start; more than {:.0} % is refused: move them apart",
+                self.id[i],
+                self.id[j],
+                100.0 * overlap / self.radius[i].min(self.radius[j]),
+                self.radius[i].min(self.radius[j]),
+                100.0 * MAX_INITIAL_OVERLAP
+            );
+        }
+        for (k, x) in self.x.iter().enumerate() {
+            for (w, wall) in self.walls.iter().enumerate() {
+                if let Some((delta, _)) = walls::wall_contact(wall, *x, self.radius[k]) {
+                    let overlap = self.radius[k] - norm(delta);
+                    if overlap > MAX_INITIAL_OVERLAP * self.radius[k] {
+                        anyhow::bail!(
+                            "particle id {} overlaps wall {w} by {overlap:.3e} m ({:.1} % of its radius) at the start; more than {:.0} % is refused",
+                            self.id[k],
+                            100.0 * overlap / self.radius[k],
+                            100.0 * MAX_INITIAL_OVERLAP
+                        );
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
     fn check_domain(&self) -> anyhow::Result<()> {
+        if let Some(k) = (0..self.x.len()).find(|&k| {
+            !(self.x[k].iter().chain(&self.v[k]).chain(&self.omega[k])).all(|c| c.is_finite())
+        }) {
+            anyhow::bail!(
+                "particle id {} has a non-finite state at step {} (x = {:?}, v = {:?}): the integration blew up; likely causes are a time step too large for the contact stiffness or grains started deep inside each other",
+                self.id[k],
+                self.step,
+                self.x[k],
+                self.v[k]
+            );
+        }
         if let Some(k) = self
             .x
             .iter()
@@ -484,21 +513,23 @@ impl Simulation {
     }
 }
 
-/// Runs a case start to finish and returns every output frame (step 0 included).
+/// Runs a case start to finish, handing every output frame (step 0 included) to
+/// `on_frame` as soon as it exists: a long run never holds its trajectory in memory.
 pub fn run(
     case: &Case,
     pert: Perturbation,
     mut on_step: impl FnMut(u64),
-) -> anyhow::Result<Vec<Frame>> {
+    mut on_frame: impl FnMut(Frame) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
     let mut sim = Simulation::from_case_perturbed(case, pert);
     sim.setup()?;
-    let mut frames = vec![sim.frame()];
+    on_frame(sim.frame())?;
     for _ in 0..case.n_steps {
         sim.step()?;
         if sim.step.is_multiple_of(case.output_every) {
-            frames.push(sim.frame());
+            on_frame(sim.frame())?;
         }
         on_step(sim.step);
     }
-    Ok(frames)
+    Ok(())
 }

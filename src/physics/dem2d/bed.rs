@@ -20,12 +20,7 @@ use super::{Disk, Role, System, lammps_mass};
 use anyhow::{Result, bail};
 use rand::{Rng, SeedableRng};
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Packing {
-    Random,
-    Hexagonal,
-}
+pub use crate::case::impact2d::Packing;
 
 /// Everything bed preparation needs, SI.
 #[derive(Debug, Clone, serde::Serialize)]

@@ -9,8 +9,8 @@
 //! One function serves particle-particle and particle-wall contacts, as in LIGGGHTS,
 //! so the two cannot drift apart.
 
-use super::vec3::*;
 use crate::case::RollingModel;
+use crate::numerics::vec3::*;
 
 /// sqrt(5/6) as LIGGGHTS spells it; Table 1's damping prefactor 2 sqrt(5/6) beta.
 const SQRT_FIVE_OVER_SIX: f64 = 0.912_870_929_175_276_9;

@@ -14,7 +14,7 @@
 //! Files: `snapshot_KK.json` (meta), `snapshot_KK_grains.csv`, `snapshot_KK_contacts.csv`,
 //! all SI, floats in Rust's shortest round-trip `{:e}`. One snapshot is read at a time.
 
-use crate::dem::vec3::*;
+use crate::numerics::vec3::*;
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 use std::io::{BufRead, BufWriter, Write};
@@ -123,47 +123,6 @@ impl Snapshot {
     /// Keeps only the contact kinds both engines report (`pair`, `intruder`).
     pub fn common_contacts(&self) -> impl Iterator<Item = &Contact> {
         self.contacts.iter().filter(|c| c.kind != ContactKind::Wall)
-    }
-
-    /// Builds a native snapshot with the contacts as LIGGGHTS would dump them at this
-    /// step ([`crate::dem::Simulation::contacts_as_dumped`]), so both engines' stress
-    /// fields are measured the same way.
-    pub fn from_native(sim: &crate::dem::Simulation, meta: SnapshotMeta) -> Snapshot {
-        use crate::dem::contacts::Touching;
-        let grains = (0..sim.x.len())
-            .map(|k| Grain {
-                id: sim.id[k],
-                x: sim.x[k],
-                v: sim.v[k],
-                radius: sim.radius[k],
-            })
-            .collect();
-        let contacts = sim
-            .contacts_as_dumped()
-            .into_iter()
-            .map(|c| {
-                let xi = sim.x[c.i];
-                let (kind, j, branch) = match c.other {
-                    Touching::Grain(j) => (ContactKind::Pair, sim.id[j], sub(sim.x[j], xi)),
-                    Touching::Wall(_) => (ContactKind::Wall, 0, sub(c.point, xi)),
-                    Touching::Intruder => (ContactKind::Intruder, 0, sub(c.point, xi)),
-                };
-                Contact {
-                    kind,
-                    i: sim.id[c.i],
-                    j,
-                    xi,
-                    point: c.point,
-                    branch,
-                    force: c.force_on_i,
-                }
-            })
-            .collect();
-        Snapshot {
-            meta,
-            grains,
-            contacts,
-        }
     }
 }
 

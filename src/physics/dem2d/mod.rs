@@ -9,6 +9,7 @@
 
 pub mod bed;
 pub mod contact;
+pub mod energy;
 pub mod impact;
 pub mod neighbor;
 

@@ -2,11 +2,12 @@
 //! flat-bottomed cylinder started `start_gap` above the surface and driven down the
 //! axis at constant speed to `final_depth`; the force on it is recorded with its height.
 
+use super::Simulation;
 use super::intruder::FlatCylinder;
 use super::packing::{Bed, container_case};
-use super::{Perturbation, Simulation};
+use crate::case::Perturbation;
 use crate::case::penetration::PenetrationCase;
-use crate::engines::output::ForceSample;
+use crate::rundata::force::ForceSample;
 use anyhow::Result;
 
 /// Steps from the start position to the final depth.

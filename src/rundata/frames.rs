@@ -1,5 +1,4 @@
-//! What every engine returns: the same per-particle time series and a provenance record,
-//! so analysis never needs to know which engine produced a run.
+//! Per-particle time series of a micro run (`particles.csv`), the same for every engine.
 
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
@@ -21,29 +20,6 @@ pub struct Frame {
     pub step: u64,
     pub t: f64,
     pub particles: Vec<ParticleState>,
-}
-
-/// Where a run came from: enough to reproduce it and to refuse to trust it blindly.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Provenance {
-    pub engine: String,
-    /// Version line (LIGGGHTS: the first line of its log; native: crate version).
-    pub version: String,
-    pub command: String,
-    /// SHA-256 of the input deck (LIGGGHTS) or of the case file (native).
-    pub input_hash: String,
-    pub date: String,
-    pub wall_time_s: f64,
-    pub threads: usize,
-    pub case_file: String,
-    #[serde(default)]
-    pub notes: Vec<String>,
-}
-
-#[derive(Debug, Clone)]
-pub struct RunOutput {
-    pub frames: Vec<Frame>,
-    pub provenance: Provenance,
 }
 
 /// Column order of `particles.csv`, fixed by the issue so scripts can rely on it.
@@ -132,34 +108,4 @@ pub fn read_particles_csv(path: &Path, dt: f64) -> Result<Vec<Frame>> {
         fr.particles.sort_by_key(|p| p.id);
     }
     Ok(frames)
-}
-
-pub fn write_provenance(path: &Path, p: &Provenance) -> Result<()> {
-    std::fs::write(path, serde_json::to_string_pretty(p)? + "\n")
-        .with_context(|| format!("cannot write {}", path.display()))
-}
-
-pub fn read_provenance(path: &Path) -> Result<Provenance> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a provenance record", path.display()))
-}
-
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    use sha2::Digest;
-    hex::encode(sha2::Sha256::digest(bytes))
-}
-
-pub fn now_utc() -> String {
-    chrono::Utc::now().to_rfc3339_opts(chrono::SecondsFormat::Secs, true)
-}
-
-/// The intruder at one output step of a penetration run, SI: time, height of its
-/// bottom face, and the total force the grains exert on it (+z resists a downward push).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct ForceSample {
-    pub t: f64,
-    pub z_bottom: f64,
-    pub f: [f64; 3],
 }

@@ -1,0 +1,7 @@
+//! General numerics with no physics in them: 3-vectors, quadrature, root finding,
+//! minimisation. The bottom layer: it imports nothing from the crate.
+
+pub mod minimize;
+pub mod quadrature;
+pub mod roots;
+pub mod vec3;

@@ -1,0 +1,9 @@
+//! What a run produces, independent of the engine that produced it: particle frames,
+//! intruder force samples, 2D impact series, contact snapshots, and provenance. Plain
+//! data and its file formats; no physics, no analysis.
+
+pub mod force;
+pub mod frames;
+pub mod impact;
+pub mod provenance;
+pub mod snapshot;
