@@ -8,7 +8,6 @@
 
 use crate::case::Perturbation;
 use crate::case::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances, Wall};
-use crate::engines::Engine;
 use crate::engines::liggghts::{self, Liggghts};
 use crate::physics::dem::Simulation;
 use anyhow::{Context, Result};
@@ -122,6 +121,7 @@ pub fn lattice_case(n: usize, seed: u64) -> Case {
             position_frac_radius: 1e-6,
         },
         rayleigh_time: rayleigh,
+        negative_controls: vec![],
     }
 }
 
@@ -210,8 +210,7 @@ pub fn run(n: usize, steps: u64) -> Result<()> {
         None => println!("LIGGGHTS not installed: no ratio measured"),
         Some(v) => {
             let dir = tempfile::tempdir()?;
-            Liggghts::default()
-                .run(&case, dir.path())
+            liggghts::micro(&Liggghts::default(), &case, dir.path())
                 .context("LIGGGHTS bench run")?;
             let log = std::fs::read_to_string(dir.path().join("log.liggghts"))?;
             let tl = loop_time(&log).context("no 'Loop time' line in the LIGGGHTS log")?;

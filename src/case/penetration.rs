@@ -4,7 +4,7 @@
 
 use super::error::{CaseError, Ctx};
 use super::validate::{finite, physics, positive};
-use super::{Material, PairTable, RollingModel, schema};
+use super::{Gate, Material, NegativeControl, PairTable, RollingModel, schema};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -29,6 +29,8 @@ struct File {
     quasi_static: Option<QuasiStatic>,
     #[serde(default)]
     published: Option<Published>,
+    #[serde(default)]
+    negative_control: Vec<super::control::RawControl>,
 }
 
 /// Realisations: granular penetration is chaotic, so one bed gives K_phi only to about
@@ -368,28 +370,21 @@ pub struct PenetrationCase {
     pub quasi_static_speed: Option<f64>,
     pub published: Option<Published>,
     pub rayleigh_time: f64,
+    pub negative_controls: Vec<NegativeControl>,
 }
 
-/// The `[case] kind` of a file, to choose its loader.
-pub fn kind_of(path: &Path) -> Result<String, CaseError> {
-    #[derive(Deserialize)]
-    struct Peek {
-        case: PeekCase,
-    }
-    #[derive(Deserialize)]
-    struct PeekCase {
-        kind: String,
-    }
-    let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
-        file: path.to_path_buf(),
-        error,
-    })?;
-    let p: Peek = toml::from_str(&text).map_err(|e| CaseError::Parse {
-        file: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    Ok(p.case.kind)
-}
+/// Gates a penetration comparison produces (what its negative controls may name).
+pub const PENETRATION_GATES: &[Gate] = &[
+    Gate::KPhi,
+    Gate::FdrDistance,
+    Gate::RegimeBoundaries,
+    Gate::QuasiStatic,
+    Gate::Published,
+    Gate::Phi,
+    Gate::MaltK,
+    Gate::MaltPhi,
+    Gate::UnifiedFit,
+];
 
 impl PenetrationCase {
     /// The time-averaging windows of the contact snapshots, one per `snapshot_h` entry.
@@ -400,6 +395,27 @@ impl PenetrationCase {
             self.snapshot_window,
             self.snapshot_window_h,
         )
+    }
+
+    /// What the runs of this case depend on, in a fixed form: the physics, bed and
+    /// intruder protocol, not the name, description, analysis ranges, tolerances,
+    /// published values or controls. A recorded reference is sealed to its sha256.
+    pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
+        let view = serde_json::json!({
+            "kind": "penetration",
+            "dt": self.dt,
+            "gravity": self.gravity,
+            "neighbor_skin": self.neighbor_skin,
+            "rolling": self.rolling,
+            "materials": self.materials,
+            "pairs": self.pairs,
+            "container": [self.container_radius, self.container_height, self.wall_type],
+            "grains": [self.grain_type, self.density, serde_json::to_value(self.diameter).unwrap_or_default(), self.count, self.seed],
+            "preparation": [self.settle_ke_ratio, self.max_settle_time],
+            "intruder": [self.intruder_type, self.intruder_radius, self.intruder_length, self.speed, self.start_gap, self.final_depth, self.force_every as f64, self.stl_rim_error],
+            "beds": self.ensemble_beds,
+        });
+        crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
 
     /// Bed `k` of the ensemble: the same case with seed `seed + k`.
@@ -433,6 +449,7 @@ impl PenetrationCase {
                 "this loader reads kind = \"penetration\"",
             ));
         }
+        super::validate::case_name(&ctx, &raw.case.name)?;
         let (rolling, materials, pairs) =
             physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
         let n_types = materials.len();
@@ -494,6 +511,13 @@ impl PenetrationCase {
             (Some(n), None) => return Err(ctx.bad("bed.count", n, "must be >= 1")),
             (None, Some(h)) => {
                 let h = positive(&ctx, "bed.fill_height", h)?;
+                if h >= container_height {
+                    return Err(ctx.bad(
+                        "bed.fill_height",
+                        h,
+                        format!("the bed would overflow the container (container.height = {container_height:e} m)"),
+                    ));
+                }
                 let v_grain = std::f64::consts::PI / 6.0 * d_mean.powi(3);
                 (packing_guess * std::f64::consts::PI * container_radius.powi(2) * h / v_grain)
                     .round() as usize
@@ -550,6 +574,17 @@ impl PenetrationCase {
                 "intruder.diameter",
                 i.diameter,
                 "must be smaller than the container diameter",
+            ));
+        }
+        let gap = container_radius - intruder_radius;
+        if gap < 2.0 * diameter.max() {
+            return Err(ctx.bad(
+                "intruder.diameter",
+                i.diameter,
+                format!(
+                    "leaves a gap of {gap:e} m to the container wall, less than two grain diameters ({:e} m): grains could not flow past the intruder",
+                    2.0 * diameter.max()
+                ),
             ));
         }
         if final_depth >= intruder_length {
@@ -708,7 +743,10 @@ impl PenetrationCase {
             }
         }
 
+        let negative_controls =
+            super::control::controls(&ctx, &raw.negative_control, n_types, PENETRATION_GATES)?;
         Ok(PenetrationCase {
+            negative_controls,
             name: raw.case.name,
             description: raw.case.description,
             source: path.to_path_buf(),

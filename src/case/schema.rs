@@ -18,6 +18,8 @@ pub struct CaseFile {
     pub walls: Vec<Wall>,
     #[serde(default)]
     pub compare: Option<Compare>,
+    #[serde(default)]
+    pub negative_control: Vec<super::control::RawControl>,
 }
 
 #[derive(Debug, Deserialize)]

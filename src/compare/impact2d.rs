@@ -28,6 +28,7 @@ pub fn cross_check(
     let name = |w: &str| format!("{} [{}]: {w}", case.name, a.label);
     let mut out = vec![Check::at_most(
         name(&format!("final depth native vs {reference}")),
+        crate::compare::Gate::FinalDepth,
         "|D_native - D_ref| / d",
         (a.final_depth - b.final_depth).abs(),
         tol.final_depth_abs,
@@ -43,6 +44,7 @@ pub fn cross_check(
     out.push(match rms {
         Ok(r) => Check::at_most(
             name("D(t) distance"),
+            crate::compare::Gate::DepthSeries,
             "RMS(D_native - D_ref) / d",
             r,
             tol.depth_rms,
@@ -74,6 +76,7 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
                     "{}: claim ({engine}): final depth increases along {param}",
                     case.name
                 ),
+                crate::compare::Gate::Claim,
                 "max_k (D_k + min_step - D_k+1) / d",
                 worst,
                 0.0,
@@ -90,6 +93,7 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
                         "{}: claim ({engine}): final depth linear in {param} for {param} >= {from}",
                         case.name
                     ),
+                    crate::compare::Gate::Claim,
                     "1 - R^2 of the least-squares line",
                     // A falling line is no support for "grows linearly".
                     if b > 0.0 { 1.0 - r2 } else { f64::INFINITY },

@@ -2,10 +2,11 @@
 //! loud, so a green test on a machine without LIGGGHTS is never mistaken for a live one.
 #![allow(dead_code)]
 
-use granval::case::Case;
-use granval::engines::Frame;
-use granval::pipeline::{self, Options};
-use std::path::{Path, PathBuf};
+use granval::case::{AnyCase, Case};
+use granval::experiments::{Options, RefMode, reference};
+use granval::rundata::provenance::EngineKind;
+use std::path::PathBuf;
+use std::process::Command;
 
 pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -16,10 +17,16 @@ pub fn load(rel: &str) -> Case {
 }
 
 pub fn micro_cases() -> Vec<Case> {
-    pipeline::suite_cases(&root().join("cases"), "micro")
+    granval::experiments::suite::load(&root().join("cases"), "micro")
         .expect("micro suite")
+        .cases
         .iter()
-        .map(|p| Case::load(p).unwrap_or_else(|e| panic!("{e}")))
+        .map(
+            |e| match AnyCase::load(&e.path).unwrap_or_else(|e| panic!("{e}")) {
+                AnyCase::Micro(c) => c,
+                _ => panic!("{}: not a micro case", e.path.display()),
+            },
+        )
         .collect()
 }
 
@@ -30,26 +37,41 @@ pub fn options() -> Options {
     }
 }
 
-/// The reference trajectory of a case: live LIGGGHTS when installed (required in CI via
-/// GRANVAL_REQUIRE_LIVE=1), otherwise the recorded run — and the test log says which.
-pub fn reference_frames(case: &Case, scratch: &Path) -> Vec<Frame> {
-    let (out, source, notes) = pipeline::reference_run(case, &options(), scratch)
-        .unwrap_or_else(|e| panic!("reference run of {}: {e:#}", case.name));
-    if source == "live" {
-        eprintln!("[{}] reference: LIVE {}", case.name, out.provenance.version);
-    } else {
-        eprintln!(
-            "[{}] reference: FALLBACK to {source} (LIGGGHTS not installed). {}",
-            case.name,
-            notes.join(" ")
-        );
-    }
-    out.frames
-}
-
 /// GRANVAL_REQUIRE_LIVE=1: reference engines must run live, no recorded fallback.
 pub fn require_live() -> bool {
     std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1")
+}
+
+/// Whether `engine` runs live here; panics when live engines are required but missing,
+/// and says loudly when a test falls back to the recorded references.
+pub fn live(engine: EngineKind, test: &str) -> bool {
+    let live = reference::installed(engine).is_some();
+    if !live {
+        assert!(
+            !require_live(),
+            "GRANVAL_REQUIRE_LIVE=1 but {engine} is not installed"
+        );
+        eprintln!(
+            "[{test}] FALLBACK: {engine} is not installed; using the sealed recorded references"
+        );
+    } else {
+        eprintln!("[{test}] reference: LIVE {engine}");
+    }
+    live
+}
+
+/// Options that force the sealed recorded reference.
+pub fn recorded() -> Options {
+    Options {
+        ref_mode: RefMode::Recorded,
+        ..options()
+    }
+}
+
+pub fn granval() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_granval"));
+    c.current_dir(root());
+    c
 }
 
 /// The 300-grain penetration case of `tests/data/penetration-tiny.toml` (E above

@@ -26,11 +26,12 @@
 //! Force sign convention: `f` is the force the grains exert on the intruder, in the global
 //! frame; pushing down into a bed gives `f[2] > 0` (the bed resists, pushing up).
 
-use super::deck::{f, join, model_keywords, write_contact_model};
-use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE, TRANSCRIPT, VERSION_PREFIX};
+use super::deck::{f, model_keywords, write_contact_model};
+pub use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE};
+use super::{TRANSCRIPT, VERSION_PREFIX};
 use crate::case::{Material, PairTable, Particle, RollingModel};
 use crate::engines::process::{self, Transcript};
-use crate::rundata::provenance::{Provenance, now_utc, sha256_hex};
+use crate::rundata::provenance::{EngineKind, Provenance, Sha256, now_utc};
 use anyhow::{Context, Result, bail};
 use std::fmt::Write as _;
 use std::io::BufRead;
@@ -220,7 +221,7 @@ pub struct DeckFiles {
     /// Azimuthal segments of the intruder STL (4n facets).
     pub stl_segments: usize,
     /// SHA-256 of deck + data file + STL text.
-    pub input_hash: String,
+    pub input_hash: Sha256,
 }
 
 /// One line of `force.txt`, converted to SI.
@@ -416,46 +417,16 @@ pub fn validate(d: &PenetrationDeck) -> Result<()> {
 pub fn data_text(d: &PenetrationDeck) -> Result<String> {
     validate(d)?;
     let u = d.units;
-    let (l, v, rho) = (u.length(), u.velocity(), u.density());
-    let mut s = String::new();
-    writeln!(
-        s,
-        "LIGGGHTS data file written by granval: penetration bed ({} units)",
-        u.keyword()
-    )?;
-    writeln!(s)?;
-    writeln!(s, "{} atoms", d.particles.len())?;
-    writeln!(s, "{} atom types", d.materials.len())?;
-    writeln!(s)?;
-    for (k, ax) in ["x", "y", "z"].iter().enumerate() {
-        writeln!(
-            s,
-            "{} {} {ax}lo {ax}hi",
-            f(d.domain_lo[k] * l),
-            f(d.domain_hi[k] * l)
-        )?;
-    }
-    writeln!(s)?;
-    writeln!(s, "Atoms")?;
-    writeln!(s)?;
-    for p in &d.particles {
-        writeln!(
-            s,
-            "{} {} {} {} {}",
-            p.id,
-            p.type_ + 1,
-            f(2.0 * p.radius * l),
-            f(p.density * rho),
-            join(p.x.map(|x| x * l))
-        )?;
-    }
-    writeln!(s)?;
-    writeln!(s, "Velocities")?;
-    writeln!(s)?;
-    for p in &d.particles {
-        writeln!(s, "{} {} {}", p.id, join(p.v.map(|x| x * v)), join(p.omega))?;
-    }
-    Ok(s)
+    Ok(super::deck::data_text(
+        &format!("penetration bed ({} units)", u.keyword()),
+        &d.particles,
+        d.materials.len(),
+        d.domain_lo,
+        d.domain_hi,
+        u.length(),
+        u.velocity(),
+        u.density(),
+    ))
 }
 
 /// Thermo output interval: about 1 % of the run, so a progress bar can follow the log.
@@ -511,20 +482,7 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
     // The bed fills the lower part of a tall box: LIGGGHTS' default grid splits z
     // first and leaves the grains on one rank, so only x and y are decomposed.
     writeln!(s, "processors * * 1")?;
-    if d.soft_particles {
-        writeln!(
-            s,
-            "# disables LIGGGHTS' youngsModulus >= 5e6 Pa range check; materials are unchanged"
-        )?;
-        writeln!(s, "soft_particles yes")?;
-    }
-    if d.hard_particles {
-        writeln!(
-            s,
-            "# disables LIGGGHTS' youngsModulus <= 1e9 Pa range check; materials are unchanged"
-        )?;
-        writeln!(s, "hard_particles yes")?;
-    }
+    super::deck::write_hardness(&mut s, d.soft_particles, d.hard_particles)?;
     writeln!(
         s,
         "read_data {}",
@@ -767,7 +725,7 @@ pub fn write_deck_dir_with_snapshots(
         stl: dir.join(STL_FILE),
         readme: dir.join(README_FILE),
         stl_segments: segments,
-        input_hash: sha256_hex(format!("{deck}{data}{stl}").as_bytes()),
+        input_hash: Sha256::of(format!("{deck}{data}{stl}").as_bytes()),
     };
     for (p, text) in [
         (&files.deck, &deck),
@@ -964,7 +922,28 @@ pub fn run_existing(
     Ok((out, prov))
 }
 
-fn input_hash(dir: &Path) -> String {
+/// sha256 of what LIGGGHTS is given for `d` without snapshot dumps (deck, data file,
+/// STL): the fingerprint of a penetration bed's reference run. Equal to the
+/// `input_hash` of [`write_deck_dir`].
+pub fn input_hash_of(d: &PenetrationDeck) -> Result<Sha256> {
+    let deck = deck_text(d)?;
+    let data = data_text(d)?;
+    let l = d.units.length();
+    let z_stl = if d.settle.is_some() {
+        0.0
+    } else {
+        d.intruder_bottom_z0 * l
+    };
+    let (stl, _) = super::stl::flat_cylinder_stl(
+        d.intruder_radius * l,
+        d.intruder_length * l,
+        [0.0, 0.0, z_stl],
+        d.rim_error_frac,
+    );
+    Ok(Sha256::of(format!("{deck}{data}{stl}").as_bytes()))
+}
+
+fn input_hash(dir: &Path) -> Sha256 {
     let mut inputs = Vec::new();
     for name in [DECK_FILE, DATA_FILE, LATTICE_FILE, STL_FILE] {
         // A missing input is left for LIGGGHTS to report (its error is the useful one).
@@ -972,7 +951,7 @@ fn input_hash(dir: &Path) -> String {
             inputs.extend_from_slice(&b);
         }
     }
-    sha256_hex(&inputs)
+    Sha256::of(&inputs)
 }
 
 /// Follows LIGGGHTS' log while it grows: the step of the newest thermo line.
@@ -1164,7 +1143,7 @@ pub fn read_outputs(
         })
         .unwrap_or(1);
     Ok(Provenance {
-        engine: "liggghts".to_string(),
+        engine: EngineKind::Liggghts,
         version,
         command: format!("run outside granval (log says {procs} procs)"),
         input_hash: input_hash(dir),

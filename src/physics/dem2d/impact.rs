@@ -250,3 +250,17 @@ pub fn intruder_cm(sys: &System) -> ([f64; 2], [f64; 2]) {
     let k = sys.intruder[0];
     (sys.disks[k].x, sys.disks[k].v)
 }
+
+/// The scene made wrong on purpose for a negative control (the reference engine always
+/// gets the untouched scene): friction model swapped (k_t = 0.8 k_n <-> 0) and/or
+/// friction coefficients scaled.
+pub fn perturbed(scene: &Scene, pert: &crate::case::Perturbation) -> Scene {
+    let mut s = scene.clone();
+    for c in &mut s.sys.coeffs {
+        if pert.swap_friction_model {
+            c.kt = if c.kt > 0.0 { 0.0 } else { 0.8 * c.kn };
+        }
+        c.mu *= pert.friction_factor;
+    }
+    s
+}
