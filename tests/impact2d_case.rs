@@ -18,9 +18,23 @@ fn err(text: &str) -> String {
 
 #[test]
 fn shipped_cases_load() {
-    for p in granval::pipeline::suite_cases(&common::root().join("cases"), "impact2d").unwrap() {
-        Impact2dCase::load(&p).unwrap_or_else(|e| panic!("{e}"));
+    let cases = common::root().join("cases");
+    let suite = granval::experiments::suite::load(&cases, "impact2d").unwrap();
+    for e in &suite.cases {
+        Impact2dCase::load(&e.path).unwrap_or_else(|e| panic!("{e}"));
     }
+    // The suite takes every impact2d case file.
+    let files = std::fs::read_dir(cases.join("impact2d"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "toml")
+        })
+        .count();
+    assert_eq!(suite.cases.len(), files);
 }
 
 #[test]

@@ -1,5 +1,5 @@
 //! Case files: parsed once from TOML, validated once, then trusted by every later stage
-//! (DESIGN.md "Data flow"). All quantities in the validated [`Case`] are SI.
+//! (docs/architecture.md). All quantities in the validated [`Case`] are SI.
 
 mod error;
 pub mod impact2d;

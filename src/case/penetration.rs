@@ -184,7 +184,7 @@ struct Analysis {
     /// Width in h of the bins the force series is averaged into while it is read
     /// (default 0.01): memory stays bounded however many samples a run writes.
     h_bin: Option<f64>,
-    /// Depths h = depth / R of the contact snapshots for the stress fields (issue 4);
+    /// Depths h = depth / R of the contact snapshots for the stress fields (Feng et al. Fig 5);
     /// the final depth (steady state) is always added. Default: Fig. 5's
     /// [0.24, 0.373, 0.61, 1.0], those shallower than the final depth. An empty list
     /// keeps only the final depth.
@@ -252,7 +252,7 @@ pub const DEFAULT_SNAPSHOT_H: [f64; 4] = [0.24, 0.373, 0.61, 1.0];
 #[derive(Debug, Deserialize, Clone, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Tolerances {
-    /// |K_native / K_ref - 1| (default 0.10, the issue's target).
+    /// |K_native / K_ref - 1| (default 0.10).
     #[serde(default = "d_k")]
     pub k_phi_rel: f64,
     /// RMS(p_a - p_b) / mean p over regime C (default 0.15).
@@ -269,17 +269,17 @@ pub struct Tolerances {
     /// |K / K_published - 1| (default 0.10).
     #[serde(default = "d_k")]
     pub published_k_rel: f64,
-    /// |phi_test - phi_ref| in degrees, phi from the stress fields (default 1.5, issue 4).
+    /// |phi_test - phi_ref| in degrees, phi from the stress fields (default 1.5).
     #[serde(default = "d_phi")]
     pub phi_abs_deg: f64,
     /// |K_phi / K(phi) - 1| of an engine's (phi, K_phi) point against the MALT curve
-    /// (default 0.25, issue 4's goal).
+    /// (default 0.25).
     #[serde(default = "d_malt_k")]
     pub malt_k_rel: f64,
     /// |phi(K_phi) - phi| in degrees, the same distance measured along phi (default 1.5).
     #[serde(default = "d_phi")]
     pub malt_phi_abs_deg: f64,
-    /// Minimum R^2 of the unified FDR fit, eqs 13-15 (default 0.98, issue 4).
+    /// Minimum R^2 of the unified FDR fit, eqs 13-15 (default 0.98).
     #[serde(default = "d_r2")]
     pub unified_r2_min: f64,
 }

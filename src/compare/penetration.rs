@@ -1,4 +1,4 @@
-//! Penetration comparison (issue 3): two force-depth relations from the same bed,
+//! Penetration comparison (Feng et al. Sec. 3): two force-depth relations from the same bed,
 //! reduced to K_phi, the FDR distance and the regime boundaries, each a gated check.
 
 use super::Check;

@@ -29,7 +29,7 @@ pub struct EnginePoint {
     pub k_phi_se: f64,
     /// Unified fit (eqs 13-15) with phi from the stress field: (h_A, h_B, R^2) or why not.
     pub unified: Result<(f64, f64, f64), String>,
-    /// The same fit with the MALT-consistent phi(K_phi) (issue 3's regime boundaries),
+    /// The same fit with the MALT-consistent phi(K_phi) (the penetration regime boundaries),
     /// reported alongside, not gated here.
     #[serde(default)]
     pub unified_malt: Option<(f64, f64, f64)>,

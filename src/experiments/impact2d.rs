@@ -472,6 +472,7 @@ pub fn observe(
             final_depth: fin / d,
             max_depth: max / d,
             final_speed,
+            final_samples: obs::final_window_samples(&series, case.final_window),
         },
         series,
     ))

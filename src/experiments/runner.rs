@@ -81,6 +81,10 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
     if let Err(e) = std::fs::create_dir_all(out) {
         return CaseOutcome::error(&name, "output directory", e.into(), vec![]);
     }
+    // The case file next to its outputs: `granval analyze` re-reads a compare directory.
+    if let Err(e) = std::fs::copy(exp.source(), out.join("case.toml")) {
+        return CaseOutcome::error(&name, "output directory", e.into(), vec![]);
+    }
     let units = match exp.units(opts) {
         Ok(u) => u,
         Err(e) => return CaseOutcome::error(&name, "preparation", e, vec![]),

@@ -30,9 +30,14 @@ pub fn micro_cases() -> Vec<Case> {
         .collect()
 }
 
+/// Options of the tests: references under `reference/` (or under
+/// `GRANVAL_TEST_REFERENCE`, to check freshly recorded references before they replace
+/// the shipped ones).
 pub fn options() -> Options {
     Options {
-        reference_root: root().join("reference"),
+        reference_root: std::env::var_os("GRANVAL_TEST_REFERENCE")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| root().join("reference")),
         ..Options::default()
     }
 }
@@ -91,4 +96,107 @@ pub fn tiny_penetration_toml(intruder_diameter: f64, analysis: &str, tail: &str)
     )
     .replacen(fit, &format!("{fit}{analysis}\n"), 1)
         + tail
+}
+
+/// The reference runs of `exp`'s units as `runner::compare` would take them: live when
+/// the options allow it and the engine is installed (outputs under `dir`), otherwise the
+/// sealed record (verified). Says which, loudly.
+pub fn reference_runs<E: granval::experiments::Experiment>(
+    exp: &E,
+    units: &[E::Unit],
+    opts: &Options,
+    dir: &std::path::Path,
+) -> Vec<E::RefRun> {
+    use granval::experiments::runner;
+    let engine = exp.reference_engine();
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    let live = runner::resolve(exp, opts).unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
+    match live {
+        Some(version) => {
+            eprintln!("[{}] reference: LIVE {version}", exp.name());
+            units
+                .iter()
+                .zip(&names)
+                .map(|(u, n)| {
+                    exp.run_reference(u, &runner::reference_out(dir, n, engine), opts)
+                        .unwrap_or_else(|e| panic!("{} {n}: {e:#}", exp.name()))
+                })
+                .collect()
+        }
+        None => {
+            assert!(
+                !require_live() || opts.ref_mode == RefMode::Recorded,
+                "GRANVAL_REQUIRE_LIVE=1 but {engine} is not installed"
+            );
+            let root = reference::record_root(&opts.reference_root, exp.kind(), exp.name());
+            eprintln!(
+                "[{}] reference: RECORDED {} (sealed)",
+                exp.name(),
+                root.display()
+            );
+            let fingerprints: Vec<_> = units
+                .iter()
+                .zip(&names)
+                .map(|(u, n)| (n.clone(), exp.fingerprint(u).unwrap()))
+                .collect();
+            let seal = reference::verify(
+                &root,
+                exp.source(),
+                &exp.canonical_hash(),
+                engine,
+                &fingerprints,
+            )
+            .unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
+            units
+                .iter()
+                .zip(&names)
+                .map(|(u, n)| {
+                    exp.read_record(u, n, &seal)
+                        .unwrap_or_else(|e| panic!("{} {n}: {e:#}", exp.name()))
+                })
+                .collect()
+        }
+    }
+}
+
+/// Every check of `exp` with the native engine run in `role` (e.g. a negative control
+/// not declared in the case file) against the same reference runs `runner::compare`
+/// uses; outputs under `out`.
+pub fn checks_with<E: granval::experiments::Experiment>(
+    exp: &E,
+    role: granval::experiments::Role,
+    opts: &Options,
+    out: &std::path::Path,
+) -> Vec<granval::compare::Check> {
+    use granval::experiments::runner;
+    let units = exp
+        .units(opts)
+        .unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
+    let refs = reference_runs(exp, &units, opts, out);
+    let natives: Vec<_> = units
+        .iter()
+        .map(|u| {
+            let n = exp.unit_name(u);
+            exp.run_native(u, role, &runner::unit_out(out, &n).join("native"), opts)
+                .unwrap_or_else(|e| panic!("{} {n}: {e:#}", exp.name()))
+        })
+        .collect();
+    exp.checks(&units, &natives, &refs, out, opts).checks
+}
+
+/// Prints checks as a report would.
+pub fn show(label: &str, checks: &[granval::compare::Check]) {
+    for c in checks {
+        eprintln!(
+            "[{label}] {:?} {}: {:.4} (tol {}) {}",
+            c.status, c.name, c.value, c.tolerance, c.detail
+        );
+    }
+}
+
+/// Held by a test while it runs MPI jobs: two `mpirun -np 2` at once on a 2-core machine
+/// oversubscribe it, and busy-waiting MPI ranks then slow each other down many times.
+pub fn mpi_lock() -> std::sync::MutexGuard<'static, ()> {
+    static MPI: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    MPI.lock().unwrap_or_else(|p| p.into_inner())
 }

@@ -12,6 +12,7 @@ mod dump;
 pub mod penetration;
 pub mod snapshot;
 pub mod stl;
+pub mod units;
 
 pub use deck::{
     DUMP_COLUMNS, MIN_RESTITUTION_EXCLUSIVE, MIN_YOUNGS_MODULUS_SI, check_liggghts_limits,

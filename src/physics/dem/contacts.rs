@@ -1,4 +1,4 @@
-//! Enumeration of the contacts, for contact snapshots (stress fields, issue 4).
+//! Enumeration of the contacts, for contact snapshots (stress fields, Feng et al. eqs 6-9).
 //!
 //! Two readings of "the contact force at step n" exist, and they differ for sliding
 //! contacts:

@@ -195,13 +195,14 @@ pub fn run_native(
     n_steps: u64,
     output_every: u64,
     energy_every: u64,
-    model: &crate::analysis::impact::EnergyModel,
+    model: &super::energy::EnergyModel,
     mut progress: impl FnMut(u64),
 ) -> Result<(
-    Vec<crate::analysis::impact::IntruderSample>,
-    Vec<crate::analysis::impact::EnergySample>,
+    Vec<crate::rundata::impact::IntruderSample>,
+    Vec<crate::rundata::impact::EnergySample>,
 )> {
-    use crate::analysis::impact::{IntruderSample, SnapDisk, energies};
+    use super::energy::{SnapDisk, energies};
+    use crate::rundata::impact::IntruderSample;
     let mut sys = scene.sys.clone();
     sys.setup();
     let mut samples = Vec::new();
