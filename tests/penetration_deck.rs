@@ -61,6 +61,34 @@ fn binner_applies_eq5_and_memory_does_not_grow_with_samples() {
     assert!(FdrBinner::new(&scales, surface, 0.0).is_err());
 }
 
+/// Sec. 3's quasi-static check compares the native K_phi at two speeds: it passes for
+/// the same force-depth relation and fails for one whose K_phi really differs (the
+/// check's own negative control; `granval check --suite ci` runs the check itself on
+/// the CI case, where a control run has no second speed to fail it with).
+#[test]
+fn quasi_static_check_catches_a_different_k_phi() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = tiny_case(tmp.path());
+    let fdr_of = |k: f64| {
+        let h: Vec<f64> = (0..120).map(|i| 0.005 + 0.01 * i as f64).collect();
+        let p = h.iter().map(|h| k * h + 3.0).collect();
+        fdr::Fdr::new(h, p).unwrap()
+    };
+    let obs = |k: f64| {
+        granval::compare::penetration::ensemble(&case, &[&fdr_of(k)])
+            .unwrap_or_else(|e| panic!("{e:#}"))
+    };
+    let (fast, same, wrong) = (obs(20.0), obs(20.0 * 1.02), obs(20.0 * 0.79));
+    let ok = granval::compare::penetration::quasi_static(&case, &fast, &same, case.speed / 2.0);
+    assert!(ok.passed, "{ok:?}");
+    let bad = granval::compare::penetration::quasi_static(&case, &fast, &wrong, case.speed);
+    assert!(
+        !bad.passed && bad.gate == granval::compare::Gate::QuasiStatic,
+        "{bad:?}"
+    );
+    assert!((bad.value - 0.21).abs() < 1e-6, "{bad:?}");
+}
+
 #[test]
 fn ensemble_mean_averages_members_pointwise() {
     let a = fdr::Fdr::new(vec![0.0, 1.0, 2.0], vec![0.0, 10.0, 20.0]).unwrap();

@@ -131,3 +131,34 @@ fn shipped_penetration_cases_load() {
     }
     assert!(n >= suite.cases.len());
 }
+
+/// What `granval check --suite ci` gates on the CI penetration case (the checks of the
+/// former tests/penetration_ci.rs): Sec. 3's quasi-static test needs a second speed,
+/// and the mu_gg = 0.3 negative control must fail K_phi against the same LIGGGHTS runs.
+#[test]
+fn ci_case_carries_the_quasi_static_speed_and_the_mu_gg_control() {
+    let path = common::root().join("cases/penetration/ci.toml");
+    let case = PenetrationCase::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        case.quasi_static_speed.is_some_and(|v| v != case.speed),
+        "ci.toml must carry [quasi_static] speed for Sec. 3's test"
+    );
+    let g = case.grain_type;
+    assert!(
+        case.negative_controls.iter().any(|c| {
+            c.perturbation.pair_friction == Some((g, g, 0.3))
+                && c.must_fail.contains(&granval::compare::Gate::KPhi)
+        }),
+        "{:?}",
+        case.negative_controls
+    );
+    let suite = granval::experiments::suite::load(&common::root().join("cases"), "ci").unwrap();
+    assert!(
+        suite
+            .cases
+            .iter()
+            .any(|e| e.path.ends_with("penetration/ci.toml") && e.stress),
+        "{:?}",
+        suite.cases
+    );
+}
