@@ -558,6 +558,7 @@ pub fn window_fields(
 /// Analyses every window of the snapshots in `snap_dir` (one window in memory at a
 /// time; the plan from [`PLAN_FILE`]); writes the window-averaged field outputs into
 /// `out_dir` when given (files numbered by window).
+#[allow(clippy::type_complexity)]
 pub fn analyse_engine(
     engine: &str,
     snap_dir: &Path,

@@ -168,6 +168,7 @@ mod tests {
                 final_depth: d,
                 max_depth: d,
                 final_speed: 0.0,
+                final_samples: 100,
             })
             .collect()
     }

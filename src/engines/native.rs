@@ -99,6 +99,7 @@ pub fn penetration(
 }
 
 /// A 2D impact scene.
+#[allow(clippy::too_many_arguments)]
 pub fn impact2d(
     scene: &Scene,
     n_steps: u64,

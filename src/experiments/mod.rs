@@ -213,6 +213,7 @@ pub mod limits {
     }
 
     /// Why the estimate cannot run here, naming the quantity and the case field behind it.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x <= max)`: a NaN estimate is refused
     pub fn refuse(e: &Estimate, fields: &str) -> Option<String> {
         if !(e.particle_steps <= MAX_PARTICLE_STEPS) {
             return Some(format!(

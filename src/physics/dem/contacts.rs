@@ -117,6 +117,7 @@ impl Simulation {
 }
 
 #[cfg(test)]
+#[allow(clippy::items_after_test_module)] // the snapshot writer below came later
 mod tests {
     use super::*;
     use crate::case::Case;
