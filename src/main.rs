@@ -326,7 +326,11 @@ fn real_main() -> Result<ExitCode> {
             let mut outcomes = Vec::new();
             for e in &entries {
                 let t = std::time::Instant::now();
-                outcomes.push(compare_one(&e.path, e.stress, &opts, &report));
+                let o = Options {
+                    gate_theory: e.theory,
+                    ..opts.clone()
+                };
+                outcomes.push(compare_one(&e.path, e.stress, &o, &report));
                 eprintln!(
                     "   {} took {:.0} s",
                     e.path.display(),

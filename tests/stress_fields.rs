@@ -1204,7 +1204,6 @@ fn copy_tree(from: &Path, to: &Path) {
 /// running either engine again, to the same phi; snapshots taken with other windows are
 /// refused, naming the bed and saying to run without --reuse.
 #[test]
-#[ignore = "`granval stress --reuse` is not implemented: Options::reuse is never read in src, so the runner re-runs both engines"]
 fn stress_reuse_reanalyses_the_snapshots_of_a_run() {
     let Some(run) = stress_run() else { return };
     let scratch = tempfile::tempdir().unwrap();

@@ -67,6 +67,10 @@ pub struct Options {
     /// Stress analysis: re-analyse the snapshots of an earlier run in the output
     /// directory instead of running the engines again.
     pub reuse: bool,
+    /// Gate the comparisons with theory (the MALT curve); when false they are reported
+    /// with their would-be verdict but not gated (the CI suite gates engine agreement,
+    /// the release suite gates theory).
+    pub gate_theory: bool,
 }
 
 impl Default for Options {
@@ -84,6 +88,7 @@ impl Default for Options {
             stress: false,
             kernel_width: None,
             reuse: false,
+            gate_theory: true,
         }
     }
 }

@@ -7,6 +7,7 @@
 //! [[case]]
 //! path = "penetration/ci.toml"
 //! stress = true                # also the stress fields, phi and MALT (penetration)
+//! theory = false               # report the MALT comparison without gating it
 //! ```
 
 use anyhow::{Context, Result, bail, ensure};
@@ -27,6 +28,13 @@ struct Entry {
     path: String,
     #[serde(default)]
     stress: bool,
+    /// Gate the comparisons with theory (MALT); default true.
+    #[serde(default = "yes")]
+    theory: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// One case of a suite and how it runs there.
@@ -34,6 +42,8 @@ struct Entry {
 pub struct SuiteCase {
     pub path: PathBuf,
     pub stress: bool,
+    /// Whether theory comparisons are gated here (else reported only).
+    pub theory: bool,
 }
 
 #[derive(Debug, Clone)]
@@ -113,6 +123,7 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
             cases.push(SuiteCase {
                 path: p,
                 stress: e.stress,
+                theory: e.theory,
             });
         }
     }

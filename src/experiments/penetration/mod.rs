@@ -95,8 +95,12 @@ fn native_run(
     plan: Option<&SnapshotPlan>,
     dir: &Path,
     progress: bool,
+    reuse: bool,
 ) -> Result<EngineRun> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    if reuse && let Some(run) = reuse_native(case, bed, plan, dir)? {
+        return Ok(run);
+    }
     let n = crate::physics::dem::penetration::n_steps(case, bed);
     let bar = crate::report::progress::bar(progress, n, "native");
     let snap_dir = dir.join(SNAPSHOT_DIR);
@@ -124,6 +128,56 @@ fn native_run(
         samples: b.samples(),
         provenance,
     })
+}
+
+/// `--reuse` of a run whose snapshots followed another plan (other depths or windows)
+/// would analyse different fields: refused.
+fn check_reused_plan(plan: &SnapshotPlan, snap_dir: &Path) -> Result<()> {
+    let stored = SnapshotPlan::read(snap_dir)
+        .with_context(|| format!("{}: --reuse found no snapshot plan; run without --reuse", snap_dir.display()))?;
+    ensure!(
+        &stored == plan,
+        "{}: --reuse: these snapshots were taken in windows {:?} (depth: snapshots), the case asks for {:?}; run without --reuse",
+        snap_dir.display(),
+        stored.windows.iter().map(|w| (w.h_target, w.steps.len())).collect::<Vec<_>>(),
+        plan.windows.iter().map(|w| (w.h_target, w.steps.len())).collect::<Vec<_>>()
+    );
+    Ok(())
+}
+
+/// `--reuse`: an earlier native run of this very case and bed in `dir` (its provenance
+/// names the case's canonical hash and the bed; its snapshots follow the same plan), or
+/// `None` when there is nothing complete to reuse.
+fn reuse_native(
+    case: &PenetrationCase,
+    bed: &Bed,
+    plan: Option<&SnapshotPlan>,
+    dir: &Path,
+) -> Result<Option<EngineRun>> {
+    let (force, prov) = (dir.join(FORCE_CSV), dir.join(PROVENANCE_FILE));
+    if !force.exists() || !prov.exists() {
+        return Ok(None);
+    }
+    if let Some(p) = plan {
+        check_reused_plan(p, &dir.join(SNAPSHOT_DIR))?;
+    }
+    let mut provenance = read_provenance(&prov)?;
+    let bed_note = packing::bed_note(case, bed);
+    ensure!(
+        provenance.input_hash == case.canonical_hash() && provenance.notes.contains(&bed_note),
+        "{}: --reuse found a run of another case or bed; run without --reuse",
+        dir.display()
+    );
+    let mut b = binner(case, bed)?;
+    for s in crate::rundata::force::read_force_csv(&force)? {
+        b.push(s.z_bottom, s.f[2])?;
+    }
+    provenance.notes.push(format!("reused from {}", dir.display()));
+    Ok(Some(EngineRun {
+        fdr: b.fdr(),
+        samples: b.samples(),
+        provenance,
+    }))
 }
 
 /// Reduces a finished LIGGGHTS run in `dir` (made here, recorded, or brought back from
@@ -234,7 +288,7 @@ impl Experiment for Penetration {
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<NativeRun> {
         let main = role == Role::Main;
         let plan = if main { u.plan.as_ref() } else { None };
-        let run = native_run(&u.case, &u.bed, role, plan, dir, opts.progress)?;
+        let run = native_run(&u.case, &u.bed, role, plan, dir, opts.progress, opts.reuse)?;
         let slow = match (main, u.case.quasi_static_speed) {
             (true, Some(v2)) => {
                 let slow_case = PenetrationCase {
@@ -248,6 +302,7 @@ impl Experiment for Penetration {
                     None,
                     &dir.join(format!("v{v2}")),
                     opts.progress,
+                    opts.reuse,
                 )?)
             }
             _ => None,
@@ -266,6 +321,25 @@ impl Experiment for Penetration {
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<RefRun> {
         let deck = liggghts_deck(&u.case, &u.bed)?;
         std::fs::create_dir_all(dir)?;
+        if opts.reuse
+            && dir.join(lp::FORCE_FILE).exists()
+            && let Some(plan) = &u.plan
+        {
+            check_reused_plan(plan, &dir.join(SNAPSHOT_DIR))
+                .with_context(|| format!("bed {}", u.k))?;
+            let on_disk = std::fs::read_to_string(dir.join(lp::DECK_FILE)).unwrap_or_default();
+            ensure!(
+                on_disk == lp::deck_text_with_snapshots(&deck, &plan.steps)?,
+                "{}: --reuse found a LIGGGHTS run of another case or bed (its deck differs); run without --reuse",
+                dir.display()
+            );
+            let mut run = reduce_liggghts_dir(&u.case, &u.bed, dir)?;
+            run.provenance.notes.push(format!("reused from {}", dir.display()));
+            return Ok(RefRun {
+                run,
+                snapshots: Some(dir.join(SNAPSHOT_DIR)),
+            });
+        }
         let np = opts.mpi_procs.max(2);
         let bar = crate::report::progress::bar(opts.progress, deck.n_steps, "LIGGGHTS");
         let mut b = binner(&u.case, &u.bed)?;

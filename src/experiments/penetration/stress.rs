@@ -259,8 +259,23 @@ fn run_checks(
     let np = engine_point(&pick(|b| &b.native), &nfdr);
     let lp = engine_point(&pick(|b| &b.liggghts), &lfdr);
     let mut checks = vec![phi_check(&case.name, &case.tolerances, &np, &lp)];
-    checks.extend(malt_checks(&case.name, &case.tolerances, &np));
-    checks.extend(malt_checks(&case.name, &case.tolerances, &lp));
+    for c in malt_checks(&case.name, &case.tolerances, &np)
+        .into_iter()
+        .chain(malt_checks(&case.name, &case.tolerances, &lp))
+    {
+        if opts.gate_theory || !matches!(c.gate, Gate::MaltK | Gate::MaltPhi) {
+            checks.push(c);
+        } else {
+            notes.push(format!(
+                "REPORTED, not gated in this suite (theory is gated in the release suite): {} = {:.4} against {} -> would {}; {}",
+                c.name,
+                c.value,
+                c.tolerance,
+                if c.passed { "pass" } else { "FAIL" },
+                c.detail
+            ));
+        }
+    }
     let negp = EnginePoint {
         unified: Err("not fitted (negative control)".into()),
         unified_malt: None,
