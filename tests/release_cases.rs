@@ -24,7 +24,10 @@ fn release_suite_lists_the_frictionless_and_mid_scale_cases() {
             .unwrap_or_else(|| panic!("{name} not in the release suite"))
     };
     let f = find("release/frictionless-ci.toml");
-    assert!(f.stress && !f.theory, "frictionless: K_phi vs K(phi) reported (rule 1)");
+    assert!(
+        f.stress && !f.theory,
+        "frictionless: K_phi vs K(phi) reported (rule 1)"
+    );
     let m = find("release/feng-table2-mid.toml");
     assert!(m.stress && m.theory, "mid scale: MALT gated against v2");
     for c in &s.cases {

@@ -142,14 +142,25 @@ fn native_run(
 /// `--reuse` of a run whose snapshots followed another plan (other depths or windows)
 /// would analyse different fields: refused.
 fn check_reused_plan(plan: &SnapshotPlan, snap_dir: &Path) -> Result<()> {
-    let stored = SnapshotPlan::read(snap_dir)
-        .with_context(|| format!("{}: --reuse found no snapshot plan; run without --reuse", snap_dir.display()))?;
+    let stored = SnapshotPlan::read(snap_dir).with_context(|| {
+        format!(
+            "{}: --reuse found no snapshot plan; run without --reuse",
+            snap_dir.display()
+        )
+    })?;
     ensure!(
         &stored == plan,
         "{}: --reuse: these snapshots were taken in windows {:?} (depth: snapshots), the case asks for {:?}; run without --reuse",
         snap_dir.display(),
-        stored.windows.iter().map(|w| (w.h_target, w.steps.len())).collect::<Vec<_>>(),
-        plan.windows.iter().map(|w| (w.h_target, w.steps.len())).collect::<Vec<_>>()
+        stored
+            .windows
+            .iter()
+            .map(|w| (w.h_target, w.steps.len()))
+            .collect::<Vec<_>>(),
+        plan.windows
+            .iter()
+            .map(|w| (w.h_target, w.steps.len()))
+            .collect::<Vec<_>>()
     );
     Ok(())
 }
@@ -181,7 +192,9 @@ fn reuse_native(
     for s in crate::rundata::force::read_force_csv(&force)? {
         b.push(s.z_bottom, s.f[2])?;
     }
-    provenance.notes.push(format!("reused from {}", dir.display()));
+    provenance
+        .notes
+        .push(format!("reused from {}", dir.display()));
     Ok(Some(EngineRun {
         fdr: b.fdr(),
         samples: b.samples(),
@@ -235,8 +248,7 @@ fn liggghts_run(
         && dir.join(lp::FORCE_FILE).exists()
         && let Some(plan) = plan
     {
-        check_reused_plan(plan, &dir.join(SNAPSHOT_DIR))
-            .with_context(|| format!("bed {}", u.k))?;
+        check_reused_plan(plan, &dir.join(SNAPSHOT_DIR)).with_context(|| format!("bed {}", u.k))?;
         let on_disk = std::fs::read_to_string(dir.join(lp::DECK_FILE)).unwrap_or_default();
         ensure!(
             on_disk == lp::deck_text_with_snapshots(&deck, &plan.steps)?,
@@ -244,7 +256,9 @@ fn liggghts_run(
             dir.display()
         );
         let mut run = reduce_liggghts_dir(&u.case, &u.bed, dir)?;
-        run.provenance.notes.push(format!("reused from {}", dir.display()));
+        run.provenance
+            .notes
+            .push(format!("reused from {}", dir.display()));
         return Ok(RefRun {
             run,
             snapshots: Some(dir.join(SNAPSHOT_DIR)),
