@@ -81,7 +81,10 @@ pub fn exact_region(seed: u64, target: [f64; 3]) -> Result<[(f64, f64); 3]> {
 }
 
 fn is_prime(n: u64) -> bool {
-    n >= 2 && (2..).take_while(|d| d * d <= n).all(|d| !n.is_multiple_of(d))
+    n >= 2
+        && (2..)
+            .take_while(|d| d * d <= n)
+            .all(|d| !n.is_multiple_of(d))
 }
 
 /// Distinct primes for every seed of the deck: LIGGGHTS requires prime seeds above
