@@ -368,6 +368,7 @@ pub fn k_phi_check(
     let tol = case.tolerances.k_phi_rel;
     let name = format!("{}: K_phi", case.name);
     let paired = paired_k(test, reference);
+    let open = case.k_phi_range == crate::case::penetration::KPhiRange::Open;
     let detail = format!(
         "K_test = {:.3} +- {:.3} (regression SE; R^2 {:.4}; {}), K_ref = {:.3} +- {:.3} (R^2 {:.4}; {}), mean FDRs fitted on h in [{:.3}, {:.3}]; bed by bed K_test / K_ref - 1: {}; {}",
         test.fit.k_phi,
@@ -387,6 +388,18 @@ pub fn k_phi_check(
         },
         range.text()
     );
+    if open {
+        // `analysis.k_phi_range = "open"`: the fit to the final depth, no standard-error
+        // rule; rule 3's range and the bed-by-bed error are reported in the detail.
+        return Check::at_most(
+            name,
+            crate::compare::Gate::KPhi,
+            "|K_test / K_ref - 1|",
+            (test.fit.k_phi / reference.fit.k_phi - 1.0).abs(),
+            tol,
+            format!("open fit range (rule 3 reported, not applied); {detail}"),
+        );
+    }
     if let Some(why) = &range.not_compared {
         return Check::not_compared(name, crate::compare::Gate::KPhi, format!("{why}; {detail}"));
     }

@@ -606,6 +606,15 @@ pub fn fit_range_of(
     r
 }
 
+/// The upper end of every K_phi fit of `case`: rule 3's common end where the case asks
+/// for it (`analysis.k_phi_range = "rule3"`), else the end of the FDR.
+pub fn k_phi_fit_end(case: &PenetrationCase, range: &cp::FitRange) -> f64 {
+    match case.k_phi_range {
+        crate::case::penetration::KPhiRange::Rule3 => range.fit_end(),
+        crate::case::penetration::KPhiRange::Open => f64::INFINITY,
+    }
+}
+
 /// Every FDR check of the experiment from the runs of both engines, with the FDR CSVs
 /// and the overlay SVG written to `out`. Shared by `compare` and `analyze`, so both give
 /// the same report from the same runs.
@@ -632,7 +641,7 @@ pub fn fdr_checks(
     let mut checks = Vec::new();
     let range = fit_range_of(case, units, native, reference);
     notes.push(range.text());
-    let h_max = range.fit_end();
+    let h_max = k_phi_fit_end(case, &range);
     let obs = |r: &[&EngineRun]| {
         let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
         cp::ensemble_in(case, &f, h_max)

@@ -12,7 +12,7 @@ use crate::analysis::stress_fields::{
 };
 use crate::analysis::stress_study::{self, BedStudy, NullVerdict};
 use crate::analysis::stress_v2::{self, BedSnapshots, PhiV2, snapshots_in_range};
-use crate::case::penetration::PenetrationCase;
+use crate::case::penetration::{KPhiRange, PenetrationCase, PhiEstimator};
 use crate::compare::stress::{
     EnginePoint, FdrObservables, engine_point, engine_point_with, malt_checks, mean_fdr, phi_check,
     phi_v2_check, published_phi_check,
@@ -262,7 +262,7 @@ fn run_checks(
         &native.iter().map(|r| &r.run).collect::<Vec<_>>(),
         &reference.iter().map(|r| &r.run).collect::<Vec<_>>(),
     );
-    let h_max = range.fit_end();
+    let h_max = super::k_phi_fit_end(case, &range);
     let origin = format!(
         "mean FDR of the {} bed(s) of this run, fitted on h in [{:.3}, {:.3}] (rule 3)",
         beds.len(),
@@ -285,32 +285,27 @@ fn run_checks(
         h_max,
     )?;
     let pick = |f: fn(&BedStress) -> &EngineFields| beds.iter().map(f).collect::<Vec<_>>();
-    // v1, reported beside v2 (rule 2): its engine comparison and MALT distances.
-    let np1 = engine_point(&pick(|b| &b.native), &nfdr);
-    let lp1 = engine_point(&pick(|b| &b.liggghts), &lfdr);
-    let v1 = phi_check(&case.name, &case.tolerances, &np1, &lp1);
-    notes.push(format!(
-        "v1 (REPORTED, not gated; v2 is the gated estimator): {} = {:.3} against {} -> would {}; {}",
-        v1.name,
-        v1.value,
-        v1.tolerance,
-        if v1.passed { "pass" } else { "FAIL" },
-        v1.detail
-    ));
-    for c in malt_checks(&case.name, &case.tolerances, &np1)
-        .into_iter()
-        .chain(malt_checks(&case.name, &case.tolerances, &lp1))
-    {
+    // The case gates one estimator (`analysis.phi_estimator`) and reports the other.
+    let v2_gated = case.phi_estimator == PhiEstimator::V2;
+    let mut checks = Vec::new();
+    let report = |notes: &mut Vec<String>, why: &str, c: &Check| {
         notes.push(format!(
-            "v1 (REPORTED): {} = {:.4} against {} -> would {}; {}",
+            "REPORTED, not gated ({why}): {} = {:.4} against {} -> would {}; {}",
             c.name,
             c.value,
             c.tolerance,
-            if c.passed { "pass" } else { "FAIL" },
+            match c.status {
+                Status::Pass => "pass",
+                Status::Fail => "FAIL",
+                Status::NotCompared => "be NOT COMPARED",
+                Status::Error => "be an ERROR",
+            },
             c.detail
         ));
-    }
-    let mut checks = Vec::new();
+    };
+    let np1 = engine_point(&pick(|b| &b.native), &nfdr);
+    let lp1 = engine_point(&pick(|b| &b.liggghts), &lfdr);
+    let v1 = phi_check(&case.name, &case.tolerances, &np1, &lp1);
     for (engine, p) in [("native", &np1), ("liggghts", &lp1)] {
         checks.extend(published_phi_check(case, engine, "v1", p.phi_deg));
     }
@@ -345,15 +340,16 @@ fn run_checks(
     };
     let nv2 = v2("native", &ndirs, Forces::Full);
     let lv2 = v2("liggghts", &ldirs, Forces::Full);
-    let negv2 = v2(
-        "native (tangential forces dropped)",
-        &ndirs,
-        Forces::NormalOnly,
-    );
-    notes.push(format!(
-        "estimator v2: {:.1} s for both engines and the control",
-        t.elapsed().as_secs_f64()
-    ));
+    let negv2 = if v2_gated {
+        v2(
+            "native (tangential forces dropped)",
+            &ndirs,
+            Forces::NormalOnly,
+        )
+    } else {
+        Err(anyhow::anyhow!("not run: v1 is the gated estimator"))
+    };
+    notes.push(format!("estimator v2: {:.1} s", t.elapsed().as_secs_f64()));
     let point = |b: fn(&BedStress) -> &EngineFields, f: &FdrObservables, v: &Result<PhiV2>| {
         engine_point_with(
             &pick(b),
@@ -364,65 +360,12 @@ fn run_checks(
             ),
         )
     };
-    let np = point(|b| &b.native, &nfdr, &nv2);
-    let lp = point(|b| &b.liggghts, &lfdr, &lv2);
-    match (&nv2, &lv2) {
-        (Ok(a), Ok(b)) => checks.push(phi_v2_check(&case.name, &case.tolerances, a, b)),
-        (a, b) => checks.push(Check::error_in(
-            format!("{}: phi v2 native vs liggghts", case.name),
-            Gate::Phi,
-            [a.as_ref().err(), b.as_ref().err()]
-                .into_iter()
-                .flatten()
-                .map(|e| format!("{e:#}"))
-                .collect::<Vec<_>>()
-                .join("; "),
-        )),
-    }
-    for (engine, v) in [("native", &nv2), ("liggghts", &lv2)] {
-        checks.extend(published_phi_check(
-            case,
-            engine,
-            "v2",
-            v.as_ref().map_or(f64::NAN, |v| v.phi_deg),
-        ));
-    }
-    if let Some(why) = &range.not_compared {
-        notes.push(format!(
-            "MALT checks NOT COMPARED: K_phi has no floor-free regime C ({why})"
-        ));
-        for p in [&np, &lp] {
-            checks.push(Check::not_compared(
-                format!("{}: {} MALT distance in K", case.name, p.engine),
-                Gate::MaltK,
-                why.clone(),
-            ));
-        }
-    } else {
-        for c in malt_checks(&case.name, &case.tolerances, &np)
-            .into_iter()
-            .chain(malt_checks(&case.name, &case.tolerances, &lp))
-        {
-            if opts.gate_theory || !matches!(c.gate, Gate::MaltK | Gate::MaltPhi) {
-                checks.push(c);
-            } else {
-                notes.push(format!(
-                    "REPORTED, not gated in this suite (theory is gated in the release suite): {} = {:.4} against {} -> would {}; {}",
-                    c.name,
-                    c.value,
-                    c.tolerance,
-                    if c.passed { "pass" } else { "FAIL" },
-                    c.detail
-                ));
-            }
-        }
-    }
-    // Negative control: tangential forces dropped, through v2 and the same rule; it
-    // bites only by failing.
-    let neg = match (&negv2, &lv2) {
+    let np2 = point(|b| &b.native, &nfdr, &nv2);
+    let lp2 = point(|b| &b.liggghts, &lfdr, &lv2);
+    let v2_check = |a: &Result<PhiV2>, b: &Result<PhiV2>, label: &str| match (a, b) {
         (Ok(a), Ok(b)) => phi_v2_check(&case.name, &case.tolerances, a, b),
         (a, b) => Check::error_in(
-            format!("{}: phi v2 (tangential forces dropped)", case.name),
+            format!("{}: phi v2 {label}", case.name),
             Gate::Phi,
             [a.as_ref().err(), b.as_ref().err()]
                 .into_iter()
@@ -431,6 +374,75 @@ fn run_checks(
                 .collect::<Vec<_>>()
                 .join("; "),
         ),
+    };
+    let v2c = v2_check(&nv2, &lv2, "native vs liggghts");
+    let mut v2_published = Vec::new();
+    for (engine, v) in [("native", &nv2), ("liggghts", &lv2)] {
+        v2_published.extend(published_phi_check(
+            case,
+            engine,
+            "v2",
+            v.as_ref().map_or(f64::NAN, |v| v.phi_deg),
+        ));
+    }
+    let (np, lp) = if v2_gated {
+        report(&mut notes, "v1 beside the gated v2", &v1);
+        checks.push(v2c);
+        checks.extend(v2_published);
+        (&np2, &lp2)
+    } else {
+        checks.push(v1);
+        report(&mut notes, "v2 beside the gated v1", &v2c);
+        for c in &v2_published {
+            report(&mut notes, "v2 beside the gated v1", c);
+        }
+        (&np1, &lp1)
+    };
+    let (onp, olp) = if v2_gated { (&np1, &lp1) } else { (&np2, &lp2) };
+    for c in malt_checks(&case.name, &case.tolerances, onp)
+        .into_iter()
+        .chain(malt_checks(&case.name, &case.tolerances, olp))
+    {
+        report(&mut notes, "the other estimator's MALT distance", &c);
+    }
+    let rule3 = case.k_phi_range == KPhiRange::Rule3;
+    match (&range.not_compared, rule3) {
+        (Some(why), true) => {
+            notes.push(format!(
+                "MALT checks NOT COMPARED: K_phi has no floor-free regime C ({why})"
+            ));
+            for p in [np, lp] {
+                checks.push(Check::not_compared(
+                    format!("{}: {} MALT distance in K", case.name, p.engine),
+                    Gate::MaltK,
+                    why.clone(),
+                ));
+            }
+        }
+        _ => {
+            for c in malt_checks(&case.name, &case.tolerances, np)
+                .into_iter()
+                .chain(malt_checks(&case.name, &case.tolerances, lp))
+            {
+                if opts.gate_theory || !matches!(c.gate, Gate::MaltK | Gate::MaltPhi) {
+                    checks.push(c);
+                } else {
+                    report(&mut notes, "theory is gated in the release suite", &c);
+                }
+            }
+        }
+    }
+    // Negative control: tangential forces dropped, through the gated estimator and its
+    // rule; it bites only by failing.
+    let neg = if v2_gated {
+        v2_check(&negv2, &lv2, "(tangential forces dropped)")
+    } else {
+        let negp = EnginePoint {
+            unified: Err("not fitted (negative control)".into()),
+            unified_malt: None,
+            ..engine_point(&pick(|b| &b.native_normal_only), &nfdr)
+        };
+        phi_check(&case.name, &case.tolerances, &negp, &lp1)
     };
     let bit = neg.status == Status::Fail;
     checks.push(if bit {
@@ -444,7 +456,7 @@ fn run_checks(
             0.0,
             0.0,
             format!(
-                "phi v2: {:.3} deg > {} deg, as it must; {}",
+                "phi: {:.3} deg > {} deg, as it must; {}",
                 neg.value, neg.tolerance, neg.detail
             ),
         )
@@ -463,6 +475,7 @@ fn run_checks(
             ),
         )
     });
+    let (np, lp) = (np.clone(), lp.clone());
     // The estimator study (rule 1), when its runs exist: reported only.
     let study = run_study(case, units, native, reference, out, width, &np1, &lp1)?;
     notes.extend(study.iter().map(|(_, t)| t.clone()));
