@@ -22,7 +22,7 @@
 //! math_extra.cpp:152).
 
 use super::error::{CaseError, Ctx};
-use super::validate::{finite, positive, vec3};
+use super::fields::{finite, positive, vec3};
 use serde::{Deserialize, Serialize};
 
 /// `[[clump_templates]]` as written.

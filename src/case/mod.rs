@@ -3,6 +3,7 @@
 
 pub mod clumps;
 mod error;
+mod fields;
 pub mod impact2d;
 pub mod penetration;
 pub(crate) mod schema;

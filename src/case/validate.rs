@@ -38,28 +38,7 @@ pub(super) fn case_name(ctx: &Ctx, name: &str) -> Result<(), CaseError> {
     }
 }
 
-pub(crate) fn finite(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(ctx.bad(field, v, "must be a finite number"))
-    }
-}
-
-pub(crate) fn positive(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(ctx.bad(field, v, "must be > 0"))
-    }
-}
-
-pub(crate) fn vec3(ctx: &Ctx, field: &str, v: [f64; 3]) -> Result<[f64; 3], CaseError> {
-    for (k, c) in v.iter().enumerate() {
-        finite(ctx, &format!("{field}[{k}]"), *c)?;
-    }
-    Ok(v)
-}
+pub(crate) use super::fields::{finite, positive, vec3};
 
 fn axis(ctx: &Ctx, field: &str, s: &str) -> Result<Axis, CaseError> {
     match s {
