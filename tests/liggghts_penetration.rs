@@ -93,6 +93,7 @@ fn deck(units: Units, e: f64) -> PenetrationDeck {
         soft_particles: e < 5e6,
         hard_particles: false,
         settle: None,
+        header: Default::default(),
     }
 }
 

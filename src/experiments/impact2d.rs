@@ -7,9 +7,11 @@ use super::reference::Verified;
 use super::{Estimate, Experiment, Options, Role, Run, Verdict};
 use crate::analysis::impact as obs;
 use crate::case::NegativeControl;
+use crate::case::impact2d::IntruderShape;
 use crate::case::impact2d::{Impact2dCase, Packing, Variant};
 use crate::compare::Check;
 use crate::compare::impact2d::{self as cmp, VariantObs};
+use crate::engines::deck_text::{Header, approx, num, safe};
 use crate::engines::lammps::{self, Lammps};
 use crate::physics::dem2d::bed::{self, Bed};
 use crate::physics::dem2d::energy::EnergyModel;
@@ -152,16 +154,7 @@ impl Experiment for Impact2d {
     }
 
     fn write_deck(&self, u: &Unit, dir: &Path, _opts: &Options) -> Result<()> {
-        let c = &self.case;
-        lammps::write_inputs(
-            &u.scene.sys,
-            &lammps::deck::Outputs {
-                n_steps: c.n_steps,
-                intruder_every: c.output_every,
-                snapshot_every: c.energy_every,
-            },
-            dir,
-        )
+        lammps::write_inputs(&u.scene.sys, &self.outputs(u), dir)
     }
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<ImpactRun> {
@@ -173,9 +166,7 @@ impl Experiment for Impact2d {
         let r = lammps::impact::run(
             &lmp,
             &u.scene,
-            c.n_steps,
-            c.output_every,
-            c.energy_every,
+            &self.outputs(u),
             &energy_model(&u.scene),
             dir,
         )?;
@@ -299,6 +290,96 @@ impl Experiment for Impact2d {
             }
         }
         Verdict { checks, notes }
+    }
+}
+
+impl Impact2d {
+    /// What the LAMMPS deck of a unit runs and writes, with its header.
+    pub fn outputs(&self, u: &Unit) -> lammps::Outputs {
+        let c = &self.case;
+        lammps::Outputs {
+            n_steps: c.n_steps,
+            intruder_every: c.output_every,
+            snapshot_every: c.energy_every,
+            header: self.header(u),
+        }
+    }
+
+    fn header(&self, u: &Unit) -> Header {
+        let c = &self.case;
+        let s = &c.scales;
+        let v = &u.variant;
+        let shape = match c.shape {
+            IntruderShape::Disk { radius } => {
+                format!("a disk of diameter {} d", approx(2.0 * radius / s.d))
+            }
+            IntruderShape::Ellipse { a, b, count } => format!(
+                "an ellipse of semi-axes {} d and {} d (a rigid cluster of {count} disks on its \
+                 outline, Kondic et al. Sec. III A)",
+                approx(a / s.d),
+                approx(b / s.d)
+            ),
+        };
+        let friction = |m: &crate::case::impact2d::Material2d| match m.friction {
+            crate::case::impact2d::Friction::Static => "static (model 1, k_t = 0.8 k_n)",
+            crate::case::impact2d::Friction::Kinetic => "kinetic (model 2, k_t = 0)",
+        };
+        Header {
+            title: format!(
+                "granval impact2d case `{}`, variant `{}`: LAMMPS input deck ({})",
+                safe(&c.name),
+                safe(&v.label),
+                lammps::DECK_FILE
+            ),
+            paragraphs: vec![
+                safe(&c.description),
+                format!(
+                    "Kondic et al. (PRE 85, 011305) Sec. II: {} grains of mean diameter d = {} m \
+                     (polydispersity +-{}), {} bed, {} d long with periodic sides, between rows \
+                     of frozen wall disks; {shape} hits the middle of the surface at v = {} \
+                     d/tau_c from {} d above it.",
+                    c.count,
+                    num(s.d),
+                    approx(c.polydispersity),
+                    match v.packing {
+                        Packing::Random => "random",
+                        Packing::Hexagonal => "hexagonal",
+                    },
+                    approx(c.length / s.d),
+                    approx(v.speed / s.velocity()),
+                    approx(c.release_height / s.d),
+                ),
+                format!(
+                    "Kondic et al.'s units, converted once to SI: length d = {} m, mass m = {} \
+                     kg (a grain of diameter d), time tau_c = pi sqrt(d / (2 g0 k_n)) = {} s \
+                     (binary collision time, g0 = {} m/s^2); a spring constant k_n stands for \
+                     k = k_n m g0 / d N/m. Grains: k_n = {}, e_n = {}, mu = {}, {} friction; \
+                     walls: k_n = {}, e_n = {}, mu = {}; intruder: k_n = {}, e_n = {}, mu = {}; \
+                     gravity {} g0.",
+                    num(s.d),
+                    num(s.m),
+                    approx(s.tau_c),
+                    num(s.g0),
+                    approx(v.grains.k_n),
+                    approx(v.grains.e_n),
+                    approx(v.grains.mu),
+                    friction(&v.grains),
+                    approx(v.walls.k_n),
+                    approx(v.walls.e_n),
+                    approx(v.walls.mu),
+                    approx(v.intruder.k_n),
+                    approx(v.intruder.e_n),
+                    approx(v.intruder.mu),
+                    approx(v.gravity / s.g0),
+                ),
+                format!(
+                    "Measured: the penetration depth D(t) of the intruder's lowest point below \
+                     the surface and the final depth, the mean over the last {} tau_c (Kondic \
+                     et al. Figs 2, 8); granval compares both with its native engine.",
+                    approx(c.final_window / s.tau_c)
+                ),
+            ],
+        }
     }
 }
 
@@ -436,9 +517,9 @@ pub fn energy_model(scene: &Scene) -> EnergyModel {
 }
 
 /// The scene's fingerprint: sha256 of its LAMMPS data file (every disk, mass,
-/// position and velocity, full precision) and coefficients.
+/// position and velocity, full precision; comments left out) and coefficients.
 pub fn scene_hash(scene: &Scene) -> Sha256 {
-    let mut text = lammps::deck::write_data(&scene.sys);
+    let mut text = crate::engines::deck_text::canonical(&lammps::deck::write_data(&scene.sys));
     for c in &scene.sys.coeffs {
         text += &format!("{c:?}\n");
     }

@@ -165,7 +165,7 @@ impl Lammps {
             dir: dir.to_path_buf(),
             version,
             command,
-            input_hash: Sha256::of(format!("{deck}{data}").as_bytes()),
+            input_hash: crate::engines::deck_text::fingerprint(&[&deck, &data]),
             wall_time_s: fin.wall_time_s,
             warnings: tr.warnings(),
         })

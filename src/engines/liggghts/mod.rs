@@ -149,12 +149,13 @@ pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
     })
 }
 
-/// sha256 of what LIGGGHTS is given for a micro case (deck and data file): the
-/// fingerprint a recorded reference must match.
+/// sha256 of what LIGGGHTS is given for a micro case (deck and data file, comments
+/// left out: [`crate::engines::deck_text::fingerprint`]): the fingerprint a recorded
+/// reference must match.
 pub fn micro_input_hash(case: &Case) -> Result<Sha256> {
     let deck = write_deck(case, DUMP_FILE, DATA_FILE)?;
     let data = write_data_file(case)?;
-    Ok(Sha256::of(format!("{deck}{data}").as_bytes()))
+    Ok(crate::engines::deck_text::fingerprint(&[&deck, &data]))
 }
 
 /// The frames of a finished micro run in `dir`, one at a time.

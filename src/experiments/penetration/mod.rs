@@ -133,14 +133,25 @@ fn native_run(
 /// `--reuse` of a run whose snapshots followed another plan (other depths or windows)
 /// would analyse different fields: refused.
 fn check_reused_plan(plan: &SnapshotPlan, snap_dir: &Path) -> Result<()> {
-    let stored = SnapshotPlan::read(snap_dir)
-        .with_context(|| format!("{}: --reuse found no snapshot plan; run without --reuse", snap_dir.display()))?;
+    let stored = SnapshotPlan::read(snap_dir).with_context(|| {
+        format!(
+            "{}: --reuse found no snapshot plan; run without --reuse",
+            snap_dir.display()
+        )
+    })?;
     ensure!(
         &stored == plan,
         "{}: --reuse: these snapshots were taken in windows {:?} (depth: snapshots), the case asks for {:?}; run without --reuse",
         snap_dir.display(),
-        stored.windows.iter().map(|w| (w.h_target, w.steps.len())).collect::<Vec<_>>(),
-        plan.windows.iter().map(|w| (w.h_target, w.steps.len())).collect::<Vec<_>>()
+        stored
+            .windows
+            .iter()
+            .map(|w| (w.h_target, w.steps.len()))
+            .collect::<Vec<_>>(),
+        plan.windows
+            .iter()
+            .map(|w| (w.h_target, w.steps.len()))
+            .collect::<Vec<_>>()
     );
     Ok(())
 }
@@ -172,7 +183,9 @@ fn reuse_native(
     for s in crate::rundata::force::read_force_csv(&force)? {
         b.push(s.z_bottom, s.f[2])?;
     }
-    provenance.notes.push(format!("reused from {}", dir.display()));
+    provenance
+        .notes
+        .push(format!("reused from {}", dir.display()));
     Ok(Some(EngineRun {
         fdr: b.fdr(),
         samples: b.samples(),
@@ -192,7 +205,7 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
     let mut provenance = lp::read_outputs(&deck, dir, |s| b.push(s.z_bottom, s.f[2]))
         .with_context(|| format!("LIGGGHTS run in {}", dir.display()))?;
     if let Ok(on_disk) = std::fs::read_to_string(dir.join(lp::DECK_FILE))
-        && on_disk != lp::deck_text(&deck)?
+        && !crate::engines::deck_text::same_input(&on_disk, &lp::deck_text(&deck)?)
         && !on_disk.contains(crate::engines::liggghts::snapshot::PAIR_PREFIX)
     {
         provenance.notes.push(format!(
@@ -329,12 +342,17 @@ impl Experiment for Penetration {
                 .with_context(|| format!("bed {}", u.k))?;
             let on_disk = std::fs::read_to_string(dir.join(lp::DECK_FILE)).unwrap_or_default();
             ensure!(
-                on_disk == lp::deck_text_with_snapshots(&deck, &plan.steps)?,
+                crate::engines::deck_text::same_input(
+                    &on_disk,
+                    &lp::deck_text_with_snapshots(&deck, &plan.steps)?
+                ),
                 "{}: --reuse found a LIGGGHTS run of another case or bed (its deck differs); run without --reuse",
                 dir.display()
             );
             let mut run = reduce_liggghts_dir(&u.case, &u.bed, dir)?;
-            run.provenance.notes.push(format!("reused from {}", dir.display()));
+            run.provenance
+                .notes
+                .push(format!("reused from {}", dir.display()));
             return Ok(RefRun {
                 run,
                 snapshots: Some(dir.join(SNAPSHOT_DIR)),
