@@ -119,6 +119,11 @@ enum Cmd {
         /// Gaussian range w of eq 6 in grain diameters (sensitivity studies only).
         #[arg(long)]
         kernel_width: Option<f64>,
+        /// Also the estimator study (docs/stress.md): null window, Janssen check and
+        /// convergence with 1-40 snapshots and the grid spacing, from one extra run per
+        /// bed in each engine (DIR/study.json, DIR/study_*.csv).
+        #[arg(long)]
+        study: bool,
         #[command(flatten)]
         common: Common,
     },
@@ -441,10 +446,12 @@ fn real_main() -> Result<ExitCode> {
             out,
             reuse,
             kernel_width,
+            study,
             common,
         } => {
             let mut opts = options(&common);
             opts.reuse = reuse;
+            opts.study = study;
             opts.stress = true;
             opts.mpi_procs = opts.mpi_procs.max(2);
             if let Some(w) = kernel_width

@@ -350,6 +350,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         case: case.clone(),
         bed: bed.clone(),
         plan: Some(plan.clone()),
+        study_plan: None,
     };
     let exp = Penetration {
         case: case.clone(),

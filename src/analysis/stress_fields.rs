@@ -49,6 +49,10 @@ pub struct WindowPlan {
     /// Requested depth (units of R).
     pub h_target: f64,
     pub steps: Vec<u64>,
+    /// What the window is for, when it is not a depth window of the case (the estimator
+    /// study: `null`, `convergence-N`); absent in the case's own plans.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub label: Option<String>,
 }
 
 /// Every snapshot a run takes: the windows, and the union of their steps (ascending);
@@ -103,6 +107,7 @@ impl SnapshotPlan {
             windows.push(WindowPlan {
                 h_target: m.h,
                 steps: vec![m.step],
+                label: None,
             });
             steps.push(m.step);
         }
@@ -138,15 +143,89 @@ pub fn snapshot_plan(case: &PenetrationCase, bed: &Bed) -> SnapshotPlan {
         out.push(WindowPlan {
             h_target: w.h_target,
             steps,
+            label: None,
         });
     }
-    let mut all: Vec<u64> = out.iter().flat_map(|w| w.steps.clone()).collect();
-    all.sort_unstable();
-    all.dedup();
-    SnapshotPlan {
-        windows: out,
-        steps: all,
+    SnapshotPlan::of_windows(out)
+}
+
+impl SnapshotPlan {
+    /// The plan of `windows`: the union of their steps, ascending.
+    pub fn of_windows(windows: Vec<WindowPlan>) -> SnapshotPlan {
+        let mut all: Vec<u64> = windows.iter().flat_map(|w| w.steps.clone()).collect();
+        all.sort_unstable();
+        all.dedup();
+        SnapshotPlan {
+            windows,
+            steps: all,
+        }
     }
+}
+
+/// Snapshots of the null window (docs/stress.md, "Validating the estimator", rule 1).
+pub const NULL_WINDOW_SNAPSHOTS: usize = 5;
+/// Snapshot counts of the convergence windows (rule 1).
+pub const CONVERGENCE_COUNTS: [usize; 6] = [1, 2, 5, 10, 20, 40];
+/// Intruder travel (units of R) the convergence windows spread over, ending at the
+/// final depth (rule 1).
+pub const CONVERGENCE_SPAN_R: f64 = 0.5;
+/// Label of the null window in a study plan.
+pub const NULL_LABEL: &str = "null";
+
+/// Label of the convergence window of `n` snapshots in a study plan.
+pub fn convergence_label(n: usize) -> String {
+    format!("convergence-{n}")
+}
+
+/// The plan of the estimator study's extra run of a bed (docs/stress.md, rule 1):
+/// - the **null window**: [`NULL_WINDOW_SNAPSHOTS`] snapshots at steps
+///   round(j N / 4), j = 0..4, N = round(start_gap / 2 / (speed dt)): the first half of
+///   the intruder's approach, when it touches no grain;
+/// - one **convergence window** per n of [`CONVERGENCE_COUNTS`]: n snapshots evenly
+///   spaced in depth over the last [`CONVERGENCE_SPAN_R`] R of travel, the last one at
+///   the run's last step (n = 1: the last step alone), each at the step nearest to its
+///   depth as in [`snapshot_plan`].
+pub fn study_plan(case: &PenetrationCase, bed: &Bed) -> SnapshotPlan {
+    let n = crate::physics::dem::penetration::n_steps(case, bed);
+    let z0 = crate::physics::dem::penetration::start_z(case, bed);
+    let per_step = case.speed * case.dt;
+    let half = (case.start_gap / 2.0 / per_step).round();
+    let mut null: Vec<u64> = (0..NULL_WINDOW_SNAPSHOTS)
+        .map(|j| ((j as f64 * half / (NULL_WINDOW_SNAPSHOTS - 1) as f64).round() as u64).min(n))
+        .collect();
+    null.dedup();
+    let h_of = |step: u64| (bed.surface_z - (z0 - per_step * step as f64)) / case.intruder_radius;
+    let null_h = null.iter().map(|&s| h_of(s)).sum::<f64>() / null.len() as f64;
+    let mut windows = vec![WindowPlan {
+        h_target: null_h,
+        steps: null,
+        label: Some(NULL_LABEL.to_string()),
+    }];
+    let h_final = case.final_depth / case.intruder_radius;
+    for count in CONVERGENCE_COUNTS {
+        let mut steps: Vec<u64> = Vec::with_capacity(count);
+        for j in 0..count {
+            let step = if j + 1 == count {
+                n
+            } else {
+                let h = h_final - CONVERGENCE_SPAN_R
+                    + CONVERGENCE_SPAN_R * j as f64 / (count - 1) as f64;
+                (((z0 - (bed.surface_z - h * case.intruder_radius)) / per_step)
+                    .round()
+                    .max(0.0) as u64)
+                    .min(n)
+            };
+            if steps.last().is_none_or(|&s| step > s) {
+                steps.push(step);
+            }
+        }
+        windows.push(WindowPlan {
+            h_target: h_final,
+            steps,
+            label: Some(convergence_label(count)),
+        });
+    }
+    SnapshotPlan::of_windows(windows)
 }
 
 /// The metadata of a snapshot of `case` from `bed` at `step`, the intruder's bottom at

@@ -30,6 +30,8 @@ struct File {
     #[serde(default)]
     published: Option<Published>,
     #[serde(default)]
+    published_phi: Option<PublishedPhi>,
+    #[serde(default)]
     negative_control: Vec<super::control::RawControl>,
 }
 
@@ -55,6 +57,19 @@ struct QuasiStatic {
 #[serde(deny_unknown_fields)]
 pub struct Published {
     pub k_phi: f64,
+    /// Where the number comes from (table / figure / section).
+    pub source: String,
+}
+
+/// A published internal friction angle to check the stress-field phi against (e.g.
+/// Feng et al.'s frictionless spheres, phi = 9 +- 1 deg): |phi - phi_deg| <= abs_deg for
+/// both engines and both estimators (docs/stress.md, rule 1).
+#[derive(Debug, Clone, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PublishedPhi {
+    pub phi_deg: f64,
+    /// Tolerance in degrees.
+    pub abs_deg: f64,
     /// Where the number comes from (table / figure / section).
     pub source: String,
 }
@@ -369,6 +384,7 @@ pub struct PenetrationCase {
     pub ensemble_beds: usize,
     pub quasi_static_speed: Option<f64>,
     pub published: Option<Published>,
+    pub published_phi: Option<PublishedPhi>,
     pub rayleigh_time: f64,
     pub negative_controls: Vec<NegativeControl>,
 }
@@ -664,6 +680,23 @@ impl PenetrationCase {
                 return Err(ctx.bad("published.source", &p.source, "cite the table or figure"));
             }
         }
+        if let Some(p) = &raw.published_phi {
+            if !(p.phi_deg.is_finite() && p.phi_deg > 0.0 && p.phi_deg < 60.0) {
+                return Err(ctx.bad(
+                    "published_phi.phi_deg",
+                    p.phi_deg,
+                    "must lie in (0, 60) deg (the MALT domain)",
+                ));
+            }
+            positive(&ctx, "published_phi.abs_deg", p.abs_deg)?;
+            if p.source.trim().is_empty() {
+                return Err(ctx.bad(
+                    "published_phi.source",
+                    &p.source,
+                    "cite the table or figure",
+                ));
+            }
+        }
         if !(tolerances.unified_r2_min > 0.0 && tolerances.unified_r2_min < 1.0) {
             return Err(ctx.bad(
                 "compare.unified_r2_min",
@@ -783,6 +816,7 @@ impl PenetrationCase {
             ensemble_beds,
             quasi_static_speed,
             published: raw.published,
+            published_phi: raw.published_phi,
             rayleigh_time: rayleigh,
         })
     }

@@ -71,6 +71,9 @@ pub struct Options {
     /// with their would-be verdict but not gated (the CI suite gates engine agreement,
     /// the release suite gates theory).
     pub gate_theory: bool,
+    /// Stress analysis: also the estimator study of docs/stress.md (null window,
+    /// Janssen, convergence): one extra run per bed in each engine.
+    pub study: bool,
 }
 
 impl Default for Options {
@@ -89,6 +92,7 @@ impl Default for Options {
             kernel_width: None,
             reuse: false,
             gate_theory: true,
+            study: false,
         }
     }
 }

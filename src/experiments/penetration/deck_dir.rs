@@ -213,6 +213,7 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             case: ck,
             bed,
             plan: None,
+            study_plan: None,
         };
         if native {
             let exp = super::Penetration {

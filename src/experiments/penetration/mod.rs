@@ -56,6 +56,8 @@ pub struct Unit {
     pub bed_hash: Sha256,
     /// Snapshot steps (stress option).
     pub plan: Option<SnapshotPlan>,
+    /// Snapshot steps of the estimator study's extra run (`granval stress --study`).
+    pub study_plan: Option<SnapshotPlan>,
 }
 
 pub struct NativeRun {
@@ -63,12 +65,19 @@ pub struct NativeRun {
     /// At `[quasi_static] speed` (main runs only).
     pub slow: Option<EngineRun>,
     pub snapshots: Option<PathBuf>,
+    /// Snapshots of the estimator study's extra run (`DIR/study/snapshots`).
+    pub study_snapshots: Option<PathBuf>,
 }
 
 pub struct RefRun {
     pub run: EngineRun,
     pub snapshots: Option<PathBuf>,
+    /// Snapshots of the estimator study's extra run (`DIR/study/snapshots`).
+    pub study_snapshots: Option<PathBuf>,
 }
+
+/// Where a unit's estimator-study run goes, inside the engine's run directory.
+pub const STUDY_DIR: &str = "study";
 
 impl Run for NativeRun {
     fn provenance(&self) -> &Provenance {
@@ -224,6 +233,112 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
     })
 }
 
+/// One LIGGGHTS run of unit `u` in `dir`, with contact snapshots at the steps of `plan`
+/// (converted into `dir/snapshots`); with `--reuse`, an earlier run of the same deck and
+/// plan in `dir` is read instead.
+fn liggghts_run(
+    u: &Unit,
+    plan: Option<&SnapshotPlan>,
+    dir: &Path,
+    opts: &Options,
+) -> Result<RefRun> {
+    let deck = liggghts_deck(&u.case, &u.bed)?;
+    std::fs::create_dir_all(dir)?;
+    if opts.reuse
+        && dir.join(lp::FORCE_FILE).exists()
+        && let Some(plan) = plan
+    {
+        check_reused_plan(plan, &dir.join(SNAPSHOT_DIR)).with_context(|| format!("bed {}", u.k))?;
+        let on_disk = std::fs::read_to_string(dir.join(lp::DECK_FILE)).unwrap_or_default();
+        ensure!(
+            crate::engines::deck_text::same_input(
+                &on_disk,
+                &lp::deck_text_with_snapshots(&deck, &plan.steps)?
+            ),
+            "{}: --reuse found a LIGGGHTS run of another case or bed (its deck differs); run without --reuse",
+            dir.display()
+        );
+        let mut run = reduce_liggghts_dir(&u.case, &u.bed, dir)?;
+        run.provenance
+            .notes
+            .push(format!("reused from {}", dir.display()));
+        return Ok(RefRun {
+            run,
+            snapshots: Some(dir.join(SNAPSHOT_DIR)),
+            study_snapshots: None,
+        });
+    }
+    let np = opts.mpi_procs.max(2);
+    let bar = crate::report::progress::bar(opts.progress, deck.n_steps, "LIGGGHTS");
+    let mut b = binner(&u.case, &u.bed)?;
+    let mut provenance = match plan {
+        None => lp::run_streaming(
+            &deck,
+            dir,
+            np,
+            LIGGGHTS_TIMEOUT,
+            |step| bar.set_position(step),
+            |s| b.push(s.z_bottom, s.f[2]),
+        )?,
+        Some(plan) => {
+            let (samples, prov) =
+                lp::run_with_snapshots(&deck, dir, np, LIGGGHTS_TIMEOUT, &plan.steps)?;
+            for s in &samples {
+                b.push(s.z_bottom, s.f[2])?;
+            }
+            prov
+        }
+    };
+    bar.finish_and_clear();
+    provenance.notes.push(packing::bed_note(&u.case, &u.bed));
+    provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
+    let snapshots = match plan {
+        Some(plan) => Some(stress::convert_liggghts_snapshots(
+            &u.case,
+            &u.bed,
+            plan,
+            &deck,
+            dir,
+            &mut provenance,
+        )?),
+        None => None,
+    };
+    write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
+    Ok(RefRun {
+        run: EngineRun {
+            fdr: b.fdr(),
+            samples: b.samples(),
+            provenance,
+        },
+        snapshots,
+        study_snapshots: None,
+    })
+}
+
+impl Penetration {
+    /// A negative control whose gates include a stress gate (phi, published phi, MALT)
+    /// needs the snapshots too: its native run takes them (stress option only).
+    fn control_takes_snapshots(&self, role: Role) -> bool {
+        let Role::Control(p) = role else {
+            return false;
+        };
+        self.stress
+            && self.case.negative_controls.iter().any(|c| {
+                c.perturbation == *p
+                    && c.must_fail.iter().any(|g| {
+                        matches!(
+                            g,
+                            crate::compare::Gate::Phi
+                                | crate::compare::Gate::MaltK
+                                | crate::compare::Gate::MaltPhi
+                                | crate::compare::Gate::UnifiedFit
+                        ) || (*g == crate::compare::Gate::Published
+                            && self.case.published_phi.is_some())
+                    })
+            })
+    }
+}
+
 impl Experiment for Penetration {
     type Unit = Unit;
     type NativeRun = NativeRun;
@@ -279,12 +394,15 @@ impl Experiment for Penetration {
                 let plan = self
                     .stress
                     .then(|| crate::analysis::stress_fields::snapshot_plan(&ck, &bed));
+                let study_plan = (self.stress && opts.study)
+                    .then(|| crate::analysis::stress_fields::study_plan(&ck, &bed));
                 Ok(Unit {
                     k,
                     bed_hash: bed::bed_hash(&bed),
                     case: ck,
                     bed,
                     plan,
+                    study_plan,
                 })
             })
             .collect()
@@ -300,8 +418,28 @@ impl Experiment for Penetration {
 
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<NativeRun> {
         let main = role == Role::Main;
-        let plan = if main { u.plan.as_ref() } else { None };
+        let plan = if main || self.control_takes_snapshots(role) {
+            u.plan.as_ref()
+        } else {
+            None
+        };
         let run = native_run(&u.case, &u.bed, role, plan, dir, opts.progress, opts.reuse)?;
+        let study_snapshots = match (&u.study_plan, main) {
+            (Some(sp), true) => {
+                let sdir = dir.join(STUDY_DIR);
+                native_run(
+                    &u.case,
+                    &u.bed,
+                    role,
+                    Some(sp),
+                    &sdir,
+                    opts.progress,
+                    opts.reuse,
+                )?;
+                Some(sdir.join(SNAPSHOT_DIR))
+            }
+            _ => None,
+        };
         let slow = match (main, u.case.quasi_static_speed) {
             (true, Some(v2)) => {
                 let slow_case = PenetrationCase {
@@ -324,6 +462,7 @@ impl Experiment for Penetration {
             run,
             slow,
             snapshots: plan.map(|_| dir.join(SNAPSHOT_DIR)),
+            study_snapshots,
         })
     }
 
@@ -332,76 +471,14 @@ impl Experiment for Penetration {
     }
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<RefRun> {
-        let deck = liggghts_deck(&u.case, &u.bed)?;
-        std::fs::create_dir_all(dir)?;
-        if opts.reuse
-            && dir.join(lp::FORCE_FILE).exists()
-            && let Some(plan) = &u.plan
-        {
-            check_reused_plan(plan, &dir.join(SNAPSHOT_DIR))
-                .with_context(|| format!("bed {}", u.k))?;
-            let on_disk = std::fs::read_to_string(dir.join(lp::DECK_FILE)).unwrap_or_default();
-            ensure!(
-                crate::engines::deck_text::same_input(
-                    &on_disk,
-                    &lp::deck_text_with_snapshots(&deck, &plan.steps)?
-                ),
-                "{}: --reuse found a LIGGGHTS run of another case or bed (its deck differs); run without --reuse",
-                dir.display()
-            );
-            let mut run = reduce_liggghts_dir(&u.case, &u.bed, dir)?;
-            run.provenance
-                .notes
-                .push(format!("reused from {}", dir.display()));
-            return Ok(RefRun {
-                run,
-                snapshots: Some(dir.join(SNAPSHOT_DIR)),
-            });
+        let mut main = liggghts_run(u, u.plan.as_ref(), dir, opts)?;
+        if let Some(sp) = &u.study_plan {
+            let sdir = dir.join(STUDY_DIR);
+            let study = liggghts_run(u, Some(sp), &sdir, opts)
+                .with_context(|| format!("bed {}: estimator-study run", u.k))?;
+            main.study_snapshots = study.snapshots;
         }
-        let np = opts.mpi_procs.max(2);
-        let bar = crate::report::progress::bar(opts.progress, deck.n_steps, "LIGGGHTS");
-        let mut b = binner(&u.case, &u.bed)?;
-        let mut provenance = match &u.plan {
-            None => lp::run_streaming(
-                &deck,
-                dir,
-                np,
-                LIGGGHTS_TIMEOUT,
-                |step| bar.set_position(step),
-                |s| b.push(s.z_bottom, s.f[2]),
-            )?,
-            Some(plan) => {
-                let (samples, prov) =
-                    lp::run_with_snapshots(&deck, dir, np, LIGGGHTS_TIMEOUT, &plan.steps)?;
-                for s in &samples {
-                    b.push(s.z_bottom, s.f[2])?;
-                }
-                prov
-            }
-        };
-        bar.finish_and_clear();
-        provenance.notes.push(packing::bed_note(&u.case, &u.bed));
-        provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
-        let snapshots = match &u.plan {
-            Some(plan) => Some(stress::convert_liggghts_snapshots(
-                &u.case,
-                &u.bed,
-                plan,
-                &deck,
-                dir,
-                &mut provenance,
-            )?),
-            None => None,
-        };
-        write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
-        Ok(RefRun {
-            run: EngineRun {
-                fdr: b.fdr(),
-                samples: b.samples(),
-                provenance,
-            },
-            snapshots,
-        })
+        Ok(main)
     }
 
     fn record(&self, _u: &Unit, run: &RefRun, run_dir: &Path, rec: &Path) -> Result<()> {
@@ -440,6 +517,7 @@ impl Experiment for Penetration {
         Ok(RefRun {
             run,
             snapshots: None,
+            study_snapshots: None,
         })
     }
 
