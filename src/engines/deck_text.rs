@@ -38,14 +38,14 @@ pub fn nums(xs: impl IntoIterator<Item = f64>) -> String {
 }
 
 /// `x` in plain notation with 4 significant digits (for comments only, never for a
-/// value the engine reads).
+/// value the engine reads); exponent notation outside 1e-9..1e12.
 pub fn approx(x: f64) -> String {
     if x == 0.0 || !x.is_finite() {
         return format!("{x}");
     }
     let digits = (3 - x.abs().log10().floor() as i32).max(0) as usize;
     let a = x.abs();
-    if (1e-4..1e9).contains(&a) {
+    if (1e-9..1e12).contains(&a) {
         let s = format!("{x:.digits$}");
         if s.contains('.') {
             s.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -208,6 +208,52 @@ pub fn same_input(a: &str, b: &str) -> bool {
         })
 }
 
+/// Errors unless the input file `name` in `dir` gives the engine the same commands as
+/// `expected` ([`same_input`]): a run brought back for `granval analyze` must be of the
+/// deck granval writes for the case today, or its numbers would be compared against
+/// another experiment. `skip_first`: the first line is a title the engine skips (a
+/// `read_data` file). The error names the file and the first command that differs.
+pub fn check_same_input(
+    dir: &std::path::Path,
+    name: &str,
+    expected: &str,
+    skip_first: bool,
+) -> anyhow::Result<()> {
+    let path = dir.join(name);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        anyhow::anyhow!(
+            "cannot read {}: {e} (a deck directory holds every input `granval deck` wrote)",
+            path.display()
+        )
+    })?;
+    let body = |t: &str| -> String {
+        if skip_first {
+            t.split_once('\n').map(|(_, b)| b).unwrap_or("").to_string()
+        } else {
+            t.to_string()
+        }
+    };
+    let (now, want) = (body(&text), body(expected));
+    if same_input(&now, &want) {
+        return Ok(());
+    }
+    let (a, b) = (canonical(&now), canonical(&want));
+    let (la, lb): (Vec<&str>, Vec<&str>) = (a.lines().collect(), b.lines().collect());
+    let k = (0..la.len().max(lb.len()))
+        .find(|&k| match (la.get(k), lb.get(k)) {
+            (Some(x), Some(y)) => !same_input(x, y),
+            _ => true,
+        })
+        .unwrap_or(0);
+    anyhow::bail!(
+        "{}: not the input granval writes for this case: command {} is `{}`, expected `{}` (comments and number notation aside). Analyse only runs of unedited `granval deck` directories; to run changed physics, change the case file and write the deck again",
+        path.display(),
+        k + 1,
+        la.get(k).unwrap_or(&"<end of file>"),
+        lb.get(k).unwrap_or(&"<end of file>")
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -235,7 +281,7 @@ mod tests {
             9.81,
             5e-6,
             1e-7,
-            9.999999999999999e-8,
+            f64::from_bits(1e-7f64.to_bits() - 1),
             1e16,
             9999999999999998.0,
             2.1e11,
@@ -290,6 +336,8 @@ mod tests {
         assert_eq!(approx(0.04283), "0.04283");
         assert_eq!(approx(1234.5678), "1235");
         assert_eq!(approx(1.0), "1");
+        assert_eq!(approx(5.0e-6), "0.000005");
+        assert_eq!(approx(2.7366e-5), "0.00002737");
     }
 
     #[test]

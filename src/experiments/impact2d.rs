@@ -4,7 +4,7 @@
 //! paper's claim over the sweep in each engine.
 
 use super::reference::Verified;
-use super::{Estimate, Experiment, Options, Role, Run, Verdict};
+use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
 use crate::analysis::impact as obs;
 use crate::case::NegativeControl;
 use crate::case::impact2d::IntruderShape;
@@ -106,6 +106,40 @@ impl Experiment for Impact2d {
         }
     }
 
+    fn derived(&self) -> Vec<Derived> {
+        let c = &self.case;
+        let tau = c.scales.tau_c;
+        vec![
+            Derived::new(
+                "grains",
+                c.count.to_string(),
+                format!(
+                    "per bed, plus the frozen wall disks; {} variant(s)",
+                    c.variants.len()
+                ),
+            ),
+            Derived::new(
+                "collision time tau_c",
+                format!("{tau:.4e} s"),
+                "binary collision time of the grains (Kondic et al. Sec. II); the 2D analogue of the Rayleigh time",
+            ),
+            Derived::new(
+                "time step",
+                format!("{:e} s", c.dt),
+                format!("tau_c / {:.1}: steps per binary collision", tau / c.dt),
+            ),
+            Derived::new(
+                "run",
+                format!("{} steps", c.n_steps),
+                format!(
+                    "{:.4e} s = {:.1} tau_c simulated per variant",
+                    c.dt * c.n_steps as f64,
+                    c.dt * c.n_steps as f64 / tau
+                ),
+            ),
+        ]
+    }
+
     fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
         let beds = prepare_beds(&self.case, opts.progress)?;
         self.case
@@ -158,7 +192,6 @@ impl Experiment for Impact2d {
     }
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<ImpactRun> {
-        let c = &self.case;
         let lmp = Lammps {
             mpi_procs: opts.mpi_procs,
             ..Lammps::default()
@@ -170,25 +203,43 @@ impl Experiment for Impact2d {
             &energy_model(&u.scene),
             dir,
         )?;
-        let mut notes = vec![format!("scene sha256 {}", scene_hash(&u.scene))];
-        notes.extend(r.finished.warnings.iter().cloned());
-        let run = ImpactRun {
-            samples: r.samples,
-            energy: r.energy,
-            provenance: Provenance {
-                engine: EngineKind::Lammps,
-                version: r.finished.version.clone(),
-                command: r.finished.command.clone(),
-                input_hash: r.finished.input_hash.clone(),
-                date: now_utc(),
-                wall_time_s: r.finished.wall_time_s,
-                threads: opts.mpi_procs.max(1),
-                case_file: c.source.display().to_string(),
-                notes,
-            },
-        };
+        let run = self.lammps_run(u, r.samples, r.energy, &r.finished, opts.mpi_procs);
         write_series(dir, &run, &u.scene)?;
         Ok(run)
+    }
+
+    fn read_run_dir(&self, u: &Unit, dir: &Path) -> Result<ImpactRun> {
+        let out = self.outputs(u);
+        let fin = lammps::finished(&u.scene.sys, &out, dir)?;
+        let (samples, energy) = lammps::impact::read(&u.scene, &out, &energy_model(&u.scene), dir)?;
+        let procs = lammps_procs(&std::fs::read_to_string(dir.join(lammps::LOG_FILE))?);
+        Ok(self.lammps_run(u, samples, energy, &fin, procs))
+    }
+
+    fn deck_files(&self) -> DeckFiles {
+        DeckFiles {
+            binary: "lmp",
+            deck: lammps::DECK_FILE,
+            log: lammps::LOG_FILE,
+            inputs: &[(
+                lammps::DATA_FILE,
+                "the disks (read_data): box, per disk id, type, diameter, density (= mass / (4/3 pi r^3), LAMMPS' convention), position; velocities",
+            )],
+            outputs: &[
+                (
+                    lammps::INTRUDER_FILE,
+                    "every output_every steps the intruder's centre of mass, velocity and total force (%.17g)",
+                ),
+                (
+                    lammps::SNAP_FILE,
+                    "every energy_every steps every disk (for the energies)",
+                ),
+                (
+                    lammps::LOG_FILE,
+                    "LAMMPS' log (version, warnings, thermo lines)",
+                ),
+            ],
+        }
     }
 
     fn record(&self, u: &Unit, run: &ImpactRun, run_dir: &Path, rec: &Path) -> Result<()> {
@@ -293,7 +344,50 @@ impl Experiment for Impact2d {
     }
 }
 
+/// MPI processes a LAMMPS log says it ran on (`Loop time of T on N procs ...`), 1 if
+/// it does not say.
+fn lammps_procs(log: &str) -> usize {
+    log.lines()
+        .find_map(|l| {
+            l.trim()
+                .strip_prefix("Loop time of")
+                .and_then(|r| r.split(" on ").nth(1))
+                .and_then(|r| r.split_whitespace().next())
+                .and_then(|p| p.parse::<usize>().ok())
+        })
+        .unwrap_or(1)
+}
+
 impl Impact2d {
+    /// A LAMMPS run of `u` as the checks take it, whether granval ran LAMMPS or a
+    /// person did in a deck directory.
+    fn lammps_run(
+        &self,
+        u: &Unit,
+        samples: Vec<IntruderSample>,
+        energy: Vec<EnergySample>,
+        fin: &lammps::Finished,
+        procs: usize,
+    ) -> ImpactRun {
+        let mut notes = vec![format!("scene sha256 {}", scene_hash(&u.scene))];
+        notes.extend(fin.warnings.iter().cloned());
+        ImpactRun {
+            samples,
+            energy,
+            provenance: Provenance {
+                engine: EngineKind::Lammps,
+                version: fin.version.clone(),
+                command: fin.command.clone(),
+                input_hash: fin.input_hash.clone(),
+                date: now_utc(),
+                wall_time_s: fin.wall_time_s,
+                threads: procs.max(1),
+                case_file: self.case.source.display().to_string(),
+                notes,
+            },
+        }
+    }
+
     /// What the LAMMPS deck of a unit runs and writes, with its header.
     pub fn outputs(&self, u: &Unit) -> lammps::Outputs {
         let c = &self.case;
