@@ -146,7 +146,8 @@ fn settle_deck_pours_settles_and_places_the_intruder_in_liggghts() {
         "read_data data.lattice",
         "variable settle_checks index",
         "variable smoke index 0",
-        "< 1e-6\" then \"jump SELF settled\"",
+        // Plain notation, as every number of a deck.
+        "< 0.000001\" then \"jump SELF settled\"",
         "write_dump all custom bed.dump",
         "compute ztop all reduce/region foot max v_top",
         "move 0 0 ${z0}",
