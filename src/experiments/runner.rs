@@ -488,8 +488,7 @@ fn deck_readme<E: Experiment>(exp: &E, units: &[String], np: usize) -> String {
             "The deck is in this directory.".to_string()
         } else {
             format!(
-                "Each of the {} directories {} is one independent run (one variant of the case).",
-                dirs.len(),
+                "Run directories, one independent run (one variant of the case) each: {}.",
                 dirs.join(", ")
             )
         }
