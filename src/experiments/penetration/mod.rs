@@ -641,6 +641,46 @@ impl Experiment for Penetration {
     }
 }
 
+/// Rule 3's K_phi fit range (docs/stress.md) of the runs of both engines: each engine's
+/// self-consistent end on its ensemble-mean FDR, the bed height the lowest of the beds'.
+pub fn fit_range_of(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: &[&EngineRun],
+    reference: &[&EngineRun],
+) -> cp::FitRange {
+    let bed_height = units
+        .iter()
+        .map(|u| u.bed.surface_z)
+        .fold(f64::INFINITY, f64::min);
+    let mut engines = Vec::new();
+    let mean = |r: &[&EngineRun]| {
+        crate::analysis::fdr::ensemble_mean(
+            &r.iter().map(|r| &r.fdr).collect::<Vec<_>>(),
+            case.h_bin,
+        )
+    };
+    let mut failed = Vec::new();
+    for (label, runs) in [("native", native), ("liggghts", reference)] {
+        if runs.is_empty() {
+            continue;
+        }
+        match mean(runs) {
+            Ok(m) => engines.push((label, m)),
+            Err(e) => failed.push(format!("{label}: {e:#}")),
+        }
+    }
+    let mut r = cp::fit_range(
+        case,
+        bed_height,
+        &engines.iter().map(|(l, m)| (*l, m)).collect::<Vec<_>>(),
+    );
+    if !failed.is_empty() {
+        r.not_compared = Some(format!("no mean FDR: {}", failed.join("; ")));
+    }
+    r
+}
+
 /// Every FDR check of the experiment from the runs of both engines, with the FDR CSVs
 /// and the overlay SVG written to `out`. Shared by `compare` and `analyze`, so both give
 /// the same report from the same runs.
@@ -665,9 +705,12 @@ pub fn fdr_checks(
         })
         .collect();
     let mut checks = Vec::new();
+    let range = fit_range_of(case, units, native, reference);
+    notes.push(range.text());
+    let h_max = range.fit_end();
     let obs = |r: &[&EngineRun]| {
         let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
-        cp::ensemble(case, &f)
+        cp::ensemble_in(case, &f, h_max)
     };
     let reference = (!reference.is_empty()).then(|| obs(reference));
     let native_o = (!native.is_empty()).then(|| obs(native));
@@ -716,7 +759,7 @@ pub fn fdr_checks(
         }
     }
     if let (Some(Ok(a)), Some(Ok(b))) = (&native_o, &reference) {
-        checks.extend(cp::compare(case, a, b));
+        checks.extend(cp::compare(case, &range, a, b));
         notes.extend(cp::boundaries_not_compared(a, b));
     }
     if let (Some(v2), Some(Ok(a)), false) =

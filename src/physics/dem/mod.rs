@@ -12,11 +12,12 @@ pub mod neighbor;
 mod overlap;
 pub mod packing;
 pub mod penetration;
+pub mod rigid;
 pub mod walls;
 
 use crate::case::{Case, Perturbation, RollingModel, Wall};
 use crate::numerics::vec3::*;
-use crate::rundata::frames::{Frame, ParticleState};
+use crate::rundata::frames::{BodyState, Frame, ParticleState};
 use contact::{ContactForce, ContactGeom, History, PairCoeffs, hertz_history};
 use neighbor::PairList;
 use rayon::prelude::*;
@@ -41,6 +42,11 @@ pub struct Simulation {
     pub omega: Vec<V3>,
     pub f: Vec<V3>,
     pub torque: Vec<V3>,
+    /// Index into `bodies` of the clump each sphere belongs to, -1 for a free sphere.
+    /// Free spheres come first (case order), then the members of each body.
+    pub body: Vec<i32>,
+    /// Rigid multisphere clumps (fix multisphere), see [`rigid`].
+    pub bodies: Vec<rigid::RigidBody>,
     n_types: usize,
     coeffs: Vec<PairCoeffs>,
     rolling: RollingModel,
@@ -137,16 +143,62 @@ impl Simulation {
                 ));
             }
         }
-        let n = case.particles.len();
+        // Free spheres, then every clump's members (the LIGGGHTS atom order: spheres
+        // created at step 0, bodies inserted at step 1 in case order).
+        let mut id: Vec<u64> = case.particles.iter().map(|p| p.id).collect();
+        let mut type_: Vec<usize> = case.particles.iter().map(|p| p.type_).collect();
+        let mut radius: Vec<f64> = case.particles.iter().map(|p| p.radius).collect();
+        let mut mass: Vec<f64> = case.particles.iter().map(|p| p.mass()).collect();
+        let mut x: Vec<V3> = case.particles.iter().map(|p| p.x).collect();
+        let mut v: Vec<V3> = case.particles.iter().map(|p| p.v).collect();
+        let mut omega: Vec<V3> = case.particles.iter().map(|p| p.omega).collect();
+        let mut body = vec![-1i32; case.particles.len()];
+        let mut bodies = Vec::with_capacity(case.clumps.bodies.len());
+        for (b, c) in case.clumps.bodies.iter().enumerate() {
+            let t = case.clumps.template_of(c);
+            let first = id.len();
+            for (k, r) in t.radii.iter().enumerate() {
+                id.push(c.id);
+                type_.push(t.type_);
+                radius.push(*r);
+                // Every member carries the whole body's mass as its contact mass
+                // (particleToInsert_multisphere.cpp:203, `rmass = mass_ins`).
+                mass.push(if pert.member_sphere_mass {
+                    4.0 * std::f64::consts::PI / 3.0 * r * r * r * t.density
+                } else {
+                    t.mass
+                });
+                x.push(t.offsets[k]);
+                v.push([0.0; 3]);
+                omega.push([0.0; 3]);
+                body.push(b as i32);
+            }
+            let rb = rigid::RigidBody::new(
+                c.id,
+                t.mass,
+                t.inertia.map(|i| i * pert.inertia_factor),
+                t.offsets.clone(),
+                (first..id.len()).collect(),
+                c.x,
+                c.orientation,
+                c.v,
+                c.omega,
+            );
+            rb.set_xv(&mut x, &mut v, &mut omega);
+            bodies.push(rb);
+        }
+        let n = id.len();
         let stride = case.walls.len().max(1);
         Simulation {
-            id: case.particles.iter().map(|p| p.id).collect(),
-            type_: case.particles.iter().map(|p| p.type_).collect(),
-            radius: case.particles.iter().map(|p| p.radius).collect(),
-            mass: case.particles.iter().map(|p| p.mass()).collect(),
-            x: case.particles.iter().map(|p| p.x).collect(),
-            v: case.particles.iter().map(|p| p.v).collect(),
-            omega: case.particles.iter().map(|p| p.omega).collect(),
+            id,
+            type_,
+            radius,
+            mass,
+            x,
+            v,
+            omega,
+            body,
+            bodies,
             f: vec![[0.0; 3]; n],
             torque: vec![[0.0; 3]; n],
             n_types,
@@ -176,7 +228,18 @@ impl Simulation {
         self.check_domain()?;
         self.check_initial_overlaps()?;
         self.rebuild();
-        self.compute_forces(false);
+        if self.bodies.is_empty() {
+            self.compute_forces(false);
+        } else {
+            // LIGGGHTS inserts bodies in pre_exchange of step 1 (fix_insert.cpp:407,
+            // 652-660): the body sits at x0 and then gets that step's forces (history
+            // updated, an ordinary step) and only the final half kick
+            // (fix_multisphere.cpp:721-784). Native step 0 is that state, LIGGGHTS step 1;
+            // free spheres start at rest and force-free (case validation), so their step
+            // 0 -> 1 in LIGGGHTS is the same final half kick.
+            self.compute_forces(true);
+            self.final_integrate();
+        }
         Ok(())
     }
 
@@ -198,15 +261,22 @@ impl Simulation {
         let dtf = 0.5 * dt;
         (&mut self.x, &mut self.v, &mut self.omega)
             .into_par_iter()
-            .zip((&self.f, &self.torque, &self.mass, &self.radius).into_par_iter())
+            .zip((&self.f, &self.torque, &self.mass, &self.radius, &self.body).into_par_iter())
             .with_min_len(PAR_MIN_LEN)
-            .for_each(|((x, v, w), (f, t, m, r))| {
+            .for_each(|((x, v, w), (f, t, m, r, b))| {
+                if *b >= 0 {
+                    return; // clump member: moved by its body below
+                }
                 let dtfm = dtf / m;
                 add_assign(v, scale(*f, dtfm));
                 add_assign(x, scale(*v, dt));
                 let dtirotate = dtf / INERTIA / (r * r * m);
                 add_assign(w, scale(*t, dtirotate));
             });
+        for b in &mut self.bodies {
+            b.initial_integrate(dt);
+            b.set_xv(&mut self.x, &mut self.v, &mut self.omega);
+        }
         self.step += 1;
         if let Some(it) = &mut self.intruder {
             it.body.translate(it.velocity[2] * dt);
@@ -216,17 +286,32 @@ impl Simulation {
             self.rebuild();
         }
         self.compute_forces(true);
+        self.final_integrate();
+        Ok(())
+    }
+
+    /// Second half kick: `nve/sphere` for free spheres, `fix multisphere` for bodies
+    /// (force gathering, kick, member velocities).
+    fn final_integrate(&mut self) {
+        let dtf = 0.5 * self.dt;
         (&mut self.v, &mut self.omega)
             .into_par_iter()
-            .zip((&self.f, &self.torque, &self.mass, &self.radius).into_par_iter())
+            .zip((&self.f, &self.torque, &self.mass, &self.radius, &self.body).into_par_iter())
             .with_min_len(PAR_MIN_LEN)
-            .for_each(|((v, w), (f, t, m, r))| {
+            .for_each(|((v, w), (f, t, m, r, b))| {
+                if *b >= 0 {
+                    return;
+                }
                 let dtfm = dtf / m;
                 add_assign(v, scale(*f, dtfm));
                 let dtirotate = dtf / INERTIA / (r * r * m);
                 add_assign(w, scale(*t, dtirotate));
             });
-        Ok(())
+        for b in &mut self.bodies {
+            b.gather(&self.x, &self.f, &self.torque, self.gravity);
+            b.final_integrate(self.dt);
+            b.set_v(&mut self.v, &mut self.omega);
+        }
     }
 
     fn rebuild(&mut self) {
@@ -254,8 +339,42 @@ impl Simulation {
     /// error. Checked with a hash grid, so a case with 1e6 coincident grains fails fast
     /// in O(N) memory instead of building an N^2 neighbour list.
     fn check_initial_overlaps(&self) -> anyhow::Result<()> {
-        if let Some((i, j, overlap)) =
-            overlap::first_overlap(&self.x, &self.radius, MAX_INITIAL_OVERLAP)
+        if !self.bodies.is_empty() {
+            // Clump cases: LIGGGHTS' insertion (overlapcheck yes) refuses a body touching
+            // anything, so the start must be contact-free; members of one body overlap
+            // by design and never interact (fix_multisphere.cpp:178-186).
+            for i in 0..self.x.len() {
+                for j in i + 1..self.x.len() {
+                    if self.body[i] >= 0 && self.body[i] == self.body[j] {
+                        continue;
+                    }
+                    let d = norm(sub(self.x[i], self.x[j]));
+                    if d <= self.radius[i] + self.radius[j] {
+                        anyhow::bail!(
+                            "{} id {} and {} id {} touch at the start (gap {:.3e} m): a case with clumps must start without contacts (LIGGGHTS' insertion refuses overlapping bodies)",
+                            if self.body[i] >= 0 {
+                                "clump"
+                            } else {
+                                "particle"
+                            },
+                            self.id[i],
+                            if self.body[j] >= 0 {
+                                "clump"
+                            } else {
+                                "particle"
+                            },
+                            self.id[j],
+                            d - self.radius[i] - self.radius[j]
+                        );
+                    }
+                }
+            }
+        }
+        if let Some((i, j, overlap)) = self
+            .bodies
+            .is_empty()
+            .then(|| overlap::first_overlap(&self.x, &self.radius, MAX_INITIAL_OVERLAP))
+            .flatten()
         {
             anyhow::bail!(
                 "particles id {} and id {} overlap by {overlap:.3e} m ({:.1} % of the smaller radius {:.3e} m) at the start; more than {:.0} % is refused: move them apart",
@@ -313,13 +432,14 @@ impl Simulation {
 
     fn compute_forces(&mut self, update_history: bool) {
         let dt = self.dt;
-        let (x, v, omega, radius, mass, type_) = (
+        let (x, v, omega, radius, mass, type_, body) = (
             &self.x,
             &self.v,
             &self.omega,
             &self.radius,
             &self.mass,
             &self.type_,
+            &self.body,
         );
         let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
 
@@ -341,7 +461,10 @@ impl Simulation {
                 let delta = sub(x[i], x[j]);
                 let rsq = dot(delta, delta);
                 let radsum = radius[i] + radius[j];
-                if rsq < radsum * radsum {
+                // Members of one clump never interact: fix multisphere excludes them from
+                // the neighbour list (`neigh_modify exclude molecule`, neighbor.cpp:2174).
+                let same_body = body[i] >= 0 && body[i] == body[j];
+                if rsq < radsum * radsum && !same_body {
                     let (mi, mj) = (mass[i], mass[j]);
                     let g = ContactGeom {
                         delta,
@@ -428,7 +551,11 @@ impl Simulation {
                         None => *hist = History::default(),
                     }
                 }
-                add_assign(&mut fi, scale(gravity, mass[i]));
+                // fix gravity skips clump members (fix_gravity.cpp:333); the body gets
+                // m g once in its force gathering.
+                if body[i] < 0 {
+                    add_assign(&mut fi, scale(gravity, mass[i]));
+                }
                 *f = fi;
                 *t = ti;
             });
@@ -486,6 +613,7 @@ impl Simulation {
     /// Snapshot in output order (sorted by id).
     pub fn frame(&self) -> Frame {
         let mut particles: Vec<ParticleState> = (0..self.x.len())
+            .filter(|&k| self.body[k] < 0)
             .map(|k| ParticleState {
                 id: self.id[k],
                 x: self.x[k],
@@ -495,7 +623,21 @@ impl Simulation {
             })
             .collect();
         particles.sort_by_key(|p| p.id);
+        let mut bodies: Vec<BodyState> = self
+            .bodies
+            .iter()
+            .map(|b| BodyState {
+                id: b.id,
+                x: b.xcm,
+                q: b.quat,
+                v: b.vcm,
+                omega: b.omega,
+                f: b.fcm,
+            })
+            .collect();
+        bodies.sort_by_key(|b| b.id);
         Frame {
+            bodies,
             step: self.step,
             t: self.step as f64 * self.dt,
             particles,
