@@ -32,6 +32,16 @@ enum EngineName {
     Lammps,
 }
 
+impl EngineName {
+    fn name(self) -> &'static str {
+        match self {
+            EngineName::Native => "native",
+            EngineName::Liggghts => "liggghts",
+            EngineName::Lammps => "lammps",
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Cmd {
     /// Run one case in one engine; outputs (per unit: the case, a bed, a variant) under OUT.
@@ -67,11 +77,16 @@ enum Cmd {
         common: Common,
     },
     /// Write the reference engine's input for a case (one directory per unit), ready to
-    /// run here or on a cluster; README with the one-core and mpirun commands.
+    /// run here or on a cluster; README with the one-core and mpirun commands (`--np N`
+    /// sets N in it), the expected outputs and the `granval analyze` command.
     Deck {
         case: PathBuf,
         #[arg(short = 'o', long = "out")]
         out: PathBuf,
+        /// The engine the deck is for; it must be the case kind's reference engine
+        /// (micro and penetration: liggghts; impact2d: lammps). Default: that engine.
+        #[arg(long, value_enum)]
+        engine: Option<EngineName>,
         /// Penetration: who prepares the beds: `native` (exact `data.bed`, needed to
         /// compare engines) or `liggghts` (the deck pours and settles them; full size).
         #[arg(long, value_enum, default_value = "native")]
@@ -79,19 +94,24 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
     },
-    /// Analyse a penetration deck directory after LIGGGHTS ran in it (here or on a
-    /// cluster): the same observables, checks and report as `granval compare`.
+    /// Analyse a deck directory (`granval deck`) after the engine ran in it, here or on
+    /// a cluster: checks every run completed from the case's unedited inputs, then the
+    /// same observables, checks and report as `granval compare`.
     Analyze {
         dir: PathBuf,
         #[arg(long)]
         report: PathBuf,
-        /// Do not re-run the native engine from the same beds (LIGGGHTS observables and
-        /// published-value checks only).
+        /// Penetration only: do not re-run the native engine from the same beds
+        /// (LIGGGHTS observables and published-value checks only).
         #[arg(long)]
         no_native: bool,
         #[command(flatten)]
         common: Common,
     },
+    /// Validate a case file without running anything and print what follows from it:
+    /// grain count, Rayleigh (or collision) time and the time step's fraction of it,
+    /// steps, estimated run time and output, the resource limits. Exit 0 if valid.
+    Validate { case: PathBuf },
     /// Reference data management.
     Reference {
         #[command(subcommand)]
@@ -385,15 +405,63 @@ fn real_main() -> Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
+        Cmd::Validate { case } => {
+            let c = load(&case)?;
+            let (kind, engine) = match &c {
+                AnyCase::Micro(_) => ("micro", "LIGGGHTS"),
+                AnyCase::Penetration(_) => ("penetration", "LIGGGHTS"),
+                AnyCase::Impact2d(_) => ("impact2d", "LAMMPS"),
+            };
+            let (name, lines) = with_experiment!(c, false, |exp| (
+                exp.name().to_string(),
+                granval::experiments::validation_summary(&exp)
+            ));
+            println!(
+                "{}: valid {kind} case `{name}` (reference engine {engine})",
+                case.display()
+            );
+            let w = lines.iter().map(|l| l.label.len()).max().unwrap_or(0);
+            for l in &lines {
+                if l.comment.is_empty() {
+                    println!("  {:<w$}  {}", l.label, l.value);
+                } else {
+                    println!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
+                }
+            }
+            println!(
+                "next: granval deck {} -o DIR   (the {engine} input to read or run), granval compare {} --report OUT",
+                case.display(),
+                case.display()
+            );
+            Ok(ExitCode::SUCCESS)
+        }
         Cmd::Deck {
             case,
             out,
+            engine,
             bed,
             common,
         } => {
             let opts = options(&common);
+            let c = load(&case)?;
+            let (kind, wanted) = match &c {
+                AnyCase::Micro(_) => ("micro", EngineName::Liggghts),
+                AnyCase::Penetration(_) => ("penetration", EngineName::Liggghts),
+                AnyCase::Impact2d(_) => ("impact2d", EngineName::Lammps),
+            };
+            if let Some(e) = engine
+                && e != wanted
+            {
+                bail!(
+                    "{}: --engine {}: a {kind} case is compared against {} (its reference engine); granval writes no {} deck for it",
+                    case.display(),
+                    e.name(),
+                    wanted.name(),
+                    e.name()
+                );
+            }
             fresh_dir(&out, common.force)?;
-            let dirs = match load(&case)? {
+            let dirs = match c {
                 AnyCase::Penetration(c) => {
                     granval::experiments::penetration::deck_dir::write(&c, &out, bed, true)?
                 }
@@ -416,12 +484,35 @@ fn real_main() -> Result<ExitCode> {
             common,
         } => {
             fresh_dir(&report, common.force)?;
-            let o = granval::experiments::penetration::deck_dir::analyze(
-                &dir,
-                !no_native,
-                &options(&common),
-                &report,
-            )?;
+            let case_file = dir.join("case.toml");
+            let c = load(&case_file).with_context(|| {
+                format!(
+                    "{}: not a `granval deck` directory (it holds case.toml)",
+                    dir.display()
+                )
+            })?;
+            let o = match c {
+                AnyCase::Penetration(_) => granval::experiments::penetration::deck_dir::analyze(
+                    &dir,
+                    !no_native,
+                    &options(&common),
+                    &report,
+                )?,
+                c => {
+                    if no_native {
+                        bail!(
+                            "--no-native: only for penetration deck directories; {} is another kind",
+                            case_file.display()
+                        );
+                    }
+                    with_experiment!(c, false, |exp| runner::analyze(
+                        &exp,
+                        &options(&common),
+                        &dir,
+                        &report
+                    ))
+                }
+            };
             let r = report_of(vec![o]);
             let code = finish(&r, &report, &format!("granval analyze {}", dir.display()))?;
             if no_native

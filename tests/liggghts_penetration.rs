@@ -93,6 +93,7 @@ fn deck(units: Units, e: f64) -> PenetrationDeck {
         soft_particles: e < 5e6,
         hard_particles: false,
         settle: None,
+        header: Default::default(),
     }
 }
 
@@ -240,11 +241,19 @@ fn deck_contains_expected_commands() {
         "thermo_modify lost error".to_string(),
         "run 6000".to_string(),
     ] {
+        // As LIGGGHTS reads it: numbers compared as f64 (`1e-1` is the deck's `0.1`).
         assert!(
-            text.lines().any(|l| l == line),
+            text.lines()
+                .any(|l| granval::engines::deck_text::same_input(l, &line)),
             "missing line {line:?} in\n{text}"
         );
     }
+    // Numbers are written in plain notation, comments explain the switches.
+    assert!(text.lines().any(|l| l == "neighbor 0.1 bin"), "{text}");
+    assert!(
+        text.contains("# soft_particles yes: type 1 has E = 2600000 Pa"),
+        "{text}"
+    );
     assert!(text.contains(
         "fix fout all print 100 \"$(step) $(step*dt) $(f_cad[9]) $(f_cad[1]) $(f_cad[2]) $(f_cad[3])\" file force.txt"
     ));
@@ -256,9 +265,14 @@ fn deck_contains_expected_commands() {
 
     // The data file and STL are in cm / g/cm^3.
     let data = std::fs::read_to_string(&files.data).unwrap();
-    // Converted values are written in full ({:e} of x * 100, e.g. -2.1999999999999997e0).
+    // Converted values are written in full (shortest round trip of x * 100, e.g.
+    // -2.1999999999999997).
     assert!(
-        data.contains(&format!("{:e} {:e} xlo xhi", -0.022 * 100.0, 0.022 * 100.0)),
+        data.contains(&format!(
+            "{} {} xlo xhi",
+            granval::engines::deck_text::num(-0.022 * 100.0),
+            granval::engines::deck_text::num(0.022 * 100.0)
+        )),
         "{data}"
     );
     assert!(data.contains(&format!("{} atoms", d.particles.len())));
@@ -306,7 +320,11 @@ fn deck_contains_expected_commands() {
         "fix mv all move/mesh mesh cad linear 0 0 -1e-1",
         "neighbor 1e-3 bin",
     ] {
-        assert!(t.lines().any(|x| x == l), "missing {l:?}");
+        assert!(
+            t.lines()
+                .any(|x| granval::engines::deck_text::same_input(x, l)),
+            "missing {l:?}"
+        );
     }
     assert!(!t.contains("soft_particles"));
 }

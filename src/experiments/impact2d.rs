@@ -4,12 +4,14 @@
 //! paper's claim over the sweep in each engine.
 
 use super::reference::Verified;
-use super::{Estimate, Experiment, Options, Role, Run, Verdict};
+use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
 use crate::analysis::impact as obs;
 use crate::case::NegativeControl;
+use crate::case::impact2d::IntruderShape;
 use crate::case::impact2d::{Impact2dCase, Packing, Variant};
 use crate::compare::Check;
 use crate::compare::impact2d::{self as cmp, VariantObs};
+use crate::engines::deck_text::{Header, approx, num, safe};
 use crate::engines::lammps::{self, Lammps};
 use crate::physics::dem2d::bed::{self, Bed};
 use crate::physics::dem2d::energy::EnergyModel;
@@ -104,6 +106,40 @@ impl Experiment for Impact2d {
         }
     }
 
+    fn derived(&self) -> Vec<Derived> {
+        let c = &self.case;
+        let tau = c.scales.tau_c;
+        vec![
+            Derived::new(
+                "grains",
+                c.count.to_string(),
+                format!(
+                    "per bed, plus the frozen wall disks; {} variant(s)",
+                    c.variants.len()
+                ),
+            ),
+            Derived::new(
+                "collision time tau_c",
+                format!("{tau:.4e} s"),
+                "binary collision time of the grains (Kondic et al. Sec. II); the 2D analogue of the Rayleigh time",
+            ),
+            Derived::new(
+                "time step",
+                format!("{:e} s", c.dt),
+                format!("tau_c / {:.1}: steps per binary collision", tau / c.dt),
+            ),
+            Derived::new(
+                "run",
+                format!("{} steps", c.n_steps),
+                format!(
+                    "{:.4e} s = {:.1} tau_c simulated per variant",
+                    c.dt * c.n_steps as f64,
+                    c.dt * c.n_steps as f64 / tau
+                ),
+            ),
+        ]
+    }
+
     fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
         let beds = prepare_beds(&self.case, opts.progress)?;
         self.case
@@ -152,20 +188,10 @@ impl Experiment for Impact2d {
     }
 
     fn write_deck(&self, u: &Unit, dir: &Path, _opts: &Options) -> Result<()> {
-        let c = &self.case;
-        lammps::write_inputs(
-            &u.scene.sys,
-            &lammps::deck::Outputs {
-                n_steps: c.n_steps,
-                intruder_every: c.output_every,
-                snapshot_every: c.energy_every,
-            },
-            dir,
-        )
+        lammps::write_inputs(&u.scene.sys, &self.outputs(u), dir)
     }
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<ImpactRun> {
-        let c = &self.case;
         let lmp = Lammps {
             mpi_procs: opts.mpi_procs,
             ..Lammps::default()
@@ -173,31 +199,47 @@ impl Experiment for Impact2d {
         let r = lammps::impact::run(
             &lmp,
             &u.scene,
-            c.n_steps,
-            c.output_every,
-            c.energy_every,
+            &self.outputs(u),
             &energy_model(&u.scene),
             dir,
         )?;
-        let mut notes = vec![format!("scene sha256 {}", scene_hash(&u.scene))];
-        notes.extend(r.finished.warnings.iter().cloned());
-        let run = ImpactRun {
-            samples: r.samples,
-            energy: r.energy,
-            provenance: Provenance {
-                engine: EngineKind::Lammps,
-                version: r.finished.version.clone(),
-                command: r.finished.command.clone(),
-                input_hash: r.finished.input_hash.clone(),
-                date: now_utc(),
-                wall_time_s: r.finished.wall_time_s,
-                threads: opts.mpi_procs.max(1),
-                case_file: c.source.display().to_string(),
-                notes,
-            },
-        };
+        let run = self.lammps_run(u, r.samples, r.energy, &r.finished, opts.mpi_procs);
         write_series(dir, &run, &u.scene)?;
         Ok(run)
+    }
+
+    fn read_run_dir(&self, u: &Unit, dir: &Path) -> Result<ImpactRun> {
+        let out = self.outputs(u);
+        let fin = lammps::finished(&u.scene.sys, &out, dir)?;
+        let (samples, energy) = lammps::impact::read(&u.scene, &out, &energy_model(&u.scene), dir)?;
+        let procs = lammps_procs(&std::fs::read_to_string(dir.join(lammps::LOG_FILE))?);
+        Ok(self.lammps_run(u, samples, energy, &fin, procs))
+    }
+
+    fn deck_files(&self) -> DeckFiles {
+        DeckFiles {
+            binary: "lmp",
+            deck: lammps::DECK_FILE,
+            log: lammps::LOG_FILE,
+            inputs: &[(
+                lammps::DATA_FILE,
+                "the disks (read_data): box, per disk id, type, diameter, density (= mass / (4/3 pi r^3), LAMMPS' convention), position; velocities",
+            )],
+            outputs: &[
+                (
+                    lammps::INTRUDER_FILE,
+                    "every output_every steps the intruder's centre of mass, velocity and total force (%.17g)",
+                ),
+                (
+                    lammps::SNAP_FILE,
+                    "every energy_every steps every disk (for the energies)",
+                ),
+                (
+                    lammps::LOG_FILE,
+                    "LAMMPS' log (version, warnings, thermo lines)",
+                ),
+            ],
+        }
     }
 
     fn record(&self, u: &Unit, run: &ImpactRun, run_dir: &Path, rec: &Path) -> Result<()> {
@@ -299,6 +341,139 @@ impl Experiment for Impact2d {
             }
         }
         Verdict { checks, notes }
+    }
+}
+
+/// MPI processes a LAMMPS log says it ran on (`Loop time of T on N procs ...`), 1 if
+/// it does not say.
+fn lammps_procs(log: &str) -> usize {
+    log.lines()
+        .find_map(|l| {
+            l.trim()
+                .strip_prefix("Loop time of")
+                .and_then(|r| r.split(" on ").nth(1))
+                .and_then(|r| r.split_whitespace().next())
+                .and_then(|p| p.parse::<usize>().ok())
+        })
+        .unwrap_or(1)
+}
+
+impl Impact2d {
+    /// A LAMMPS run of `u` as the checks take it, whether granval ran LAMMPS or a
+    /// person did in a deck directory.
+    fn lammps_run(
+        &self,
+        u: &Unit,
+        samples: Vec<IntruderSample>,
+        energy: Vec<EnergySample>,
+        fin: &lammps::Finished,
+        procs: usize,
+    ) -> ImpactRun {
+        let mut notes = vec![format!("scene sha256 {}", scene_hash(&u.scene))];
+        notes.extend(fin.warnings.iter().cloned());
+        ImpactRun {
+            samples,
+            energy,
+            provenance: Provenance {
+                engine: EngineKind::Lammps,
+                version: fin.version.clone(),
+                command: fin.command.clone(),
+                input_hash: fin.input_hash.clone(),
+                date: now_utc(),
+                wall_time_s: fin.wall_time_s,
+                threads: procs.max(1),
+                case_file: self.case.source.display().to_string(),
+                notes,
+            },
+        }
+    }
+
+    /// What the LAMMPS deck of a unit runs and writes, with its header.
+    pub fn outputs(&self, u: &Unit) -> lammps::Outputs {
+        let c = &self.case;
+        lammps::Outputs {
+            n_steps: c.n_steps,
+            intruder_every: c.output_every,
+            snapshot_every: c.energy_every,
+            header: self.header(u),
+        }
+    }
+
+    fn header(&self, u: &Unit) -> Header {
+        let c = &self.case;
+        let s = &c.scales;
+        let v = &u.variant;
+        let shape = match c.shape {
+            IntruderShape::Disk { radius } => {
+                format!("a disk of diameter {} d", approx(2.0 * radius / s.d))
+            }
+            IntruderShape::Ellipse { a, b, count } => format!(
+                "an ellipse of semi-axes {} d and {} d (a rigid cluster of {count} disks on its \
+                 outline, Kondic et al. Sec. III A)",
+                approx(a / s.d),
+                approx(b / s.d)
+            ),
+        };
+        let friction = |m: &crate::case::impact2d::Material2d| match m.friction {
+            crate::case::impact2d::Friction::Static => "static (model 1, k_t = 0.8 k_n)",
+            crate::case::impact2d::Friction::Kinetic => "kinetic (model 2, k_t = 0)",
+        };
+        Header {
+            title: format!(
+                "granval impact2d case `{}`, variant `{}`: LAMMPS input deck ({})",
+                safe(&c.name),
+                safe(&v.label),
+                lammps::DECK_FILE
+            ),
+            paragraphs: vec![
+                safe(&c.description),
+                format!(
+                    "Kondic et al. (PRE 85, 011305) Sec. II: {} grains of mean diameter d = {} m \
+                     (polydispersity +-{}), {} bed, {} d long with periodic sides, between rows \
+                     of frozen wall disks; {shape} hits the middle of the surface at v = {} \
+                     d/tau_c from {} d above it.",
+                    c.count,
+                    num(s.d),
+                    approx(c.polydispersity),
+                    match v.packing {
+                        Packing::Random => "random",
+                        Packing::Hexagonal => "hexagonal",
+                    },
+                    approx(c.length / s.d),
+                    approx(v.speed / s.velocity()),
+                    approx(c.release_height / s.d),
+                ),
+                format!(
+                    "Kondic et al.'s units, converted once to SI: length d = {} m, mass m = {} \
+                     kg (a grain of diameter d), time tau_c = pi sqrt(d / (2 g0 k_n)) = {} s \
+                     (binary collision time, g0 = {} m/s^2); a spring constant k_n stands for \
+                     k = k_n m g0 / d N/m. Grains: k_n = {}, e_n = {}, mu = {}, {} friction; \
+                     walls: k_n = {}, e_n = {}, mu = {}; intruder: k_n = {}, e_n = {}, mu = {}; \
+                     gravity {} g0.",
+                    num(s.d),
+                    num(s.m),
+                    approx(s.tau_c),
+                    num(s.g0),
+                    approx(v.grains.k_n),
+                    approx(v.grains.e_n),
+                    approx(v.grains.mu),
+                    friction(&v.grains),
+                    approx(v.walls.k_n),
+                    approx(v.walls.e_n),
+                    approx(v.walls.mu),
+                    approx(v.intruder.k_n),
+                    approx(v.intruder.e_n),
+                    approx(v.intruder.mu),
+                    approx(v.gravity / s.g0),
+                ),
+                format!(
+                    "Measured: the penetration depth D(t) of the intruder's lowest point below \
+                     the surface and the final depth, the mean over the last {} tau_c (Kondic \
+                     et al. Figs 2, 8); granval compares both with its native engine.",
+                    approx(c.final_window / s.tau_c)
+                ),
+            ],
+        }
     }
 }
 
@@ -436,9 +611,9 @@ pub fn energy_model(scene: &Scene) -> EnergyModel {
 }
 
 /// The scene's fingerprint: sha256 of its LAMMPS data file (every disk, mass,
-/// position and velocity, full precision) and coefficients.
+/// position and velocity, full precision; comments left out) and coefficients.
 pub fn scene_hash(scene: &Scene) -> Sha256 {
-    let mut text = lammps::deck::write_data(&scene.sys);
+    let mut text = crate::engines::deck_text::canonical(&lammps::deck::write_data(&scene.sys));
     for c in &scene.sys.coeffs {
         text += &format!("{c:?}\n");
     }

@@ -3,7 +3,7 @@
 //! `particles.csv`, LIGGGHTS its dump, and neither trajectory is held in memory.
 
 use super::reference::Verified;
-use super::{Estimate, Experiment, Options, Role, Run, Verdict};
+use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
 use crate::case::{Case, NegativeControl};
 use crate::compare::Check;
 use crate::compare::trajectory::Trajectory;
@@ -157,6 +157,40 @@ impl Experiment for Micro {
         }
     }
 
+    fn derived(&self) -> Vec<Derived> {
+        let c = &self.case;
+        vec![
+            Derived::new(
+                "particles",
+                c.particles.len().to_string(),
+                format!("{} wall(s), {} material(s)", c.walls.len(), c.n_types()),
+            ),
+            Derived::new(
+                "Rayleigh time",
+                format!("{:.4e} s", c.rayleigh_time),
+                "smallest over the particles (Feng et al. Sec. 2)",
+            ),
+            Derived::new(
+                "time step",
+                format!("{:e} s", c.dt),
+                format!(
+                    "{:.2} % of the Rayleigh time (validation refuses > 100 %; about 20 % is usual)",
+                    100.0 * c.dt / c.rayleigh_time
+                ),
+            ),
+            Derived::new(
+                "run",
+                format!("{} steps", c.n_steps),
+                format!(
+                    "{:.4e} s simulated; {} frames (every {} steps)",
+                    c.dt * c.n_steps as f64,
+                    liggghts::expected_frames(c),
+                    c.output_every
+                ),
+            ),
+        ]
+    }
+
     fn units(&self, _opts: &Options) -> Result<Vec<()>> {
         Ok(vec![()])
     }
@@ -245,6 +279,36 @@ impl Experiment for Micro {
             FrameFile::ClumpDump(body.parent().map(Path::to_path_buf).unwrap_or_default())
         };
         Ok(MicroRun { frames, provenance })
+    }
+
+    fn read_run_dir(&self, _unit: &(), dir: &Path) -> Result<MicroRun> {
+        let provenance = liggghts::micro_finished(&self.case, dir)?;
+        Ok(MicroRun {
+            frames: FrameFile::Dump(dir.join(liggghts::DUMP_FILE)),
+            provenance,
+        })
+    }
+
+    fn deck_files(&self) -> DeckFiles {
+        DeckFiles {
+            binary: "liggghts",
+            deck: liggghts::DECK_FILE,
+            log: liggghts::LOG_FILE,
+            inputs: &[(
+                liggghts::DATA_FILE,
+                "the particles (read_data): box, and per atom id, type, diameter, density, position, velocity, angular velocity",
+            )],
+            outputs: &[
+                (
+                    liggghts::DUMP_FILE,
+                    "the trajectory: every output_every steps each particle's position, velocity, angular velocity and force (%.17g)",
+                ),
+                (
+                    liggghts::LOG_FILE,
+                    "LIGGGHTS' log (version, warnings, thermo lines)",
+                ),
+            ],
+        }
     }
 
     fn drift(&self, previous: &MicroRun, now: &MicroRun) -> String {

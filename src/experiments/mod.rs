@@ -139,6 +139,93 @@ pub struct Estimate {
     pub memory_bytes: f64,
 }
 
+/// What a deck directory holds and what the engine leaves in it: the README of
+/// `granval deck` is written from this.
+#[derive(Debug, Clone, Copy)]
+pub struct DeckFiles {
+    /// `liggghts` or `lmp`.
+    pub binary: &'static str,
+    pub deck: &'static str,
+    pub log: &'static str,
+    /// Other inputs (data files, meshes), each with what it holds.
+    pub inputs: &'static [(&'static str, &'static str)],
+    /// What a complete run writes, each with what it holds.
+    pub outputs: &'static [(&'static str, &'static str)],
+}
+
+/// One line of `granval validate`.
+#[derive(Debug, Clone)]
+pub struct Derived {
+    pub label: &'static str,
+    pub value: String,
+    pub comment: String,
+}
+
+impl Derived {
+    pub fn new(label: &'static str, value: impl Into<String>, comment: impl Into<String>) -> Self {
+        Derived {
+            label,
+            value: value.into(),
+            comment: comment.into(),
+        }
+    }
+}
+
+/// Native throughput `granval validate` estimates run times with: particle-steps per
+/// second of one core, as measured by `granval bench` on this project's machines
+/// (order of magnitude; contacts per grain change it).
+pub const NATIVE_PARTICLE_STEPS_PER_S: f64 = 3e6;
+
+/// The lines `granval validate` prints for any case: its own [`Experiment::derived`],
+/// then the resource estimate, the estimated native run time and whether the limits
+/// refuse it.
+pub fn validation_summary<E: Experiment>(exp: &E) -> Vec<Derived> {
+    let mut v = exp.derived();
+    let e = exp.estimate();
+    v.push(Derived::new(
+        "particle-steps",
+        format!("{:.3e}", e.particle_steps),
+        "all native runs of a comparison, negative controls included",
+    ));
+    let t = e.particle_steps / NATIVE_PARTICLE_STEPS_PER_S;
+    v.push(Derived::new(
+        "estimated native time",
+        human_time(t),
+        format!(
+            "at about {NATIVE_PARTICLE_STEPS_PER_S:.0e} particle-steps/s on one core; the reference engine takes the same order"
+        ),
+    ));
+    v.push(Derived::new(
+        "estimated output",
+        format!("{:.3e} bytes", e.output_bytes),
+        "",
+    ));
+    v.push(Derived::new(
+        "resource limits",
+        match limits::refuse(&e, &exp.source().display().to_string()) {
+            None => "within".to_string(),
+            Some(why) => format!("EXCEEDED: {why}"),
+        },
+        "",
+    ));
+    v
+}
+
+/// `t` seconds as s, min, h or days.
+pub fn human_time(t: f64) -> String {
+    if !t.is_finite() {
+        format!("{t} s")
+    } else if t < 120.0 {
+        format!("{t:.1} s")
+    } else if t < 7200.0 {
+        format!("{:.1} min", t / 60.0)
+    } else if t < 2.0 * 86400.0 {
+        format!("{:.1} h", t / 3600.0)
+    } else {
+        format!("{:.1} days", t / 86400.0)
+    }
+}
+
 /// One case kind, as the runner sees it.
 pub trait Experiment {
     type Unit;
@@ -154,6 +241,10 @@ pub trait Experiment {
     fn canonical_hash(&self) -> Sha256;
     fn negative_controls(&self) -> &[NegativeControl];
     fn estimate(&self) -> Estimate;
+
+    /// Quantities derived from the case, for `granval validate` (what a person
+    /// writing a case checks before running it): label, value with unit, comment.
+    fn derived(&self) -> Vec<Derived>;
 
     /// The units, prepared (beds poured, scenes built).
     fn units(&self, opts: &Options) -> Result<Vec<Self::Unit>>;
@@ -188,6 +279,12 @@ pub trait Experiment {
         name: &str,
         seal: &reference::Verified,
     ) -> Result<Self::RefRun>;
+    /// Reads a reference run made by hand in a unit's deck directory `dir` (`granval
+    /// deck`, then the engine run there or on a cluster, `granval analyze`): checks that
+    /// it completed and that its inputs are the ones [`Experiment::write_deck`] writes.
+    fn read_run_dir(&self, unit: &Self::Unit, dir: &Path) -> Result<Self::RefRun>;
+    /// The files of a unit's deck directory, for its README.
+    fn deck_files(&self) -> DeckFiles;
     /// How a fresh reference run differs from the previous record (`reference refresh`).
     fn drift(&self, previous: &Self::RefRun, now: &Self::RefRun) -> String;
 

@@ -135,16 +135,74 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
         }
     };
 
+    run_units(exp, opts, out, &units, &names, source, notes)
+}
+
+/// `granval analyze DIR` for a case kind whose deck directories hold one unit each
+/// (`DIR/<unit>/`, written by [`deck`]): the reference runs are read from the units'
+/// directories, where a person ran the engine by hand (here or on a cluster); the
+/// native runs, checks and negative controls are those of [`compare`], so the report
+/// is the same. `DIR` may also be a `compare` output directory (the engine's run in
+/// `DIR/<unit>/<engine>/`).
+pub fn analyze<E: Experiment>(exp: &E, opts: &Options, dir: &Path, out: &Path) -> CaseOutcome {
+    let name = exp.name().to_string();
+    if let Err(e) = check_limits(exp, opts) {
+        return CaseOutcome::error(&name, "resource limits", e, vec![]);
+    }
+    if let Err(e) = std::fs::create_dir_all(out) {
+        return CaseOutcome::error(&name, "output directory", e.into(), vec![]);
+    }
+    let units = match exp.units(opts) {
+        Ok(u) => u,
+        Err(e) => return CaseOutcome::error(&name, "preparation", e, vec![]),
+    };
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    let notes = vec![format!(
+        "the {} runs were made outside granval in {} (deck directories, checked against the inputs granval writes for this case); not sealed",
+        exp.reference_engine(),
+        dir.display()
+    )];
+    run_units(
+        exp,
+        opts,
+        out,
+        &units,
+        &names,
+        Source::RunDir {
+            dir: dir.to_path_buf(),
+        },
+        notes,
+    )
+}
+
+/// Reference and native runs of every unit, the checks and the negative controls.
+fn run_units<E: Experiment>(
+    exp: &E,
+    opts: &Options,
+    out: &Path,
+    units: &[E::Unit],
+    names: &[String],
+    source: Source,
+    mut notes: Vec<String>,
+) -> CaseOutcome {
+    let name = exp.name().to_string();
+    let engine = exp.reference_engine();
     let mut refs = Vec::with_capacity(units.len());
     let mut natives = Vec::with_capacity(units.len());
-    for (u, n) in units.iter().zip(&names) {
+    for (u, n) in units.iter().zip(names) {
         let r = match &source {
             Source::Live { .. } => exp.run_reference(u, &reference_out(out, n, engine), opts),
             Source::Recorded { seal } => exp.read_record(u, n, seal),
-            Source::RunDir { dir } => Err(anyhow::anyhow!(
-                "run directory {} is only read by `granval analyze`",
-                dir.display()
-            )),
+            Source::RunDir { dir } => {
+                let compared = reference_out(dir, n, engine);
+                let d = if compared.join(exp.deck_files().deck).exists() {
+                    compared
+                } else {
+                    unit_out(dir, n)
+                };
+                exp.read_run_dir(u, &d)
+                    .with_context(|| format!("run directory {}", d.display()))
+            }
         };
         let r = match r {
             Ok(r) => r,
@@ -162,12 +220,12 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
         }
     }
 
-    let verdict = exp.checks(&units, &natives, &refs, out, opts);
+    let verdict = exp.checks(units, &natives, &refs, out, opts);
     let mut checks = verdict.checks;
     notes.extend(verdict.notes);
     for (k, c) in exp.negative_controls().iter().enumerate() {
         let dir = out.join(format!("control-{k}"));
-        checks.push(negative_control(exp, c, &units, &names, &refs, &dir, opts));
+        checks.push(negative_control(exp, c, units, names, &refs, &dir, opts));
     }
     let wall = |rs: &mut dyn Iterator<Item = f64>| rs.sum::<f64>();
     let run = CaseRun {
@@ -406,5 +464,77 @@ pub fn deck<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> Result<Vec<Pa
     }
     std::fs::copy(exp.source(), out.join("case.toml"))
         .with_context(|| format!("copying {} into {}", exp.source().display(), out.display()))?;
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    let readme = out.join(README_FILE);
+    std::fs::write(&readme, deck_readme(exp, &names, opts.mpi_procs.max(2)))
+        .with_context(|| format!("cannot write {}", readme.display()))?;
     Ok(dirs)
+}
+
+/// The README of a deck directory ([`deck`]).
+pub const README_FILE: &str = "README.txt";
+
+/// What a deck directory holds, how to run it on one core and under mpirun, what a
+/// complete run leaves behind and how to bring it back (`granval analyze`).
+fn deck_readme<E: Experiment>(exp: &E, units: &[String], np: usize) -> String {
+    let f = exp.deck_files();
+    let engine = exp.reference_engine();
+    let dirs: Vec<String> = units
+        .iter()
+        .map(|u| if u.is_empty() { ".".into() } else { u.clone() })
+        .collect();
+    let mut s = format!(
+        "{engine} deck directory for the {} case `{}`, written by granval {}.\n\n",
+        exp.kind(),
+        exp.name(),
+        env!("CARGO_PKG_VERSION")
+    );
+    s += &format!(
+        "case.toml is the case file, copied: `granval analyze` reads it. {}\n\n",
+        if units.iter().all(|u| u.is_empty()) {
+            "The deck is in this directory.".to_string()
+        } else {
+            format!(
+                "Run directories, one independent run (one variant of the case) each: {}.",
+                dirs.join(", ")
+            )
+        }
+    );
+    s += "Inputs (in each run directory)\n";
+    s += &format!(
+        "  {:<16} the {engine} input deck: commented block by block, read it first\n",
+        f.deck
+    );
+    for (name, what) in f.inputs {
+        s += &format!("  {name:<16} {what}\n");
+    }
+    s += "\nRun (in each run directory; the inputs are found relative to it)\n";
+    s += &format!(
+        "  one core:     {} -in {} -log {}\n",
+        f.binary, f.deck, f.log
+    );
+    s += &format!(
+        "  {np} MPI ranks:  mpirun -np {np} {} -in {} -log {}\n",
+        f.binary, f.deck, f.log
+    );
+    s += &format!(
+        "  (add --allow-run-as-root to mpirun when running as root; the executable may be \
+         called differently on your cluster, e.g. lmp_mpi. Another rank count changes the \
+         round-off, which a granular flow amplifies: to reproduce `granval compare --np N` \
+         bit for bit, run with the same N)\n  for every run directory: for d in {}; do (cd $d && {} -in {} -log {}); done\n",
+        dirs.join(" "),
+        f.binary,
+        f.deck,
+        f.log
+    );
+    s += "\nExpected outputs (in each run directory)\n";
+    for (name, what) in f.outputs {
+        s += &format!("  {name:<16} {what}\n");
+    }
+    s += "\nBring it back\n  Copy the whole directory back (inputs and outputs) and run\n\n    \
+         granval analyze DIR --report OUT\n\n  It checks that every run completed and that \
+         its inputs are the ones granval writes for case.toml (comments and number notation \
+         aside: edit the case, not the deck), runs granval's native engine on the same \
+         input and writes the same report as `granval compare case.toml --report OUT`.\n";
+    s
 }

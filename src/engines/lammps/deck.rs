@@ -10,6 +10,7 @@
 //! not integrated; grains and a disk intruder are `fix nve/sphere disc` (I = m r^2/2);
 //! a cluster intruder is `fix rigid single` with all torque components off.
 
+use crate::engines::deck_text::{Header, approx, block, comment, num, write_header};
 use crate::physics::dem2d::{Role, System, sphere_volume};
 use anyhow::{Result, bail};
 use std::fmt::Write as _;
@@ -28,6 +29,9 @@ pub struct Outputs {
     pub intruder_every: u64,
     /// Full per-disk snapshot every this many steps (0: none).
     pub snapshot_every: u64,
+    /// Title and leading paragraphs of the deck's header (the case, its units); the deck
+    /// adds what it runs and writes.
+    pub header: Header,
 }
 
 /// Number of a LAMMPS atom type (1-based) for a 0-based native type.
@@ -60,39 +64,76 @@ fn id_ranges(mut ids: Vec<u64>) -> String {
 /// `read_data` file: `atom_style sphere` lines `id type diameter density x y z`, with
 /// density = mass / (4/3 pi r^3) because LAMMPS converts it back with the sphere
 /// volume (also in 2D); velocities in a `Velocities` section (`id vx vy vz wx wy wz`).
+/// Every number in [`num`] (shortest round-trip).
 pub fn write_data(sys: &System) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "granval impact2d bed (SI units)\n");
+    let _ = writeln!(
+        s,
+        "granval impact2d bed (SI units); Atoms: id type diameter density(= mass / (4/3 pi r^3)) x y z, Velocities: id vx vy vz wx wy wz\n"
+    );
     let _ = writeln!(s, "{} atoms", sys.disks.len());
     let _ = writeln!(s, "{} atom types\n", sys.n_types);
     let (lo, hi) = (sys.bx.lo, sys.bx.hi);
-    let _ = writeln!(s, "{:e} {:e} xlo xhi", lo[0], hi[0]);
-    let _ = writeln!(s, "{:e} {:e} ylo yhi", lo[1], hi[1]);
+    let _ = writeln!(s, "{} {} xlo xhi", num(lo[0]), num(hi[0]));
+    let _ = writeln!(s, "{} {} ylo yhi", num(lo[1]), num(hi[1]));
     // z is inert in 2D, but LAMMPS' binning refuses a z extent far below the cutoff.
     let zh = sys.disks.iter().map(|d| d.radius).fold(0.0, f64::max) * 2.0 + sys.skin;
-    let _ = writeln!(s, "{:e} {:e} zlo zhi\n", -zh, zh);
+    let _ = writeln!(s, "{} {} zlo zhi\n", num(-zh), num(zh));
     let _ = writeln!(s, "Atoms # sphere\n");
     for d in &sys.disks {
         let density = d.mass / sphere_volume(d.radius);
         let _ = writeln!(
             s,
-            "{} {} {:e} {:e} {:e} {:e} 0",
+            "{} {} {} {} {} {} 0",
             d.id,
             ty(d.type_),
-            2.0 * d.radius,
-            density,
-            d.x[0],
-            d.x[1]
+            num(2.0 * d.radius),
+            num(density),
+            num(d.x[0]),
+            num(d.x[1])
         );
     }
     let _ = writeln!(s, "\nVelocities\n");
     for d in &sys.disks {
-        let _ = writeln!(s, "{} {:e} {:e} 0 0 0 {:e}", d.id, d.v[0], d.v[1], d.omega);
+        let _ = writeln!(
+            s,
+            "{} {} {} 0 0 0 {}",
+            d.id,
+            num(d.v[0]),
+            num(d.v[1]),
+            num(d.omega)
+        );
     }
     s
 }
 
-/// The input deck. `System::dt`, gravity and skin are used as they are.
+/// What the disks of each type are, from their roles: walls (frozen), intruder, grains.
+fn type_names(sys: &System) -> Vec<String> {
+    (0..sys.n_types)
+        .map(|t| {
+            let of: Vec<usize> = (0..sys.disks.len())
+                .filter(|&k| sys.disks[k].type_ == t)
+                .collect();
+            let frozen = of
+                .iter()
+                .filter(|&&k| sys.disks[k].role == Role::Frozen)
+                .count();
+            let intr = of.iter().filter(|k| sys.intruder.contains(k)).count();
+            if of.is_empty() {
+                "unused".to_string()
+            } else if frozen == of.len() {
+                format!("wall disks ({frozen}, frozen)")
+            } else if intr == of.len() {
+                format!("intruder ({intr} disk(s))")
+            } else {
+                format!("grains ({})", of.len())
+            }
+        })
+        .collect()
+}
+
+/// The input deck, commented block by block. `System::dt`, gravity and skin are used
+/// as they are; the header carries the date (fingerprints ignore comments).
 pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     let n_types = sys.n_types;
     let mut used = vec![false; n_types];
@@ -121,10 +162,78 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     if free.is_empty() && cluster.is_empty() {
         bail!("nothing moves in this system");
     }
+    let names = type_names(sys);
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "# granval impact2d: generated deck, edits are overwritten"
+    let mut paragraphs = out.header.paragraphs.clone();
+    paragraphs.push(format!(
+        "What the run writes: {}{}. {} disks ({} free, {} frozen wall disks{}); {} steps of {} s.",
+        if out.intruder_every > 0 && !intr.is_empty() {
+            format!(
+                "the intruder's centre of mass, velocity and total force every {} steps \
+                 ({INTRUDER_FILE}), ",
+                out.intruder_every
+            )
+        } else {
+            String::new()
+        },
+        if out.snapshot_every > 0 {
+            format!(
+                "every disk every {} steps ({SNAP_FILE}, for the energies)",
+                out.snapshot_every
+            )
+        } else {
+            "no snapshots".to_string()
+        },
+        sys.disks.len(),
+        free.len(),
+        frozen.len(),
+        if cluster.is_empty() {
+            String::new()
+        } else {
+            format!(", {} in the rigid intruder cluster", cluster.len())
+        },
+        out.n_steps,
+        num(sys.dt),
+    ));
+    paragraphs.push(
+        "Units: SI (m, kg, s, N; N/m for spring constants, 1/s for damping rates). 2D disks in \
+         the x-y plane, gravity along -y."
+            .to_string(),
+    );
+    paragraphs.push(format!(
+        "Run it in this directory: `lmp -in {DECK_FILE} -log log.lammps`, or with N MPI \
+         processes `mpirun -np N lmp -in {DECK_FILE} -log log.lammps`; then `granval analyze \
+         DIR` (README.txt)."
+    ));
+    write_header(
+        &mut s,
+        &Header {
+            title: if out.header.title.is_empty() {
+                format!("granval 2D disk deck: LAMMPS input ({DECK_FILE})")
+            } else {
+                out.header.title.clone()
+            },
+            paragraphs,
+        },
+    );
+
+    block(
+        &mut s,
+        &format!(
+            "---- Box and atoms ----\n\
+             SI units, `dimension 2`. `atom_style sphere`: each disk has a diameter, a density \
+             and an angular velocity; LAMMPS' density convention: read_data turns the density \
+             into a mass with the sphere volume 4/3 pi r^3 even in 2D, so {DATA_FILE} holds \
+             density = m / (4/3 pi r^3) and LAMMPS recovers each disk's mass m exactly. Atoms \
+             are looked up by ID in an array (`map array`). Boundaries: {} in x, fixed in y \
+             (the bed lies between two rows of frozen wall disks), periodic in the inert z. \
+             `comm_modify vel yes`: ghost atoms carry velocities, which the damping needs.",
+            if sys.bx.periodic_x {
+                "periodic (Kondic et al. Sec. II)"
+            } else {
+                "fixed"
+            }
+        ),
     );
     let _ = writeln!(
         s,
@@ -136,7 +245,27 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         if sys.bx.periodic_x { "p" } else { "f" }
     );
     let _ = writeln!(s, "comm_modify vel yes");
+    comment(
+        &mut s,
+        &format!(
+            "The disks, exactly as granval's native engine holds them (same bed, walls and \
+             intruder, so both engines start from the same state): per disk its id, type, \
+             diameter (m), density (kg/m^3, see above), position (m); velocities (m/s) and \
+             angular velocity (rad/s). Types: {}.",
+            names
+                .iter()
+                .enumerate()
+                .map(|(t, n)| format!("{} = {n}", t + 1))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    );
     let _ = writeln!(s, "read_data {DATA_FILE}");
+    comment(
+        &mut s,
+        "Groups: the integrated disks (free), the frozen wall disks (walls), the intruder \
+         (intr).",
+    );
     let _ = writeln!(s, "group free id {}", id_ranges(free.clone()));
     if !frozen.is_empty() {
         let _ = writeln!(s, "group walls id {}", id_ranges(frozen.clone()));
@@ -144,7 +273,27 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     if !intr.is_empty() {
         let _ = writeln!(s, "group intr id {}", id_ranges(intr.clone()));
     }
-    let _ = writeln!(s, "neighbor {:e} bin", sys.skin);
+    let mut why = Vec::new();
+    if !frozen.is_empty() {
+        why.push("wall-wall pairs (they never move)");
+    }
+    if !cluster.is_empty() {
+        why.push("pairs inside the rigid intruder");
+    }
+    block(
+        &mut s,
+        &format!(
+            "Neighbour lists: skin {} m, checked every step, rebuilt when a disk has moved \
+             more than half the skin.{}",
+            num(sys.skin),
+            if why.is_empty() {
+                String::new()
+            } else {
+                format!(" Excluded: {}.", why.join(", "))
+            }
+        ),
+    );
+    let _ = writeln!(s, "neighbor {} bin", num(sys.skin));
     let mut nm = "neigh_modify delay 0 every 1 check yes".to_string();
     if !frozen.is_empty() {
         nm += " exclude group walls walls";
@@ -171,22 +320,57 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         }
     };
     let count = |name: &str| pairs.iter().filter(|&&(a, b)| style(a, b) == name).count();
+    let mut text = String::from(
+        "---- Contact law (Kondic et al. Sec. II, eqs 1-2) ----\n\
+         Linear spring-dashpot normal force F_n = k_n x - gamma_n m_eff v_n, with gamma_n = -2 \
+         ln(e_n) / tau_c; Cundall-Strack tangential spring k_t with Coulomb cap mu |F_n| and \
+         damping gamma_t = gamma_n / 2 (`gran/hooke/history`, k_t = 0.8 k_n: K's model 1, \
+         static friction), or damping only (`gran/hooke`, k_t = 0: K's model 2, kinetic \
+         friction; `gran/hooke/history` would divide by k_t). One `gran/*` style has a single \
+         coefficient set, so each interacting type pair gets its own instance under `pair_style \
+         hybrid`, in this order (pair_coeff below numbers the instances of one style). \
+         Arguments: k_n (N/m), k_t (N/m), gamma_n (1/s), gamma_t (1/s), mu, dampflag 1 \
+         (tangential damping on).",
+    );
+    for (k, &(a, b)) in pairs.iter().enumerate() {
+        let c = &sys.coeffs[a * n_types + b];
+        text += &format!(
+            "\n{}. Types {}-{} ({} / {}): {}, k_n {} N/m, k_t {} N/m, gamma_n {} 1/s, gamma_t \
+             {} 1/s, mu {}.",
+            k + 1,
+            ty(a),
+            ty(b),
+            names[a],
+            names[b],
+            style(a, b),
+            approx(c.kn),
+            approx(c.kt),
+            approx(c.gamma_n),
+            approx(c.gamma_t),
+            approx(c.mu)
+        );
+    }
+    block(&mut s, &text);
     let mut args = String::from("pair_style hybrid");
     for &(a, b) in &pairs {
         let c = &sys.coeffs[a * n_types + b];
         // dampflag 1: tangential damping on (gamma_t given explicitly).
         let _ = write!(
             args,
-            " {} {:e} {:e} {:e} {:e} {:e} 1",
+            " &\n  {} {} {} {} {} {} 1",
             style(a, b),
-            c.kn,
-            c.kt,
-            c.gamma_n,
-            c.gamma_t,
-            c.mu
+            num(c.kn),
+            num(c.kt),
+            num(c.gamma_n),
+            num(c.gamma_t),
+            num(c.mu)
         );
     }
     let _ = writeln!(s, "{args}");
+    comment(
+        &mut s,
+        "Which instance acts on which type pair (`none`: pairs that never meet).",
+    );
     let mut seen = std::collections::HashMap::<&str, usize>::new();
     for a in 0..n_types {
         for b in a..n_types {
@@ -205,8 +389,31 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             }
         }
     }
-    let _ = writeln!(s, "timestep {:e}", sys.dt);
-    let _ = writeln!(s, "fix grav all gravity {:e} vector 0 -1 0", sys.gravity);
+    block(
+        &mut s,
+        &format!(
+            "---- Time integration ----\n\
+             Time step {} s; gravity {} m/s^2 along -y. Free disks (and a single-disk \
+             intruder): velocity Verlet for disks (`nve/sphere disc`: moment of inertia m r^2 \
+             / 2).{}{} `enforce2d` zeroes the out-of-plane components.",
+            num(sys.dt),
+            num(sys.gravity),
+            if cluster.is_empty() {
+                ""
+            } else {
+                " The intruder cluster moves as one rigid body without rotation (`rigid single`, \
+                 torque off: Kondic et al. Sec. III A)."
+            },
+            if frozen.is_empty() {
+                ""
+            } else {
+                " Wall disks never move (`freeze`; LAMMPS then takes the mobile disk's mass as \
+                 m_eff, as the native engine does)."
+            }
+        ),
+    );
+    let _ = writeln!(s, "timestep {}", num(sys.dt));
+    let _ = writeln!(s, "fix grav all gravity {} vector 0 -1 0", num(sys.gravity));
     let _ = writeln!(s, "fix integ free nve/sphere disc");
     if !cluster.is_empty() {
         let _ = writeln!(s, "fix rig intr rigid single torque 1 off off off");
@@ -215,7 +422,18 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         let _ = writeln!(s, "fix frz walls freeze");
     }
     let _ = writeln!(s, "fix e2d all enforce2d");
+    block(&mut s, "---- Output ----");
     if out.intruder_every > 0 && !intr.is_empty() {
+        comment(
+            &mut s,
+            &format!(
+                "The measurement: every {} steps (from step 0) the intruder's centre of mass \
+                 (m), velocity (m/s) and total force (N, contacts and gravity) to \
+                 {INTRUDER_FILE}, %.17g (every double reads back exactly). granval turns it \
+                 into the penetration depth D(t) and the final depth (Kondic et al. Figs 2, 8).",
+                out.intruder_every
+            ),
+        );
         for (v, f) in [
             ("ix", "xcm(intr,x)"),
             ("iy", "xcm(intr,y)"),
@@ -233,6 +451,14 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         );
     }
     if out.snapshot_every > 0 {
+        comment(
+            &mut s,
+            &format!(
+                "Every {} steps every disk (id type radius mass x y vx vy omegaz fx fy, %.17g, \
+                 sorted by id) to {SNAP_FILE}: granval computes the energies from it.",
+                out.snapshot_every
+            ),
+        );
         let _ = writeln!(
             s,
             "dump snap all custom {} {SNAP_FILE} id type radius mass x y vx vy omegaz fx fy",
@@ -240,6 +466,15 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         );
         let _ = writeln!(s, "dump_modify snap sort id format float %.17g");
     }
+    comment(
+        &mut s,
+        &format!(
+            "Thermo line every {} steps; then {} steps ({} s).",
+            out.n_steps.clamp(1, 10_000),
+            out.n_steps,
+            approx(sys.dt * out.n_steps as f64)
+        ),
+    );
     let _ = writeln!(
         s,
         "thermo_style custom step atoms\nthermo {}",

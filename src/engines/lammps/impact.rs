@@ -14,21 +14,33 @@ pub struct LammpsImpact {
     pub finished: Finished,
 }
 
+/// Runs the scene in LAMMPS in `dir` ([`Lammps::run`]) and reads its series ([`read`]).
 pub fn run(
     lmp: &Lammps,
     scene: &Scene,
-    n_steps: u64,
-    output_every: u64,
-    energy_every: u64,
+    out: &Outputs,
     model: &EnergyModel,
     dir: &Path,
 ) -> Result<LammpsImpact> {
-    let out = Outputs {
-        n_steps,
-        intruder_every: output_every,
-        snapshot_every: energy_every,
-    };
-    let finished = lmp.run(&scene.sys, &out, dir)?;
+    let finished = lmp.run(&scene.sys, out, dir)?;
+    let (samples, energy) = read(scene, out, model, dir)?;
+    Ok(LammpsImpact {
+        samples,
+        energy,
+        finished,
+    })
+}
+
+/// The intruder samples and energies of a finished run in `dir` (made by granval or by
+/// hand from a deck directory), each series complete or an error.
+pub fn read(
+    scene: &Scene,
+    out: &Outputs,
+    model: &EnergyModel,
+    dir: &Path,
+) -> Result<(Vec<IntruderSample>, Vec<EnergySample>)> {
+    let (n_steps, output_every, energy_every) =
+        (out.n_steps, out.intruder_every, out.snapshot_every);
     let dt = scene.sys.dt;
     // fcm() is contacts + gravity; the observable is the contact force.
     let weight = scene.intruder_mass * scene.sys.gravity;
@@ -75,9 +87,25 @@ pub fn run(
             dir.display()
         );
     }
-    Ok(LammpsImpact {
-        samples,
-        energy,
-        finished,
-    })
+    for (k, s) in samples.iter().enumerate() {
+        if s.step != k as u64 * output_every {
+            bail!(
+                "intruder sample {k} in {} is step {}, expected {}",
+                dir.display(),
+                s.step,
+                k as u64 * output_every
+            );
+        }
+    }
+    for (k, e) in energy.iter().enumerate() {
+        if e.step != k as u64 * energy_every {
+            bail!(
+                "snapshot {k} in {} is step {}, expected {}",
+                dir.display(),
+                e.step,
+                k as u64 * energy_every
+            );
+        }
+    }
+    Ok((samples, energy))
 }

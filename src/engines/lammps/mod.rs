@@ -147,27 +147,86 @@ impl Lammps {
         if !log.contains("Total wall time") {
             return Err(fail("the log does not end with `Total wall time`: LAMMPS stopped early or wrote nothing".into()));
         }
-        let mut wanted = Vec::new();
-        if out.intruder_every > 0 && !sys.intruder.is_empty() {
-            wanted.push(INTRUDER_FILE);
-        }
-        if out.snapshot_every > 0 {
-            wanted.push(SNAP_FILE);
-        }
-        for f in wanted {
-            match std::fs::metadata(dir.join(f)) {
-                Ok(m) if m.len() > 0 => {}
-                _ => return Err(fail(format!("{f} is missing or empty"))),
-            }
+        if let Some(why) = missing_output(sys, out, dir) {
+            return Err(fail(why));
         }
         let version = tr.version(VERSION_PREFIX);
         Ok(Finished {
             dir: dir.to_path_buf(),
             version,
             command,
-            input_hash: Sha256::of(format!("{deck}{data}").as_bytes()),
+            input_hash: crate::engines::deck_text::fingerprint(&[&deck, &data]),
             wall_time_s: fin.wall_time_s,
             warnings: tr.warnings(),
         })
     }
+}
+
+/// Which output `out` asks for is missing or empty in `dir`, if any.
+fn missing_output(sys: &System, out: &Outputs, dir: &Path) -> Option<String> {
+    let mut wanted = Vec::new();
+    if out.intruder_every > 0 && !sys.intruder.is_empty() {
+        wanted.push(INTRUDER_FILE);
+    }
+    if out.snapshot_every > 0 {
+        wanted.push(SNAP_FILE);
+    }
+    wanted
+        .into_iter()
+        .find_map(|f| match std::fs::metadata(dir.join(f)) {
+            Ok(m) if m.len() > 0 => None,
+            _ => Some(format!("{} is missing or empty", dir.join(f).display())),
+        })
+}
+
+/// A run made by hand in `dir` (a `granval deck` directory run here or on a cluster),
+/// checked as [`Lammps::run`] checks its own: the deck and data file there are the
+/// ones granval writes for `sys` (as LAMMPS reads them), no `ERROR` in the output, the
+/// log ends with `Total wall time`, every output `out` asks for is there.
+pub fn finished(sys: &System, out: &Outputs, dir: &Path) -> Result<Finished> {
+    use crate::engines::deck_text::check_same_input;
+    let (deck, data) = (deck::write_deck(sys, out)?, deck::write_data(sys));
+    check_same_input(dir, DECK_FILE, &deck, false)?;
+    check_same_input(dir, DATA_FILE, &data, true)?;
+    let tr = Transcript::read(TRANSCRIPT, dir);
+    if tr.log.is_empty() {
+        anyhow::bail!(
+            "{}: no {LOG_FILE}: LAMMPS did not run here (run `lmp -in {DECK_FILE} -log {LOG_FILE}` in it first)",
+            dir.display()
+        );
+    }
+    let command = "run outside granval";
+    let fail = |reason: String| tr.failure("LAMMPS run", command, dir, &reason);
+    if !tr.errors.is_empty() {
+        return Err(fail("ERROR in the LAMMPS output".into()));
+    }
+    // LAMMPS writes "Total wall time" to the log as its last line.
+    let Some(wall) = tr
+        .log
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("Total wall time:"))
+    else {
+        return Err(fail(format!(
+            "{LOG_FILE} does not end with `Total wall time`: LAMMPS stopped early (or is still running)"
+        )));
+    };
+    if let Some(why) = missing_output(sys, out, dir) {
+        return Err(fail(why));
+    }
+    let wall_time_s = wall
+        .trim()
+        .split(':')
+        .map(|x| x.parse::<f64>().ok())
+        .collect::<Option<Vec<_>>>()
+        .map(|p| p.iter().fold(0.0, |acc, v| acc * 60.0 + v))
+        .unwrap_or(f64::NAN);
+    Ok(Finished {
+        dir: dir.to_path_buf(),
+        version: tr.version(VERSION_PREFIX),
+        command: command.into(),
+        input_hash: crate::engines::deck_text::fingerprint(&[&deck, &data]),
+        wall_time_s,
+        warnings: tr.warnings(),
+    })
 }

@@ -133,7 +133,7 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
     writeln!(s, "communicate single vel yes")?;
     writeln!(s, "processors 1 1 1")?;
     let (soft, hard) = super::deck::hardness(&case.materials);
-    write_hardness(&mut s, soft, hard)?;
+    write_hardness(&mut s, &case.materials, soft, hard)?;
     writeln!(
         s,
         "region domain block {} {} {} {} {} {} units box",
@@ -147,7 +147,14 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
     writeln!(s, "create_box {n} domain")?;
     writeln!(s, "neighbor {} bin", f(case.neighbor_skin))?;
     writeln!(s, "neigh_modify delay 0")?;
-    write_contact_model(&mut s, &case.materials, &case.pairs, case.rolling, 1.0)?;
+    write_contact_model(
+        &mut s,
+        &case.materials,
+        &case.pairs,
+        case.rolling,
+        1.0,
+        "Pa",
+    )?;
     writeln!(s, "timestep {}", f(case.dt))?;
     let g = case.gravity;
     let gmag = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();

@@ -1,10 +1,12 @@
 //! The LIGGGHTS 3.8 input deck and `read_data` file for a [`Case`]. Pure text
 //! generation: nothing here runs LIGGGHTS, so `granval deck` and tests can use it.
 //!
-//! Every float is written with Rust's `{:e}` (shortest round-trip representation), so
-//! LIGGGHTS parses back exactly the f64 the case holds: the deck carries no rounding.
+//! Every float is written with [`deck_text::num`] (shortest round-trip representation,
+//! plain notation), so LIGGGHTS parses back exactly the f64 the case holds: the deck
+//! carries no rounding. Every block is commented with what it does and its source.
 
 use crate::case::{Case, Material, PairTable, Particle, RollingModel, Wall};
+use crate::engines::deck_text;
 use anyhow::{Result, bail};
 use std::fmt::Write;
 
@@ -26,13 +28,14 @@ pub const DUMP_COLUMNS: [&str; 13] = [
 /// table, so the deck switches to `map hash` (same physics, slower lookups).
 const MAP_ARRAY_MAX_ID: u64 = 10_000_000;
 
-/// Full-precision (shortest round-trip) number for a deck or data file.
+/// Full-precision (shortest round-trip) number for a deck or data file, in plain
+/// notation where that is readable ([`deck_text::num`]).
 pub(super) fn f(x: f64) -> String {
-    format!("{x:e}")
+    deck_text::num(x)
 }
 
 pub(super) fn join(xs: impl IntoIterator<Item = f64>) -> String {
-    xs.into_iter().map(f).collect::<Vec<_>>().join(" ")
+    deck_text::nums(xs)
 }
 
 /// `model hertz tangential history [rolling_friction K]`: pair_style and every
@@ -45,16 +48,71 @@ pub(super) fn model_keywords(rolling: RollingModel) -> String {
     format!("model hertz tangential history{r}")
 }
 
+/// The order LIGGGHTS reads a `peratomtypepair` table in: `1-1 1-2 ... n-n`, row by row.
+fn pair_order(n: usize) -> String {
+    let mut v = Vec::new();
+    for a in 1..=n {
+        for b in 1..=n {
+            v.push(format!("{a}-{b}"));
+        }
+    }
+    v.join(" ")
+}
+
+/// What the contact law of `pair_style gran` computes, with its sources.
+pub(super) fn contact_law_text(rolling: RollingModel) -> String {
+    let rolling_text = match rolling {
+        RollingModel::None => "no rolling resistance".to_string(),
+        RollingModel::Cdt => {
+            "rolling resistance `rolling_friction cdt`: a constant directional torque \
+             mu_r k_n delta_n R* opposing the relative rotation, without torsion (Feng et al. eq 4)"
+                .to_string()
+        }
+        RollingModel::Epsd2 => {
+            "rolling resistance `rolling_friction epsd2`: an elastic-plastic spring \
+             of stiffness k_t R*^2 on the relative rotation, its torque capped at mu_r |F_n| R*"
+                .to_string()
+        }
+    };
+    format!(
+        "Contact law of every grain-grain and grain-wall contact (LIGGGHTS 3.8 `pair_style gran`; \
+         Feng et al. eqs 2-4 and Table 1, as granval's native engine computes it): Hertz normal \
+         force with damping, `model hertz` (eq 2: k_n = 4/3 E* sqrt(R* delta_n), damping \
+         2 sqrt(5/6) beta sqrt(S_n m*) with beta = ln e / sqrt(ln^2 e + pi^2) from the \
+         restitution e); Mindlin tangential spring 8 G* sqrt(R* delta_n) with shear history, \
+         capped at Coulomb friction mu |F_n| and damped only while sticking, `tangential \
+         history` (eq 3); {rolling_text}. E*, G*, R*, m*: the effective Young's and shear \
+         moduli, radius and mass of the pair."
+    )
+}
+
 /// Material property/global fixes, pair style and pair_coeff, shared by every granval
-/// deck. `pressure` converts Pa into the deck's units (1 for SI).
+/// deck, each block commented. `pressure` converts Pa into the deck's units (1 for SI),
+/// `pressure_unit` names that unit.
 pub(super) fn write_contact_model(
     s: &mut String,
     materials: &[Material],
     pairs: &PairTable,
     rolling: RollingModel,
     pressure: f64,
+    pressure_unit: &str,
 ) -> std::fmt::Result {
     let n = materials.len();
+    deck_text::block(
+        s,
+        &format!(
+            "---- Materials (the case's [[materials]] and [[interactions]]) ----\n\
+             Young's modulus E ({pressure_unit}) and Poisson's ratio nu of atom types 1..{n}, then per \
+             type pair ({}) the coefficient of restitution e, the sliding friction mu{}. \
+             Written exactly as the case file gives them; never rescaled.",
+            pair_order(n),
+            if rolling.liggghts_keyword().is_some() {
+                " and the rolling friction mu_r"
+            } else {
+                ""
+            }
+        ),
+    );
     writeln!(
         s,
         "fix m1 all property/global youngsModulus peratomtype {}",
@@ -82,6 +140,7 @@ pub(super) fn write_contact_model(
             join(pairs.rolling_friction.iter().copied())
         )?;
     }
+    deck_text::block(s, &contact_law_text(rolling));
     writeln!(s, "pair_style gran {}", model_keywords(rolling))?;
     writeln!(s, "pair_coeff * *")
 }
@@ -100,20 +159,50 @@ pub fn hardness(materials: &[Material]) -> (bool, bool) {
     (soft, hard)
 }
 
-/// The switch lines of [`hardness`], each with the comment that says why.
-pub(super) fn write_hardness(s: &mut String, soft: bool, hard: bool) -> std::fmt::Result {
+/// The switch lines of [`hardness`], each with the comment that says why: which types'
+/// Young's modulus lies outside LIGGGHTS' accepted range. `pressure`/`unit`: the deck's
+/// pressure unit (1, "Pa" in SI).
+pub(super) fn write_hardness(
+    s: &mut String,
+    materials: &[Material],
+    soft: bool,
+    hard: bool,
+) -> std::fmt::Result {
+    let which = |pick: &dyn Fn(f64) -> bool| {
+        let v: Vec<String> = materials
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| pick(m.youngs_modulus))
+            .map(|(t, m)| format!("type {} has E = {} Pa", t + 1, f(m.youngs_modulus)))
+            .collect();
+        if v.is_empty() {
+            "set on request (no type needs it)".to_string()
+        } else {
+            v.join(", ")
+        }
+    };
     if soft {
-        writeln!(
+        deck_text::block(
             s,
-            "# disables LIGGGHTS' youngsModulus >= 5e6 Pa range check; materials are unchanged"
-        )?;
+            &format!(
+                "soft_particles yes: {}, below the 5e6 Pa LIGGGHTS 3.8 accepts by default (in SI \
+                 and cgs alike). The switch only disables that range check: the material is \
+                 written unchanged, and so is the contact law.",
+                which(&|e| e < MIN_YOUNGS_MODULUS_SI)
+            ),
+        );
         writeln!(s, "soft_particles yes")?;
     }
     if hard {
-        writeln!(
+        deck_text::block(
             s,
-            "# disables LIGGGHTS' youngsModulus <= 1e9 Pa range check; materials are unchanged"
-        )?;
+            &format!(
+                "hard_particles yes: {}, above the 1e9 Pa LIGGGHTS 3.8 accepts by default. The \
+                 switch only disables that range check: the material is written unchanged, and \
+                 so is the contact law.",
+                which(&|e| e > MAX_YOUNGS_MODULUS_SI)
+            ),
+        );
         writeln!(s, "hard_particles yes")?;
     }
     Ok(())
@@ -156,7 +245,7 @@ pub(super) fn data_text(
     // The first line of a data file is always skipped by read_data.
     let _ = writeln!(
         s,
-        "LIGGGHTS data file written by granval: {}",
+        "LIGGGHTS data file written by granval: {}; Atoms: atom-ID type diameter density x y z, Velocities: atom-ID vx vy vz omegax omegay omegaz",
         comment_safe(title)
     );
     let _ = writeln!(s);
@@ -263,8 +352,10 @@ pub fn write_data_file(case: &Case) -> Result<String> {
     ))
 }
 
-/// The input deck. `dump_file` and `data_file` are written into the deck verbatim
-/// (relative names resolve against the directory LIGGGHTS runs in).
+/// The input deck, commented block by block. `dump_file` and `data_file` are written
+/// into the deck verbatim (relative names resolve against the directory LIGGGHTS runs
+/// in). The header carries the date; [`crate::engines::deck_text::fingerprint`] ignores
+/// it.
 pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<String> {
     check_liggghts_limits(case)?;
     for (what, name) in [("dump file", dump_file), ("data file", data_file)] {
@@ -278,7 +369,6 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
             );
         }
     }
-    let n = case.n_types();
     let models = model_keywords(case.rolling);
     let max_id = case.particles.iter().map(|p| p.id).max().unwrap_or(0);
     let map = if max_id > MAP_ARRAY_MAX_ID {
@@ -286,60 +376,171 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
     } else {
         "array"
     };
+    let duration = case.dt * case.n_steps as f64;
+    let every_s = case.dt * case.output_every as f64;
 
     let mut s = String::new();
-    writeln!(
-        s,
-        "# LIGGGHTS 3.8 input written by granval for case {}",
-        comment_safe(&case.name)
-    )?;
-    writeln!(
-        s,
-        "# {} particles, {} atom types, {} steps of {} s, output every {} steps",
-        case.particles.len(),
-        n,
-        case.n_steps,
-        f(case.dt),
-        case.output_every
-    )?;
+    deck_text::write_header(
+        &mut s,
+        &deck_text::Header {
+            title: format!(
+                "granval micro case `{}`: LIGGGHTS 3.8 input deck ({})",
+                deck_text::safe(&case.name),
+                super::DECK_FILE
+            ),
+            paragraphs: vec![
+                deck_text::safe(&case.description),
+                format!(
+                    "What the run measures: the trajectory of every particle ({} particle(s), {} \
+                     wall(s)), written to {dump_file} every {} steps ({} s): position, velocity, \
+                     angular velocity and force. granval runs the same case in its native engine \
+                     and compares the two frame by frame: position to {} r_min, velocity and \
+                     angular velocity to {} of their largest reference value.",
+                    case.particles.len(),
+                    case.walls.len(),
+                    case.output_every,
+                    deck_text::approx(every_s),
+                    f(case.tolerances.position_frac_radius),
+                    f(case.tolerances.velocity_rel),
+                ),
+                format!(
+                    "Units: SI throughout (m, kg, s, N, Pa; rad/s). {} steps of {} s = {} s; the \
+                     time step is {} % of the Rayleigh time {} s of the most critical particle \
+                     (Feng et al. Sec. 2).",
+                    case.n_steps,
+                    f(case.dt),
+                    deck_text::approx(duration),
+                    deck_text::approx(100.0 * case.dt / case.rayleigh_time),
+                    deck_text::approx(case.rayleigh_time),
+                ),
+                format!(
+                    "Run it in this directory: `liggghts -in {} -log log.liggghts`, or with N MPI \
+                     processes `mpirun -np N liggghts -in {} -log log.liggghts`; then \
+                     `granval analyze DIR` (README.txt).",
+                    super::DECK_FILE,
+                    super::DECK_FILE
+                ),
+            ],
+        },
+    );
+
+    deck_text::block(
+        &mut s,
+        "---- Box, atoms, parallel layout ----\n\
+         SI units. `atom_style granular`: every atom is a sphere with a diameter, a density \
+         (its mass follows) and an angular velocity. Atoms are looked up by ID in an array \
+         (`map array`; a hash above 10 million IDs). `boundary f f f`: a closed box, the \
+         case's [domain]; a particle that leaves it stops the run (thermo_modify below).",
+    );
     writeln!(s, "units si")?;
     writeln!(s, "atom_style granular")?;
     writeln!(s, "atom_modify map {map}")?;
     writeln!(s, "boundary f f f")?;
+    deck_text::comment(
+        &mut s,
+        "`newton off`: LIGGGHTS' granular pair style with shear history requires it (a pair \
+         split between two MPI processes is computed on both). `communicate single vel yes`: \
+         ghost atoms carry velocities, which the damping and tangential forces need. \
+         `processors * * *`: LIGGGHTS chooses the MPI grid (matters only under mpirun; the \
+         results do not depend on it beyond round-off).",
+    );
     writeln!(s, "newton off")?;
     writeln!(s, "communicate single vel yes")?;
     writeln!(s, "processors * * *")?;
     let (soft, hard) = hardness(&case.materials);
-    write_hardness(&mut s, soft, hard)?;
+    write_hardness(&mut s, &case.materials, soft, hard)?;
+    deck_text::block(
+        &mut s,
+        &format!(
+            "The particles, exactly as the case's [[particles]] give them: {data_file} holds the \
+             box (m), and per atom its ID, type, diameter (m), density (kg/m^3), position (m), \
+             velocity (m/s) and angular velocity (rad/s)."
+        ),
+    );
     writeln!(s, "read_data {data_file}")?;
+    deck_text::block(
+        &mut s,
+        &format!(
+            "Neighbour lists: skin {} m (the case's neighbor_skin; default half the smallest \
+             radius), rebuilt whenever a particle has moved more than half the skin since the \
+             last build. It changes the cost, not the physics.",
+            f(case.neighbor_skin)
+        ),
+    );
     writeln!(s, "neighbor {} bin", f(case.neighbor_skin))?;
     writeln!(s, "neigh_modify delay 0")?;
 
-    write_contact_model(&mut s, &case.materials, &case.pairs, case.rolling, 1.0)?;
+    write_contact_model(
+        &mut s,
+        &case.materials,
+        &case.pairs,
+        case.rolling,
+        1.0,
+        "Pa",
+    )?;
+
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Time integration ----\n\
+             Time step {} s (the case's dt).",
+            f(case.dt)
+        ),
+    );
     writeln!(s, "timestep {}", f(case.dt))?;
 
     let g = case.gravity;
     let gmag = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
     if gmag > 0.0 {
+        deck_text::comment(
+            &mut s,
+            &format!(
+                "Gravity: {} m/s^2 along ({}) (the case's simulation.gravity).",
+                f(gmag),
+                join(g)
+            ),
+        );
         writeln!(s, "fix gravi all gravity {} vector {}", f(gmag), join(g))?;
     }
 
     for (k, w) in case.walls.iter().enumerate() {
-        let prim = match w {
-            Wall::Plane { axis, position, .. } => format!("{}plane {}", axis.name(), f(*position)),
+        let (prim, what) = match w {
+            Wall::Plane { axis, position, .. } => (
+                format!("{}plane {}", axis.name(), f(*position)),
+                format!("the plane {} = {} m", axis.name(), f(*position)),
+            ),
             Wall::Cylinder {
                 axis,
                 radius,
                 center,
                 ..
-            } => format!(
-                "{}cylinder {} {} {}",
-                axis.name(),
-                f(*radius),
-                f(center[0]),
-                f(center[1])
+            } => (
+                format!(
+                    "{}cylinder {} {} {}",
+                    axis.name(),
+                    f(*radius),
+                    f(center[0]),
+                    f(center[1])
+                ),
+                format!(
+                    "the inside of a cylinder of radius {} m about the {} axis through ({}, {}) m",
+                    f(*radius),
+                    axis.name(),
+                    f(center[0]),
+                    f(center[1])
+                ),
             ),
         };
+        deck_text::comment(
+            &mut s,
+            &format!(
+                "Wall {} ([[walls]] {}): {what}, material type {}, the same contact law as \
+                 between particles.",
+                k + 1,
+                k + 1,
+                w.type_() + 1
+            ),
+        );
         writeln!(
             s,
             "fix w{} all wall/gran {models} primitive type {} {prim}",
@@ -348,26 +549,57 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
         )?;
     }
 
+    deck_text::comment(
+        &mut s,
+        "Velocity Verlet for spheres (`nve/sphere`: half kick, drift, forces, half kick; \
+         moment of inertia 0.4 m r^2).",
+    );
     writeln!(s, "fix integr all nve/sphere")?;
+
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Output ----\n\
+             Thermo line every {} steps (step, atoms, kinetic energy, CPU time). `thermo_modify \
+             lost error`: LIGGGHTS 3.8 would silently drop an atom that leaves the closed box; \
+             the case (and granval's native engine) makes that an error. The check runs at \
+             thermo output, and the last step always has one; it must follow thermo_style, \
+             which resets thermo_modify.",
+            (case.n_steps / 20).max(1)
+        ),
+    );
     writeln!(s, "thermo_style custom step atoms ke cpu")?;
-    // LIGGGHTS 3.8 silently drops atoms that leave a fixed box unless told otherwise;
-    // the case semantics (and the native engine) make leaving the domain an error. The
-    // check runs at thermo output, and the last step of a run always has one. Must come
-    // after thermo_style, which resets thermo_modify settings.
     writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", (case.n_steps / 20).max(1))?;
+    deck_text::comment(
+        &mut s,
+        &format!(
+            "The measured trajectory: every {} steps (from step 0) each particle's id, position \
+             (m), velocity (m/s), angular velocity (rad/s) and force (N), sorted by id, with 17 \
+             significant digits (%.17g: every double reads back exactly). One C format for the \
+             whole line: LIGGGHTS 3.8 has no per-column form.",
+            case.output_every
+        ),
+    );
     writeln!(
         s,
         "dump d all custom {} {dump_file} {}",
         case.output_every,
         DUMP_COLUMNS.join(" ")
     )?;
-    // LIGGGHTS 3.8 takes one C format string for the whole line (no per-column form).
     let fmt = std::iter::once("%d")
         .chain(std::iter::repeat_n("%.17g", DUMP_COLUMNS.len() - 1))
         .collect::<Vec<_>>()
         .join(" ");
     writeln!(s, "dump_modify d sort id format \"{fmt}\"")?;
+    deck_text::block(
+        &mut s,
+        &format!(
+            "{} steps: {} s of simulated time.",
+            case.n_steps,
+            deck_text::approx(duration)
+        ),
+    );
     writeln!(s, "run {}", case.n_steps)?;
     Ok(s)
 }

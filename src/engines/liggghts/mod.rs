@@ -162,11 +162,58 @@ pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
     })
 }
 
-/// sha256 of what LIGGGHTS is given for a micro case (deck and data file): the
-/// fingerprint a recorded reference must match.
+/// The provenance of a micro run made by hand in `dir` (a `granval deck` directory run
+/// here or on a cluster): the deck and data file there are the case's as LIGGGHTS reads
+/// them, neither log nor screen output has an `ERROR`, and the dump holds every frame of
+/// every particle ([`micro`] checks the same after its own runs).
+pub fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
+    for (name, text) in micro_inputs(case)? {
+        crate::engines::deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
+    }
+    let tr = Transcript::read(TRANSCRIPT, dir);
+    if tr.log.is_empty() && tr.stdout.is_empty() {
+        bail!(
+            "{}: neither {LOG_FILE} nor {STDOUT_FILE} exists or has content: LIGGGHTS did not run here (run `liggghts -in {DECK_FILE} -log {LOG_FILE}` in it first)",
+            dir.display()
+        );
+    }
+    if !tr.errors.is_empty() {
+        bail!(
+            "{}: ERROR in the LIGGGHTS output: {}",
+            dir.display(),
+            tr.errors.join(" | ")
+        );
+    }
+    let dump_path = dir.join(DUMP_FILE);
+    if !dump_path.exists() {
+        bail!("{}: no dump was written", dump_path.display());
+    }
+    check_dump(case, &dump_path)?;
+    let mut notes = vec![format!("run directory: {} (run by hand)", dir.display())];
+    notes.extend(hardness_note(&case.materials));
+    notes.extend(tr.warnings());
+    Ok(Provenance {
+        engine: EngineKind::Liggghts,
+        version: tr.version(VERSION_PREFIX),
+        command: "run outside granval".into(),
+        input_hash: micro_input_hash(case)?,
+        date: now_utc(),
+        wall_time_s: penetration::log_wall_time(&tr.log)
+            .or_else(|| penetration::log_wall_time(&tr.stdout))
+            .unwrap_or(f64::NAN),
+        threads: 1,
+        case_file: case.source.display().to_string(),
+        notes,
+    })
+}
+
+/// sha256 of what LIGGGHTS is given for a micro case (deck and data file, comments
+/// left out: [`crate::engines::deck_text::fingerprint`]): the fingerprint a recorded
+/// reference must match.
 pub fn micro_input_hash(case: &Case) -> Result<Sha256> {
-    let text: String = micro_inputs(case)?.into_iter().map(|(_, t)| t).collect();
-    Ok(Sha256::of(text.as_bytes()))
+    let inputs = micro_inputs(case)?;
+    let texts: Vec<&str> = inputs.iter().map(|(_, t)| t.as_str()).collect();
+    Ok(crate::engines::deck_text::fingerprint(&texts))
 }
 
 /// The input files of a micro case: deck and data file, or the clump deck alone (bodies

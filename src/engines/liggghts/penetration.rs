@@ -34,6 +34,7 @@ pub use super::units::{
 pub use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE};
 use super::{TRANSCRIPT, VERSION_PREFIX};
 use crate::case::{Material, PairTable, Particle, RollingModel};
+use crate::engines::deck_text;
 use crate::engines::process::{self, Transcript};
 use crate::rundata::provenance::{EngineKind, Provenance, Sha256, now_utc};
 use anyhow::{Context, Result, bail};
@@ -86,6 +87,9 @@ pub struct PenetrationDeck {
     pub hard_particles: bool,
     /// Settle the bed in LIGGGHTS first (`particles` is then the loose lattice).
     pub settle: Option<Settle>,
+    /// Title and leading paragraphs of the deck's header (the case, its description);
+    /// the deck adds what it measures, its geometry and units.
+    pub header: deck_text::Header,
 }
 
 /// LIGGGHTS-side bed preparation, for beds too large to pour natively (the paper's
@@ -342,58 +346,165 @@ pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
 }
 
 /// [`deck_text`] plus contact/grain dumps at `snapshot_steps` ([`super::snapshot`]);
-/// with no steps the two are byte-identical.
+/// with no steps the two hold the same commands.
 pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> Result<String> {
     validate(d)?;
     let snapshots = super::snapshot::deck_block(snapshot_steps, d.n_steps)?;
     let u = d.units;
     let (l, v) = (u.length(), u.velocity());
+    let (lu, vu) = (u.length_unit(), u.velocity_unit());
     let models = model_keywords(d.rolling);
     let max_id = d.particles.iter().map(|p| p.id).max().unwrap_or(0);
     let map = if max_id > 10_000_000 { "hash" } else { "array" };
+    let travel = d.speed * d.dt * d.n_steps as f64;
 
     let mut s = String::new();
-    writeln!(
-        s,
-        "# LIGGGHTS 3.8 penetration deck written by granval (units {})",
-        u.names()
-    )?;
-    writeln!(
-        s,
-        "# {} grains; intruder R = {} m, L = {} m, type {}, bottom at z = {} m, speed {} m/s down; {} steps of {} s",
+    let mut paragraphs = d.header.paragraphs.clone();
+    paragraphs.push(format!(
+        "What the run measures: the force of the grains on a flat-bottomed cylindrical \
+         intruder driven down at constant speed into a settled bed, and the height of the \
+         intruder's bottom face, every {} steps ({FORCE_FILE}). granval reduces them to the \
+         dimensionless force-depth relation p = F / (rho_g psi g S R) against h / R (Feng et al. \
+         eq 5) and fits its steady-state slope K_phi (regime C, Table 3).",
+        d.force_every
+    ));
+    paragraphs.push(format!(
+        "Geometry (SI): {} grains {} in a cylindrical container of radius {} m about the z axis, \
+         floor at z = {} m; intruder radius {} m, length {} m, {}; speed {} m/s down for {} steps \
+         of {} s (travel {} m).",
         d.particles.len(),
+        if d.settle.is_some() {
+            "poured as a loose lattice and settled by this deck"
+        } else {
+            "settled by granval's native engine"
+        },
+        f(d.container_radius),
+        f(d.floor_z),
         f(d.intruder_radius),
         f(d.intruder_length),
-        d.intruder_type + 1,
-        f(d.intruder_bottom_z0),
+        if d.settle.is_some() {
+            "its bottom placed just above the settled bed".to_string()
+        } else {
+            format!("its bottom starting at z = {} m", f(d.intruder_bottom_z0))
+        },
         f(d.speed),
         d.n_steps,
-        f(d.dt)
-    )?;
+        f(d.dt),
+        deck_text::approx(travel),
+    ));
+    paragraphs.push(format!(
+        "Units of this deck: {}{}.",
+        u.names(),
+        if u == Units::Si {
+            String::new()
+        } else {
+            format!(
+                " (lengths {lu}, velocities {vu}, densities {}, pressures {}); granval converts \
+                 every input from SI and the outputs back",
+                u.density_unit(),
+                u.pressure_unit()
+            )
+        }
+    ));
+    paragraphs.push(format!(
+        "Run it in this directory: `liggghts -in {DECK_FILE} -log {LOG_FILE}`, or with N MPI \
+         processes `mpirun -np N liggghts -in {DECK_FILE} -log {LOG_FILE}`; then `granval \
+         analyze DIR` (README.md)."
+    ));
+    deck_text::write_header(
+        &mut s,
+        &deck_text::Header {
+            title: if d.header.title.is_empty() {
+                format!("granval penetration deck: LIGGGHTS 3.8 input ({DECK_FILE})")
+            } else {
+                d.header.title.clone()
+            },
+            paragraphs,
+        },
+    );
+
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Box, atoms, parallel layout ----\n\
+             Units `{}`. `atom_style granular`: every atom is a sphere with a diameter, a density \
+             (its mass follows) and an angular velocity; atoms are looked up by ID in an array \
+             (`map array`; a hash above 10 million IDs). `boundary f f f`: a closed box; a grain \
+             that leaves it stops the run (thermo_modify below).",
+            u.keyword()
+        ),
+    );
     writeln!(s, "units {}", u.keyword())?;
     writeln!(s, "atom_style granular")?;
     writeln!(s, "atom_modify map {map}")?;
     writeln!(s, "boundary f f f")?;
+    deck_text::comment(
+        &mut s,
+        "`newton off`: LIGGGHTS' granular pair style with shear history requires it (a pair \
+         split between two MPI processes is computed on both). `communicate single vel yes`: \
+         ghost atoms carry velocities, which the damping and tangential forces need. \
+         `processors * * 1`: the bed fills only the lower part of a tall box, and LIGGGHTS' \
+         default grid would split z first and leave every grain on one process; so only x and \
+         y are divided among the MPI processes.",
+    );
     writeln!(s, "newton off")?;
     writeln!(s, "communicate single vel yes")?;
-    // The bed fills the lower part of a tall box: LIGGGHTS' default grid splits z
-    // first and leaves the grains on one rank, so only x and y are decomposed.
     writeln!(s, "processors * * 1")?;
-    super::deck::write_hardness(&mut s, d.soft_particles, d.hard_particles)?;
-    writeln!(
-        s,
-        "read_data {}",
-        if d.settle.is_some() {
-            LATTICE_FILE
-        } else {
-            DATA_FILE
-        }
-    )?;
+    super::deck::write_hardness(&mut s, &d.materials, d.soft_particles, d.hard_particles)?;
+    let data = if d.settle.is_some() {
+        LATTICE_FILE
+    } else {
+        DATA_FILE
+    };
+    deck_text::block(
+        &mut s,
+        &format!(
+            "The grains: {data} holds the box ({lu}) and per grain its ID, type, diameter ({lu}), \
+             density ({}), position ({lu}), velocity ({vu}) and angular velocity (rad/s){}.",
+            u.density_unit(),
+            if d.settle.is_some() {
+                ": the loose lattice granval's native pour also starts from"
+            } else {
+                ": the bed granval's native engine poured and settled (Feng et al. Sec. 2), \
+                 exactly, so both engines penetrate the very same grains"
+            }
+        ),
+    );
+    writeln!(s, "read_data {data}")?;
+    deck_text::block(
+        &mut s,
+        &format!(
+            "Neighbour lists: skin {} {lu} (the case's neighbor_skin), rebuilt whenever a grain \
+             has moved more than half the skin since the last build. It changes the cost, not \
+             the physics.",
+            f(d.neighbor_skin * l)
+        ),
+    );
     writeln!(s, "neighbor {} bin", f(d.neighbor_skin * l))?;
     writeln!(s, "neigh_modify delay 0")?;
-    write_contact_model(&mut s, &d.materials, &d.pairs, d.rolling, u.pressure())?;
+    write_contact_model(
+        &mut s,
+        &d.materials,
+        &d.pairs,
+        d.rolling,
+        u.pressure(),
+        u.pressure_unit(),
+    )?;
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Time integration, gravity, walls ----\n\
+             Time step {} s (the case's dt; Feng et al. use about 20 % of the Rayleigh time, \
+             Sec. 2).",
+            f(d.dt)
+        ),
+    );
     writeln!(s, "timestep {}", f(d.dt))?;
     if d.gravity > 0.0 {
+        deck_text::comment(
+            &mut s,
+            &format!("Gravity {} {vu}/s along -z.", f(d.gravity * v)),
+        );
         writeln!(
             s,
             "fix gravi all gravity {} vector 0 0 -1",
@@ -401,6 +512,15 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
         )?;
     }
     let wt = d.wall_type + 1;
+    deck_text::comment(
+        &mut s,
+        &format!(
+            "The container: a floor at z = {} {lu} and a cylinder of radius {} {lu} about the z \
+             axis, of material type {wt}, with the grains' contact law.",
+            f(d.floor_z * l),
+            f(d.container_radius * l)
+        ),
+    );
     writeln!(
         s,
         "fix floor all wall/gran {models} primitive type {wt} zplane {}",
@@ -411,18 +531,41 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
         "fix container all wall/gran {models} primitive type {wt} zcylinder {} 0 0",
         f(d.container_radius * l)
     )?;
+    deck_text::comment(
+        &mut s,
+        "Velocity Verlet for spheres (`nve/sphere`: half kick, drift, forces, half kick; \
+         moment of inertia 0.4 m r^2).",
+    );
     writeln!(s, "fix integr all nve/sphere")?;
     if let Some(st) = &d.settle {
         write_settle_block(&mut s, d, st)?;
-        // The STL has its bottom at z = 0 and is moved above the settled bed.
+    }
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- The intruder ----\n\
+             {STL_FILE}: a closed triangle mesh of the flat-bottomed cylinder (radius {} {lu}, \
+             length {} {lu}), material type {}. `mesh/surface/stress` sums the force the grains \
+             exert on it; with the reference point at the bottom centre, f_cad[1..3] is that \
+             force, f_cad[4..6] its torque about that point and f_cad[9] the measured height of \
+             the bottom face. {}",
+            f(d.intruder_radius * l),
+            f(d.intruder_length * l),
+            d.intruder_type + 1,
+            if d.settle.is_some() {
+                "The mesh is written with its bottom at z = 0 and moved up to z0 (above)."
+            } else {
+                "The mesh is written at its start position, so nothing moves it before the run."
+            }
+        ),
+    );
+    if d.settle.is_some() {
         writeln!(
             s,
             "fix cad all mesh/surface/stress file {STL_FILE} type {} move 0 0 ${{z0}} stress on reference_point 0 0 ${{z0}}",
             d.intruder_type + 1
         )?;
     } else {
-        // The STL is written at its start position (no `move`); the reference point is the
-        // bottom centre, so f_cad[7..9] track it and f_cad[4..6] are torques about it.
         writeln!(
             s,
             "fix cad all mesh/surface/stress file {STL_FILE} type {} stress on reference_point 0 0 {}",
@@ -430,6 +573,14 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
             f(d.intruder_bottom_z0 * l)
         )?;
     }
+    deck_text::comment(
+        &mut s,
+        &format!(
+            "Grain-intruder contacts use the same contact law; the mesh moves down at constant \
+             speed {} {vu}, whatever the force (Feng et al.: quasi-static, constant speed).",
+            f(d.speed * v)
+        ),
+    );
     writeln!(
         s,
         "fix wallint all wall/gran {models} mesh n_meshes 1 meshes cad"
@@ -439,17 +590,54 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
         "fix mv all move/mesh mesh cad linear 0 0 {}",
         f(-d.speed * v)
     )?;
-    // $(...) is printed with %.20g (round-trip exact); ${v} would only give %.15g.
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Output ----\n\
+             The measurement: every {} steps one line of {FORCE_FILE}, `step t z_bottom fx fy fz` \
+             (s, {lu}, {}; f = force of the grains on the intruder, fz > 0 when the bed pushes \
+             back). `$(...)` prints %.20g, so every double reads back exactly (`${{name}}` would \
+             print only 15 digits).",
+            d.force_every,
+            u.force_unit()
+        ),
+    );
     writeln!(
         s,
         "fix fout all print {} \"$(step) $(step*dt) $(f_cad[9]) $(f_cad[1]) $(f_cad[2]) $(f_cad[3])\" file {FORCE_FILE} screen no title \"# step t z_bottom fx fy fz (units {}; f = force of the grains on the intruder)\"",
         d.force_every,
         u.names()
     )?;
+    deck_text::comment(
+        &mut s,
+        &format!(
+            "Thermo line every {} steps (about 1 % of the run; granval's progress bar follows \
+             it). `thermo_modify lost error`: LIGGGHTS 3.8 would silently drop a grain that \
+             leaves the closed box; granval makes that an error. It must follow thermo_style, \
+             which resets thermo_modify.",
+            thermo_every(d.n_steps)
+        ),
+    );
     writeln!(s, "thermo_style custom step atoms ke cpu")?;
     writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", thermo_every(d.n_steps))?;
-    s.push_str(&snapshots);
+    if !snapshots.is_empty() {
+        s.push('\n');
+        s.push_str(&snapshots);
+    }
+    deck_text::block(
+        &mut s,
+        &format!(
+            "{} steps of penetration ({} s).{}",
+            d.n_steps,
+            deck_text::approx(d.dt * d.n_steps as f64),
+            if d.settle.is_some() {
+                " `-var pen_steps N` shortens it (start-up tests)."
+            } else {
+                ""
+            }
+        ),
+    );
     if d.settle.is_some() {
         writeln!(s, "variable pen_steps index {}", d.n_steps)?;
         writeln!(s, "run ${{pen_steps}}")?;
@@ -464,16 +652,24 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
 fn write_settle_block(s: &mut String, d: &PenetrationDeck, st: &Settle) -> Result<()> {
     let l = d.units.length();
     let every = st.check_every;
-    writeln!(
+    deck_text::block(
         s,
-        "# --- bed preparation (Feng et al. Sec. 2), granval's native protocol ---"
-    )?;
+        &format!(
+            "---- Bed preparation (Feng et al. Sec. 2, granval's native protocol) ----\n\
+             The lattice falls under gravity; every {every} steps the mean kinetic energy per \
+             grain is checked. Its peak while pouring is tracked until it drops below half the \
+             peak (the pour is over); the bed is settled when it is below {} of that peak \
+             (the case's settle_ke_ratio; Feng et al.: 1e-7), after at most {} checks (the \
+             case's max_settle_time). `-var settle_checks N` caps the checks, `-var smoke 1` \
+             skips the settling test (start-up tests of decks too big to run here).",
+            f(st.ke_ratio),
+            st.max_checks
+        ),
+    );
     writeln!(s, "thermo_style custom step atoms ke cpu")?;
     writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", every * 20)?;
     writeln!(s, "variable settle_checks index {}", st.max_checks)?;
-    // `-var smoke 1` (with small settle_checks / pen_steps) runs every command of the
-    // deck briefly without settling: a start-up test for decks too big to run here.
     writeln!(s, "variable smoke index 0")?;
     writeln!(s, "variable kepeak equal 0")?;
     writeln!(s, "variable poured equal 0")?;
@@ -483,9 +679,10 @@ fn write_settle_block(s: &mut String, d: &PenetrationDeck, st: &Settle) -> Resul
     writeln!(s, "run {every} post no")?;
     writeln!(s, "variable kenow equal $(ke/atoms)")?;
     writeln!(s, "variable half equal $(0.5*v_kepeak)")?;
+    // `elif` takes its commands directly, without `then` (LIGGGHTS' if command).
     writeln!(
         s,
-        "if \"${{poured}} == 0 && ${{kenow}} >= ${{kepeak}}\" then \"variable kepeak equal ${{kenow}}\" elif \"${{poured}} == 0 && ${{kenow}} < ${{half}}\" then \"variable poured equal 1\""
+        "if \"${{poured}} == 0 && ${{kenow}} >= ${{kepeak}}\" then \"variable kepeak equal ${{kenow}}\" elif \"${{poured}} == 0 && ${{kenow}} < ${{half}}\" \"variable poured equal 1\""
     )?;
     writeln!(
         s,
@@ -510,10 +707,31 @@ fn write_settle_block(s: &mut String, d: &PenetrationDeck, st: &Settle) -> Resul
         s,
         "print \"granval: bed settled at step $(step), KE ratio ${{ratio}}\""
     )?;
+    deck_text::comment(
+        s,
+        &format!(
+            "The settled bed, written to {BED_DUMP_FILE} (id type radius x y z vx vy vz, %.17g): \
+             `granval analyze` reads it back to know the grains the intruder met."
+        ),
+    );
     writeln!(
         s,
         "write_dump all custom {BED_DUMP_FILE} id type radius x y z vx vy vz modify format \"%d %d %.17g %.17g %.17g %.17g %.17g %.17g %.17g\""
     )?;
+    deck_text::comment(
+        s,
+        &format!(
+            "The intruder starts {} {} above the highest grain top within {} {} of the axis \
+             (as in granval's native engine): z0 = max(z + r) over that footprint + the gap. \
+             LIGGGHTS 3.8's atom-style variables know no `radius`, compute property/atom does; \
+             the gap is written in plain decimals because its formula parser would read `1e-3` \
+             as a thermo keyword.",
+            st.start_gap * l,
+            d.units.length_unit(),
+            f(st.footprint_radius * l),
+            d.units.length_unit()
+        ),
+    );
     writeln!(
         s,
         "region foot cylinder z 0 0 {} {} {} units box",
@@ -521,20 +739,18 @@ fn write_settle_block(s: &mut String, d: &PenetrationDeck, st: &Settle) -> Resul
         f(d.domain_lo[2] * l),
         f(d.domain_hi[2] * l)
     )?;
-    // LIGGGHTS 3.8's atom-style variables know no `radius`; compute property/atom does.
     writeln!(s, "compute rad all property/atom radius")?;
     writeln!(s, "variable top atom z+c_rad")?;
     writeln!(s, "compute ztop all reduce/region foot max v_top")?;
     writeln!(s, "thermo_style custom step atoms ke c_ztop")?;
     writeln!(s, "run 0")?;
-    // Plain decimal: LIGGGHTS 3.8's formula parser reads `1e-3` as a thermo keyword.
     writeln!(s, "variable z0 equal $(c_ztop+{})", st.start_gap * l)?;
     writeln!(
         s,
         "print \"granval: intruder bottom starts at z0 = ${{z0}}\""
     )?;
+    deck_text::comment(s, "Penetration starts at step 0.");
     writeln!(s, "reset_timestep 0")?;
-    writeln!(s, "# --- penetration ---")?;
     Ok(())
 }
 
@@ -622,7 +838,7 @@ pub fn write_deck_dir_with_snapshots(
         stl: dir.join(STL_FILE),
         readme: dir.join(README_FILE),
         stl_segments: segments,
-        input_hash: Sha256::of(format!("{deck}{data}{stl}").as_bytes()),
+        input_hash: deck_text::fingerprint(&[&deck, &data, &stl]),
     };
     for (p, text) in [
         (&files.deck, &deck),
@@ -837,18 +1053,16 @@ pub fn input_hash_of(d: &PenetrationDeck) -> Result<Sha256> {
         [0.0, 0.0, z_stl],
         d.rim_error_frac,
     );
-    Ok(Sha256::of(format!("{deck}{data}{stl}").as_bytes()))
+    Ok(deck_text::fingerprint(&[&deck, &data, &stl]))
 }
 
 fn input_hash(dir: &Path) -> Sha256 {
-    let mut inputs = Vec::new();
-    for name in [DECK_FILE, DATA_FILE, LATTICE_FILE, STL_FILE] {
-        // A missing input is left for LIGGGHTS to report (its error is the useful one).
-        if let Ok(b) = std::fs::read(dir.join(name)) {
-            inputs.extend_from_slice(&b);
-        }
-    }
-    Sha256::of(&inputs)
+    // A missing input is left for LIGGGHTS to report (its error is the useful one).
+    let texts: Vec<String> = [DECK_FILE, DATA_FILE, LATTICE_FILE, STL_FILE]
+        .iter()
+        .filter_map(|name| std::fs::read_to_string(dir.join(name)).ok())
+        .collect();
+    deck_text::fingerprint(&texts.iter().map(String::as_str).collect::<Vec<_>>())
 }
 
 /// Follows LIGGGHTS' log while it grows: the step of the newest thermo line.

@@ -68,6 +68,36 @@ impl Units {
             Units::Cgs => 1e3,
         }
     }
+    pub fn length_unit(self) -> &'static str {
+        match self {
+            Units::Si => "m",
+            Units::Cgs => "cm",
+        }
+    }
+    pub fn velocity_unit(self) -> &'static str {
+        match self {
+            Units::Si => "m/s",
+            Units::Cgs => "cm/s",
+        }
+    }
+    pub fn density_unit(self) -> &'static str {
+        match self {
+            Units::Si => "kg/m^3",
+            Units::Cgs => "g/cm^3",
+        }
+    }
+    pub fn pressure_unit(self) -> &'static str {
+        match self {
+            Units::Si => "Pa",
+            Units::Cgs => "barye",
+        }
+    }
+    pub fn force_unit(self) -> &'static str {
+        match self {
+            Units::Si => "N",
+            Units::Cgs => "dyn",
+        }
+    }
     pub(super) fn names(self) -> &'static str {
         match self {
             Units::Si => "SI: s, m, N",

@@ -76,6 +76,15 @@ pub fn liggghts_deck(case: &PenetrationCase, bed: &Bed) -> Result<PenetrationDec
         soft_particles: soft,
         hard_particles: hard,
         settle: None,
+        header: crate::engines::deck_text::Header {
+            title: format!(
+                "granval penetration case `{}`, bed seed {}: LIGGGHTS 3.8 input deck ({})",
+                crate::engines::deck_text::safe(&case.name),
+                case.seed,
+                crate::engines::liggghts::penetration::DECK_FILE
+            ),
+            paragraphs: vec![crate::engines::deck_text::safe(&case.description)],
+        },
     })
 }
 

@@ -18,7 +18,7 @@ pub mod deck_dir;
 pub mod stress;
 
 use super::reference::Verified;
-use super::{Estimate, Experiment, Options, Role, Run, Verdict};
+use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
 use crate::analysis::stress_fields::SnapshotPlan;
 use crate::case::NegativeControl;
 use crate::case::penetration::PenetrationCase;
@@ -214,7 +214,7 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
     let mut provenance = lp::read_outputs(&deck, dir, |s| b.push(s.z_bottom, s.f[2]))
         .with_context(|| format!("LIGGGHTS run in {}", dir.display()))?;
     if let Ok(on_disk) = std::fs::read_to_string(dir.join(lp::DECK_FILE))
-        && on_disk != lp::deck_text(&deck)?
+        && !crate::engines::deck_text::same_input(&on_disk, &lp::deck_text(&deck)?)
         && !on_disk.contains(crate::engines::liggghts::snapshot::PAIR_PREFIX)
     {
         provenance.notes.push(format!(
@@ -251,7 +251,10 @@ fn liggghts_run(
         check_reused_plan(plan, &dir.join(SNAPSHOT_DIR)).with_context(|| format!("bed {}", u.k))?;
         let on_disk = std::fs::read_to_string(dir.join(lp::DECK_FILE)).unwrap_or_default();
         ensure!(
-            on_disk == lp::deck_text_with_snapshots(&deck, &plan.steps)?,
+            crate::engines::deck_text::same_input(
+                &on_disk,
+                &lp::deck_text_with_snapshots(&deck, &plan.steps)?
+            ),
             "{}: --reuse found a LIGGGHTS run of another case or bed (its deck differs); run without --reuse",
             dir.display()
         );
@@ -380,6 +383,48 @@ impl Experiment for Penetration {
                 },
             memory_bytes: 3e3 * n + 2e8,
         }
+    }
+
+    fn derived(&self) -> Vec<Derived> {
+        let c = &self.case;
+        let travel = c.start_gap + c.final_depth + c.diameter.max();
+        let steps = (travel / c.speed / c.dt).ceil();
+        vec![
+            Derived::new(
+                "grains",
+                c.count.to_string(),
+                format!(
+                    "per bed; {} independent bed(s); diameter {:e} to {:e} m",
+                    c.ensemble_beds,
+                    c.diameter.min(),
+                    c.diameter.max()
+                ),
+            ),
+            Derived::new(
+                "Rayleigh time",
+                format!("{:.4e} s", c.rayleigh_time),
+                "of the smallest grain (Feng et al. Sec. 2)",
+            ),
+            Derived::new(
+                "time step",
+                format!("{:e} s", c.dt),
+                format!(
+                    "{:.2} % of the Rayleigh time (validation refuses > 100 %; Feng et al. use about 20 %)",
+                    100.0 * c.dt / c.rayleigh_time
+                ),
+            ),
+            Derived::new(
+                "penetration",
+                format!("{steps:.0} steps"),
+                format!(
+                    "{:.4e} m of travel at {:e} m/s ({:.4e} s simulated), after settling of up to {:e} s",
+                    travel,
+                    c.speed,
+                    travel / c.speed,
+                    c.max_settle_time
+                ),
+            ),
+        ]
     }
 
     fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
@@ -516,6 +561,36 @@ impl Experiment for Penetration {
             snapshots: None,
             study_snapshots: None,
         })
+    }
+
+    fn read_run_dir(&self, u: &Unit, dir: &Path) -> Result<RefRun> {
+        Ok(RefRun {
+            run: reduce_liggghts_dir(&u.case, &u.bed, dir)?,
+            snapshots: None,
+            study_snapshots: None,
+        })
+    }
+
+    fn deck_files(&self) -> DeckFiles {
+        DeckFiles {
+            binary: "liggghts",
+            deck: lp::DECK_FILE,
+            log: lp::LOG_FILE,
+            inputs: &[
+                (lp::DATA_FILE, "the settled bed (read_data), exact"),
+                (lp::STL_FILE, "the intruder mesh at its start position"),
+            ],
+            outputs: &[
+                (
+                    lp::FORCE_FILE,
+                    "every force_every steps: step, time, intruder bottom height, force of the grains on the intruder",
+                ),
+                (
+                    lp::LOG_FILE,
+                    "LIGGGHTS' log (version, warnings, thermo lines)",
+                ),
+            ],
+        }
     }
 
     fn drift(&self, previous: &RefRun, now: &RefRun) -> String {
