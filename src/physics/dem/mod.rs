@@ -180,6 +180,17 @@ impl Simulation {
         Ok(())
     }
 
+    /// [`Simulation::setup`] for a state the DEM itself settled (a prepared bed, native or
+    /// LIGGGHTS): its overlaps are the equilibrium of its own contact law (a soft G = 1 MPa
+    /// bed carries up to ~5 % of a radius at the bottom), not input errors, so the
+    /// initial-overlap refusal is skipped; the domain and finiteness checks remain.
+    pub fn setup_settled(&mut self) -> anyhow::Result<()> {
+        self.check_domain()?;
+        self.rebuild();
+        self.compute_forces(false);
+        Ok(())
+    }
+
     /// One velocity-Verlet step in `nve/sphere` order: half kick + drift, re-neighbour
     /// if needed, forces, half kick.
     pub fn step(&mut self) -> anyhow::Result<()> {
