@@ -6,8 +6,12 @@
 //! Physics in Feng et al. terms (003_7b2069b9a928ac9b.txt): eq 2 (Hertz normal force
 //! with damping), eq 3 (tangential spring with Coulomb cap, damping only while sticking),
 //! eq 4 (CDT rolling torque), Table 1 (stiffness and damping from E, nu, e).
-//! One function serves particle-particle and particle-wall contacts, as in LIGGGHTS,
-//! so the two cannot drift apart.
+//! The law is split into LIGGGHTS' sub-models, each an `#[inline(always)]` function
+//! mirroring one header: [`surface_default`], [`normal_hertz`], [`tangential_history`],
+//! [`rolling_cdt`], [`rolling_epsd2`]; [`evaluate`] calls them in the order of
+//! contact_models.h, so every floating-point operation happens in the same order as in
+//! LIGGGHTS. One function serves particle-particle and particle-wall contacts, as in
+//! LIGGGHTS, so the two cannot drift apart.
 
 use crate::case::RollingModel;
 use crate::numerics::vec3::*;
@@ -88,23 +92,62 @@ pub struct ContactForce {
     pub torque_j: V3,
 }
 
-/// Evaluates the contact law for a touching pair (overlap > 0). `update_history` is
-/// false during setup force evaluation, as LIGGGHTS' `shearupdate` is.
-#[inline]
-pub fn hertz_history(
-    g: &ContactGeom,
-    c: &PairCoeffs,
-    rolling: RollingModel,
-    dt: f64,
-    hist: &mut History,
-    update_history: bool,
-) -> ContactForce {
+/// What the surface model hands to the normal, tangential and rolling models: the
+/// fields of LIGGGHTS' `SurfacesIntersectData` that surface_model_default.h sets
+/// (plus `en` and `rinv`, set by the caller there and here).
+#[derive(Debug, Clone, Copy)]
+pub struct Surface {
+    /// Unit normal `delta / r`, pointing to particle i.
+    pub en: V3,
+    pub rinv: f64,
+    /// Overlap `radsum - r` (radsum = r_i for a wall).
+    pub deltan: f64,
+    /// Normal relative velocity `(v_i - v_j) . en`.
+    pub vn: f64,
+    /// Contact rotation rate ("wr1..3"): `(c_i w_i + c_j w_j) / r`, `c = r - deltan / 2`.
+    pub wr: V3,
+    /// Tangential relative velocity at the contact point ("vtr1..3").
+    pub vtr: V3,
+    /// Lever arms `r_i - deltan / 2`, `r_j - deltan / 2` (0 for a wall).
+    pub cri: f64,
+    pub crj: f64,
+}
+
+/// Output of the normal model that the tangential and rolling models read
+/// (LIGGGHTS' `sidata.Fn`, `kn`, `kt`, `gammat`), and the effective radius R*.
+#[derive(Debug, Clone, Copy)]
+pub struct Normal {
+    /// Total normal force `k_n delta_n - gamma_n v_n` (signed, not clamped).
+    pub fn_total: f64,
+    pub kn: f64,
+    pub kt: f64,
+    pub gammat: f64,
+    pub reff: f64,
+}
+
+/// Tangential force on i and the torques it exerts on i and j.
+#[derive(Debug, Clone, Copy)]
+pub struct Tangential {
+    pub ft: V3,
+    pub torque_i: V3,
+    pub torque_j: V3,
+}
+
+/// Contact geometry and relative kinematics, LIGGGHTS surface_model_default.h
+/// (`SurfaceModel<SURFACE_DEFAULT>::surfacesIntersect`): normal, overlap, normal
+/// velocity, the contact rotation rate and the tangential velocity at the contact
+/// point that Feng et al. eq 3 integrates into the shear displacement.
+///
+/// Walls: `wr = w_i (c_i / r)` here, where the header has `(c_i w_i) / r`; the two can
+/// differ in the last bit. Kept as it was, so results stay identical to earlier runs.
+#[inline(always)]
+pub fn surface_default(g: &ContactGeom) -> Surface {
     let rinv = 1.0 / g.r;
     let en = scale(g.delta, rinv);
     let radsum = if g.is_wall { g.radi } else { g.radi + g.radj };
     let deltan = radsum - g.r;
 
-    // Relative velocities at the contact point (surface_model_default.h).
+    // Relative velocities at the contact point.
     let vr = sub(g.vel_i, g.vel_j);
     let vn = dot(vr, en);
     let vt = sub(vr, scale(en, vn));
@@ -126,25 +169,64 @@ pub fn hertz_history(
         vt[1] - (d[0] * wr[2] - d[2] * wr[0]),
         vt[2] - (d[1] * wr[0] - d[0] * wr[1]),
     ];
+    Surface {
+        en,
+        rinv,
+        deltan,
+        vn,
+        wr,
+        vtr,
+        cri,
+        crj,
+    }
+}
 
-    // Normal force, eq 2 / Table 1 (normal_model_hertz.h).
+/// Hertz normal force with viscous damping, Feng et al. eq 2 with Table 1's
+/// coefficients: `k_n = 4/3 Y* sqrt(R* d)`, `gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*)`,
+/// `S_n = 2 Y* sqrt(R* d)`; also the tangential stiffness `k_t = S_t = 8 G* sqrt(R* d)`
+/// and damping the tangential model uses. Mirrors LIGGGHTS normal_model_hertz.h
+/// (`NormalModel<HERTZ>::surfacesIntersect`, `tangential_damping on`, `limitForce off`).
+/// The force on i is `fn_total * en`.
+#[inline(always)]
+pub fn normal_hertz(g: &ContactGeom, s: &Surface, c: &PairCoeffs) -> Normal {
     let reff = if g.is_wall {
         g.radi
     } else {
         g.radi * g.radj / (g.radi + g.radj)
     };
-    let sqrtval = (reff * deltan).sqrt();
+    let sqrtval = (reff * s.deltan).sqrt();
     let sn = 2.0 * c.yeff * sqrtval;
     let st = 8.0 * c.geff * sqrtval;
     let kn = 4.0 / 3.0 * c.yeff * sqrtval;
     let kt = st;
     let gamman = -2.0 * SQRT_FIVE_OVER_SIX * c.betaeff * (sn * g.meff).sqrt();
     let gammat = -2.0 * SQRT_FIVE_OVER_SIX * c.betaeff * (st * g.meff).sqrt();
-    let fn_total = -gamman * vn + kn * deltan;
-    let mut f_i = scale(en, fn_total);
+    let fn_total = -gamman * s.vn + kn * s.deltan;
+    Normal {
+        fn_total,
+        kn,
+        kt,
+        gammat,
+        reff,
+    }
+}
 
-    // Tangential spring with history and Coulomb cap, eq 3 (tangential_model_history.h).
-    let shear = &mut hist.shear;
+/// Tangential spring with history, Coulomb cap and damping only while sticking, Feng et
+/// al. eq 3. Mirrors LIGGGHTS tangential_model_history.h
+/// (`TangentialModel<TANGENTIAL_HISTORY>::surfacesIntersect`): the shear displacement is
+/// advanced by `vtr dt` and projected onto the tangent plane (only when
+/// `update_history`), `F_t = -k_t shear`, capped at `mu |F_n|` with the shear rescaled to
+/// the cap, else `- gamma_t vtr` is added; torques `-c_i en x F_t`, `-c_j en x F_t`.
+#[inline(always)]
+pub fn tangential_history(
+    s: &Surface,
+    n: &Normal,
+    c: &PairCoeffs,
+    dt: f64,
+    shear: &mut V3,
+    update_history: bool,
+) -> Tangential {
+    let (en, vtr, kt) = (s.en, s.vtr, n.kt);
     if update_history {
         add_assign(shear, scale(vtr, dt));
         let rsht = dot(*shear, en);
@@ -153,7 +235,7 @@ pub fn hertz_history(
     let shrmag = norm(*shear);
     let mut ft = scale(*shear, -kt);
     let ft_shear = kt * shrmag;
-    let ft_friction = c.mu * fn_total.abs();
+    let ft_friction = c.mu * n.fn_total.abs();
     if ft_shear > ft_friction {
         if shrmag != 0.0 {
             ft = scale(ft, ft_friction / ft_shear);
@@ -167,78 +249,148 @@ pub fn hertz_history(
             ft = [0.0; 3];
         }
     } else {
-        sub_assign(&mut ft, scale(vtr, gammat));
+        sub_assign(&mut ft, scale(vtr, n.gammat));
     }
-    add_assign(&mut f_i, ft);
     let tor = [
         en[1] * ft[2] - en[2] * ft[1],
         en[2] * ft[0] - en[0] * ft[2],
         en[0] * ft[1] - en[1] * ft[0],
     ];
-    let mut torque_i = scale(tor, -cri);
-    let mut torque_j = scale(tor, -crj);
+    Tangential {
+        ft,
+        torque_i: scale(tor, -s.cri),
+        torque_j: scale(tor, -s.crj),
+    }
+}
 
-    // Rolling resistance (rolling_model_cdt.h / rolling_model_epsd2.h).
+/// Constant directional torque (CDT) rolling resistance, Feng et al. eq 4:
+/// magnitude `mu_r k_n delta_n R*` along the relative rotation, without its torsional
+/// (normal) part. Mirrors LIGGGHTS rolling_model_cdt.h
+/// (`RollingModel<ROLLING_CDT>::surfacesIntersect`, `torsionTorque off`): pairs use
+/// `w_i - w_j`, walls the contact rotation rate `wr` (same direction as `w_i`). Returns
+/// the torque subtracted from i and added to j, `None` when nothing rotates.
+#[inline(always)]
+pub fn rolling_cdt(g: &ContactGeom, s: &Surface, n: &Normal, c: &PairCoeffs) -> Option<V3> {
+    let w = if g.is_wall {
+        s.wr
+    } else {
+        sub(g.omega_i, g.omega_j)
+    };
+    let wmag = norm(w);
+    if wmag > 0.0 {
+        let (en, reff) = (s.en, n.reff);
+        let t = if g.is_wall {
+            let fnel = s.deltan * n.kn;
+            [
+                c.mu_r * fnel * w[0] / wmag * reff,
+                c.mu_r * fnel * w[1] / wmag * reff,
+                c.mu_r * fnel * w[2] / wmag * reff,
+            ]
+        } else {
+            scale(w, c.mu_r * n.kn * s.deltan * reff / wmag)
+        };
+        // No torsional component (torsionTorque off).
+        let tn = dot(t, en);
+        Some(sub(t, scale(en, tn)))
+    } else {
+        None
+    }
+}
+
+/// Elastic-plastic spring-dashpot rolling resistance (EPSD2, no dashpot): a rolling
+/// spring `k_r = k_t R*^2` on the tangential part of the relative rotation, accumulated
+/// in `roll` and capped at `mu_r |F_n| R*` (the torque form of Feng et al. eq 4's
+/// limit). Mirrors LIGGGHTS rolling_model_epsd2.h (`calcRollTorque`, `torsionTorque
+/// off`); `roll` is its `r_torque_old` history, stored only when `update_history`.
+/// Returns the torque subtracted from i and added to j.
+#[inline(always)]
+pub fn rolling_epsd2(
+    g: &ContactGeom,
+    s: &Surface,
+    n: &Normal,
+    c: &PairCoeffs,
+    dt: f64,
+    roll: &mut V3,
+    update_history: bool,
+) -> V3 {
+    let w = if g.is_wall {
+        s.wr
+    } else {
+        sub(g.omega_i, g.omega_j)
+    };
+    let en = s.en;
+    let wn = dot(w, en);
+    let w_t = sub(w, scale(en, wn));
+    let kr = n.kt * n.reff * n.reff;
+    let mut t = add(*roll, scale(w_t, dt * kr));
+    let tmag = norm(t);
+    let tmax = n.fn_total.abs() * n.reff * c.mu_r;
+    if tmag > tmax {
+        t = scale(t, tmax / tmag);
+    }
+    if update_history {
+        *roll = t;
+    }
+    t
+}
+
+/// The whole contact law for a touching pair (overlap > 0), with the shear and rolling
+/// histories passed separately (`roll` is read and written only by EPSD2). The models
+/// run in LIGGGHTS' order (contact_models.h `ContactModel::surfacesIntersect`: surface,
+/// normal, cohesion (none), tangential, rolling) and accumulate into the force and
+/// torques in that order, so the floating-point result is LIGGGHTS'.
+#[inline(always)]
+pub fn evaluate(
+    g: &ContactGeom,
+    c: &PairCoeffs,
+    rolling: RollingModel,
+    dt: f64,
+    shear: &mut V3,
+    roll: &mut V3,
+    update_history: bool,
+) -> ContactForce {
+    let s = surface_default(g);
+    let n = normal_hertz(g, &s, c);
+    let mut f_i = scale(s.en, n.fn_total);
+    let t = tangential_history(&s, &n, c, dt, shear, update_history);
+    add_assign(&mut f_i, t.ft);
+    let (mut torque_i, mut torque_j) = (t.torque_i, t.torque_j);
     let r_torque = match rolling {
         RollingModel::None => None,
-        RollingModel::Cdt => {
-            // Eq 4: constant magnitude mu_r k_n delta_n R*, along the relative rotation;
-            // walls use the contact-point rotation rate wr, whose direction is omega_i's.
-            let w = if g.is_wall {
-                wr
-            } else {
-                sub(g.omega_i, g.omega_j)
-            };
-            let wmag = norm(w);
-            if wmag > 0.0 {
-                let t = if g.is_wall {
-                    let fnel = deltan * kn;
-                    [
-                        c.mu_r * fnel * w[0] / wmag * reff,
-                        c.mu_r * fnel * w[1] / wmag * reff,
-                        c.mu_r * fnel * w[2] / wmag * reff,
-                    ]
-                } else {
-                    scale(w, c.mu_r * kn * deltan * reff / wmag)
-                };
-                // No torsional component (torsionTorque off).
-                let tn = dot(t, en);
-                Some(sub(t, scale(en, tn)))
-            } else {
-                None
-            }
-        }
-        RollingModel::Epsd2 => {
-            let w = if g.is_wall {
-                wr
-            } else {
-                sub(g.omega_i, g.omega_j)
-            };
-            let wn = dot(w, en);
-            let w_t = sub(w, scale(en, wn));
-            let kr = kt * reff * reff;
-            let mut t = add(hist.roll, scale(w_t, dt * kr));
-            let tmag = norm(t);
-            let tmax = fn_total.abs() * reff * c.mu_r;
-            if tmag > tmax {
-                t = scale(t, tmax / tmag);
-            }
-            if update_history {
-                hist.roll = t;
-            }
-            Some(t)
-        }
+        RollingModel::Cdt => rolling_cdt(g, &s, &n, c),
+        RollingModel::Epsd2 => Some(rolling_epsd2(g, &s, &n, c, dt, roll, update_history)),
     };
     if let Some(t) = r_torque {
         sub_assign(&mut torque_i, t);
         add_assign(&mut torque_j, t);
     }
-
     ContactForce {
         f_i,
         torque_i,
         torque_j,
     }
+}
+
+/// Evaluates the contact law for a touching pair (overlap > 0). `update_history` is
+/// false during setup force evaluation, as LIGGGHTS' `shearupdate` is.
+#[inline]
+pub fn hertz_history(
+    g: &ContactGeom,
+    c: &PairCoeffs,
+    rolling: RollingModel,
+    dt: f64,
+    hist: &mut History,
+    update_history: bool,
+) -> ContactForce {
+    evaluate(
+        g,
+        c,
+        rolling,
+        dt,
+        &mut hist.shear,
+        &mut hist.roll,
+        update_history,
+    )
 }
 
 #[cfg(test)]

@@ -116,6 +116,49 @@ impl Simulation {
     }
 }
 
+impl Simulation {
+    /// Builds a native snapshot with the contacts as LIGGGHTS would dump them at this
+    /// step ([`crate::physics::dem::Simulation::contacts_as_dumped`]), so both engines' stress
+    /// fields are measured the same way.
+    pub fn snapshot(&self, meta: SnapshotMeta) -> Snapshot {
+        let sim = self;
+        let grains = (0..sim.x.len())
+            .map(|k| Grain {
+                id: sim.id[k],
+                x: sim.x[k],
+                v: sim.v[k],
+                radius: sim.radius[k],
+            })
+            .collect();
+        let contacts = sim
+            .contacts_as_dumped()
+            .into_iter()
+            .map(|c| {
+                let xi = sim.x[c.i];
+                let (kind, j, branch) = match c.other {
+                    Touching::Grain(j) => (ContactKind::Pair, sim.id[j], sub(sim.x[j], xi)),
+                    Touching::Wall(_) => (ContactKind::Wall, 0, sub(c.point, xi)),
+                    Touching::Intruder => (ContactKind::Intruder, 0, sub(c.point, xi)),
+                };
+                Contact {
+                    kind,
+                    i: sim.id[c.i],
+                    j,
+                    xi,
+                    point: c.point,
+                    branch,
+                    force: c.force_on_i,
+                }
+            })
+            .collect();
+        Snapshot {
+            meta,
+            grains,
+            contacts,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -189,48 +232,5 @@ mod tests {
             dumped_over > touching / 4,
             "the dumped force must show the LIGGGHTS effect"
         );
-    }
-}
-
-impl Simulation {
-    /// Builds a native snapshot with the contacts as LIGGGHTS would dump them at this
-    /// step ([`crate::physics::dem::Simulation::contacts_as_dumped`]), so both engines' stress
-    /// fields are measured the same way.
-    pub fn snapshot(&self, meta: SnapshotMeta) -> Snapshot {
-        let sim = self;
-        let grains = (0..sim.x.len())
-            .map(|k| Grain {
-                id: sim.id[k],
-                x: sim.x[k],
-                v: sim.v[k],
-                radius: sim.radius[k],
-            })
-            .collect();
-        let contacts = sim
-            .contacts_as_dumped()
-            .into_iter()
-            .map(|c| {
-                let xi = sim.x[c.i];
-                let (kind, j, branch) = match c.other {
-                    Touching::Grain(j) => (ContactKind::Pair, sim.id[j], sub(sim.x[j], xi)),
-                    Touching::Wall(_) => (ContactKind::Wall, 0, sub(c.point, xi)),
-                    Touching::Intruder => (ContactKind::Intruder, 0, sub(c.point, xi)),
-                };
-                Contact {
-                    kind,
-                    i: sim.id[c.i],
-                    j,
-                    xi,
-                    point: c.point,
-                    branch,
-                    force: c.force_on_i,
-                }
-            })
-            .collect();
-        Snapshot {
-            meta,
-            grains,
-            contacts,
-        }
     }
 }
