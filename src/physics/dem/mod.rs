@@ -20,6 +20,7 @@ use crate::rundata::frames::{Frame, ParticleState};
 use contact::{ContactForce, ContactGeom, History, PairCoeffs, hertz_history};
 use neighbor::PairList;
 use rayon::prelude::*;
+use std::time::Instant;
 
 /// Moment-of-inertia factor of a solid sphere, LIGGGHTS' `INERTIA` in fix_nve_sphere.
 const INERTIA: f64 = 0.4;
@@ -68,6 +69,38 @@ pub struct Simulation {
     lo: V3,
     hi: V3,
     pub step: u64,
+    times: StepTimes,
+}
+
+/// Wall time (s) spent in each phase of [`Simulation::step`] since the simulation was
+/// made (or [`Simulation::reset_step_times`]), for profiling: a handful of clock reads per
+/// step, negligible against the step itself.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepTimes {
+    /// Both half kicks and the drift.
+    pub integrate: f64,
+    /// Finite-state and domain checks, the skin/2 displacement check.
+    pub checks: f64,
+    /// Neighbour-list builds (cells, pairs, history merge, wall masks).
+    pub neighbor: f64,
+    /// The pair pass (contact law of every neighbour pair).
+    pub pairs: f64,
+    /// Per-particle gather of the pair results, primitive walls, gravity.
+    pub gather_walls: f64,
+    /// The moving intruder's contacts.
+    pub intruder: f64,
+    pub steps: u64,
+}
+
+impl StepTimes {
+    pub fn total(&self) -> f64 {
+        self.integrate
+            + self.checks
+            + self.neighbor
+            + self.pairs
+            + self.gather_walls
+            + self.intruder
+    }
 }
 
 /// A rigid body driven at constant velocity through the grains (the penetration
@@ -167,6 +200,7 @@ impl Simulation {
             lo: case.domain_lo,
             hi: case.domain_hi,
             step: 0,
+            times: StepTimes::default(),
         }
     }
 
@@ -194,6 +228,35 @@ impl Simulation {
     /// One velocity-Verlet step in `nve/sphere` order: half kick + drift, re-neighbour
     /// if needed, forces, half kick.
     pub fn step(&mut self) -> anyhow::Result<()> {
+        let t0 = Instant::now();
+        self.kick_drift();
+        self.step += 1;
+        if let Some(it) = &mut self.intruder {
+            it.body.translate(it.velocity[2] * self.dt);
+        }
+        let t1 = Instant::now();
+        self.check_domain()?;
+        let rebuild = self.pairs.needs_rebuild(&self.x, self.skin);
+        let t2 = Instant::now();
+        if rebuild {
+            self.rebuild();
+        }
+        let t3 = Instant::now();
+        self.compute_forces(true);
+        let t4 = Instant::now();
+        self.kick();
+        let t5 = Instant::now();
+        let tm = &mut self.times;
+        tm.integrate += (t1 - t0).as_secs_f64() + (t5 - t4).as_secs_f64();
+        tm.checks += (t2 - t1).as_secs_f64();
+        tm.neighbor += (t3 - t2).as_secs_f64();
+        tm.steps += 1;
+        Ok(())
+    }
+
+    /// First half kick and drift of `nve/sphere`.
+    #[inline(never)]
+    fn kick_drift(&mut self) {
         let dt = self.dt;
         let dtf = 0.5 * dt;
         (&mut self.x, &mut self.v, &mut self.omega)
@@ -207,15 +270,12 @@ impl Simulation {
                 let dtirotate = dtf / INERTIA / (r * r * m);
                 add_assign(w, scale(*t, dtirotate));
             });
-        self.step += 1;
-        if let Some(it) = &mut self.intruder {
-            it.body.translate(it.velocity[2] * dt);
-        }
-        self.check_domain()?;
-        if self.pairs.needs_rebuild(&self.x, self.skin) {
-            self.rebuild();
-        }
-        self.compute_forces(true);
+    }
+
+    /// Second half kick of `nve/sphere`.
+    #[inline(never)]
+    fn kick(&mut self) {
+        let dtf = 0.5 * self.dt;
         (&mut self.v, &mut self.omega)
             .into_par_iter()
             .zip((&self.f, &self.torque, &self.mass, &self.radius).into_par_iter())
@@ -226,7 +286,15 @@ impl Simulation {
                 let dtirotate = dtf / INERTIA / (r * r * m);
                 add_assign(w, scale(*t, dtirotate));
             });
-        Ok(())
+    }
+
+    /// Wall time per phase of [`Simulation::step`] so far (see [`StepTimes`]).
+    pub fn step_times(&self) -> StepTimes {
+        self.times
+    }
+
+    pub fn reset_step_times(&mut self) {
+        self.times = StepTimes::default();
     }
 
     fn rebuild(&mut self) {
@@ -312,6 +380,22 @@ impl Simulation {
     }
 
     fn compute_forces(&mut self, update_history: bool) {
+        let t0 = Instant::now();
+        self.pair_pass(update_history);
+        let t1 = Instant::now();
+        self.gather_pass(update_history);
+        let t2 = Instant::now();
+        self.intruder_pass(update_history);
+        let t3 = Instant::now();
+        let tm = &mut self.times;
+        tm.pairs += (t1 - t0).as_secs_f64();
+        tm.gather_walls += (t2 - t1).as_secs_f64();
+        tm.intruder += (t3 - t2).as_secs_f64();
+    }
+
+    /// Pass 1: every neighbour pair independently.
+    #[inline(never)]
+    fn pair_pass(&mut self, update_history: bool) {
         let dt = self.dt;
         let (x, v, omega, radius, mass, type_) = (
             &self.x,
@@ -322,8 +406,6 @@ impl Simulation {
             &self.type_,
         );
         let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
-
-        // Pass 1: every neighbour pair independently.
         let np = self.pairs.len();
         self.pair_out.resize(np, ContactForce::default());
         self.pair_touch.resize(np, false);
@@ -364,8 +446,21 @@ impl Simulation {
                     *touch = false;
                 }
             });
+    }
 
-        // Pass 2: per particle, gather pair results in a fixed order, then walls, gravity.
+    /// Pass 2: per particle, gather pair results in a fixed order, then walls, gravity.
+    #[inline(never)]
+    fn gather_pass(&mut self, update_history: bool) {
+        let dt = self.dt;
+        let (x, v, omega, radius, mass, type_) = (
+            &self.x,
+            &self.v,
+            &self.omega,
+            &self.radius,
+            &self.mass,
+            &self.type_,
+        );
+        let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
         let pairs = &self.pairs;
         let (pair_out, pair_touch) = (&self.pair_out, &self.pair_touch);
         let (walls, gravity) = (&self.walls, self.gravity);
@@ -432,8 +527,21 @@ impl Simulation {
                 *f = fi;
                 *t = ti;
             });
+    }
 
-        // Pass 3: the moving intruder, a wall with velocity (grain-intruder law).
+    /// Pass 3: the moving intruder, a wall with velocity (grain-intruder law).
+    #[inline(never)]
+    fn intruder_pass(&mut self, update_history: bool) {
+        let dt = self.dt;
+        let (x, v, omega, radius, mass, type_) = (
+            &self.x,
+            &self.v,
+            &self.omega,
+            &self.radius,
+            &self.mass,
+            &self.type_,
+        );
+        let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
         if let Some(it) = &mut self.intruder {
             let (body, vel, ity) = (&it.body, it.velocity, it.type_);
             (
