@@ -56,7 +56,7 @@ impl Simulation {
     /// untouched, so the run continues bit for bit as without the snapshot.
     pub fn contacts_as_dumped(&self) -> Vec<ContactRecord> {
         let mut copy = self.clone();
-        copy.compute_forces(false);
+        copy.compute_forces(false, false);
         copy.contacts()
     }
 
@@ -75,7 +75,7 @@ impl Simulation {
                 i,
                 other: Touching::Grain(j),
                 point: add(self.x[i], scale(sub(self.x[j], self.x[i]), frac)),
-                force_on_i: self.pair_out[k].f_i,
+                force_on_i: self.rev_out[self.pairs.rev_pos[k] as usize].f_i,
             });
         }
         let stride = self.walls_stride;

@@ -11,14 +11,16 @@ pub mod intruder;
 pub mod neighbor;
 mod overlap;
 pub mod packing;
+mod par;
 pub mod penetration;
 pub mod walls;
 
 use crate::case::{Case, Perturbation, RollingModel, Wall};
 use crate::numerics::vec3::*;
 use crate::rundata::frames::{Frame, ParticleState};
-use contact::{ContactForce, ContactGeom, History, PairCoeffs, hertz_history};
+use contact::{ContactGeom, PairCoeffs, evaluate};
 use neighbor::PairList;
+use par::Shared;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -46,21 +48,29 @@ pub struct Simulation {
     coeffs: Vec<PairCoeffs>,
     rolling: RollingModel,
     walls: Vec<Wall>,
-    /// Wall contact history, `walls_stride` entries per particle.
-    wall_hist: Vec<History>,
+    /// Wall contact history, `walls_stride` entries per particle: shear, and the EPSD2
+    /// rolling torque only when the rolling model is EPSD2 (empty otherwise).
+    wall_shear: Vec<V3>,
+    wall_roll: Vec<V3>,
     walls_stride: usize,
     pairs: PairList,
-    pair_out: Vec<ContactForce>,
+    /// Per reverse slot (see [`PairList::rev_pos`]): the force on the pair's first
+    /// particle and the torque on its second, zero when the pair does not touch, so the
+    /// gather adds them without a branch (adding +0.0 to a sum that started at +0.0
+    /// changes no bit).
+    rev_out: Vec<RevForce>,
     /// Force each wall exerted on each particle in the last force pass (`walls_stride`
     /// per particle; zero when not touching), kept so [`Simulation::contacts`] reports
     /// exactly the forces that were integrated, not a re-evaluation.
     wall_out: Vec<V3>,
-    /// Whether each pair touched this step; the gather reads `pair_out` only where set,
-    /// so non-touching pairs cost one byte of memory traffic instead of a whole result.
+    /// Whether each pair touched in the last force pass.
     pair_touch: Vec<bool>,
+    /// Scratch of the pair pass: indices of the touching pairs, compacted within each
+    /// block's pair range.
+    touching: Vec<u32>,
     /// Bit k set: particle was within its radius + skin of wall k at the last rebuild,
     /// so it may touch it before the next one (the role of LIGGGHTS' primitive-wall
-    /// neighbour lists). Walls beyond 64 are always checked.
+    /// neighbour lists). Walls beyond 63 share bit 63.
     near_walls: Vec<u64>,
     intruder: Option<MovingIntruder>,
     gravity: V3,
@@ -72,34 +82,36 @@ pub struct Simulation {
     times: StepTimes,
 }
 
+/// What the pair pass leaves for the second member of a pair.
+#[derive(Debug, Clone, Copy, Default)]
+struct RevForce {
+    /// Force on the first member (the second gets its negative).
+    f_i: V3,
+    torque_j: V3,
+}
+
 /// Wall time (s) spent in each phase of [`Simulation::step`] since the simulation was
 /// made (or [`Simulation::reset_step_times`]), for profiling: a handful of clock reads per
 /// step, negligible against the step itself.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct StepTimes {
-    /// Both half kicks and the drift.
+    /// First half kick and drift, fused with the finite-state, domain and skin/2
+    /// displacement checks.
     pub integrate: f64,
-    /// Finite-state and domain checks, the skin/2 displacement check.
-    pub checks: f64,
-    /// Neighbour-list builds (cells, pairs, history merge, wall masks).
+    /// Neighbour-list builds (cells, pairs, history merge, wall masks, intruder
+    /// candidates).
     pub neighbor: f64,
-    /// The pair pass (contact law of every neighbour pair).
+    /// The pair pass: contact law of every neighbour pair, own-pair sums.
     pub pairs: f64,
-    /// Per-particle gather of the pair results, primitive walls, gravity.
-    pub gather_walls: f64,
-    /// The moving intruder's contacts.
-    pub intruder: f64,
+    /// Per-particle gather of the reverse pair results, primitive walls, gravity, the
+    /// intruder and the second half kick.
+    pub gather: f64,
     pub steps: u64,
 }
 
 impl StepTimes {
     pub fn total(&self) -> f64 {
-        self.integrate
-            + self.checks
-            + self.neighbor
-            + self.pairs
-            + self.gather_walls
-            + self.intruder
+        self.integrate + self.neighbor + self.pairs + self.gather
     }
 }
 
@@ -112,21 +124,39 @@ pub struct MovingIntruder {
     pub body: intruder::FlatCylinder,
     pub velocity: V3,
     pub type_: usize,
-    hist: Vec<History>,
+    shear: Vec<V3>,
+    /// EPSD2 rolling history (empty for other rolling models).
+    roll: Vec<V3>,
     /// Force each grain receives from the intruder this step (zero if not touching).
     on_grain: Vec<V3>,
+    /// Grains that may touch the intruder before the candidates are listed again:
+    /// within `INTRUDER_MARGIN_SKINS` skins of its surface when listed.
+    candidate: Vec<bool>,
+    /// Bottom z when the candidates were listed; `None`: not listed yet.
+    listed_z: Option<f64>,
 }
+
+/// Candidate margin of the intruder, in skins. A grain moves at most skin/2 from its
+/// position at the last neighbour build, so at most one skin from where it was when the
+/// candidates were listed; the intruder moves at most skin/2 before they are listed
+/// again. The signed distance to a convex body is 1-Lipschitz in both, so a grain farther
+/// than r + 1.5 skin cannot touch before the next listing; 2 leaves room for round-off.
+const INTRUDER_MARGIN_SKINS: f64 = 2.0;
 
 impl Simulation {
     /// Adds the moving intruder; `type_` is its 0-based material type.
     pub fn set_intruder(&mut self, body: intruder::FlatCylinder, velocity: V3, type_: usize) {
         let n = self.x.len();
+        let epsd2 = self.rolling == RollingModel::Epsd2;
         self.intruder = Some(MovingIntruder {
             body,
             velocity,
             type_,
-            hist: vec![History::default(); n],
+            shear: vec![[0.0; 3]; n],
+            roll: vec![[0.0; 3]; if epsd2 { n } else { 0 }],
             on_grain: vec![[0.0; 3]; n],
+            candidate: vec![false; n],
+            listed_z: None,
         });
     }
 
@@ -172,6 +202,7 @@ impl Simulation {
         }
         let n = case.particles.len();
         let stride = case.walls.len().max(1);
+        let epsd2 = case.rolling == RollingModel::Epsd2;
         Simulation {
             id: case.particles.iter().map(|p| p.id).collect(),
             type_: case.particles.iter().map(|p| p.type_).collect(),
@@ -186,12 +217,14 @@ impl Simulation {
             coeffs,
             rolling: case.rolling,
             walls: case.walls.clone(),
-            wall_hist: vec![History::default(); n * stride],
+            wall_shear: vec![[0.0; 3]; n * stride],
+            wall_roll: vec![[0.0; 3]; if epsd2 { n * stride } else { 0 }],
             walls_stride: stride,
-            pairs: PairList::default(),
-            pair_out: Vec::new(),
+            pairs: PairList::with_roll(epsd2),
+            rev_out: Vec::new(),
             wall_out: vec![[0.0; 3]; n * stride],
             pair_touch: Vec::new(),
+            touching: Vec::new(),
             near_walls: vec![u64::MAX; n],
             intruder: None,
             gravity: case.gravity,
@@ -210,7 +243,7 @@ impl Simulation {
         self.check_domain()?;
         self.check_initial_overlaps()?;
         self.rebuild();
-        self.compute_forces(false);
+        self.compute_forces(false, false);
         Ok(())
     }
 
@@ -221,71 +254,97 @@ impl Simulation {
     pub fn setup_settled(&mut self) -> anyhow::Result<()> {
         self.check_domain()?;
         self.rebuild();
-        self.compute_forces(false);
+        self.compute_forces(false, false);
         Ok(())
     }
 
     /// One velocity-Verlet step in `nve/sphere` order: half kick + drift, re-neighbour
-    /// if needed, forces, half kick.
+    /// if needed, forces, half kick. The checks after the drift (finite state, domain,
+    /// displacement since the last build) run in the drift's sweep, and the second half
+    /// kick in the force gather's, so a step reads the particle arrays three times.
     pub fn step(&mut self) -> anyhow::Result<()> {
         let t0 = Instant::now();
-        self.kick_drift();
+        let (non_finite, outside, moved) = self.kick_drift_check();
         self.step += 1;
         if let Some(it) = &mut self.intruder {
             it.body.translate(it.velocity[2] * self.dt);
         }
+        self.domain_error(non_finite, outside)?;
         let t1 = Instant::now();
-        self.check_domain()?;
-        let rebuild = self.pairs.needs_rebuild(&self.x, self.skin);
-        let t2 = Instant::now();
-        if rebuild {
+        if moved {
             self.rebuild();
         }
-        let t3 = Instant::now();
-        self.compute_forces(true);
-        let t4 = Instant::now();
-        self.kick();
-        let t5 = Instant::now();
+        self.list_intruder_candidates(false);
+        let t2 = Instant::now();
+        self.compute_forces(true, true);
         let tm = &mut self.times;
-        tm.integrate += (t1 - t0).as_secs_f64() + (t5 - t4).as_secs_f64();
-        tm.checks += (t2 - t1).as_secs_f64();
-        tm.neighbor += (t3 - t2).as_secs_f64();
+        tm.integrate += (t1 - t0).as_secs_f64();
+        tm.neighbor += (t2 - t1).as_secs_f64();
         tm.steps += 1;
         Ok(())
     }
 
-    /// First half kick and drift of `nve/sphere`.
+    /// First half kick and drift of `nve/sphere`, and in the same sweep the first
+    /// particle with a non-finite state, the first outside the box (`usize::MAX`: none)
+    /// and whether any moved more than skin/2 since the last neighbour build (LIGGGHTS
+    /// `neigh_modify delay 0 every 1 check yes`).
     #[inline(never)]
-    fn kick_drift(&mut self) {
+    fn kick_drift_check(&mut self) -> (usize, usize, bool) {
         let dt = self.dt;
         let dtf = 0.5 * dt;
-        (&mut self.x, &mut self.v, &mut self.omega)
-            .into_par_iter()
-            .zip((&self.f, &self.torque, &self.mass, &self.radius).into_par_iter())
-            .with_min_len(PAR_MIN_LEN)
-            .for_each(|((x, v, w), (f, t, m, r))| {
-                let dtfm = dtf / m;
-                add_assign(v, scale(*f, dtfm));
-                add_assign(x, scale(*v, dt));
-                let dtirotate = dtf / INERTIA / (r * r * m);
-                add_assign(w, scale(*t, dtirotate));
-            });
-    }
-
-    /// Second half kick of `nve/sphere`.
-    #[inline(never)]
-    fn kick(&mut self) {
-        let dtf = 0.5 * self.dt;
-        (&mut self.v, &mut self.omega)
-            .into_par_iter()
-            .zip((&self.f, &self.torque, &self.mass, &self.radius).into_par_iter())
-            .with_min_len(PAR_MIN_LEN)
-            .for_each(|((v, w), (f, t, m, r))| {
-                let dtfm = dtf / m;
-                add_assign(v, scale(*f, dtfm));
-                let dtirotate = dtf / INERTIA / (r * r * m);
-                add_assign(w, scale(*t, dtirotate));
-            });
+        let n = self.x.len();
+        let (lo, hi) = (self.lo, self.hi);
+        let lim = 0.25 * self.skin * self.skin;
+        let x_at_build = &self.pairs.x_at_build;
+        let built = x_at_build.len() == n;
+        let (f, torque, mass, radius) = (&self.f, &self.torque, &self.mass, &self.radius);
+        let (xs, vs, ws) = (
+            Shared::new(&mut self.x),
+            Shared::new(&mut self.v),
+            Shared::new(&mut self.omega),
+        );
+        let (non_finite, outside, moved) = par::map_reduce_blocks(
+            n,
+            (usize::MAX, usize::MAX, !built),
+            |r| {
+                // SAFETY: blocks are disjoint particle ranges.
+                let (x, v, w) = unsafe {
+                    (
+                        xs.slice(r.clone()),
+                        vs.slice(r.clone()),
+                        ws.slice(r.clone()),
+                    )
+                };
+                let (mut nf, mut out, mut mv) = (usize::MAX, usize::MAX, false);
+                for (l, k) in r.enumerate() {
+                    let (x, v, w) = (&mut x[l], &mut v[l], &mut w[l]);
+                    let (m, rad) = (mass[k], radius[k]);
+                    let dtfm = dtf / m;
+                    add_assign(v, scale(f[k], dtfm));
+                    add_assign(x, scale(*v, dt));
+                    let dtirotate = dtf / INERTIA / (rad * rad * m);
+                    add_assign(w, scale(torque[k], dtirotate));
+                    let finite = (0..3).fold(true, |a, c| {
+                        a & x[c].is_finite() & v[c].is_finite() & w[c].is_finite()
+                    });
+                    let inside = (0..3).fold(true, |a, c| a & (x[c] >= lo[c]) & (x[c] <= hi[c]));
+                    if !finite && nf == usize::MAX {
+                        nf = k;
+                    }
+                    if !inside && out == usize::MAX {
+                        out = k;
+                    }
+                    if built {
+                        let b = x_at_build[k];
+                        let d = [x[0] - b[0], x[1] - b[1], x[2] - b[2]];
+                        mv |= d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > lim;
+                    }
+                }
+                (nf, out, mv)
+            },
+            |a, b| (a.0.min(b.0), a.1.min(b.1), a.2 || b.2),
+        );
+        (non_finite, outside, moved)
     }
 
     /// Wall time per phase of [`Simulation::step`] so far (see [`StepTimes`]).
@@ -300,18 +359,82 @@ impl Simulation {
     fn rebuild(&mut self) {
         self.pairs
             .build(&self.x, &self.radius, self.skin, self.lo, self.hi);
-        let (walls, skin) = (&self.walls, self.skin);
-        (&mut self.near_walls, &self.x, &self.radius)
+        let (walls, skin, stride) = (&self.walls, self.skin, self.walls_stride);
+        (
+            &mut self.near_walls,
+            self.wall_out.par_chunks_mut(stride),
+            &self.x,
+            &self.radius,
+        )
             .into_par_iter()
             .with_min_len(PAR_MIN_LEN)
-            .for_each(|(mask, x, r)| {
+            .for_each(|(mask, wout, x, r)| {
                 *mask = 0;
                 for (k, w) in walls.iter().enumerate() {
                     if k >= 64 || walls::wall_contact(w, *x, r + skin).is_some() {
                         *mask |= 1u64 << k.min(63);
                     }
                 }
+                // Walls the particle cannot reach before the next build are not evaluated:
+                // their last force is zero from now on (it was not touching them).
+                for (k, o) in wout.iter_mut().enumerate() {
+                    if *mask & (1u64 << k.min(63)) == 0 {
+                        *o = [0.0; 3];
+                    }
+                }
             });
+        self.list_intruder_candidates(true);
+    }
+
+    /// Lists the grains that may touch the intruder (see [`INTRUDER_MARGIN_SKINS`]):
+    /// always when `force`, else when never listed or the intruder moved more than skin/2
+    /// since. A grain leaving the list is not touching: its history and force are
+    /// cleared exactly as evaluating it would.
+    fn list_intruder_candidates(&mut self, force: bool) {
+        let skin = self.skin;
+        let Some(it) = &mut self.intruder else {
+            return;
+        };
+        let z = it.body.bottom_z();
+        if !force && it.listed_z.is_some_and(|z0| (z - z0).abs() <= 0.5 * skin) {
+            return;
+        }
+        it.listed_z = Some(z);
+        let margin = INTRUDER_MARGIN_SKINS * skin;
+        let (body, epsd2) = (&it.body, !it.roll.is_empty());
+        let (shear, roll, on) = (
+            Shared::new(&mut it.shear),
+            Shared::new(&mut it.roll),
+            Shared::new(&mut it.on_grain),
+        );
+        let (x, radius) = (&self.x, &self.radius);
+        let cand = Shared::new(&mut it.candidate);
+        par::for_blocks(x.len(), |r| {
+            // SAFETY: blocks are disjoint particle ranges.
+            let (cand, shear, on) = unsafe {
+                (
+                    cand.slice(r.clone()),
+                    shear.slice(r.clone()),
+                    on.slice(r.clone()),
+                )
+            };
+            let roll: &mut [V3] = if epsd2 {
+                unsafe { roll.slice(r.clone()) }
+            } else {
+                &mut []
+            };
+            for (l, k) in r.enumerate() {
+                let near = body.query(x[k]).distance <= radius[k] + margin;
+                if cand[l] && !near {
+                    shear[l] = [0.0; 3];
+                    on[l] = [0.0; 3];
+                    if epsd2 {
+                        roll[l] = [0.0; 3];
+                    }
+                }
+                cand[l] = near;
+            }
+        });
     }
 
     /// LIGGGHTS runs with `boundary f f f`: an atom leaving the box is lost and the run
@@ -353,9 +476,24 @@ impl Simulation {
     }
 
     fn check_domain(&self) -> anyhow::Result<()> {
-        if let Some(k) = (0..self.x.len()).find(|&k| {
-            !(self.x[k].iter().chain(&self.v[k]).chain(&self.omega[k])).all(|c| c.is_finite())
-        }) {
+        let non_finite = (0..self.x.len())
+            .find(|&k| {
+                !(self.x[k].iter().chain(&self.v[k]).chain(&self.omega[k])).all(|c| c.is_finite())
+            })
+            .unwrap_or(usize::MAX);
+        let outside = self
+            .x
+            .iter()
+            .position(|p| (0..3).any(|c| !(p[c] >= self.lo[c] && p[c] <= self.hi[c])))
+            .unwrap_or(usize::MAX);
+        self.domain_error(non_finite, outside)
+    }
+
+    /// The error for the first particle with a non-finite state, else the first outside
+    /// the box (`usize::MAX`: none).
+    fn domain_error(&self, non_finite: usize, outside: usize) -> anyhow::Result<()> {
+        if non_finite != usize::MAX {
+            let k = non_finite;
             anyhow::bail!(
                 "particle id {} has a non-finite state at step {} (x = {:?}, v = {:?}): the integration blew up; likely causes are a time step too large for the contact stiffness or grains started deep inside each other",
                 self.id[k],
@@ -364,11 +502,8 @@ impl Simulation {
                 self.v[k]
             );
         }
-        if let Some(k) = self
-            .x
-            .iter()
-            .position(|p| (0..3).any(|c| !(p[c] >= self.lo[c] && p[c] <= self.hi[c])))
-        {
+        if outside != usize::MAX {
+            let k = outside;
             anyhow::bail!(
                 "particle id {} left the domain box at step {} (x = {:?})",
                 self.id[k],
@@ -379,21 +514,26 @@ impl Simulation {
         Ok(())
     }
 
-    fn compute_forces(&mut self, update_history: bool) {
+    /// Forces and torques on every particle; with `kick`, also the second half kick of
+    /// `nve/sphere` (in the gather's sweep: a particle's kick needs only its own force).
+    fn compute_forces(&mut self, update_history: bool, kick: bool) {
         let t0 = Instant::now();
         self.pair_pass(update_history);
         let t1 = Instant::now();
-        self.gather_pass(update_history);
+        self.gather_pass(update_history, kick);
         let t2 = Instant::now();
-        self.intruder_pass(update_history);
-        let t3 = Instant::now();
         let tm = &mut self.times;
         tm.pairs += (t1 - t0).as_secs_f64();
-        tm.gather_walls += (t2 - t1).as_secs_f64();
-        tm.intruder += (t3 - t2).as_secs_f64();
+        tm.gather += (t2 - t1).as_secs_f64();
     }
 
-    /// Pass 1: every neighbour pair independently.
+    /// Pass 1, per block of particles i over their own pairs (i, j > i) in list order.
+    /// Phase A, without branches: which pairs touch (`pair_touch`, and their indices
+    /// compacted into `touching`), every reverse slot zeroed, the own sums zeroed. Phase
+    /// B, over the touching pairs only: the contact law; the force and torque on i summed
+    /// from +0.0 in pair order into `f[i]`, `torque[i]` (the gather continues these
+    /// sums); the force on i and the torque on j stored in the pair's reverse slot for
+    /// the gather of j.
     #[inline(never)]
     fn pair_pass(&mut self, update_history: bool) {
         let dt = self.dt;
@@ -407,99 +547,186 @@ impl Simulation {
         );
         let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
         let np = self.pairs.len();
-        self.pair_out.resize(np, ContactForce::default());
+        self.rev_out.resize(np, RevForce::default());
         self.pair_touch.resize(np, false);
-        (
-            &self.pairs.i,
-            &self.pairs.j,
-            &mut self.pairs.hist,
-            &mut self.pair_out,
-            &mut self.pair_touch,
-        )
-            .into_par_iter()
-            .with_min_len(PAR_MIN_LEN)
-            .for_each(|(&i, &j, hist, out, touch)| {
-                let (i, j) = (i as usize, j as usize);
+        self.touching.resize(np, 0);
+        let pl = &mut self.pairs;
+        let (start, pi, pj, rev_pos, track_roll) =
+            (&pl.start, &pl.i, &pl.j, &pl.rev_pos, pl.track_roll);
+        let (shear, roll) = (Shared::new(&mut pl.shear), Shared::new(&mut pl.roll));
+        let touch = Shared::new(&mut self.pair_touch);
+        let list = Shared::new(&mut self.touching);
+        let rev = Shared::new(&mut self.rev_out);
+        let (fs, ts) = (Shared::new(&mut self.f), Shared::new(&mut self.torque));
+        par::for_blocks(x.len(), |r| {
+            let kr = start[r.start]..start[r.end];
+            let (k0, i0) = (kr.start, r.start);
+            // SAFETY: blocks are disjoint particle ranges, hence disjoint pair ranges;
+            // every reverse slot belongs to exactly one pair.
+            let (shear, touch, list, f, t) = unsafe {
+                (
+                    shear.slice(kr.clone()),
+                    touch.slice(kr.clone()),
+                    list.slice(kr.clone()),
+                    fs.slice(r.clone()),
+                    ts.slice(r.clone()),
+                )
+            };
+            let roll: &mut [V3] = if track_roll {
+                unsafe { roll.slice(kr.clone()) }
+            } else {
+                &mut []
+            };
+            f.fill([0.0; 3]);
+            t.fill([0.0; 3]);
+            let mut cnt = 0;
+            for k in kr.clone() {
+                let (i, j) = (pi[k] as usize, pj[k] as usize);
                 let delta = sub(x[i], x[j]);
                 let rsq = dot(delta, delta);
                 let radsum = radius[i] + radius[j];
-                if rsq < radsum * radsum {
-                    let (mi, mj) = (mass[i], mass[j]);
-                    let g = ContactGeom {
-                        delta,
-                        r: rsq.sqrt(),
-                        radi: radius[i],
-                        radj: radius[j],
-                        is_wall: false,
-                        meff: mi * mj / (mi + mj),
-                        vel_i: v[i],
-                        vel_j: v[j],
-                        omega_i: omega[i],
-                        omega_j: omega[j],
-                    };
-                    let c = &coeffs[type_[i] * n_types + type_[j]];
-                    *out = hertz_history(&g, c, rolling, dt, hist, update_history);
-                    *touch = true;
+                let touching = rsq < radsum * radsum;
+                touch[k - k0] = touching;
+                list[cnt] = k as u32;
+                cnt += touching as usize;
+                // SAFETY: slot of pair k, written by no other pair.
+                unsafe { rev.write(rev_pos[k] as usize, RevForce::default()) };
+            }
+            let mut no_roll = [0.0; 3];
+            for &k in &list[..cnt] {
+                let k = k as usize;
+                let (i, j) = (pi[k] as usize, pj[k] as usize);
+                let delta = sub(x[i], x[j]);
+                let rsq = dot(delta, delta);
+                let (mi, mj) = (mass[i], mass[j]);
+                let g = ContactGeom {
+                    delta,
+                    r: rsq.sqrt(),
+                    radi: radius[i],
+                    radj: radius[j],
+                    is_wall: false,
+                    meff: mi * mj / (mi + mj),
+                    vel_i: v[i],
+                    vel_j: v[j],
+                    omega_i: omega[i],
+                    omega_j: omega[j],
+                };
+                let c = &coeffs[type_[i] * n_types + type_[j]];
+                let rl = if track_roll {
+                    &mut roll[k - k0]
                 } else {
-                    // History is NOT cleared here: LIGGGHTS 3.8 keeps a separated pair's
-                    // shear until the next neighbour rebuild (see neighbor.rs).
-                    *touch = false;
-                }
-            });
+                    &mut no_roll
+                };
+                let o = evaluate(&g, c, rolling, dt, &mut shear[k - k0], rl, update_history);
+                add_assign(&mut f[i - i0], o.f_i);
+                add_assign(&mut t[i - i0], o.torque_i);
+                // SAFETY: slot of pair k, written by no other pair.
+                unsafe {
+                    rev.write(
+                        rev_pos[k] as usize,
+                        RevForce {
+                            f_i: o.f_i,
+                            torque_j: o.torque_j,
+                        },
+                    )
+                };
+            }
+            // History of pairs that no longer touch is NOT cleared: LIGGGHTS 3.8 keeps a
+            // separated pair's shear until the next neighbour rebuild (see neighbor.rs).
+        });
     }
 
-    /// Pass 2: per particle, gather pair results in a fixed order, then walls, gravity.
+    /// Pass 2, per particle: the own-pair sums of pass 1 continued with the reverse pair
+    /// results in pair order, then the primitive walls in wall order, gravity and the
+    /// moving intruder (a wall with velocity, grain-intruder law); with `kick` the
+    /// second half kick.
     #[inline(never)]
-    fn gather_pass(&mut self, update_history: bool) {
+    fn gather_pass(&mut self, update_history: bool, kick: bool) {
         let dt = self.dt;
-        let (x, v, omega, radius, mass, type_) = (
-            &self.x,
-            &self.v,
-            &self.omega,
-            &self.radius,
-            &self.mass,
-            &self.type_,
-        );
+        let dtf = 0.5 * dt;
+        let (x, radius, mass, type_) = (&self.x, &self.radius, &self.mass, &self.type_);
         let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
-        let pairs = &self.pairs;
-        let (pair_out, pair_touch) = (&self.pair_out, &self.pair_touch);
-        let (walls, gravity) = (&self.walls, self.gravity);
-        (
-            &mut self.f,
-            &mut self.torque,
-            self.wall_hist.par_chunks_mut(self.walls_stride),
-            self.wall_out.par_chunks_mut(self.walls_stride),
-            &self.near_walls,
-        )
-            .into_par_iter()
-            .enumerate()
-            .with_min_len(PAR_MIN_LEN)
-            .for_each(|(i, (f, t, whist, wout, &near))| {
-                let mut fi = [0.0; 3];
-                let mut ti = [0.0; 3];
-                for k in pairs.start[i]..pairs.start[i + 1] {
-                    if pair_touch[k] {
-                        add_assign(&mut fi, pair_out[k].f_i);
-                        add_assign(&mut ti, pair_out[k].torque_i);
-                    }
+        let (rev_start, rev_out) = (&self.pairs.rev_start, &self.rev_out);
+        let (walls, gravity, stride) = (&self.walls, self.gravity, self.walls_stride);
+        let near_walls = &self.near_walls;
+        let epsd2 = !self.wall_roll.is_empty();
+        let (wshear, wroll, wout) = (
+            Shared::new(&mut self.wall_shear),
+            Shared::new(&mut self.wall_roll),
+            Shared::new(&mut self.wall_out),
+        );
+        let it = self.intruder.as_mut().map(|it| {
+            (
+                &it.body,
+                it.velocity,
+                it.type_,
+                &it.candidate,
+                Shared::new(&mut it.shear),
+                Shared::new(&mut it.roll),
+                Shared::new(&mut it.on_grain),
+                !it.roll.is_empty(),
+            )
+        });
+        let (fs, ts) = (Shared::new(&mut self.f), Shared::new(&mut self.torque));
+        // Velocities are read by the wall and intruder laws and written by the kick, of
+        // the block's own particles only.
+        let (vs, ws) = (Shared::new(&mut self.v), Shared::new(&mut self.omega));
+        par::for_blocks(x.len(), |r| {
+            // SAFETY: blocks are disjoint particle ranges.
+            let (f, t) = unsafe { (fs.slice(r.clone()), ts.slice(r.clone())) };
+            let (vb, wb) = unsafe { (vs.slice(r.clone()), ws.slice(r.clone())) };
+            let wr = r.start * stride..r.end * stride;
+            let (wshear, wout) = unsafe { (wshear.slice(wr.clone()), wout.slice(wr.clone())) };
+            let wroll: &mut [V3] = if epsd2 {
+                unsafe { wroll.slice(wr.clone()) }
+            } else {
+                &mut []
+            };
+            let mut no_roll = [0.0; 3];
+            let mut itb = it.map(|(body, vel, ity, cand, sh, rl, on, iepsd2)| {
+                // SAFETY: the block's own particles.
+                let rl: &mut [V3] = if iepsd2 {
+                    unsafe { rl.slice(r.clone()) }
+                } else {
+                    &mut []
+                };
+                (
+                    body,
+                    vel,
+                    ity,
+                    &cand[r.clone()],
+                    unsafe { sh.slice(r.clone()) },
+                    rl,
+                    unsafe { on.slice(r.clone()) },
+                    iepsd2,
+                )
+            });
+            for (l, i) in r.clone().enumerate() {
+                let (vi, wi) = (vb[l], wb[l]);
+                let mut fi = f[l];
+                let mut ti = t[l];
+                for o in &rev_out[rev_start[i]..rev_start[i + 1]] {
+                    sub_assign(&mut fi, o.f_i);
+                    add_assign(&mut ti, o.torque_j);
                 }
-                for &k in &pairs.rev_pair[pairs.rev_start[i]..pairs.rev_start[i + 1]] {
-                    if pair_touch[k as usize] {
-                        let o = &pair_out[k as usize];
-                        sub_assign(&mut fi, o.f_i);
-                        add_assign(&mut ti, o.torque_j);
-                    }
-                }
-                for (k, ((w, hist), wo)) in walls
-                    .iter()
-                    .zip(whist.iter_mut())
-                    .zip(wout.iter_mut())
-                    .enumerate()
-                {
-                    *wo = [0.0; 3];
-                    if near & (1u64 << k.min(63)) == 0 {
-                        continue;
-                    }
+                // Near walls in ascending order: bits 0..62, then every wall from 63 on
+                // when bit 63 is set.
+                let near = near_walls[i];
+                let mut bits = near & !(1u64 << 63);
+                let mut high = if near >> 63 != 0 { 63 } else { walls.len() };
+                loop {
+                    let k = if bits != 0 {
+                        let k = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        k
+                    } else if high < walls.len() {
+                        high += 1;
+                        high - 1
+                    } else {
+                        break;
+                    };
+                    let w = &walls[k];
+                    let h = l * stride + k;
                     match walls::wall_contact(w, x[i], radius[i]) {
                         Some((delta, r)) => {
                             let g = ContactGeom {
@@ -509,51 +736,32 @@ impl Simulation {
                                 radj: 0.0,
                                 is_wall: true,
                                 meff: mass[i],
-                                vel_i: v[i],
+                                vel_i: vi,
                                 vel_j: [0.0; 3],
-                                omega_i: omega[i],
+                                omega_i: wi,
                                 omega_j: [0.0; 3],
                             };
                             let c = &coeffs[type_[i] * n_types + w.type_()];
-                            let o = hertz_history(&g, c, rolling, dt, hist, update_history);
+                            let rl = if epsd2 { &mut wroll[h] } else { &mut no_roll };
+                            let o =
+                                evaluate(&g, c, rolling, dt, &mut wshear[h], rl, update_history);
                             add_assign(&mut fi, o.f_i);
                             add_assign(&mut ti, o.torque_i);
-                            *wo = o.f_i;
+                            wout[h] = o.f_i;
                         }
-                        None => *hist = History::default(),
+                        None => {
+                            wshear[h] = [0.0; 3];
+                            if epsd2 {
+                                wroll[h] = [0.0; 3];
+                            }
+                            wout[h] = [0.0; 3];
+                        }
                     }
                 }
                 add_assign(&mut fi, scale(gravity, mass[i]));
-                *f = fi;
-                *t = ti;
-            });
-    }
-
-    /// Pass 3: the moving intruder, a wall with velocity (grain-intruder law).
-    #[inline(never)]
-    fn intruder_pass(&mut self, update_history: bool) {
-        let dt = self.dt;
-        let (x, v, omega, radius, mass, type_) = (
-            &self.x,
-            &self.v,
-            &self.omega,
-            &self.radius,
-            &self.mass,
-            &self.type_,
-        );
-        let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
-        if let Some(it) = &mut self.intruder {
-            let (body, vel, ity) = (&it.body, it.velocity, it.type_);
-            (
-                &mut self.f,
-                &mut self.torque,
-                &mut it.hist,
-                &mut it.on_grain,
-            )
-                .into_par_iter()
-                .enumerate()
-                .with_min_len(PAR_MIN_LEN)
-                .for_each(|(i, (f, t, hist, on))| {
+                if let Some((body, vel, ity, cand, ishear, iroll, ion, iepsd2)) = &mut itb
+                    && cand[l]
+                {
                     match body.closest_contact(x[i], radius[i]) {
                         Some((delta, r)) => {
                             let g = ContactGeom {
@@ -563,24 +771,39 @@ impl Simulation {
                                 radj: 0.0,
                                 is_wall: true,
                                 meff: mass[i],
-                                vel_i: v[i],
-                                vel_j: vel,
-                                omega_i: omega[i],
+                                vel_i: vi,
+                                vel_j: *vel,
+                                omega_i: wi,
                                 omega_j: [0.0; 3],
                             };
-                            let c = &coeffs[type_[i] * n_types + ity];
-                            let o = hertz_history(&g, c, rolling, dt, hist, update_history);
-                            add_assign(f, o.f_i);
-                            add_assign(t, o.torque_i);
-                            *on = o.f_i;
+                            let c = &coeffs[type_[i] * n_types + *ity];
+                            let rl = if *iepsd2 { &mut iroll[l] } else { &mut no_roll };
+                            let o =
+                                evaluate(&g, c, rolling, dt, &mut ishear[l], rl, update_history);
+                            add_assign(&mut fi, o.f_i);
+                            add_assign(&mut ti, o.torque_i);
+                            ion[l] = o.f_i;
                         }
                         None => {
-                            *hist = History::default();
-                            *on = [0.0; 3];
+                            ishear[l] = [0.0; 3];
+                            if *iepsd2 {
+                                iroll[l] = [0.0; 3];
+                            }
+                            ion[l] = [0.0; 3];
                         }
                     }
-                });
-        }
+                }
+                f[l] = fi;
+                t[l] = ti;
+                if kick {
+                    let (m, rad) = (mass[i], radius[i]);
+                    let dtfm = dtf / m;
+                    add_assign(&mut vb[l], scale(fi, dtfm));
+                    let dtirotate = dtf / INERTIA / (rad * rad * m);
+                    add_assign(&mut wb[l], scale(ti, dtirotate));
+                }
+            }
+        });
     }
 
     pub fn n_pairs(&self) -> usize {
@@ -651,4 +874,82 @@ pub fn run(
         on_step(sim.step);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 3000 spheres thrown at each other (random velocities and spins, so most pairs
+    /// touch within the run), walls on five sides and the intruder driven into them:
+    /// every state array, the intruder force and every contact must be bit-identical
+    /// for 1, 2 and 3 threads, with CDT and with EPSD2 rolling friction (which carries
+    /// per-pair, per-wall and per-intruder rolling history).
+    #[test]
+    fn any_thread_count_gives_identical_bits() {
+        for rolling in [RollingModel::Cdt, RollingModel::Epsd2] {
+            let mut case = crate::bench::lattice_case(3000, 11);
+            case.rolling = rolling;
+            let mut s = 0x2545_F491_4F6C_DD1Du64;
+            let mut rnd = move || {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            };
+            for p in &mut case.particles {
+                p.v = [3.0 * rnd(), 3.0 * rnd(), 3.0 * rnd()];
+                p.omega = [400.0 * rnd(), 400.0 * rnd(), 400.0 * rnd()];
+            }
+            let top = case
+                .particles
+                .iter()
+                .map(|p| p.x[2] + p.radius)
+                .fold(0.0, f64::max);
+            let centre = 0.5 * case.domain_hi[0];
+            case.domain_hi[2] = top + 0.03;
+            let run = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    let mut sim = Simulation::from_case(&case);
+                    sim.set_intruder(
+                        intruder::FlatCylinder::new(4e-3, 0.02, [centre, centre, top + 2e-4]),
+                        [0.0, 0.0, -1.0],
+                        0,
+                    );
+                    sim.setup().unwrap();
+                    let mut touching = 0;
+                    let mut f_int = Vec::new();
+                    for _ in 0..300 {
+                        sim.step().unwrap();
+                        touching = touching.max(sim.pair_touch.iter().filter(|&&t| t).count());
+                        f_int.push(sim.intruder_force());
+                    }
+                    assert!(touching > 1000, "too few contacts: {touching}");
+                    assert!(f_int.iter().any(|f| f[2] != 0.0), "intruder never touched");
+                    let contacts: Vec<_> = sim
+                        .contacts()
+                        .into_iter()
+                        .map(|c| (c.i, c.other, c.point, c.force_on_i))
+                        .collect();
+                    (
+                        (sim.x.clone(), sim.v.clone(), sim.omega.clone()),
+                        (sim.f.clone(), sim.torque.clone()),
+                        f_int,
+                        contacts,
+                    )
+                })
+            };
+            let one = run(1);
+            for threads in [2, 3] {
+                assert!(
+                    run(threads) == one,
+                    "{rolling:?}: {threads} threads differ from 1"
+                );
+            }
+        }
+    }
 }

@@ -3,7 +3,6 @@
 //! ascending) so the force pass is a parallel loop over independent pairs and the
 //! history transfer after a rebuild is a linear merge.
 
-use super::contact::History;
 use crate::numerics::vec3::V3;
 
 #[derive(Debug, Default, Clone)]
@@ -12,10 +11,17 @@ pub struct PairList {
     pub start: Vec<usize>,
     pub i: Vec<u32>,
     pub j: Vec<u32>,
-    pub hist: Vec<History>,
-    /// For each particle, the pairs in which it is the second member (CSR again).
+    /// Tangential contact history of each pair (LIGGGHTS "shearx/y/z").
+    pub shear: Vec<V3>,
+    /// EPSD2 rolling history of each pair ("r_torquex_old"...); kept only when
+    /// `track_roll` is set (empty otherwise: CDT and no rolling carry none).
+    pub roll: Vec<V3>,
+    pub track_roll: bool,
+    /// For each particle, the slots of the pairs in which it is the second member (CSR
+    /// again): `rev_start[p]..rev_start[p+1]`, slots in ascending pair order.
     pub rev_start: Vec<usize>,
-    pub rev_pair: Vec<u32>,
+    /// Slot of pair k in that reverse CSR.
+    pub rev_pos: Vec<u32>,
     /// Positions at the last build, for the skin/2 displacement trigger.
     pub x_at_build: Vec<V3>,
     pub builds: u64,
@@ -25,7 +31,8 @@ pub struct PairList {
     new_start: Vec<usize>,
     new_i: Vec<u32>,
     new_j: Vec<u32>,
-    new_hist: Vec<History>,
+    new_shear: Vec<V3>,
+    new_roll: Vec<V3>,
     cell_of: Vec<u32>,
     fill: Vec<usize>,
 }
@@ -72,6 +79,14 @@ impl Grid {
 }
 
 impl PairList {
+    /// An empty list; `track_roll` keeps the EPSD2 rolling history per pair.
+    pub fn with_roll(track_roll: bool) -> PairList {
+        PairList {
+            track_roll,
+            ..PairList::default()
+        }
+    }
+
     /// True if any particle moved more than half the skin since the last build
     /// (LIGGGHTS `neigh_modify delay 0 every 1 check yes`).
     pub fn needs_rebuild(&self, x: &[V3], skin: f64) -> bool {
@@ -154,8 +169,13 @@ impl PairList {
         // Carry history over by merging the sorted old and new neighbour segments, for
         // pairs that touch now. LIGGGHTS 3.8 (neigh_gran.cpp) does exactly this: a pair
         // that separated keeps its stale shear until the next rebuild, then loses it.
-        self.new_hist.clear();
-        self.new_hist.resize(self.new_j.len(), History::default());
+        self.new_shear.clear();
+        self.new_shear.resize(self.new_j.len(), [0.0; 3]);
+        self.new_roll.clear();
+        if self.track_roll {
+            self.new_roll.resize(self.new_j.len(), [0.0; 3]);
+        }
+        let carry_roll = self.track_roll && self.roll.len() == self.shear.len();
         if self.start.len() == n + 1 {
             for i in 0..n {
                 let (mut a, a_end) = (self.start[i], self.start[i + 1]);
@@ -173,7 +193,10 @@ impl PairList {
                         ];
                         let radsum = radius[i2] + radius[j2];
                         if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < radsum * radsum {
-                            self.new_hist[k] = self.hist[a];
+                            self.new_shear[k] = self.shear[a];
+                            if carry_roll {
+                                self.new_roll[k] = self.roll[a];
+                            }
                         }
                     }
                 }
@@ -182,7 +205,8 @@ impl PairList {
         std::mem::swap(&mut self.start, &mut self.new_start);
         std::mem::swap(&mut self.i, &mut self.new_i);
         std::mem::swap(&mut self.j, &mut self.new_j);
-        std::mem::swap(&mut self.hist, &mut self.new_hist);
+        std::mem::swap(&mut self.shear, &mut self.new_shear);
+        std::mem::swap(&mut self.roll, &mut self.new_roll);
 
         // Reverse index: pairs in which a particle is the second member.
         self.rev_start.clear();
@@ -193,12 +217,12 @@ impl PairList {
         for p in 0..n {
             self.rev_start[p + 1] += self.rev_start[p];
         }
-        self.rev_pair.clear();
-        self.rev_pair.resize(self.j.len(), 0);
+        self.rev_pos.clear();
+        self.rev_pos.resize(self.j.len(), 0);
         self.fill.clear();
         self.fill.extend_from_slice(&self.rev_start);
         for (k, &j) in self.j.iter().enumerate() {
-            self.rev_pair[self.fill[j as usize]] = k as u32;
+            self.rev_pos[k] = self.fill[j as usize] as u32;
             self.fill[j as usize] += 1;
         }
 
@@ -260,13 +284,13 @@ mod tests {
         let mut l = PairList::default();
         l.build(&x, &radius, 5e-4, [-0.01; 3], [0.01; 3]);
         assert_eq!(l.len(), 1);
-        l.hist[0].shear = [1.0, 2.0, 3.0];
+        l.shear[0] = [1.0, 2.0, 3.0];
         let x2 = vec![[0.0, 0.0, 0.0], [1.9e-3, 1e-4, 0.0], [3.5e-3, 1.5e-3, 0.0]];
         l.build(&x2, &radius, 5e-4, [-0.01; 3], [0.01; 3]);
         let k = (l.start[0]..l.start[1])
             .find(|&k| l.j[k] == 1)
             .expect("pair 0-1 kept");
-        assert_eq!(l.hist[k].shear, [1.0, 2.0, 3.0]);
-        assert!(l.hist.iter().filter(|h| h.shear != [0.0; 3]).count() == 1);
+        assert_eq!(l.shear[k], [1.0, 2.0, 3.0]);
+        assert!(l.shear.iter().filter(|h| **h != [0.0; 3]).count() == 1);
     }
 }
