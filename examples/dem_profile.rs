@@ -5,6 +5,7 @@
 //! ```text
 //! dem_profile bench-pack N FILE              settle the `granval bench` packing, store it
 //! dem_profile bench-run N FILE STEPS THREADS time STEPS steps from it
+//! dem_profile bench-liggghts N FILE STEPS DIR  the same in LIGGGHTS (1 process)
 //! dem_profile ci-prep CASE BED MID            prepare bed 0 of a penetration case (timed
 //!                                            per phase), store the bed in BED, penetrate
 //!                                            it fully (timed) and store the state at
@@ -178,6 +179,23 @@ fn main() -> Result<()> {
                 print_times("bench", &sim.step_times(), n);
                 Ok(())
             })?;
+        }
+        "bench-liggghts" => {
+            // The same packing in LIGGGHTS (1 process), as `granval bench` runs it.
+            use granval::engines::Engine;
+            let n: usize = arg(2)?.parse()?;
+            let st = load(Path::new(arg(3)?))?;
+            let steps: u64 = arg(4)?.parse()?;
+            let dir = Path::new(arg(5)?);
+            let mut case = granval::bench::lattice_case(n, 1);
+            for (p, s) in case.particles.iter_mut().zip(&st.xvw) {
+                p.x = [s[0], s[1], s[2]];
+            }
+            case.n_steps = steps;
+            case.output_every = steps;
+            granval::engines::liggghts::Liggghts::default().run(&case, dir)?;
+            let log = std::fs::read_to_string(dir.join("log.liggghts"))?;
+            println!("LIGGGHTS loop time {:?} s", granval::bench::loop_time(&log));
         }
         "ci-prep" => {
             let case = PenetrationCase::load(Path::new(arg(2)?))?;

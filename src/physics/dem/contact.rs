@@ -12,25 +12,124 @@
 //! contact_models.h, so every floating-point operation happens in the same order as in
 //! LIGGGHTS. One function serves particle-particle and particle-wall contacts, as in
 //! LIGGGHTS, so the two cannot drift apart.
+//!
+//! The functions are generic over [`Real`]: `f64` for one contact, or
+//! [`super::lanes::F4`] for four pair contacts at once in SIMD lanes. A lane performs
+//! exactly the IEEE operations of the scalar law in the same order (no fused
+//! multiply-add, no reassociation), and every branch of the law is evaluated on both
+//! sides and selected per lane, so both give the same bits (tested).
 
 use crate::case::RollingModel;
-use crate::numerics::vec3::*;
+use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// sqrt(5/6) as LIGGGHTS spells it; Table 1's damping prefactor 2 sqrt(5/6) beta.
 const SQRT_FIVE_OVER_SIX: f64 = 0.912_870_929_175_276_9;
 
+/// A number the contact law computes with: `f64`, or several `f64` lanes processed
+/// with the same IEEE operations.
+pub trait Real:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    /// Per-lane condition.
+    type Mask: Copy;
+    fn splat(v: f64) -> Self;
+    fn sqrt(self) -> Self;
+    fn abs(self) -> Self;
+    /// `self > o` (false if either is NaN).
+    fn gt(self, o: Self) -> Self::Mask;
+    /// `self != o` (true if either is NaN).
+    fn ne(self, o: Self) -> Self::Mask;
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    fn uniform(b: bool) -> Self::Mask;
+    /// `a` where `m`, else `b`.
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+}
+
+impl Real for f64 {
+    type Mask = bool;
+    #[inline(always)]
+    fn splat(v: f64) -> f64 {
+        v
+    }
+    #[inline(always)]
+    fn sqrt(self) -> f64 {
+        f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn abs(self) -> f64 {
+        f64::abs(self)
+    }
+    #[inline(always)]
+    fn gt(self, o: f64) -> bool {
+        self > o
+    }
+    #[inline(always)]
+    fn ne(self, o: f64) -> bool {
+        self != o
+    }
+    #[inline(always)]
+    fn and(a: bool, b: bool) -> bool {
+        a && b
+    }
+    #[inline(always)]
+    fn uniform(b: bool) -> bool {
+        b
+    }
+    #[inline(always)]
+    fn select(m: bool, a: f64, b: f64) -> f64 {
+        if m { a } else { b }
+    }
+}
+
+/// A 3-vector of [`Real`]s; `V3<f64>` is [`crate::numerics::vec3::V3`].
+pub type V3<T = f64> = [T; 3];
+
+#[inline(always)]
+fn add<T: Real>(a: V3<T>, b: V3<T>) -> V3<T> {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+#[inline(always)]
+fn sub<T: Real>(a: V3<T>, b: V3<T>) -> V3<T> {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline(always)]
+fn scale<T: Real>(a: V3<T>, s: T) -> V3<T> {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+#[inline(always)]
+fn dot<T: Real>(a: V3<T>, b: V3<T>) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline(always)]
+fn norm<T: Real>(a: V3<T>) -> T {
+    dot(a, a).sqrt()
+}
+#[inline(always)]
+fn select3<T: Real>(m: T::Mask, a: V3<T>, b: V3<T>) -> V3<T> {
+    [
+        T::select(m, a[0], b[0]),
+        T::select(m, a[1], b[1]),
+        T::select(m, a[2], b[2]),
+    ]
+}
+
 /// Effective properties of a type pair, precomputed once per case
 /// (LIGGGHTS global_properties: createYeff, createGeff, createBetaEff).
 #[derive(Debug, Clone, Copy)]
-pub struct PairCoeffs {
+pub struct PairCoeffs<T = f64> {
     /// 1/Y* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j (Table 1).
-    pub yeff: f64,
+    pub yeff: T,
     /// 1/G* = 2(2-nu_i)(1+nu_i)/E_i + 2(2-nu_j)(1+nu_j)/E_j.
-    pub geff: f64,
+    pub geff: T,
     /// beta = ln e / sqrt(ln^2 e + pi^2) (Table 1).
-    pub betaeff: f64,
-    pub mu: f64,
-    pub mu_r: f64,
+    pub betaeff: T,
+    pub mu: T,
+    pub mu_r: T,
 }
 
 impl PairCoeffs {
@@ -61,18 +160,18 @@ impl PairCoeffs {
 /// Geometry and kinematics of one touching contact, seen from particle i.
 /// For walls `radj`, `omega_j` are unused and `vel_j` is the wall velocity.
 #[derive(Debug, Clone, Copy)]
-pub struct ContactGeom {
+pub struct ContactGeom<T = f64> {
     /// x_i - x_j (pair) or wall-to-particle vector (wall); |delta| = r.
-    pub delta: V3,
-    pub r: f64,
-    pub radi: f64,
-    pub radj: f64,
+    pub delta: V3<T>,
+    pub r: T,
+    pub radi: T,
+    pub radj: T,
     pub is_wall: bool,
-    pub meff: f64,
-    pub vel_i: V3,
-    pub vel_j: V3,
-    pub omega_i: V3,
-    pub omega_j: V3,
+    pub meff: T,
+    pub vel_i: V3<T>,
+    pub vel_j: V3<T>,
+    pub omega_i: V3<T>,
+    pub omega_j: V3<T>,
 }
 
 /// Per-contact state carried between steps (LIGGGHTS' contact history).
@@ -86,51 +185,51 @@ pub struct History {
 
 /// Force on i and torques on i and j (force on j is the negative; walls ignore torque_j).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct ContactForce {
-    pub f_i: V3,
-    pub torque_i: V3,
-    pub torque_j: V3,
+pub struct ContactForce<T = f64> {
+    pub f_i: V3<T>,
+    pub torque_i: V3<T>,
+    pub torque_j: V3<T>,
 }
 
 /// What the surface model hands to the normal, tangential and rolling models: the
 /// fields of LIGGGHTS' `SurfacesIntersectData` that surface_model_default.h sets
 /// (plus `en` and `rinv`, set by the caller there and here).
 #[derive(Debug, Clone, Copy)]
-pub struct Surface {
+pub struct Surface<T = f64> {
     /// Unit normal `delta / r`, pointing to particle i.
-    pub en: V3,
-    pub rinv: f64,
+    pub en: V3<T>,
+    pub rinv: T,
     /// Overlap `radsum - r` (radsum = r_i for a wall).
-    pub deltan: f64,
+    pub deltan: T,
     /// Normal relative velocity `(v_i - v_j) . en`.
-    pub vn: f64,
+    pub vn: T,
     /// Contact rotation rate ("wr1..3"): `(c_i w_i + c_j w_j) / r`, `c = r - deltan / 2`.
-    pub wr: V3,
+    pub wr: V3<T>,
     /// Tangential relative velocity at the contact point ("vtr1..3").
-    pub vtr: V3,
+    pub vtr: V3<T>,
     /// Lever arms `r_i - deltan / 2`, `r_j - deltan / 2` (0 for a wall).
-    pub cri: f64,
-    pub crj: f64,
+    pub cri: T,
+    pub crj: T,
 }
 
 /// Output of the normal model that the tangential and rolling models read
 /// (LIGGGHTS' `sidata.Fn`, `kn`, `kt`, `gammat`), and the effective radius R*.
 #[derive(Debug, Clone, Copy)]
-pub struct Normal {
+pub struct Normal<T = f64> {
     /// Total normal force `k_n delta_n - gamma_n v_n` (signed, not clamped).
-    pub fn_total: f64,
-    pub kn: f64,
-    pub kt: f64,
-    pub gammat: f64,
-    pub reff: f64,
+    pub fn_total: T,
+    pub kn: T,
+    pub kt: T,
+    pub gammat: T,
+    pub reff: T,
 }
 
 /// Tangential force on i and the torques it exerts on i and j.
 #[derive(Debug, Clone, Copy)]
-pub struct Tangential {
-    pub ft: V3,
-    pub torque_i: V3,
-    pub torque_j: V3,
+pub struct Tangential<T = f64> {
+    pub ft: V3<T>,
+    pub torque_i: V3<T>,
+    pub torque_j: V3<T>,
 }
 
 /// Contact geometry and relative kinematics, LIGGGHTS surface_model_default.h
@@ -141,8 +240,8 @@ pub struct Tangential {
 /// Walls: `wr = w_i (c_i / r)` here, where the header has `(c_i w_i) / r`; the two can
 /// differ in the last bit. Kept as it was, so results stay identical to earlier runs.
 #[inline(always)]
-pub fn surface_default(g: &ContactGeom) -> Surface {
-    let rinv = 1.0 / g.r;
+pub fn surface_default<T: Real>(g: &ContactGeom<T>) -> Surface<T> {
+    let rinv = T::splat(1.0) / g.r;
     let en = scale(g.delta, rinv);
     let radsum = if g.is_wall { g.radi } else { g.radi + g.radj };
     let deltan = radsum - g.r;
@@ -151,12 +250,13 @@ pub fn surface_default(g: &ContactGeom) -> Surface {
     let vr = sub(g.vel_i, g.vel_j);
     let vn = dot(vr, en);
     let vt = sub(vr, scale(en, vn));
+    let half = T::splat(0.5);
     let (wr, cri, crj) = if g.is_wall {
-        let cr = g.radi - 0.5 * deltan;
-        (scale(g.omega_i, cr * rinv), cr, 0.0)
+        let cr = g.radi - half * deltan;
+        (scale(g.omega_i, cr * rinv), cr, T::splat(0.0))
     } else {
-        let cri = g.radi - 0.5 * deltan;
-        let crj = g.radj - 0.5 * deltan;
+        let cri = g.radi - half * deltan;
+        let crj = g.radj - half * deltan;
         (
             scale(add(scale(g.omega_i, cri), scale(g.omega_j, crj)), rinv),
             cri,
@@ -188,19 +288,20 @@ pub fn surface_default(g: &ContactGeom) -> Surface {
 /// (`NormalModel<HERTZ>::surfacesIntersect`, `tangential_damping on`, `limitForce off`).
 /// The force on i is `fn_total * en`.
 #[inline(always)]
-pub fn normal_hertz(g: &ContactGeom, s: &Surface, c: &PairCoeffs) -> Normal {
+pub fn normal_hertz<T: Real>(g: &ContactGeom<T>, s: &Surface<T>, c: &PairCoeffs<T>) -> Normal<T> {
     let reff = if g.is_wall {
         g.radi
     } else {
         g.radi * g.radj / (g.radi + g.radj)
     };
     let sqrtval = (reff * s.deltan).sqrt();
-    let sn = 2.0 * c.yeff * sqrtval;
-    let st = 8.0 * c.geff * sqrtval;
-    let kn = 4.0 / 3.0 * c.yeff * sqrtval;
+    let sn = T::splat(2.0) * c.yeff * sqrtval;
+    let st = T::splat(8.0) * c.geff * sqrtval;
+    let kn = T::splat(4.0 / 3.0) * c.yeff * sqrtval;
     let kt = st;
-    let gamman = -2.0 * SQRT_FIVE_OVER_SIX * c.betaeff * (sn * g.meff).sqrt();
-    let gammat = -2.0 * SQRT_FIVE_OVER_SIX * c.betaeff * (st * g.meff).sqrt();
+    let damp = T::splat(-2.0 * SQRT_FIVE_OVER_SIX) * c.betaeff;
+    let gamman = damp * (sn * g.meff).sqrt();
+    let gammat = damp * (st * g.meff).sqrt();
     let fn_total = -gamman * s.vn + kn * s.deltan;
     Normal {
         fn_total,
@@ -218,38 +319,39 @@ pub fn normal_hertz(g: &ContactGeom, s: &Surface, c: &PairCoeffs) -> Normal {
 /// `update_history`), `F_t = -k_t shear`, capped at `mu |F_n|` with the shear rescaled to
 /// the cap, else `- gamma_t vtr` is added; torques `-c_i en x F_t`, `-c_j en x F_t`.
 #[inline(always)]
-pub fn tangential_history(
-    s: &Surface,
-    n: &Normal,
-    c: &PairCoeffs,
+pub fn tangential_history<T: Real>(
+    s: &Surface<T>,
+    n: &Normal<T>,
+    c: &PairCoeffs<T>,
     dt: f64,
-    shear: &mut V3,
+    shear: &mut V3<T>,
     update_history: bool,
-) -> Tangential {
+) -> Tangential<T> {
     let (en, vtr, kt) = (s.en, s.vtr, n.kt);
     if update_history {
-        add_assign(shear, scale(vtr, dt));
+        *shear = add(*shear, scale(vtr, T::splat(dt)));
         let rsht = dot(*shear, en);
-        sub_assign(shear, scale(en, rsht));
+        *shear = sub(*shear, scale(en, rsht));
     }
     let shrmag = norm(*shear);
-    let mut ft = scale(*shear, -kt);
+    let ft_ela = scale(*shear, -kt);
     let ft_shear = kt * shrmag;
     let ft_friction = c.mu * n.fn_total.abs();
-    if ft_shear > ft_friction {
-        if shrmag != 0.0 {
-            ft = scale(ft, ft_friction / ft_shear);
-            if update_history {
-                // -Ft/kt component-wise, the same division LIGGGHTS performs.
-                shear[0] = -ft[0] / kt;
-                shear[1] = -ft[1] / kt;
-                shear[2] = -ft[2] / kt;
-            }
-        } else {
-            ft = [0.0; 3];
-        }
-    } else {
-        sub_assign(&mut ft, scale(vtr, n.gammat));
+    // Sliding: F_t rescaled onto the cap (zero if there is no shear to rescale) and the
+    // shear set to -F_t / k_t component-wise, the same division LIGGGHTS performs.
+    // Sticking: the damping -gamma_t vtr added. Both are computed, one is kept.
+    let slide = ft_shear.gt(ft_friction);
+    let nonzero = shrmag.ne(T::splat(0.0));
+    let ft_cap = scale(ft_ela, ft_friction / ft_shear);
+    let ft_stick = sub(ft_ela, scale(vtr, n.gammat));
+    let ft = select3(
+        slide,
+        select3(nonzero, ft_cap, [T::splat(0.0); 3]),
+        ft_stick,
+    );
+    if update_history {
+        let rescaled = [-ft_cap[0] / kt, -ft_cap[1] / kt, -ft_cap[2] / kt];
+        *shear = select3(T::and(slide, nonzero), rescaled, *shear);
     }
     let tor = [
         en[1] * ft[2] - en[2] * ft[1],
@@ -268,33 +370,35 @@ pub fn tangential_history(
 /// (normal) part. Mirrors LIGGGHTS rolling_model_cdt.h
 /// (`RollingModel<ROLLING_CDT>::surfacesIntersect`, `torsionTorque off`): pairs use
 /// `w_i - w_j`, walls the contact rotation rate `wr` (same direction as `w_i`). Returns
-/// the torque subtracted from i and added to j, `None` when nothing rotates.
+/// the torque subtracted from i and added to j, and where it applies (not where
+/// nothing rotates).
 #[inline(always)]
-pub fn rolling_cdt(g: &ContactGeom, s: &Surface, n: &Normal, c: &PairCoeffs) -> Option<V3> {
+pub fn rolling_cdt<T: Real>(
+    g: &ContactGeom<T>,
+    s: &Surface<T>,
+    n: &Normal<T>,
+    c: &PairCoeffs<T>,
+) -> (T::Mask, V3<T>) {
     let w = if g.is_wall {
         s.wr
     } else {
         sub(g.omega_i, g.omega_j)
     };
     let wmag = norm(w);
-    if wmag > 0.0 {
-        let (en, reff) = (s.en, n.reff);
-        let t = if g.is_wall {
-            let fnel = s.deltan * n.kn;
-            [
-                c.mu_r * fnel * w[0] / wmag * reff,
-                c.mu_r * fnel * w[1] / wmag * reff,
-                c.mu_r * fnel * w[2] / wmag * reff,
-            ]
-        } else {
-            scale(w, c.mu_r * n.kn * s.deltan * reff / wmag)
-        };
-        // No torsional component (torsionTorque off).
-        let tn = dot(t, en);
-        Some(sub(t, scale(en, tn)))
+    let (en, reff) = (s.en, n.reff);
+    let t = if g.is_wall {
+        let fnel = s.deltan * n.kn;
+        [
+            c.mu_r * fnel * w[0] / wmag * reff,
+            c.mu_r * fnel * w[1] / wmag * reff,
+            c.mu_r * fnel * w[2] / wmag * reff,
+        ]
     } else {
-        None
-    }
+        scale(w, c.mu_r * n.kn * s.deltan * reff / wmag)
+    };
+    // No torsional component (torsionTorque off).
+    let tn = dot(t, en);
+    (wmag.gt(T::splat(0.0)), sub(t, scale(en, tn)))
 }
 
 /// Elastic-plastic spring-dashpot rolling resistance (EPSD2, no dashpot): a rolling
@@ -304,15 +408,15 @@ pub fn rolling_cdt(g: &ContactGeom, s: &Surface, n: &Normal, c: &PairCoeffs) -> 
 /// off`); `roll` is its `r_torque_old` history, stored only when `update_history`.
 /// Returns the torque subtracted from i and added to j.
 #[inline(always)]
-pub fn rolling_epsd2(
-    g: &ContactGeom,
-    s: &Surface,
-    n: &Normal,
-    c: &PairCoeffs,
+pub fn rolling_epsd2<T: Real>(
+    g: &ContactGeom<T>,
+    s: &Surface<T>,
+    n: &Normal<T>,
+    c: &PairCoeffs<T>,
     dt: f64,
-    roll: &mut V3,
+    roll: &mut V3<T>,
     update_history: bool,
-) -> V3 {
+) -> V3<T> {
     let w = if g.is_wall {
         s.wr
     } else {
@@ -322,12 +426,10 @@ pub fn rolling_epsd2(
     let wn = dot(w, en);
     let w_t = sub(w, scale(en, wn));
     let kr = n.kt * n.reff * n.reff;
-    let mut t = add(*roll, scale(w_t, dt * kr));
+    let t = add(*roll, scale(w_t, T::splat(dt) * kr));
     let tmag = norm(t);
     let tmax = n.fn_total.abs() * n.reff * c.mu_r;
-    if tmag > tmax {
-        t = scale(t, tmax / tmag);
-    }
+    let t = select3(tmag.gt(tmax), scale(t, tmax / tmag), t);
     if update_history {
         *roll = t;
     }
@@ -340,29 +442,32 @@ pub fn rolling_epsd2(
 /// normal, cohesion (none), tangential, rolling) and accumulate into the force and
 /// torques in that order, so the floating-point result is LIGGGHTS'.
 #[inline(always)]
-pub fn evaluate(
-    g: &ContactGeom,
-    c: &PairCoeffs,
+pub fn evaluate<T: Real>(
+    g: &ContactGeom<T>,
+    c: &PairCoeffs<T>,
     rolling: RollingModel,
     dt: f64,
-    shear: &mut V3,
-    roll: &mut V3,
+    shear: &mut V3<T>,
+    roll: &mut V3<T>,
     update_history: bool,
-) -> ContactForce {
+) -> ContactForce<T> {
     let s = surface_default(g);
     let n = normal_hertz(g, &s, c);
-    let mut f_i = scale(s.en, n.fn_total);
+    let f_n = scale(s.en, n.fn_total);
     let t = tangential_history(&s, &n, c, dt, shear, update_history);
-    add_assign(&mut f_i, t.ft);
+    let f_i = add(f_n, t.ft);
     let (mut torque_i, mut torque_j) = (t.torque_i, t.torque_j);
-    let r_torque = match rolling {
+    let rolled = match rolling {
         RollingModel::None => None,
-        RollingModel::Cdt => rolling_cdt(g, &s, &n, c),
-        RollingModel::Epsd2 => Some(rolling_epsd2(g, &s, &n, c, dt, roll, update_history)),
+        RollingModel::Cdt => Some(rolling_cdt(g, &s, &n, c)),
+        RollingModel::Epsd2 => Some((
+            T::uniform(true),
+            rolling_epsd2(g, &s, &n, c, dt, roll, update_history),
+        )),
     };
-    if let Some(t) = r_torque {
-        sub_assign(&mut torque_i, t);
-        add_assign(&mut torque_j, t);
+    if let Some((applies, r_torque)) = rolled {
+        torque_i = select3(applies, sub(torque_i, r_torque), torque_i);
+        torque_j = select3(applies, add(torque_j, r_torque), torque_j);
     }
     ContactForce {
         f_i,

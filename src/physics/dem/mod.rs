@@ -8,9 +8,11 @@
 pub mod contact;
 pub mod contacts;
 pub mod intruder;
+mod lanes;
 pub mod neighbor;
 mod overlap;
 pub mod packing;
+mod pairs;
 mod par;
 pub mod penetration;
 pub mod walls;
@@ -20,6 +22,7 @@ use crate::numerics::vec3::*;
 use crate::rundata::frames::{Frame, ParticleState};
 use contact::{ContactGeom, PairCoeffs, evaluate};
 use neighbor::PairList;
+use pairs::RevForce;
 use par::Shared;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -80,14 +83,6 @@ pub struct Simulation {
     hi: V3,
     pub step: u64,
     times: StepTimes,
-}
-
-/// What the pair pass leaves for the second member of a pair.
-#[derive(Debug, Clone, Copy, Default)]
-struct RevForce {
-    /// Force on the first member (the second gets its negative).
-    f_i: V3,
-    torque_j: V3,
 }
 
 /// Wall time (s) spent in each phase of [`Simulation::step`] since the simulation was
@@ -527,112 +522,58 @@ impl Simulation {
         tm.gather += (t2 - t1).as_secs_f64();
     }
 
-    /// Pass 1, per block of particles i over their own pairs (i, j > i) in list order.
-    /// Phase A, without branches: which pairs touch (`pair_touch`, and their indices
-    /// compacted into `touching`), every reverse slot zeroed, the own sums zeroed. Phase
-    /// B, over the touching pairs only: the contact law; the force and torque on i summed
-    /// from +0.0 in pair order into `f[i]`, `torque[i]` (the gather continues these
-    /// sums); the force on i and the torque on j stored in the pair's reverse slot for
-    /// the gather of j.
+    /// Pass 1, per block of particles over their own pairs: see [`pairs`].
     #[inline(never)]
     fn pair_pass(&mut self, update_history: bool) {
-        let dt = self.dt;
-        let (x, v, omega, radius, mass, type_) = (
-            &self.x,
-            &self.v,
-            &self.omega,
-            &self.radius,
-            &self.mass,
-            &self.type_,
-        );
-        let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
         let np = self.pairs.len();
         self.rev_out.resize(np, RevForce::default());
         self.pair_touch.resize(np, false);
         self.touching.resize(np, 0);
         let pl = &mut self.pairs;
-        let (start, pi, pj, rev_pos, track_roll) =
-            (&pl.start, &pl.i, &pl.j, &pl.rev_pos, pl.track_roll);
+        let ctx = pairs::PairCtx {
+            x: &self.x,
+            v: &self.v,
+            omega: &self.omega,
+            radius: &self.radius,
+            mass: &self.mass,
+            type_: &self.type_,
+            coeffs: &self.coeffs,
+            n_types: self.n_types,
+            rolling: self.rolling,
+            dt: self.dt,
+            update_history,
+            start: &pl.start,
+            pi: &pl.i,
+            pj: &pl.j,
+            rev_pos: &pl.rev_pos,
+        };
+        let track_roll = pl.track_roll;
         let (shear, roll) = (Shared::new(&mut pl.shear), Shared::new(&mut pl.roll));
         let touch = Shared::new(&mut self.pair_touch);
         let list = Shared::new(&mut self.touching);
         let rev = Shared::new(&mut self.rev_out);
         let (fs, ts) = (Shared::new(&mut self.f), Shared::new(&mut self.torque));
-        par::for_blocks(x.len(), |r| {
-            let kr = start[r.start]..start[r.end];
-            let (k0, i0) = (kr.start, r.start);
-            // SAFETY: blocks are disjoint particle ranges, hence disjoint pair ranges;
-            // every reverse slot belongs to exactly one pair.
-            let (shear, touch, list, f, t) = unsafe {
-                (
-                    shear.slice(kr.clone()),
-                    touch.slice(kr.clone()),
-                    list.slice(kr.clone()),
-                    fs.slice(r.clone()),
-                    ts.slice(r.clone()),
-                )
+        par::for_blocks(self.x.len(), |r| {
+            let kr = ctx.start[r.start]..ctx.start[r.end];
+            // SAFETY: blocks are disjoint particle ranges, hence disjoint pair ranges.
+            let out = unsafe {
+                pairs::BlockOut {
+                    k0: kr.start,
+                    i0: r.start,
+                    shear: shear.slice(kr.clone()),
+                    roll: if track_roll {
+                        roll.slice(kr.clone())
+                    } else {
+                        &mut []
+                    },
+                    touch: touch.slice(kr.clone()),
+                    list: list.slice(kr.clone()),
+                    f: fs.slice(r.clone()),
+                    t: ts.slice(r.clone()),
+                    rev,
+                }
             };
-            let roll: &mut [V3] = if track_roll {
-                unsafe { roll.slice(kr.clone()) }
-            } else {
-                &mut []
-            };
-            f.fill([0.0; 3]);
-            t.fill([0.0; 3]);
-            let mut cnt = 0;
-            for k in kr.clone() {
-                let (i, j) = (pi[k] as usize, pj[k] as usize);
-                let delta = sub(x[i], x[j]);
-                let rsq = dot(delta, delta);
-                let radsum = radius[i] + radius[j];
-                let touching = rsq < radsum * radsum;
-                touch[k - k0] = touching;
-                list[cnt] = k as u32;
-                cnt += touching as usize;
-                // SAFETY: slot of pair k, written by no other pair.
-                unsafe { rev.write(rev_pos[k] as usize, RevForce::default()) };
-            }
-            let mut no_roll = [0.0; 3];
-            for &k in &list[..cnt] {
-                let k = k as usize;
-                let (i, j) = (pi[k] as usize, pj[k] as usize);
-                let delta = sub(x[i], x[j]);
-                let rsq = dot(delta, delta);
-                let (mi, mj) = (mass[i], mass[j]);
-                let g = ContactGeom {
-                    delta,
-                    r: rsq.sqrt(),
-                    radi: radius[i],
-                    radj: radius[j],
-                    is_wall: false,
-                    meff: mi * mj / (mi + mj),
-                    vel_i: v[i],
-                    vel_j: v[j],
-                    omega_i: omega[i],
-                    omega_j: omega[j],
-                };
-                let c = &coeffs[type_[i] * n_types + type_[j]];
-                let rl = if track_roll {
-                    &mut roll[k - k0]
-                } else {
-                    &mut no_roll
-                };
-                let o = evaluate(&g, c, rolling, dt, &mut shear[k - k0], rl, update_history);
-                add_assign(&mut f[i - i0], o.f_i);
-                add_assign(&mut t[i - i0], o.torque_i);
-                // SAFETY: slot of pair k, written by no other pair.
-                unsafe {
-                    rev.write(
-                        rev_pos[k] as usize,
-                        RevForce {
-                            f_i: o.f_i,
-                            torque_j: o.torque_j,
-                        },
-                    )
-                };
-            }
-            // History of pairs that no longer touch is NOT cleared: LIGGGHTS 3.8 keeps a
-            // separated pair's shear until the next neighbour rebuild (see neighbor.rs).
+            pairs::block(&ctx, r, out);
         });
     }
 
