@@ -5,6 +5,8 @@
 //! ```text
 //! dem_profile bench-pack N FILE              settle the `granval bench` packing, store it
 //! dem_profile bench-run N FILE STEPS THREADS time STEPS steps from it
+//! dem_profile bench N FILE STEPS REPS        `granval bench` on the stored packing
+//! dem_profile pen-bench CASE STEPS REPS      the penetration benchmark (bench.rs)
 //! dem_profile bench-liggghts N FILE STEPS DIR  the same in LIGGGHTS (1 process)
 //! dem_profile ci-prep CASE BED MID            prepare bed 0 of a penetration case (timed
 //!                                            per phase), store the bed in BED, penetrate
@@ -179,6 +181,23 @@ fn main() -> Result<()> {
                 print_times("bench", &sim.step_times(), n);
                 Ok(())
             })?;
+        }
+        "bench" => {
+            // `granval bench` on the stored packing (skips the 15 s settle).
+            let n: usize = arg(2)?.parse()?;
+            let st = load(Path::new(arg(3)?))?;
+            let steps: u64 = arg(4)?.parse()?;
+            let reps: usize = arg(5)?.parse()?;
+            let mut case = granval::bench::lattice_case(n, 1);
+            for (p, s) in case.particles.iter_mut().zip(&st.xvw) {
+                p.x = [s[0], s[1], s[2]];
+            }
+            granval::bench::measure_packing(&case, steps, reps)?.print();
+        }
+        "pen-bench" => {
+            let steps: u64 = arg(3)?.parse()?;
+            let reps: usize = arg(4)?.parse()?;
+            granval::bench::run_penetration(Path::new(arg(2)?), steps, reps)?;
         }
         "bench-liggghts" => {
             // The same packing in LIGGGHTS (1 process), as `granval bench` runs it.

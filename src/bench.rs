@@ -12,7 +12,7 @@ use crate::engines::Engine;
 use crate::engines::liggghts::{self, Liggghts};
 use crate::physics::dem::Simulation;
 use anyhow::{Context, Result};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// A loose jittered lattice of `n` spheres (d = 2 mm +-5%) in a walled box, with the
@@ -146,19 +146,64 @@ pub fn settled_packing(n: usize, seed: u64, settle_time: f64) -> Result<(Case, f
     Ok((case, ratio))
 }
 
-fn time_native(case: &Case, steps: u64, threads: usize) -> Result<f64> {
-    let pool = rayon::ThreadPoolBuilder::new()
+fn pool(threads: usize) -> Result<rayon::ThreadPool> {
+    Ok(rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
-        .build()?;
-    pool.install(|| -> Result<f64> {
+        .build()?)
+}
+
+/// Wall time of `steps` steps from `case`, and the engine's bytes per particle then.
+fn time_native(case: &Case, steps: u64, threads: usize) -> Result<(f64, f64)> {
+    pool(threads)?.install(|| -> Result<(f64, f64)> {
         let mut sim = Simulation::from_case_perturbed(case, Perturbation::default());
         sim.setup()?;
         let t = Instant::now();
         for _ in 0..steps {
             sim.step()?;
         }
-        Ok(t.elapsed().as_secs_f64())
+        let el = t.elapsed().as_secs_f64();
+        Ok((el, sim.memory_bytes() as f64 / sim.x.len() as f64))
     })
+}
+
+/// "Memory usage per processor = 16.4864 Mbytes" from a LIGGGHTS log (its own estimate
+/// of its arrays, not the process's resident size).
+pub fn liggghts_memory_mb(log: &str) -> Option<f64> {
+    log.lines().rev().find_map(|l| {
+        l.trim()
+            .strip_prefix("Memory usage per processor =")?
+            .split_whitespace()
+            .next()?
+            .parse()
+            .ok()
+    })
+}
+
+/// Peak resident size of this process (VmHWM, bytes), if the system reports it.
+pub fn peak_rss_bytes() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kb: f64 = s
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()?;
+    Some(kb * 1024.0)
+}
+
+/// Minimum, median and maximum of a few timings.
+fn spread(v: &[f64]) -> (f64, f64, f64) {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    (s[0], s[s.len() / 2], s[s.len() - 1])
+}
+
+fn fmt_times(v: &[f64]) -> String {
+    v.iter()
+        .map(|t| format!("{t:.2}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// "Loop time of 12.3 on 1 procs for 2000 steps with 10000 atoms" from a LIGGGHTS log.
@@ -172,61 +217,261 @@ pub fn loop_time(log: &str) -> Option<f64> {
     })
 }
 
-/// Best (shortest) of `reps` measurements: on a shared, noisy machine the minimum is
-/// the estimate least polluted by other tenants, and both engines get the same treatment.
-fn best_of(reps: usize, mut f: impl FnMut() -> Result<f64>) -> Result<f64> {
-    let mut best = f64::INFINITY;
-    for _ in 0..reps {
-        best = best.min(f()?);
+
+/// Every timing of one `granval bench` run (seconds for `steps` steps; the figure
+/// reported is the best of each list) and the memory per particle.
+#[derive(Debug, Clone)]
+pub struct BenchResult {
+    pub n: usize,
+    pub steps: u64,
+    pub native_1: Vec<f64>,
+    pub native_2: Vec<f64>,
+    /// LIGGGHTS' own "Loop time", 1 process (None: LIGGGHTS not installed).
+    pub liggghts_1: Option<Vec<f64>>,
+    pub liggghts_version: Option<String>,
+    /// Bytes per particle of the native engine's arrays.
+    pub native_bytes: f64,
+    /// LIGGGHTS' own "Memory usage per processor" estimate per particle.
+    pub liggghts_bytes: Option<f64>,
+}
+
+fn best(v: &[f64]) -> f64 {
+    spread(v).0
+}
+
+impl BenchResult {
+    /// Native 1 thread / LIGGGHTS 1 process (throughput ratio of the best timings).
+    pub fn ratio_1(&self) -> Option<f64> {
+        Some(best(self.liggghts_1.as_ref()?) / best(&self.native_1))
     }
-    Ok(best)
+    /// Native 2 threads / native 1 thread.
+    pub fn scaling_2(&self) -> f64 {
+        best(&self.native_1) / best(&self.native_2)
+    }
+
+    pub fn print(&self) {
+        let ps = self.n as f64 * self.steps as f64;
+        let (t1, t2) = (best(&self.native_1), best(&self.native_2));
+        println!(
+            "native 1 thread : {:>10.3e} particle-steps/s ({t1:.2} s; all: {})",
+            ps / t1,
+            fmt_times(&self.native_1)
+        );
+        println!(
+            "native 2 threads: {:>10.3e} particle-steps/s ({t2:.2} s; all: {})  speed-up vs 1 thread: {:.2}x",
+            ps / t2,
+            fmt_times(&self.native_2),
+            self.scaling_2()
+        );
+        println!(
+            "native memory   : {:.0} bytes per particle in the engine's arrays; process peak RSS {:.1} MB",
+            self.native_bytes,
+            peak_rss_bytes().unwrap_or(f64::NAN) / 1e6
+        );
+        match (&self.liggghts_1, &self.liggghts_version) {
+            (Some(vl), Some(v)) => {
+                let tl = best(vl);
+                println!(
+                    "liggghts 1 proc : {:>10.3e} particle-steps/s ({tl:.2} s loop time; all: {}; {v})",
+                    ps / tl,
+                    fmt_times(vl)
+                );
+                if let Some(b) = self.liggghts_bytes {
+                    println!(
+                        "liggghts memory : {b:.0} bytes per particle (its own 'Memory usage per processor' estimate)"
+                    );
+                }
+                println!("ratio native(1 thread) / liggghts(1 proc) = {:.2}", tl / t1);
+                println!(
+                    "ratio native(2 threads) / liggghts(1 proc) = {:.2}",
+                    tl / t2
+                );
+            }
+            _ => println!("LIGGGHTS not installed: no ratio measured"),
+        }
+    }
 }
 
 pub fn run(n: usize, steps: u64) -> Result<()> {
     let t0 = Instant::now();
-    let (mut case, ke_ratio) = settled_packing(n, 1, 0.15)?;
+    let (case, ke_ratio) = settled_packing(n, 1, 0.15)?;
     println!(
         "packing: {n} spheres settled natively in {:.1} s (KE now / peak KE = {ke_ratio:.1e}), dt = {:.3e} s",
         t0.elapsed().as_secs_f64(),
         case.dt
     );
+    const REPS: usize = 3;
+    println!(
+        "timing {steps} steps per engine, {REPS} repetitions (native 1 thread, 2 threads, LIGGGHTS in turn), best reported"
+    );
+    measure_packing(&case, steps, REPS)?.print();
+    Ok(())
+}
+
+/// Times `steps` steps from the packing `case` in both engines, `reps` rounds of native 1
+/// thread, native 2 threads and LIGGGHTS (1 process) in turn, so noise hits all alike.
+pub fn measure_packing(case: &Case, steps: u64, reps: usize) -> Result<BenchResult> {
+    let mut case = case.clone();
     case.n_steps = steps;
     case.output_every = steps;
-    let ps = (n as u64 * steps) as f64;
-    const REPS: usize = 3;
-    println!("timing {steps} steps per engine, best of {REPS} repetitions each");
-    let t1 = best_of(REPS, || time_native(&case, steps, 1))?;
-    let t2 = best_of(REPS, || time_native(&case, steps, 2))?;
-    println!(
-        "native 1 thread : {:>10.3e} particle-steps/s ({t1:.2} s)",
-        ps / t1
-    );
-    println!(
-        "native 2 threads: {:>10.3e} particle-steps/s ({t2:.2} s)  speed-up vs 1 thread: {:.2}x",
-        ps / t2,
-        t1 / t2
-    );
-    match liggghts::installed_version("liggghts") {
-        None => println!("LIGGGHTS not installed: no ratio measured"),
-        Some(v) => {
+    let version = liggghts::installed_version("liggghts");
+    let mut r = BenchResult {
+        n: case.particles.len(),
+        steps,
+        native_1: Vec::new(),
+        native_2: Vec::new(),
+        liggghts_1: version.as_ref().map(|_| Vec::new()),
+        liggghts_version: version,
+        native_bytes: f64::NAN,
+        liggghts_bytes: None,
+    };
+    for _ in 0..reps {
+        let (t, bytes) = time_native(&case, steps, 1)?;
+        r.native_1.push(t);
+        r.native_bytes = bytes;
+        r.native_2.push(time_native(&case, steps, 2)?.0);
+        if let Some(vl) = &mut r.liggghts_1 {
             let dir = tempfile::tempdir()?;
             Liggghts::default()
                 .run(&case, dir.path())
                 .context("LIGGGHTS bench run")?;
             let log = std::fs::read_to_string(dir.path().join("log.liggghts"))?;
-            let tl = loop_time(&log).context("no 'Loop time' line in the LIGGGHTS log")?;
-            println!(
-                "liggghts 1 proc : {:>10.3e} particle-steps/s ({tl:.2} s loop time; {v})",
-                ps / tl
-            );
-            println!("ratio native(1 thread) / liggghts(1 proc) = {:.2}", tl / t1);
-            println!(
-                "ratio native(2 threads) / liggghts(1 proc) = {:.2}",
-                tl / t2
-            );
+            r.liggghts_bytes =
+                liggghts_memory_mb(&log).map(|mb| mb * 1048576.0 / r.n as f64);
+            vl.push(loop_time(&log).context("no 'Loop time' line in the LIGGGHTS log")?);
         }
     }
-    Ok(())
+    Ok(r)
+}
+
+/// Every timing of one penetration benchmark ([`run_penetration`]; seconds for `steps`
+/// steps; the figure reported is the best of each list).
+#[derive(Debug, Clone)]
+pub struct PenetrationBench {
+    pub grains: usize,
+    pub steps: u64,
+    /// Native bed preparation (pour and settle, 2 threads), seconds.
+    pub preparation: f64,
+    pub native_2: Vec<f64>,
+    /// LIGGGHTS `mpirun -np 2`, its own "Loop time".
+    pub liggghts_np2: Option<Vec<f64>>,
+    pub native_bytes: f64,
+    /// LIGGGHTS' own "Memory usage per processor" estimate, per particle, both ranks.
+    pub liggghts_bytes: Option<f64>,
+}
+
+impl PenetrationBench {
+    /// Native 2 threads / LIGGGHTS np 2 (throughput ratio of the best timings).
+    pub fn ratio(&self) -> Option<f64> {
+        Some(best(self.liggghts_np2.as_ref()?) / best(&self.native_2))
+    }
+
+    pub fn print(&self) {
+        let ps = self.grains as f64 * self.steps as f64;
+        let t2 = best(&self.native_2);
+        println!(
+            "native 2 threads : {:>10.3e} particle-steps/s ({t2:.2} s; all: {})",
+            ps / t2,
+            fmt_times(&self.native_2)
+        );
+        println!(
+            "native memory    : {:.0} bytes per particle in the engine's arrays; process peak RSS {:.1} MB",
+            self.native_bytes,
+            peak_rss_bytes().unwrap_or(f64::NAN) / 1e6
+        );
+        match &self.liggghts_np2 {
+            Some(vl) => {
+                let tl = best(vl);
+                println!(
+                    "liggghts np 2    : {:>10.3e} particle-steps/s ({tl:.2} s loop time; all: {})",
+                    ps / tl,
+                    fmt_times(vl)
+                );
+                if let Some(b) = self.liggghts_bytes {
+                    println!(
+                        "liggghts memory  : {b:.0} bytes per particle (its own 'Memory usage per processor' estimate, both ranks)"
+                    );
+                }
+                println!(
+                    "ratio native(2 threads) / liggghts(np 2) = {:.2}",
+                    tl / t2
+                );
+            }
+            None => println!("LIGGGHTS not installed: no ratio measured"),
+        }
+    }
+}
+
+/// The penetration benchmark: bed 0 of the penetration case `case_path` prepared natively
+/// (pour and settle, timed, 2 threads), then the first `steps` steps of its penetration
+/// (the whole run if `steps` is larger; the intruder reaches the grains after
+/// `start_gap / speed`) timed `reps` times in turn in the native engine (2 threads) and
+/// in LIGGGHTS under `mpirun -np 2` (the deck of `granval compare`: same bed, intruder
+/// start and speed, force output; LIGGGHTS' own "Loop time", so start-up and reading the
+/// bed are not charged to it, as native setup is not). Prints the table and returns the
+/// timings.
+pub fn run_penetration(case_path: &Path, steps: u64, reps: usize) -> Result<PenetrationBench> {
+    use crate::case::penetration::PenetrationCase;
+    use crate::physics::dem;
+    let case = PenetrationCase::load(case_path)?;
+    let t0 = Instant::now();
+    let bed = pool(2)?.install(|| crate::penetration::prepare_bed(&case, false))?;
+    let preparation = t0.elapsed().as_secs_f64();
+    let steps = steps.min(dem::penetration::n_steps(&case, &bed));
+    let grains = bed.particles.len();
+    println!(
+        "{} (prepared in {preparation:.1} s, 2 threads)",
+        dem::packing::bed_note(&case, &bed)
+    );
+    println!(
+        "timing {steps} penetration steps, {reps} repetitions (native 2 threads, LIGGGHTS np 2 in turn), best reported"
+    );
+    let mut deck = crate::penetration::liggghts_deck(&case, &bed)?;
+    deck.n_steps = steps;
+    let have_liggghts = liggghts::installed_version("liggghts").is_some();
+    let mut r = PenetrationBench {
+        grains,
+        steps,
+        preparation,
+        native_2: Vec::new(),
+        liggghts_np2: have_liggghts.then(Vec::new),
+        native_bytes: f64::NAN,
+        liggghts_bytes: None,
+    };
+    for _ in 0..reps {
+        let (t, bytes) = pool(2)?.install(|| -> Result<(f64, f64)> {
+            let mut sim = dem::penetration::simulation(&case, &bed, Perturbation::default())?;
+            let mut f = [0.0; 3];
+            let t = Instant::now();
+            for _ in 0..steps {
+                sim.step()?;
+                if sim.step.is_multiple_of(case.force_every) {
+                    f = sim.intruder_force();
+                }
+            }
+            let el = t.elapsed().as_secs_f64();
+            std::hint::black_box(f);
+            Ok((el, sim.memory_bytes() as f64 / grains as f64))
+        })?;
+        r.native_2.push(t);
+        r.native_bytes = bytes;
+        if let Some(vl) = &mut r.liggghts_np2 {
+            let dir = tempfile::tempdir()?;
+            liggghts::penetration::run(
+                &deck,
+                dir.path(),
+                2,
+                std::time::Duration::from_secs(4 * 3600),
+            )
+            .context("LIGGGHTS penetration bench run")?;
+            let log = std::fs::read_to_string(dir.path().join("log.liggghts"))?;
+            r.liggghts_bytes =
+                liggghts_memory_mb(&log).map(|mb| 2.0 * mb * 1048576.0 / grains as f64);
+            vl.push(loop_time(&log).context("no 'Loop time' line in the LIGGGHTS log")?);
+        }
+    }
+    r.print();
+    Ok(r)
 }
 
 #[cfg(test)]
@@ -235,5 +480,25 @@ mod tests {
     fn parses_loop_time() {
         let log = "Step Atoms KinEng CPU\nLoop time of 12.75 on 1 procs for 2000 steps with 10000 atoms\n";
         assert_eq!(super::loop_time(log), Some(12.75));
+    }
+
+    #[test]
+    fn parses_liggghts_memory() {
+        let log = "Setting up run ...\nMemory usage per processor = 16.4864 Mbytes\n";
+        assert_eq!(super::liggghts_memory_mb(log), Some(16.4864));
+    }
+
+    /// The penetration benchmark on the CI bed (several minutes; run with
+    /// `cargo test --release --lib bench_penetration_ci -- --ignored --nocapture`).
+    #[test]
+    #[ignore]
+    fn bench_penetration_ci() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let steps = std::env::var("GRANVAL_BENCH_STEPS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(10_000);
+        let r = super::run_penetration(&root.join("cases/penetration/ci.toml"), steps, 3).unwrap();
+        assert_eq!(r.native_2.len(), 3);
     }
 }

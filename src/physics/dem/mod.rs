@@ -310,27 +310,37 @@ impl Simulation {
                         ws.slice(r.clone()),
                     )
                 };
+                let (f, t) = (&f[r.clone()], &torque[r.clone()]);
+                let (mass, radius) = (&mass[r.clone()], &radius[r.clone()]);
+                let xb = if built { &x_at_build[r.clone()] } else { &[] };
+                let len = r.len();
+                assert!(x.len() == len && f.len() == len && mass.len() == len);
                 let (mut nf, mut out, mut mv) = (usize::MAX, usize::MAX, false);
-                for (l, k) in r.enumerate() {
+                for l in 0..len {
                     let (x, v, w) = (&mut x[l], &mut v[l], &mut w[l]);
-                    let (m, rad) = (mass[k], radius[k]);
+                    let (m, rad) = (mass[l], radius[l]);
                     let dtfm = dtf / m;
-                    add_assign(v, scale(f[k], dtfm));
+                    add_assign(v, scale(f[l], dtfm));
                     add_assign(x, scale(*v, dt));
                     let dtirotate = dtf / INERTIA / (rad * rad * m);
-                    add_assign(w, scale(torque[k], dtirotate));
-                    let finite = (0..3).fold(true, |a, c| {
-                        a & x[c].is_finite() & v[c].is_finite() & w[c].is_finite()
-                    });
-                    let inside = (0..3).fold(true, |a, c| a & (x[c] >= lo[c]) & (x[c] <= hi[c]));
-                    if !finite && nf == usize::MAX {
-                        nf = k;
-                    }
-                    if !inside && out == usize::MAX {
-                        out = k;
+                    add_assign(w, scale(t[l], dtirotate));
+                    let finite = (x[0].is_finite() & x[1].is_finite() & x[2].is_finite())
+                        & (v[0].is_finite() & v[1].is_finite() & v[2].is_finite())
+                        & (w[0].is_finite() & w[1].is_finite() & w[2].is_finite());
+                    let inside = (x[0] >= lo[0]) & (x[0] <= hi[0])
+                        & (x[1] >= lo[1]) & (x[1] <= hi[1])
+                        & (x[2] >= lo[2]) & (x[2] <= hi[2]);
+                    if !(finite & inside) {
+                        let k = r.start + l;
+                        if !finite && nf == usize::MAX {
+                            nf = k;
+                        }
+                        if !inside && out == usize::MAX {
+                            out = k;
+                        }
                     }
                     if built {
-                        let b = x_at_build[k];
+                        let b = xb[l];
                         let d = [x[0] - b[0], x[1] - b[1], x[2] - b[2]];
                         mv |= d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > lim;
                     }
@@ -547,6 +557,7 @@ impl Simulation {
             pj: &pl.j,
             rev_pos: &pl.rev_pos,
         };
+        ctx.check(pl.x_at_build.len(), self.rev_out.len());
         let track_roll = pl.track_roll;
         let (shear, roll) = (Shared::new(&mut pl.shear), Shared::new(&mut pl.roll));
         let touch = Shared::new(&mut self.pair_touch);
@@ -623,6 +634,13 @@ impl Simulation {
             } else {
                 &mut []
             };
+            let (x, radius, mass) = (&x[r.clone()], &radius[r.clone()], &mass[r.clone()]);
+            let (type_, near_walls) = (&type_[r.clone()], &near_walls[r.clone()]);
+            let rev_start = &rev_start[r.start..r.end + 1];
+            let len = r.len();
+            assert!(
+                x.len() == len && vb.len() == len && f.len() == len && rev_start.len() == len + 1
+            );
             let mut no_roll = [0.0; 3];
             let mut itb = it.map(|(body, vel, ity, cand, sh, rl, on, iepsd2)| {
                 // SAFETY: the block's own particles.
@@ -642,17 +660,17 @@ impl Simulation {
                     iepsd2,
                 )
             });
-            for (l, i) in r.clone().enumerate() {
+            for l in 0..len {
                 let (vi, wi) = (vb[l], wb[l]);
                 let mut fi = f[l];
                 let mut ti = t[l];
-                for o in &rev_out[rev_start[i]..rev_start[i + 1]] {
+                for o in &rev_out[rev_start[l]..rev_start[l + 1]] {
                     sub_assign(&mut fi, o.f_i);
                     add_assign(&mut ti, o.torque_j);
                 }
                 // Near walls in ascending order: bits 0..62, then every wall from 63 on
                 // when bit 63 is set.
-                let near = near_walls[i];
+                let near = near_walls[l];
                 let mut bits = near & !(1u64 << 63);
                 let mut high = if near >> 63 != 0 { 63 } else { walls.len() };
                 loop {
@@ -668,21 +686,21 @@ impl Simulation {
                     };
                     let w = &walls[k];
                     let h = l * stride + k;
-                    match walls::wall_contact(w, x[i], radius[i]) {
+                    match walls::wall_contact(w, x[l], radius[l]) {
                         Some((delta, r)) => {
                             let g = ContactGeom {
                                 delta,
                                 r,
-                                radi: radius[i],
+                                radi: radius[l],
                                 radj: 0.0,
                                 is_wall: true,
-                                meff: mass[i],
+                                meff: mass[l],
                                 vel_i: vi,
                                 vel_j: [0.0; 3],
                                 omega_i: wi,
                                 omega_j: [0.0; 3],
                             };
-                            let c = &coeffs[type_[i] * n_types + w.type_()];
+                            let c = &coeffs[type_[l] * n_types + w.type_()];
                             let rl = if epsd2 { &mut wroll[h] } else { &mut no_roll };
                             let o =
                                 evaluate(&g, c, rolling, dt, &mut wshear[h], rl, update_history);
@@ -699,25 +717,25 @@ impl Simulation {
                         }
                     }
                 }
-                add_assign(&mut fi, scale(gravity, mass[i]));
+                add_assign(&mut fi, scale(gravity, mass[l]));
                 if let Some((body, vel, ity, cand, ishear, iroll, ion, iepsd2)) = &mut itb
                     && cand[l]
                 {
-                    match body.closest_contact(x[i], radius[i]) {
+                    match body.closest_contact(x[l], radius[l]) {
                         Some((delta, r)) => {
                             let g = ContactGeom {
                                 delta,
                                 r,
-                                radi: radius[i],
+                                radi: radius[l],
                                 radj: 0.0,
                                 is_wall: true,
-                                meff: mass[i],
+                                meff: mass[l],
                                 vel_i: vi,
                                 vel_j: *vel,
                                 omega_i: wi,
                                 omega_j: [0.0; 3],
                             };
-                            let c = &coeffs[type_[i] * n_types + *ity];
+                            let c = &coeffs[type_[l] * n_types + *ity];
                             let rl = if *iepsd2 { &mut iroll[l] } else { &mut no_roll };
                             let o =
                                 evaluate(&g, c, rolling, dt, &mut ishear[l], rl, update_history);
@@ -737,7 +755,7 @@ impl Simulation {
                 f[l] = fi;
                 t[l] = ti;
                 if kick {
-                    let (m, rad) = (mass[i], radius[i]);
+                    let (m, rad) = (mass[l], radius[l]);
                     let dtfm = dtf / m;
                     add_assign(&mut vb[l], scale(fi, dtfm));
                     let dtirotate = dtf / INERTIA / (rad * rad * m);
@@ -745,6 +763,30 @@ impl Simulation {
                 }
             }
         });
+    }
+
+    /// Bytes the engine's state occupies (every per-particle, per-pair and per-wall
+    /// array at its allocated capacity, scratch included), for memory per particle.
+    pub fn memory_bytes(&self) -> usize {
+        fn b<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        let particles = b(&self.id)
+            + b(&self.type_)
+            + b(&self.radius)
+            + b(&self.mass)
+            + b(&self.x)
+            + b(&self.v)
+            + b(&self.omega)
+            + b(&self.f)
+            + b(&self.torque)
+            + b(&self.near_walls);
+        let walls = b(&self.wall_shear) + b(&self.wall_roll) + b(&self.wall_out);
+        let pairs = b(&self.rev_out) + b(&self.pair_touch) + b(&self.touching);
+        let intruder = self.intruder.as_ref().map_or(0, |it| {
+            b(&it.shear) + b(&it.roll) + b(&it.on_grain) + b(&it.candidate)
+        });
+        particles + walls + pairs + intruder + self.pairs.memory_bytes()
     }
 
     pub fn n_pairs(&self) -> usize {

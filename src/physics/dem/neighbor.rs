@@ -235,6 +235,30 @@ impl PairList {
         self.j.len()
     }
 
+    /// Bytes of every array of the list at its allocated capacity, scratch included.
+    pub fn memory_bytes(&self) -> usize {
+        fn b<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        b(&self.start)
+            + b(&self.i)
+            + b(&self.j)
+            + b(&self.shear)
+            + b(&self.roll)
+            + b(&self.rev_start)
+            + b(&self.rev_pos)
+            + b(&self.x_at_build)
+            + b(&self.cell_start)
+            + b(&self.cell_items)
+            + b(&self.new_start)
+            + b(&self.new_i)
+            + b(&self.new_j)
+            + b(&self.new_shear)
+            + b(&self.new_roll)
+            + b(&self.cell_of)
+            + b(&self.fill)
+    }
+
     pub fn is_empty(&self) -> bool {
         self.j.is_empty()
     }

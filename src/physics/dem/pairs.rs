@@ -59,24 +59,69 @@ pub(super) struct BlockOut<'a> {
     pub rev: Shared<RevForce>,
 }
 
+/// `s[i]` without a bounds check, for the indices the neighbour list stores.
+///
+/// SAFETY: `PairCtx::check` established that every particle index in the list is below
+/// the length of every per-particle array and every pair index below the list's length.
+#[inline(always)]
+fn at<T: Copy>(s: &[T], i: usize) -> T {
+    debug_assert!(i < s.len());
+    unsafe { *s.get_unchecked(i) }
+}
+
+impl PairCtx<'_> {
+    /// The invariants [`at`] relies on: per-particle arrays of one length `n`, the list
+    /// built for `n` particles (its build stores indices below `n` only), per-pair arrays
+    /// of one length.
+    pub fn check(&self, n_at_build: usize, n_slots: usize) {
+        let n = self.x.len();
+        assert!(
+            [
+                self.v.len(),
+                self.omega.len(),
+                self.radius.len(),
+                self.mass.len(),
+                self.type_.len(),
+                n_at_build,
+                self.start.len() - 1
+            ]
+            .iter()
+            .all(|&m| m == n),
+            "per-particle arrays and neighbour list disagree on the particle count"
+        );
+        let np = self.pi.len();
+        assert!(
+            self.pj.len() == np && self.rev_pos.len() == np && n_slots == np,
+            "per-pair arrays disagree on the pair count"
+        );
+        assert!(self.coeffs.len() == self.n_types * self.n_types);
+        assert!(self.n_types == 1 || self.type_.iter().all(|&t| t < self.n_types));
+    }
+}
+
 /// Pass 1 for the particles `r` (module doc).
 pub(super) fn block(ctx: &PairCtx, r: Range<usize>, mut out: BlockOut) {
     out.f.fill([0.0; 3]);
     out.t.fill([0.0; 3]);
     let (x, radius, pi, pj) = (ctx.x, ctx.radius, ctx.pi, ctx.pj);
     let kr = ctx.start[r.start]..ctx.start[r.end];
+    let (k0, touch, list) = (out.k0, &mut *out.touch, &mut *out.list);
+    assert!(kr.start == k0 && touch.len() == kr.len() && list.len() == kr.len());
     let mut cnt = 0;
     for k in kr {
-        let (i, j) = (pi[k] as usize, pj[k] as usize);
-        let delta = sub(x[i], x[j]);
+        let (i, j) = (at(pi, k) as usize, at(pj, k) as usize);
+        let delta = sub(at(x, i), at(x, j));
         let rsq = dot(delta, delta);
-        let radsum = radius[i] + radius[j];
+        let radsum = at(radius, i) + at(radius, j);
         let touching = rsq < radsum * radsum;
-        out.touch[k - out.k0] = touching;
-        out.list[cnt] = k as u32;
+        // SAFETY: k - k0 < kr.len() (asserted above); cnt <= k - k0.
+        unsafe {
+            *touch.get_unchecked_mut(k - k0) = touching;
+            *list.get_unchecked_mut(cnt) = k as u32;
+        }
         cnt += touching as usize;
         // SAFETY: slot of pair k, written by no other pair.
-        unsafe { out.rev.write(ctx.rev_pos[k] as usize, RevForce::default()) };
+        unsafe { out.rev.write(at(ctx.rev_pos, k) as usize, RevForce::default()) };
     }
     // History of pairs that no longer touch is NOT cleared: LIGGGHTS 3.8 keeps a
     // separated pair's shear until the next neighbour rebuild (see neighbor.rs).
@@ -115,17 +160,17 @@ pub(super) fn contacts_lanes<L: Lanes>(ctx: &PairCtx, out: &mut BlockOut, cnt: u
         for l in 0..L::N {
             let k = out.list[c + l.min(nv - 1)] as usize;
             ks[l] = k;
-            ii[l] = ctx.pi[k] as usize;
-            jj[l] = ctx.pj[k] as usize;
+            ii[l] = at(ctx.pi, k) as usize;
+            jj[l] = at(ctx.pj, k) as usize;
         }
         let v3 = |a: &[V3], idx: &[usize; 4]| -> [L; 3] {
             [
-                L::load(|l| a[idx[l]][0]),
-                L::load(|l| a[idx[l]][1]),
-                L::load(|l| a[idx[l]][2]),
+                L::load(|l| at(a, idx[l])[0]),
+                L::load(|l| at(a, idx[l])[1]),
+                L::load(|l| at(a, idx[l])[2]),
             ]
         };
-        let s1 = |a: &[f64], idx: &[usize; 4]| L::load(|l| a[idx[l]]);
+        let s1 = |a: &[f64], idx: &[usize; 4]| L::load(|l| at(a, idx[l]));
         let (xi, xj) = (v3(ctx.x, &ii), v3(ctx.x, &jj));
         let delta = [xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]];
         let rsq = delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2];
@@ -142,14 +187,26 @@ pub(super) fn contacts_lanes<L: Lanes>(ctx: &PairCtx, out: &mut BlockOut, cnt: u
             omega_i: v3(ctx.omega, &ii),
             omega_j: v3(ctx.omega, &jj),
         };
-        let coeff = |l: usize| &ctx.coeffs[ctx.type_[ii[l]] * ctx.n_types + ctx.type_[jj[l]]];
-        let cs = [coeff(0), coeff(1), coeff(2), coeff(3)];
-        let coeffs = PairCoeffs {
-            yeff: L::load(|l| cs[l].yeff),
-            geff: L::load(|l| cs[l].geff),
-            betaeff: L::load(|l| cs[l].betaeff),
-            mu: L::load(|l| cs[l].mu),
-            mu_r: L::load(|l| cs[l].mu_r),
+        let coeffs = if ctx.n_types == 1 {
+            let c = &ctx.coeffs[0];
+            PairCoeffs {
+                yeff: L::splat(c.yeff),
+                geff: L::splat(c.geff),
+                betaeff: L::splat(c.betaeff),
+                mu: L::splat(c.mu),
+                mu_r: L::splat(c.mu_r),
+            }
+        } else {
+            let coeff =
+                |l: usize| at(ctx.coeffs, at(ctx.type_, ii[l]) * ctx.n_types + at(ctx.type_, jj[l]));
+            let cs = [coeff(0), coeff(1), coeff(2), coeff(3)];
+            PairCoeffs {
+                yeff: L::load(|l| cs[l].yeff),
+                geff: L::load(|l| cs[l].geff),
+                betaeff: L::load(|l| cs[l].betaeff),
+                mu: L::load(|l| cs[l].mu),
+                mu_r: L::load(|l| cs[l].mu_r),
+            }
         };
         let local = ks.map(|k| k.wrapping_sub(k0));
         let mut shear = v3(out.shear, &local);
@@ -184,7 +241,7 @@ pub(super) fn contacts_lanes<L: Lanes>(ctx: &PairCtx, out: &mut BlockOut, cnt: u
                 torque_j: lane(&t_j, l),
             };
             // SAFETY: slot of pair ks[l], written by no other pair.
-            unsafe { out.rev.write(ctx.rev_pos[ks[l]] as usize, rf) };
+            unsafe { out.rev.write(at(ctx.rev_pos, ks[l]) as usize, rf) };
         }
         c += L::N;
     }
