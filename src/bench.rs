@@ -217,7 +217,6 @@ pub fn loop_time(log: &str) -> Option<f64> {
     })
 }
 
-
 /// Every timing of one `granval bench` run (seconds for `steps` steps; the figure
 /// reported is the best of each list) and the memory per particle.
 #[derive(Debug, Clone)]
@@ -336,8 +335,7 @@ pub fn measure_packing(case: &Case, steps: u64, reps: usize) -> Result<BenchResu
                 .run(&case, dir.path())
                 .context("LIGGGHTS bench run")?;
             let log = std::fs::read_to_string(dir.path().join("log.liggghts"))?;
-            r.liggghts_bytes =
-                liggghts_memory_mb(&log).map(|mb| mb * 1048576.0 / r.n as f64);
+            r.liggghts_bytes = liggghts_memory_mb(&log).map(|mb| mb * 1048576.0 / r.n as f64);
             vl.push(loop_time(&log).context("no 'Loop time' line in the LIGGGHTS log")?);
         }
     }
@@ -392,10 +390,7 @@ impl PenetrationBench {
                         "liggghts memory  : {b:.0} bytes per particle (its own 'Memory usage per processor' estimate, both ranks)"
                     );
                 }
-                println!(
-                    "ratio native(2 threads) / liggghts(np 2) = {:.2}",
-                    tl / t2
-                );
+                println!("ratio native(2 threads) / liggghts(np 2) = {:.2}", tl / t2);
             }
             None => println!("LIGGGHTS not installed: no ratio measured"),
         }

@@ -327,9 +327,12 @@ impl Simulation {
                     let finite = (x[0].is_finite() & x[1].is_finite() & x[2].is_finite())
                         & (v[0].is_finite() & v[1].is_finite() & v[2].is_finite())
                         & (w[0].is_finite() & w[1].is_finite() & w[2].is_finite());
-                    let inside = (x[0] >= lo[0]) & (x[0] <= hi[0])
-                        & (x[1] >= lo[1]) & (x[1] <= hi[1])
-                        & (x[2] >= lo[2]) & (x[2] <= hi[2]);
+                    let inside = (x[0] >= lo[0])
+                        & (x[0] <= hi[0])
+                        & (x[1] >= lo[1])
+                        & (x[1] <= hi[1])
+                        & (x[2] >= lo[2])
+                        & (x[2] <= hi[2]);
                     if !(finite & inside) {
                         let k = r.start + l;
                         if !finite && nf == usize::MAX {

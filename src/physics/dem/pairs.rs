@@ -121,7 +121,10 @@ pub(super) fn block(ctx: &PairCtx, r: Range<usize>, mut out: BlockOut) {
         }
         cnt += touching as usize;
         // SAFETY: slot of pair k, written by no other pair.
-        unsafe { out.rev.write(at(ctx.rev_pos, k) as usize, RevForce::default()) };
+        unsafe {
+            out.rev
+                .write(at(ctx.rev_pos, k) as usize, RevForce::default())
+        };
     }
     // History of pairs that no longer touch is NOT cleared: LIGGGHTS 3.8 keeps a
     // separated pair's shear until the next neighbour rebuild (see neighbor.rs).
@@ -197,8 +200,12 @@ pub(super) fn contacts_lanes<L: Lanes>(ctx: &PairCtx, out: &mut BlockOut, cnt: u
                 mu_r: L::splat(c.mu_r),
             }
         } else {
-            let coeff =
-                |l: usize| at(ctx.coeffs, at(ctx.type_, ii[l]) * ctx.n_types + at(ctx.type_, jj[l]));
+            let coeff = |l: usize| {
+                at(
+                    ctx.coeffs,
+                    at(ctx.type_, ii[l]) * ctx.n_types + at(ctx.type_, jj[l]),
+                )
+            };
             let cs = [coeff(0), coeff(1), coeff(2), coeff(3)];
             PairCoeffs {
                 yeff: L::load(|l| cs[l].yeff),
