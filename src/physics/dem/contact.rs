@@ -46,6 +46,8 @@ pub trait Real:
     fn ne(self, o: Self) -> Self::Mask;
     fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     fn uniform(b: bool) -> Self::Mask;
+    /// Whether any lane is set (work only some lanes need can then be skipped for all).
+    fn any(m: Self::Mask) -> bool;
     /// `a` where `m`, else `b`.
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
 }
@@ -79,6 +81,10 @@ impl Real for f64 {
     #[inline(always)]
     fn uniform(b: bool) -> bool {
         b
+    }
+    #[inline(always)]
+    fn any(m: bool) -> bool {
+        m
     }
     #[inline(always)]
     fn select(m: bool, a: f64, b: f64) -> f64 {
@@ -337,22 +343,27 @@ pub fn tangential_history<T: Real>(
     let ft_ela = scale(*shear, -kt);
     let ft_shear = kt * shrmag;
     let ft_friction = c.mu * n.fn_total.abs();
-    // Sliding: F_t rescaled onto the cap (zero if there is no shear to rescale) and the
-    // shear set to -F_t / k_t component-wise, the same division LIGGGHTS performs.
-    // Sticking: the damping -gamma_t vtr added. Both are computed, one is kept.
+    // Sticking: the damping -gamma_t vtr added. Sliding: F_t rescaled onto the cap
+    // (zero if there is no shear to rescale) and the shear set to -F_t / k_t
+    // component-wise, the same division LIGGGHTS performs. Lanes compute both and keep
+    // one; the sliding side only when some lane slides.
     let slide = ft_shear.gt(ft_friction);
-    let nonzero = shrmag.ne(T::splat(0.0));
-    let ft_cap = scale(ft_ela, ft_friction / ft_shear);
     let ft_stick = sub(ft_ela, scale(vtr, n.gammat));
-    let ft = select3(
-        slide,
-        select3(nonzero, ft_cap, [T::splat(0.0); 3]),
-        ft_stick,
-    );
-    if update_history {
-        let rescaled = [-ft_cap[0] / kt, -ft_cap[1] / kt, -ft_cap[2] / kt];
-        *shear = select3(T::and(slide, nonzero), rescaled, *shear);
-    }
+    let ft = if T::any(slide) {
+        let nonzero = shrmag.ne(T::splat(0.0));
+        let ft_cap = scale(ft_ela, ft_friction / ft_shear);
+        if update_history {
+            let rescaled = [-ft_cap[0] / kt, -ft_cap[1] / kt, -ft_cap[2] / kt];
+            *shear = select3(T::and(slide, nonzero), rescaled, *shear);
+        }
+        select3(
+            slide,
+            select3(nonzero, ft_cap, [T::splat(0.0); 3]),
+            ft_stick,
+        )
+    } else {
+        ft_stick
+    };
     let tor = [
         en[1] * ft[2] - en[2] * ft[1],
         en[2] * ft[0] - en[0] * ft[2],
@@ -429,7 +440,12 @@ pub fn rolling_epsd2<T: Real>(
     let t = add(*roll, scale(w_t, T::splat(dt) * kr));
     let tmag = norm(t);
     let tmax = n.fn_total.abs() * n.reff * c.mu_r;
-    let t = select3(tmag.gt(tmax), scale(t, tmax / tmag), t);
+    let capped = tmag.gt(tmax);
+    let t = if T::any(capped) {
+        select3(capped, scale(t, tmax / tmag), t)
+    } else {
+        t
+    };
     if update_history {
         *roll = t;
     }

@@ -111,6 +111,10 @@ mod avx {
             M4(unsafe { _mm256_castsi256_pd(_mm256_set1_epi64x(bits)) })
         }
         #[inline(always)]
+        fn any(m: M4) -> bool {
+            unsafe { _mm256_movemask_pd(m.0) != 0 }
+        }
+        #[inline(always)]
         fn select(m: M4, a: F4, b: F4) -> F4 {
             F4(unsafe { _mm256_blendv_pd(b.0, a.0, m.0) })
         }
