@@ -83,6 +83,11 @@ pub struct Simulation {
     hi: V3,
     pub step: u64,
     times: StepTimes,
+    /// Per particle `(dtf / m, dtf / INERTIA / (r^2 m))` of `nve/sphere` with
+    /// `dtf = dt / 2`, for the dt, masses and radii in `kick_for`: the same divisions
+    /// the kicks would do, done once.
+    kick: Vec<[f64; 2]>,
+    kick_for: (f64, u64),
 }
 
 /// Wall time (s) spent in each phase of [`Simulation::step`] since the simulation was
@@ -229,6 +234,8 @@ impl Simulation {
             hi: case.domain_hi,
             step: 0,
             times: StepTimes::default(),
+            kick: Vec::new(),
+            kick_for: (f64::NAN, 0),
         }
     }
 
@@ -237,6 +244,7 @@ impl Simulation {
     pub fn setup(&mut self) -> anyhow::Result<()> {
         self.check_domain()?;
         self.check_initial_overlaps()?;
+        self.refresh_kick();
         self.rebuild();
         self.compute_forces(false, false);
         Ok(())
@@ -248,6 +256,7 @@ impl Simulation {
     /// initial-overlap refusal is skipped; the domain and finiteness checks remain.
     pub fn setup_settled(&mut self) -> anyhow::Result<()> {
         self.check_domain()?;
+        self.refresh_kick();
         self.rebuild();
         self.compute_forces(false, false);
         Ok(())
@@ -259,6 +268,7 @@ impl Simulation {
     /// kick in the force gather's, so a step reads the particle arrays three times.
     pub fn step(&mut self) -> anyhow::Result<()> {
         let t0 = Instant::now();
+        self.refresh_kick();
         let (non_finite, outside, moved) = self.kick_drift_check();
         self.step += 1;
         if let Some(it) = &mut self.intruder {
@@ -286,13 +296,12 @@ impl Simulation {
     #[inline(never)]
     fn kick_drift_check(&mut self) -> (usize, usize, bool) {
         let dt = self.dt;
-        let dtf = 0.5 * dt;
         let n = self.x.len();
         let (lo, hi) = (self.lo, self.hi);
         let lim = 0.25 * self.skin * self.skin;
         let x_at_build = &self.pairs.x_at_build;
         let built = x_at_build.len() == n;
-        let (f, torque, mass, radius) = (&self.f, &self.torque, &self.mass, &self.radius);
+        let (f, torque, kick) = (&self.f, &self.torque, &self.kick);
         let (xs, vs, ws) = (
             Shared::new(&mut self.x),
             Shared::new(&mut self.v),
@@ -311,18 +320,16 @@ impl Simulation {
                     )
                 };
                 let (f, t) = (&f[r.clone()], &torque[r.clone()]);
-                let (mass, radius) = (&mass[r.clone()], &radius[r.clone()]);
+                let kick = &kick[r.clone()];
                 let xb = if built { &x_at_build[r.clone()] } else { &[] };
                 let len = r.len();
-                assert!(x.len() == len && f.len() == len && mass.len() == len);
+                assert!(x.len() == len && f.len() == len && kick.len() == len);
                 let (mut nf, mut out, mut mv) = (usize::MAX, usize::MAX, false);
                 for l in 0..len {
                     let (x, v, w) = (&mut x[l], &mut v[l], &mut w[l]);
-                    let (m, rad) = (mass[l], radius[l]);
-                    let dtfm = dtf / m;
+                    let [dtfm, dtirotate] = kick[l];
                     add_assign(v, scale(f[l], dtfm));
                     add_assign(x, scale(*v, dt));
-                    let dtirotate = dtf / INERTIA / (rad * rad * m);
                     add_assign(w, scale(t[l], dtirotate));
                     let finite = (x[0].is_finite() & x[1].is_finite() & x[2].is_finite())
                         & (v[0].is_finite() & v[1].is_finite() & v[2].is_finite())
@@ -353,6 +360,37 @@ impl Simulation {
             |a, b| (a.0.min(b.0), a.1.min(b.1), a.2 || b.2),
         );
         (non_finite, outside, moved)
+    }
+
+    /// Computes the kick factors for the current dt, masses and radii: at setup, and
+    /// again when `dt` changed (masses and radii are fixed after setup; debug builds
+    /// check that on every step).
+    fn refresh_kick(&mut self) {
+        debug_assert!(
+            self.kick.len() != self.x.len() || self.kick_for.1 == self.mass_radius_print(),
+            "masses or radii changed after setup"
+        );
+        if self.kick_for.0 == self.dt && self.kick.len() == self.x.len() {
+            return;
+        }
+        let dtf = 0.5 * self.dt;
+        self.kick.clear();
+        self.kick.extend(
+            self.mass
+                .iter()
+                .zip(&self.radius)
+                .map(|(&m, &r)| [dtf / m, dtf / INERTIA / (r * r * m)]),
+        );
+        self.kick_for = (self.dt, self.mass_radius_print());
+    }
+
+    fn mass_radius_print(&self) -> u64 {
+        self.mass
+            .iter()
+            .chain(&self.radius)
+            .fold(0xcbf2_9ce4_8422_2325u64, |h, v| {
+                (h ^ v.to_bits()).wrapping_mul(0x0100_0000_01b3)
+            })
     }
 
     /// Wall time per phase of [`Simulation::step`] so far (see [`StepTimes`]).
@@ -598,8 +636,8 @@ impl Simulation {
     #[inline(never)]
     fn gather_pass(&mut self, update_history: bool, kick: bool) {
         let dt = self.dt;
-        let dtf = 0.5 * dt;
         let (x, radius, mass, type_) = (&self.x, &self.radius, &self.mass, &self.type_);
+        let kicks = &self.kick;
         let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
         let (rev_start, rev_out) = (&self.pairs.rev_start, &self.rev_out);
         let (walls, gravity, stride) = (&self.walls, self.gravity, self.walls_stride);
@@ -639,6 +677,7 @@ impl Simulation {
             };
             let (x, radius, mass) = (&x[r.clone()], &radius[r.clone()], &mass[r.clone()]);
             let (type_, near_walls) = (&type_[r.clone()], &near_walls[r.clone()]);
+            let kb: &[[f64; 2]] = if kick { &kicks[r.clone()] } else { &[] };
             let rev_start = &rev_start[r.start..r.end + 1];
             let len = r.len();
             assert!(
@@ -758,10 +797,8 @@ impl Simulation {
                 f[l] = fi;
                 t[l] = ti;
                 if kick {
-                    let (m, rad) = (mass[l], radius[l]);
-                    let dtfm = dtf / m;
+                    let [dtfm, dtirotate] = kb[l];
                     add_assign(&mut vb[l], scale(fi, dtfm));
-                    let dtirotate = dtf / INERTIA / (rad * rad * m);
                     add_assign(&mut wb[l], scale(ti, dtirotate));
                 }
             }
