@@ -12,6 +12,7 @@
 //!                                            per phase), store the bed in BED, penetrate
 //!                                            it fully (timed) and store the state at
 //!                                            half depth in MID
+//! dem_profile ci-pour CASE STEPS THREADS      time the first STEPS steps of the pour
 //! dem_profile ci-run CASE STATE STEPS THREADS time STEPS penetration steps from a state
 //! ```
 //! Every mode prints the per-phase wall times of `Simulation::step`.
@@ -88,6 +89,24 @@ fn thread_cpu() -> f64 {
         .ok()
         .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
         .map_or(f64::NAN, |ns| ns * 1e-9)
+}
+
+/// CPU time of every thread of the process (s).
+fn all_threads_cpu() -> f64 {
+    let mut total = 0.0;
+    if let Ok(dir) = std::fs::read_dir("/proc/self/task") {
+        for e in dir.flatten() {
+            if let Ok(s) = std::fs::read_to_string(e.path().join("schedstat"))
+                && let Some(ns) = s
+                    .split_whitespace()
+                    .next()
+                    .and_then(|v| v.parse::<f64>().ok())
+            {
+                total += ns * 1e-9;
+            }
+        }
+    }
+    total
 }
 
 fn pool(threads: usize) -> Result<rayon::ThreadPool> {
@@ -167,14 +186,15 @@ fn main() -> Result<()> {
             pool(threads)?.install(|| -> Result<()> {
                 let mut sim = Simulation::from_case(&case);
                 sim.setup()?;
-                let (t, c) = (Instant::now(), thread_cpu());
+                let (t, c, ca) = (Instant::now(), thread_cpu(), all_threads_cpu());
                 for _ in 0..steps {
                     sim.step()?;
                 }
                 println!(
-                    "wall {:.3} s, cpu of this thread {:.3} s, {} pairs, {} neighbour builds",
+                    "wall {:.3} s, cpu of this thread {:.3} s, of all threads {:.3} s, {} pairs, {} neighbour builds",
                     t.elapsed().as_secs_f64(),
                     thread_cpu() - c,
+                    all_threads_cpu() - ca,
                     sim.n_pairs(),
                     sim.neighbor_builds()
                 );
@@ -297,6 +317,35 @@ fn main() -> Result<()> {
                 pen.neighbor_builds()
             );
             print_times("penetration", &pen.step_times(), pen.x.len());
+        }
+        "ci-pour" => {
+            // The first STEPS steps of bed preparation (pouring from the lattice).
+            let case = PenetrationCase::load(Path::new(arg(2)?))?;
+            let steps: u64 = arg(3)?.parse()?;
+            let threads: usize = arg(4)?.parse()?;
+            pool(threads)?.install(|| -> Result<()> {
+                let particles = packing::lattice(&case)?;
+                let top = particles
+                    .iter()
+                    .map(|p| p.x[2] + p.radius)
+                    .fold(0.0, f64::max);
+                let sim_case = packing::container_case(&case, particles, top);
+                let mut sim = Simulation::from_case(&sim_case);
+                sim.setup()?;
+                let (t, c) = (Instant::now(), thread_cpu());
+                for _ in 0..steps {
+                    sim.step()?;
+                }
+                println!(
+                    "wall {:.3} s, cpu of this thread {:.3} s, {} pairs, {} neighbour builds",
+                    t.elapsed().as_secs_f64(),
+                    thread_cpu() - c,
+                    sim.n_pairs(),
+                    sim.neighbor_builds()
+                );
+                print_times("pour", &sim.step_times(), sim.x.len());
+                Ok(())
+            })?;
         }
         "ci-run" => {
             let case = PenetrationCase::load(Path::new(arg(2)?))?;

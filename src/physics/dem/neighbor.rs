@@ -3,7 +3,12 @@
 //! ascending) so the force pass is a parallel loop over independent pairs and the
 //! history transfer after a rebuild is a linear merge.
 
+use super::par::Shared;
 use crate::numerics::vec3::V3;
+use rayon::prelude::*;
+
+/// Particles per block of the parallel candidate search.
+const BUILD_BLOCK: usize = 256;
 
 #[derive(Debug, Default, Clone)]
 pub struct PairList {
@@ -35,6 +40,8 @@ pub struct PairList {
     new_roll: Vec<V3>,
     cell_of: Vec<u32>,
     fill: Vec<usize>,
+    /// Candidate pairs of each block of `BUILD_BLOCK` particles.
+    block_pairs: Vec<Vec<u32>>,
 }
 
 /// A uniform grid over the domain box; cell edge >= the largest interaction cutoff.
@@ -72,10 +79,6 @@ impl Grid {
         }
         c
     }
-    #[inline]
-    fn index(&self, c: [usize; 3]) -> usize {
-        (c[2] * self.n[1] + c[1]) * self.n[0] + c[0]
-    }
 }
 
 impl PairList {
@@ -101,19 +104,27 @@ impl PairList {
     }
 
     /// Rebuilds the list for cutoff r_i + r_j + skin, carrying over the history of
-    /// pairs that persist.
+    /// pairs that persist. The candidate search and the history merge run in parallel
+    /// over blocks of particles; the list itself does not depend on the thread count
+    /// (each particle's pairs are sorted by j).
     pub fn build(&mut self, x: &[V3], radius: &[f64], skin: f64, lo: V3, hi: V3) {
         let n = x.len();
         let rmax = radius.iter().cloned().fold(0.0, f64::max);
         let grid = Grid::new(lo, hi, 2.0 * rmax + skin);
-        let ncell = grid.n[0] * grid.n[1] * grid.n[2];
+        // One layer of empty cells around the grid, so every particle's 27 neighbour
+        // cells exist and the stencil needs no bounds checks.
+        let m = [grid.n[0] + 2, grid.n[1] + 2, grid.n[2] + 2];
+        let ncell = m[0] * m[1] * m[2];
+        let cell = |p: V3| {
+            let c = grid.coord(p);
+            ((c[2] + 1) * m[1] + c[1] + 1) * m[0] + c[0] + 1
+        };
 
         // Counting sort of particles into cells.
         self.cell_start.clear();
         self.cell_start.resize(ncell + 1, 0);
         self.cell_of.clear();
-        self.cell_of
-            .extend(x.iter().map(|p| grid.index(grid.coord(*p)) as u32));
+        self.cell_of.extend(x.iter().map(|p| cell(*p) as u32));
         for &c in &self.cell_of {
             self.cell_start[c as usize + 1] += 1;
         }
@@ -129,78 +140,133 @@ impl PairList {
             self.cell_items[self.fill[c as usize]] = p as u32;
             self.fill[c as usize] += 1;
         }
-
-        self.new_start.clear();
-        self.new_i.clear();
-        self.new_j.clear();
-        self.new_start.push(0);
-        for i in 0..n {
-            let seg = self.new_j.len();
-            let ci = grid.coord(x[i]);
-            for dz in -1i64..=1 {
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let c = [ci[0] as i64 + dx, ci[1] as i64 + dy, ci[2] as i64 + dz];
-                        if (0..3).any(|k| c[k] < 0 || c[k] >= grid.n[k] as i64) {
-                            continue;
-                        }
-                        let cell = grid.index([c[0] as usize, c[1] as usize, c[2] as usize]);
-                        for &j in &self.cell_items
-                            [self.cell_start[cell] as usize..self.cell_start[cell + 1] as usize]
-                        {
-                            let j = j as usize;
-                            if j <= i {
-                                continue;
-                            }
-                            let d = [x[i][0] - x[j][0], x[i][1] - x[j][1], x[i][2] - x[j][2]];
-                            let cut = radius[i] + radius[j] + skin;
-                            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= cut * cut {
-                                self.new_i.push(i as u32);
-                                self.new_j.push(j as u32);
-                            }
-                        }
-                    }
-                }
-            }
-            self.new_j[seg..].sort_unstable();
-            self.new_start.push(self.new_j.len());
+        let (mx, my) = (m[0] as isize, m[1] as isize);
+        let mut stencil = [0isize; 27];
+        for (s, off) in stencil.iter_mut().enumerate() {
+            let (dx, dy, dz) = (
+                s as isize % 3 - 1,
+                s as isize / 3 % 3 - 1,
+                s as isize / 9 - 1,
+            );
+            *off = (dz * my + dy) * mx + dx;
         }
 
-        // Carry history over by merging the sorted old and new neighbour segments, for
-        // pairs that touch now. LIGGGHTS 3.8 (neigh_gran.cpp) does exactly this: a pair
-        // that separated keeps its stale shear until the next rebuild, then loses it.
+        // Candidates: per block of particles, each particle's j > i within the cutoff,
+        // sorted, into the block's own buffer; `new_count[i]` pairs for particle i.
+        let nb = n.div_ceil(BUILD_BLOCK);
+        self.block_pairs.resize_with(nb, Vec::new);
+        self.new_start.clear();
+        self.new_start.resize(n + 1, 0);
+        {
+            let (cell_of, cell_start, cell_items) =
+                (&self.cell_of, &self.cell_start, &self.cell_items);
+            let counts = &mut self.new_start[1..];
+            self.block_pairs
+                .par_iter_mut()
+                .zip(counts.par_chunks_mut(BUILD_BLOCK))
+                .enumerate()
+                .for_each(|(b, (buf, counts))| {
+                    buf.clear();
+                    for (l, count) in counts.iter_mut().enumerate() {
+                        let i = b * BUILD_BLOCK + l;
+                        let seg = buf.len();
+                        let (xi, ri) = (x[i], radius[i]);
+                        let ci = cell_of[i] as isize;
+                        for off in stencil {
+                            let c = (ci + off) as usize;
+                            let items =
+                                &cell_items[cell_start[c] as usize..cell_start[c + 1] as usize];
+                            for &j in items {
+                                let ju = j as usize;
+                                if ju <= i {
+                                    continue;
+                                }
+                                let xj = x[ju];
+                                let d = [xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]];
+                                let cut = ri + radius[ju] + skin;
+                                if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= cut * cut {
+                                    buf.push(j);
+                                }
+                            }
+                        }
+                        buf[seg..].sort_unstable();
+                        *count = buf.len() - seg;
+                    }
+                });
+        }
+        for i in 0..n {
+            self.new_start[i + 1] += self.new_start[i];
+        }
+        let np = self.new_start[n];
+        self.new_i.clear();
+        self.new_i.resize(np, 0);
+        self.new_j.clear();
+        self.new_j.resize(np, 0);
         self.new_shear.clear();
-        self.new_shear.resize(self.new_j.len(), [0.0; 3]);
+        self.new_shear.resize(np, [0.0; 3]);
         self.new_roll.clear();
         if self.track_roll {
-            self.new_roll.resize(self.new_j.len(), [0.0; 3]);
+            self.new_roll.resize(np, [0.0; 3]);
         }
+
+        // Per block: the pairs in place, and the history of pairs that touch now carried
+        // over by merging the sorted old and new segments. LIGGGHTS 3.8 (neigh_gran.cpp)
+        // does exactly this: a pair that separated keeps its stale shear until the next
+        // rebuild, then loses it.
+        let carry = self.start.len() == n + 1;
         let carry_roll = self.track_roll && self.roll.len() == self.shear.len();
-        if self.start.len() == n + 1 {
-            for i in 0..n {
-                let (mut a, a_end) = (self.start[i], self.start[i + 1]);
-                for k in self.new_start[i]..self.new_start[i + 1] {
-                    let j = self.new_j[k];
-                    while a < a_end && self.j[a] < j {
-                        a += 1;
+        {
+            let (new_start, block_pairs) = (&self.new_start, &self.block_pairs);
+            let (old_start, old_j, old_shear, old_roll) =
+                (&self.start, &self.j, &self.shear, &self.roll);
+            let ni = Shared::new(&mut self.new_i);
+            let nj = Shared::new(&mut self.new_j);
+            let ns = Shared::new(&mut self.new_shear);
+            let nr = Shared::new(&mut self.new_roll);
+            (0..nb).into_par_iter().for_each(|b| {
+                let r = b * BUILD_BLOCK..((b + 1) * BUILD_BLOCK).min(n);
+                let kr = new_start[r.start]..new_start[r.end];
+                let k0 = kr.start;
+                // SAFETY: blocks own disjoint ranges of the new pair arrays.
+                let (ni, nj, ns) = unsafe {
+                    (
+                        ni.slice(kr.clone()),
+                        nj.slice(kr.clone()),
+                        ns.slice(kr.clone()),
+                    )
+                };
+                let nr: &mut [V3] = if carry_roll {
+                    unsafe { nr.slice(kr.clone()) }
+                } else {
+                    &mut []
+                };
+                nj.copy_from_slice(&block_pairs[b]);
+                for i in r {
+                    let seg = new_start[i] - k0..new_start[i + 1] - k0;
+                    ni[seg.clone()].fill(i as u32);
+                    if !carry {
+                        continue;
                     }
-                    if a < a_end && self.j[a] == j {
-                        let (i2, j2) = (i, j as usize);
-                        let d = [
-                            x[i2][0] - x[j2][0],
-                            x[i2][1] - x[j2][1],
-                            x[i2][2] - x[j2][2],
-                        ];
-                        let radsum = radius[i2] + radius[j2];
-                        if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < radsum * radsum {
-                            self.new_shear[k] = self.shear[a];
-                            if carry_roll {
-                                self.new_roll[k] = self.roll[a];
+                    let (mut a, a_end) = (old_start[i], old_start[i + 1]);
+                    for k in seg {
+                        let j = nj[k];
+                        while a < a_end && old_j[a] < j {
+                            a += 1;
+                        }
+                        if a < a_end && old_j[a] == j {
+                            let ju = j as usize;
+                            let d = [x[i][0] - x[ju][0], x[i][1] - x[ju][1], x[i][2] - x[ju][2]];
+                            let radsum = radius[i] + radius[ju];
+                            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < radsum * radsum {
+                                ns[k] = old_shear[a];
+                                if carry_roll {
+                                    nr[k] = old_roll[a];
+                                }
                             }
                         }
                     }
                 }
-            }
+            });
         }
         std::mem::swap(&mut self.start, &mut self.new_start);
         std::mem::swap(&mut self.i, &mut self.new_i);
@@ -257,6 +323,8 @@ impl PairList {
             + b(&self.new_roll)
             + b(&self.cell_of)
             + b(&self.fill)
+            + b(&self.block_pairs)
+            + self.block_pairs.iter().map(b).sum::<usize>()
     }
 
     pub fn is_empty(&self) -> bool {
