@@ -324,37 +324,45 @@ impl Simulation {
                 let xb = if built { &x_at_build[r.clone()] } else { &[] };
                 let len = r.len();
                 assert!(x.len() == len && f.len() == len && kick.len() == len);
-                let (mut nf, mut out, mut mv) = (usize::MAX, usize::MAX, false);
+                // Simple loops the compiler vectorises: the sweep, then each check over
+                // the block (still in cache); the index of a failure is searched for only
+                // when there is one.
                 for l in 0..len {
-                    let (x, v, w) = (&mut x[l], &mut v[l], &mut w[l]);
                     let [dtfm, dtirotate] = kick[l];
-                    add_assign(v, scale(f[l], dtfm));
-                    add_assign(x, scale(*v, dt));
-                    add_assign(w, scale(t[l], dtirotate));
-                    let finite = (x[0].is_finite() & x[1].is_finite() & x[2].is_finite())
-                        & (v[0].is_finite() & v[1].is_finite() & v[2].is_finite())
-                        & (w[0].is_finite() & w[1].is_finite() & w[2].is_finite());
-                    let inside = (x[0] >= lo[0])
-                        & (x[0] <= hi[0])
-                        & (x[1] >= lo[1])
-                        & (x[1] <= hi[1])
-                        & (x[2] >= lo[2])
-                        & (x[2] <= hi[2]);
-                    if !(finite & inside) {
-                        let k = r.start + l;
-                        if !finite && nf == usize::MAX {
-                            nf = k;
-                        }
-                        if !inside && out == usize::MAX {
-                            out = k;
-                        }
-                    }
-                    if built {
-                        let b = xb[l];
-                        let d = [x[0] - b[0], x[1] - b[1], x[2] - b[2]];
-                        mv |= d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > lim;
-                    }
+                    add_assign(&mut v[l], scale(f[l], dtfm));
+                    add_assign(&mut x[l], scale(v[l], dt));
+                    add_assign(&mut w[l], scale(t[l], dtirotate));
                 }
+                let all_finite = |a: &[V3]| {
+                    a.as_flattened()
+                        .iter()
+                        .fold(true, |ok, c| ok & c.is_finite())
+                };
+                let finite =
+                    |l: usize| x[l].iter().chain(&v[l]).chain(&w[l]).all(|c| c.is_finite());
+                let inside = |p: &V3| {
+                    (p[0] >= lo[0])
+                        & (p[0] <= hi[0])
+                        & (p[1] >= lo[1])
+                        & (p[1] <= hi[1])
+                        & (p[2] >= lo[2])
+                        & (p[2] <= hi[2])
+                };
+                let nf = if all_finite(x) & all_finite(v) & all_finite(w) {
+                    usize::MAX
+                } else {
+                    r.start + (0..len).find(|&l| !finite(l)).unwrap_or(0)
+                };
+                let out = if x.iter().fold(true, |ok, p| ok & inside(p)) {
+                    usize::MAX
+                } else {
+                    r.start + x.iter().position(|p| !inside(p)).unwrap_or(0)
+                };
+                let mv = built
+                    && x.iter().zip(xb).fold(false, |mv, (p, b)| {
+                        let d = [p[0] - b[0], p[1] - b[1], p[2] - b[2]];
+                        mv | (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > lim)
+                    });
                 (nf, out, mv)
             },
             |a, b| (a.0.min(b.0), a.1.min(b.1), a.2 || b.2),
@@ -702,17 +710,26 @@ impl Simulation {
                     iepsd2,
                 )
             });
+            // Per particle in this order (the order of the sums): the reverse pair
+            // results, the near walls, gravity, the intruder, then the kick. Each stage
+            // is its own loop over the block (still in cache), so the common ones stay
+            // simple and the sparse ones (walls, intruder) skip what they need not touch.
             for l in 0..len {
-                let (vi, wi) = (vb[l], wb[l]);
-                let mut fi = f[l];
-                let mut ti = t[l];
+                let (mut fi, mut ti) = (f[l], t[l]);
                 for o in &rev_out[rev_start[l]..rev_start[l + 1]] {
                     sub_assign(&mut fi, o.f_i);
                     add_assign(&mut ti, o.torque_j);
                 }
+                f[l] = fi;
+                t[l] = ti;
+            }
+            for l in 0..len {
                 // Near walls in ascending order: bits 0..62, then every wall from 63 on
                 // when bit 63 is set.
                 let near = near_walls[l];
+                if near == 0 {
+                    continue;
+                }
                 let mut bits = near & !(1u64 << 63);
                 let mut high = if near >> 63 != 0 { 63 } else { walls.len() };
                 loop {
@@ -737,17 +754,17 @@ impl Simulation {
                                 radj: 0.0,
                                 is_wall: true,
                                 meff: mass[l],
-                                vel_i: vi,
+                                vel_i: vb[l],
                                 vel_j: [0.0; 3],
-                                omega_i: wi,
+                                omega_i: wb[l],
                                 omega_j: [0.0; 3],
                             };
                             let c = &coeffs[type_[l] * n_types + w.type_()];
                             let rl = if epsd2 { &mut wroll[h] } else { &mut no_roll };
                             let o =
                                 evaluate(&g, c, rolling, dt, &mut wshear[h], rl, update_history);
-                            add_assign(&mut fi, o.f_i);
-                            add_assign(&mut ti, o.torque_i);
+                            add_assign(&mut f[l], o.f_i);
+                            add_assign(&mut t[l], o.torque_i);
                             wout[h] = o.f_i;
                         }
                         None => {
@@ -759,10 +776,15 @@ impl Simulation {
                         }
                     }
                 }
-                add_assign(&mut fi, scale(gravity, mass[l]));
-                if let Some((body, vel, ity, cand, ishear, iroll, ion, iepsd2)) = &mut itb
-                    && cand[l]
-                {
+            }
+            for l in 0..len {
+                add_assign(&mut f[l], scale(gravity, mass[l]));
+            }
+            if let Some((body, vel, ity, cand, ishear, iroll, ion, iepsd2)) = &mut itb {
+                for l in 0..len {
+                    if !cand[l] {
+                        continue;
+                    }
                     match body.closest_contact(x[l], radius[l]) {
                         Some((delta, r)) => {
                             let g = ContactGeom {
@@ -772,17 +794,17 @@ impl Simulation {
                                 radj: 0.0,
                                 is_wall: true,
                                 meff: mass[l],
-                                vel_i: vi,
+                                vel_i: vb[l],
                                 vel_j: *vel,
-                                omega_i: wi,
+                                omega_i: wb[l],
                                 omega_j: [0.0; 3],
                             };
                             let c = &coeffs[type_[l] * n_types + *ity];
                             let rl = if *iepsd2 { &mut iroll[l] } else { &mut no_roll };
                             let o =
                                 evaluate(&g, c, rolling, dt, &mut ishear[l], rl, update_history);
-                            add_assign(&mut fi, o.f_i);
-                            add_assign(&mut ti, o.torque_i);
+                            add_assign(&mut f[l], o.f_i);
+                            add_assign(&mut t[l], o.torque_i);
                             ion[l] = o.f_i;
                         }
                         None => {
@@ -794,12 +816,12 @@ impl Simulation {
                         }
                     }
                 }
-                f[l] = fi;
-                t[l] = ti;
-                if kick {
+            }
+            if kick {
+                for l in 0..len {
                     let [dtfm, dtirotate] = kb[l];
-                    add_assign(&mut vb[l], scale(fi, dtfm));
-                    add_assign(&mut wb[l], scale(ti, dtirotate));
+                    add_assign(&mut vb[l], scale(f[l], dtfm));
+                    add_assign(&mut wb[l], scale(t[l], dtirotate));
                 }
             }
         });
