@@ -589,7 +589,7 @@ impl Simulation {
         self.pair_touch.resize(np, false);
         self.touching.resize(np, 0);
         let pl = &mut self.pairs;
-        let ctx = pairs::PairCtx {
+        let mut ctx = pairs::PairCtx {
             x: &self.x,
             v: &self.v,
             omega: &self.omega,
@@ -605,6 +605,7 @@ impl Simulation {
             pi: &pl.i,
             pj: &pl.j,
             rev_pos: &pl.rev_pos,
+            one_coeff: None,
         };
         ctx.check(pl.x_at_build.len(), self.rev_out.len());
         let track_roll = pl.track_roll;

@@ -42,6 +42,8 @@ pub(super) struct PairCtx<'a> {
     pub pi: &'a [u32],
     pub pj: &'a [u32],
     pub rev_pos: &'a [u32],
+    /// Index into `coeffs` when every particle has the same type (set by `check`).
+    pub one_coeff: Option<usize>,
 }
 
 /// The outputs of one block: its pair range `k0..` and particle range `i0..`.
@@ -73,7 +75,8 @@ impl PairCtx<'_> {
     /// The invariants [`at`] relies on: per-particle arrays of one length `n`, the list
     /// built for `n` particles (its build stores indices below `n` only), per-pair arrays
     /// of one length.
-    pub fn check(&self, n_at_build: usize, n_slots: usize) {
+    /// Also finds whether one coefficient set serves every pair (`one_coeff`).
+    pub fn check(&mut self, n_at_build: usize, n_slots: usize) {
         let n = self.x.len();
         assert!(
             [
@@ -95,7 +98,14 @@ impl PairCtx<'_> {
             "per-pair arrays disagree on the pair count"
         );
         assert!(self.coeffs.len() == self.n_types * self.n_types);
-        assert!(self.n_types == 1 || self.type_.iter().all(|&t| t < self.n_types));
+        let t0 = self.type_.first().copied().unwrap_or(0);
+        let (mut in_range, mut same) = (t0 < self.n_types, true);
+        for &t in self.type_ {
+            in_range &= t < self.n_types;
+            same &= t == t0;
+        }
+        assert!(in_range, "particle type out of range");
+        self.one_coeff = same.then_some(t0 * self.n_types + t0);
     }
 }
 
@@ -190,8 +200,8 @@ pub(super) fn contacts_lanes<L: Lanes>(ctx: &PairCtx, out: &mut BlockOut, cnt: u
             omega_i: v3(ctx.omega, &ii),
             omega_j: v3(ctx.omega, &jj),
         };
-        let coeffs = if ctx.n_types == 1 {
-            let c = &ctx.coeffs[0];
+        let coeffs = if let Some(one) = ctx.one_coeff {
+            let c = &ctx.coeffs[one];
             PairCoeffs {
                 yeff: L::splat(c.yeff),
                 geff: L::splat(c.geff),
