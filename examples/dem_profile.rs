@@ -199,6 +199,10 @@ fn main() -> Result<()> {
                     sim.neighbor_builds()
                 );
                 print_times("bench", &sim.step_times(), n);
+                println!(
+                    "  memory {:.0} bytes per particle",
+                    sim.memory_bytes() as f64 / n as f64
+                );
                 Ok(())
             })?;
         }
@@ -366,6 +370,10 @@ fn main() -> Result<()> {
                     sim.neighbor_builds()
                 );
                 print_times("penetration", &sim.step_times(), sim.x.len());
+                println!(
+                    "  memory {:.0} bytes per particle",
+                    sim.memory_bytes() as f64 / sim.x.len() as f64
+                );
                 Ok(())
             })?;
         }
