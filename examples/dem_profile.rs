@@ -225,7 +225,6 @@ fn main() -> Result<()> {
         }
         "bench-liggghts" => {
             // The same packing in LIGGGHTS (1 process), as `granval bench` runs it.
-            use granval::engines::Engine;
             let n: usize = arg(2)?.parse()?;
             let st = load(Path::new(arg(3)?))?;
             let steps: u64 = arg(4)?.parse()?;
@@ -236,7 +235,11 @@ fn main() -> Result<()> {
             }
             case.n_steps = steps;
             case.output_every = steps;
-            granval::engines::liggghts::Liggghts::default().run(&case, dir)?;
+            granval::engines::liggghts::micro(
+                &granval::engines::liggghts::Liggghts::default(),
+                &case,
+                dir,
+            )?;
             let log = std::fs::read_to_string(dir.join("log.liggghts"))?;
             println!("LIGGGHTS loop time {:?} s", granval::bench::loop_time(&log));
         }

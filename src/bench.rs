@@ -8,7 +8,6 @@
 
 use crate::case::Perturbation;
 use crate::case::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances, Wall};
-use crate::engines::Engine;
 use crate::engines::liggghts::{self, Liggghts};
 use crate::physics::dem::Simulation;
 use anyhow::{Context, Result};
@@ -122,6 +121,7 @@ pub fn lattice_case(n: usize, seed: u64) -> Case {
             position_frac_radius: 1e-6,
         },
         rayleigh_time: rayleigh,
+        negative_controls: vec![],
     }
 }
 
@@ -206,6 +206,16 @@ fn fmt_times(v: &[f64]) -> String {
         .join(", ")
 }
 
+/// Ratios a[k] / b[k] of the rounds, in round order: rounds interleave the engines, so
+/// their spread shows how much the load moved a ratio between rounds.
+fn round_ratios(a: &[f64], b: &[f64]) -> String {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| format!("{:.2}", x / y))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// "Loop time of 12.3 on 1 procs for 2000 steps with 10000 atoms" from a LIGGGHTS log.
 pub fn loop_time(log: &str) -> Option<f64> {
     log.lines().rev().find_map(|l| {
@@ -257,10 +267,14 @@ impl BenchResult {
             fmt_times(&self.native_1)
         );
         println!(
-            "native 2 threads: {:>10.3e} particle-steps/s ({t2:.2} s; all: {})  speed-up vs 1 thread: {:.2}x",
+            "native 2 threads: {:>10.3e} particle-steps/s ({t2:.2} s; all: {})",
             ps / t2,
             fmt_times(&self.native_2),
-            self.scaling_2()
+        );
+        println!(
+            "ratio native(2 threads) / native(1 thread) = {:.2} (per round: {})",
+            self.scaling_2(),
+            round_ratios(&self.native_1, &self.native_2)
         );
         println!(
             "native memory   : {:.0} bytes per particle in the engine's arrays; process peak RSS {:.1} MB",
@@ -280,7 +294,11 @@ impl BenchResult {
                         "liggghts memory : {b:.0} bytes per particle (its own 'Memory usage per processor' estimate)"
                     );
                 }
-                println!("ratio native(1 thread) / liggghts(1 proc) = {:.2}", tl / t1);
+                println!(
+                    "ratio native(1 thread) / liggghts(1 proc) = {:.2} (per round: {})",
+                    tl / t1,
+                    round_ratios(vl, &self.native_1)
+                );
                 println!(
                     "ratio native(2 threads) / liggghts(1 proc) = {:.2}",
                     tl / t2
@@ -291,7 +309,9 @@ impl BenchResult {
     }
 }
 
-pub fn run(n: usize, steps: u64) -> Result<()> {
+/// `granval bench`: the `n`-sphere packing settled natively, then [`measure_packing`]
+/// with `reps` rounds, printed.
+pub fn run(n: usize, steps: u64, reps: usize) -> Result<()> {
     let t0 = Instant::now();
     let (case, ke_ratio) = settled_packing(n, 1, 0.15)?;
     println!(
@@ -299,11 +319,10 @@ pub fn run(n: usize, steps: u64) -> Result<()> {
         t0.elapsed().as_secs_f64(),
         case.dt
     );
-    const REPS: usize = 3;
     println!(
-        "timing {steps} steps per engine, {REPS} repetitions (native 1 thread, 2 threads, LIGGGHTS in turn), best reported"
+        "timing {steps} steps per engine, {reps} repetitions (native 1 thread, 2 threads, LIGGGHTS in turn), best reported"
     );
-    measure_packing(&case, steps, REPS)?.print();
+    measure_packing(&case, steps, reps)?.print();
     Ok(())
 }
 
@@ -331,8 +350,7 @@ pub fn measure_packing(case: &Case, steps: u64, reps: usize) -> Result<BenchResu
         r.native_2.push(time_native(&case, steps, 2)?.0);
         if let Some(vl) = &mut r.liggghts_1 {
             let dir = tempfile::tempdir()?;
-            Liggghts::default()
-                .run(&case, dir.path())
+            liggghts::micro(&Liggghts::default(), &case, dir.path())
                 .context("LIGGGHTS bench run")?;
             let log = std::fs::read_to_string(dir.path().join("log.liggghts"))?;
             r.liggghts_bytes = liggghts_memory_mb(&log).map(|mb| mb * 1048576.0 / r.n as f64);
@@ -390,7 +408,11 @@ impl PenetrationBench {
                         "liggghts memory  : {b:.0} bytes per particle (its own 'Memory usage per processor' estimate, both ranks)"
                     );
                 }
-                println!("ratio native(2 threads) / liggghts(np 2) = {:.2}", tl / t2);
+                println!(
+                    "ratio native(2 threads) / liggghts(np 2) = {:.2} (per round: {})",
+                    tl / t2,
+                    round_ratios(vl, &self.native_2)
+                );
             }
             None => println!("LIGGGHTS not installed: no ratio measured"),
         }
@@ -410,7 +432,8 @@ pub fn run_penetration(case_path: &Path, steps: u64, reps: usize) -> Result<Pene
     use crate::physics::dem;
     let case = PenetrationCase::load(case_path)?;
     let t0 = Instant::now();
-    let bed = pool(2)?.install(|| crate::penetration::prepare_bed(&case, false))?;
+    let bed =
+        pool(2)?.install(|| crate::experiments::penetration::bed::prepare_bed(&case, false))?;
     let preparation = t0.elapsed().as_secs_f64();
     let steps = steps.min(dem::penetration::n_steps(&case, &bed));
     let grains = bed.particles.len();
@@ -421,7 +444,7 @@ pub fn run_penetration(case_path: &Path, steps: u64, reps: usize) -> Result<Pene
     println!(
         "timing {steps} penetration steps, {reps} repetitions (native 2 threads, LIGGGHTS np 2 in turn), best reported"
     );
-    let mut deck = crate::penetration::liggghts_deck(&case, &bed)?;
+    let mut deck = crate::experiments::penetration::bed::liggghts_deck(&case, &bed)?;
     deck.n_steps = steps;
     let have_liggghts = liggghts::installed_version("liggghts").is_some();
     let mut r = PenetrationBench {

@@ -1,19 +1,18 @@
 //! granval: runs one granular experiment in the native Rust DEM and in LIGGGHTS/LAMMPS,
 //! reduces both to the observables of the source papers and gates on their agreement.
 //!
-//! Data flow (DESIGN.md): `case` → `engines` (native | liggghts | recorded) → `compare`
-//! → `report`; `dem` is the native engine, `analysis` the theory side (MALT).
+//! Layers, bottom to top (docs/architecture.md; `tests/architecture.rs` enforces that
+//! imports only point down): `numerics` → `rundata` → `case` → `physics` → `engines` →
+//! `analysis` → `compare` → `report` → `experiments`; the binary parses arguments and
+//! dispatches one case kind to the experiment runner.
 
 pub mod analysis;
 pub mod bench;
 pub mod case;
 pub mod compare;
 pub mod engines;
-pub mod impact2d;
+pub mod experiments;
 pub mod numerics;
-pub mod penetration;
 pub mod physics;
-pub mod pipeline;
 pub mod report;
 pub mod rundata;
-pub mod stress_fields;

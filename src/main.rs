@@ -1,14 +1,14 @@
-//! `granval` command line. Exit codes: 0 every gated check passed, 1 a check failed,
-//! 2 an error (bad input, crashed or silent engine).
+//! `granval` command line: argument parsing, one dispatch on the case kind, the report.
+//! Exit codes: 0 every gated check passed, 1 a check failed, 2 an error (bad input, a
+//! crashed or silent engine, a corrupt reference, a gate that could not be evaluated).
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
-use granval::case::Case;
-use granval::engines::Engine;
-use granval::engines::liggghts::{self, Liggghts};
-use granval::engines::native::Native;
-use granval::pipeline::{self, Options};
+use granval::case::AnyCase;
+use granval::experiments::runner::{self, CaseOutcome};
+use granval::experiments::{Experiment, Options, RefMode, suite};
 use granval::report::Report;
+use granval::with_experiment;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -23,9 +23,10 @@ struct Cli {
     cmd: Cmd,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum EngineName {
     Native,
+    /// LIGGGHTS 3.8 (3D cases).
     Liggghts,
     /// LAMMPS (2D impact2d cases).
     Lammps,
@@ -33,16 +34,15 @@ enum EngineName {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Run one case in one engine; writes OUT/particles.csv and OUT/provenance.json.
+    /// Run one case in one engine; outputs (per unit: the case, a bed, a variant) under OUT.
     Run {
         case: PathBuf,
         #[arg(long, value_enum, default_value = "native")]
         engine: EngineName,
         #[arg(long)]
         out: PathBuf,
-        /// MPI processes for LIGGGHTS (`mpirun -np N`).
-        #[arg(long, default_value_t = 1)]
-        np: usize,
+        #[command(flatten)]
+        common: Common,
     },
     /// Run a case in the native engine and the reference engine and compare them.
     Compare {
@@ -52,7 +52,7 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
     },
-    /// Run every case of a suite and write one combined report (the main job).
+    /// Run every case of a suite (cases/suites/NAME.toml) and write one combined report.
     Check {
         #[arg(long, default_value = "micro")]
         suite: String,
@@ -60,22 +60,27 @@ enum Cmd {
         report: PathBuf,
         #[arg(long, default_value = "cases")]
         cases: PathBuf,
+        /// Only this case file of the suite.
+        #[arg(long)]
+        only: Option<PathBuf>,
         #[command(flatten)]
         common: Common,
     },
-    /// Write a self-contained LIGGGHTS deck directory for a penetration case (one
-    /// sub-directory per bed; README with the one-core and mpirun commands).
+    /// Write the reference engine's input for a case (one directory per unit), ready to
+    /// run here or on a cluster; README with the one-core and mpirun commands.
     Deck {
         case: PathBuf,
         #[arg(short = 'o', long = "out")]
         out: PathBuf,
-        /// Who prepares the beds: `native` (exact `data.bed`, needed to compare engines)
-        /// or `liggghts` (the deck pours and settles them; for full-size beds).
+        /// Penetration: who prepares the beds: `native` (exact `data.bed`, needed to
+        /// compare engines) or `liggghts` (the deck pours and settles them; full size).
         #[arg(long, value_enum, default_value = "native")]
-        bed: granval::penetration::deck_dir::BedBy,
+        bed: granval::experiments::penetration::deck_dir::BedBy,
+        #[command(flatten)]
+        common: Common,
     },
-    /// Analyse a deck directory after LIGGGHTS ran in it (here or on a cluster): the
-    /// same observables, checks and report as `granval compare`.
+    /// Analyse a penetration deck directory after LIGGGHTS ran in it (here or on a
+    /// cluster): the same observables, checks and report as `granval compare`.
     Analyze {
         dir: PathBuf,
         #[arg(long)]
@@ -92,36 +97,45 @@ enum Cmd {
         #[command(subcommand)]
         cmd: RefCmd,
     },
-    /// Throughput of the native engine vs LIGGGHTS on the same dense settled packing.
+    /// Throughput of the native engine vs LIGGGHTS on the same dense settled packing
+    /// (native 1 thread vs LIGGGHTS 1 process, native 2 threads vs 1 thread), or with
+    /// `--penetration` on bed 0 of a penetration case (native 2 threads vs LIGGGHTS np 2).
+    /// Best of `--reps`, every repetition printed, memory per particle.
     Bench {
         /// Number of spheres in the packing.
         #[arg(long, default_value_t = 10_000)]
         n: usize,
-        /// Timed steps per engine.
-        #[arg(long, default_value_t = 2000)]
-        steps: u64,
+        /// Timed steps per engine (packing; with `--penetration` the default is 10 000).
+        #[arg(long)]
+        steps: Option<u64>,
+        /// Repetitions per engine, interleaved so load hits all alike; the best is reported.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Time the penetration of bed 0 of CASE instead of the packing: same bed, same
+        /// intruder start and speed in both engines.
+        #[arg(long, num_args = 0..=1, default_missing_value = "cases/penetration/ci.toml")]
+        penetration: Option<PathBuf>,
     },
-    /// Stress and velocity fields of a penetration case from both engines (issue 4),
-    /// every bed of its ensemble (OUT/bed-K/): phi per engine, (phi, K_phi) against
-    /// MALT, CSV/VTK/SVG under OUT.
+    /// Stress and velocity fields of a penetration case from both engines, every bed of
+    /// its ensemble: phi per engine, (phi, K_phi) against MALT, CSV/VTK/SVG under OUT
+    /// (`compare` with the stress option; needs a live LIGGGHTS).
     Stress {
         case: PathBuf,
         #[arg(long)]
         out: PathBuf,
-        /// MPI processes for LIGGGHTS (at least 2 are used).
-        #[arg(long, default_value_t = 2)]
-        np: usize,
         /// Re-analyse the snapshots of an earlier run in OUT instead of running again.
         #[arg(long)]
         reuse: bool,
         /// Gaussian range w of eq 6 in grain diameters (sensitivity studies only).
-        #[arg(long, default_value_t = granval::stress_fields::DEFAULT_WIDTH_OVER_D)]
-        kernel_width: f64,
-        /// A `granval compare` output directory of the same case (OUT/bed-K/ with the
-        /// LIGGGHTS outputs, OUT/bed-K/native/): K_phi and the unified fit on its
-        /// ensemble-mean FDR instead of the mean FDR of the stress run's own beds.
         #[arg(long)]
-        fdr_from: Option<PathBuf>,
+        kernel_width: Option<f64>,
+        /// Also the estimator study (docs/stress.md): null window, Janssen check and
+        /// convergence with 1-40 snapshots and the grid spacing, from one extra run per
+        /// bed in each engine (DIR/study.json, DIR/study_*.csv).
+        #[arg(long)]
+        study: bool,
+        #[command(flatten)]
+        common: Common,
     },
     /// Coarse-graining throughput: N contacts onto a G^3 grid (all fields).
     CgBench {
@@ -146,19 +160,32 @@ enum Cmd {
 
 #[derive(clap::Args)]
 struct Common {
-    /// Recorded reference runs (used only when LIGGGHTS is not installed).
+    /// Recorded reference runs (used when the reference engine is not installed).
     #[arg(long, default_value = "reference")]
     reference: PathBuf,
-    /// Fail instead of falling back to recorded references (also: GRANVAL_REQUIRE_LIVE=1).
+    /// Where the reference comes from: `auto` (live if installed, else the sealed
+    /// record), `live` (error without the engine; also GRANVAL_REQUIRE_LIVE=1) or
+    /// `recorded` (the sealed record even if the engine is installed).
+    #[arg(long, value_enum)]
+    reference_mode: Option<RefMode>,
+    /// Same as `--reference-mode live`.
     #[arg(long)]
     require_live: bool,
-    #[arg(long, default_value_t = 1)]
-    np: usize,
+    /// MPI processes for the reference engine.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    np: u16,
+    /// Clear a non-empty output directory instead of refusing it.
+    #[arg(long)]
+    force: bool,
+    /// Run even if the estimated steps, output or memory exceed the limits.
+    #[arg(long)]
+    allow_large: bool,
 }
 
 #[derive(Subcommand)]
 enum RefCmd {
-    /// Re-run every case of a suite in live LIGGGHTS, store it under reference/, report drift.
+    /// Re-run cases in the live reference engine, record and seal them under
+    /// reference/<kind>/<case>/, and print the drift against the previous record.
     Refresh {
         #[arg(long, default_value = "micro")]
         suite: String,
@@ -166,8 +193,7 @@ enum RefCmd {
         cases: PathBuf,
         #[arg(long, default_value = "reference")]
         reference: PathBuf,
-        /// Only this case file of the suite (e.g. cases/penetration/ci.toml: the
-        /// full-size penetration cases would take hours here).
+        /// Only this case file (any case file; the suite is then ignored).
         #[arg(long)]
         only: Option<PathBuf>,
     },
@@ -176,12 +202,40 @@ enum RefCmd {
 fn options(c: &Common) -> Options {
     let mut o = Options {
         reference_root: c.reference.clone(),
-        mpi_procs: c.np,
+        mpi_procs: usize::from(c.np),
         progress: true,
+        allow_large: c.allow_large,
         ..Options::default()
     };
-    o.require_live |= c.require_live;
+    if let Some(m) = c.reference_mode {
+        o.ref_mode = m;
+    }
+    if c.require_live {
+        o.ref_mode = RefMode::Live;
+    }
     o
+}
+
+/// Makes `dir` a fresh, empty output directory: an existing non-empty one is refused
+/// (its old files would sit next to the new ones) unless `force` clears it.
+fn fresh_dir(dir: &Path, force: bool) -> Result<()> {
+    if dir.exists() {
+        let non_empty = std::fs::read_dir(dir)
+            .with_context(|| format!("cannot read {}", dir.display()))?
+            .next()
+            .is_some();
+        if non_empty {
+            if !force {
+                bail!(
+                    "{} is not empty: outputs go into a fresh directory; pass --force to clear it",
+                    dir.display()
+                );
+            }
+            std::fs::remove_dir_all(dir)
+                .with_context(|| format!("cannot clear {}", dir.display()))?;
+        }
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))
 }
 
 fn finish(report: &Report, dir: &Path, title: &str) -> Result<ExitCode> {
@@ -191,310 +245,36 @@ fn finish(report: &Report, dir: &Path, title: &str) -> Result<ExitCode> {
     Ok(ExitCode::from(report.exit_code() as u8))
 }
 
-fn run_suite(
-    paths: &[PathBuf],
-    opts: &Options,
-    report_dir: &Path,
-    title: &str,
-) -> Result<ExitCode> {
-    let (mut checks, mut runs, mut notes, mut errored) = (vec![], vec![], vec![], false);
-    for path in paths {
-        if matches!(
-            granval::case::impact2d::kind_of(path).as_deref(),
-            Ok("impact2d")
-        ) {
-            let r = impact2d_compare(path, opts, report_dir);
-            checks.extend(r.checks);
-            runs.extend(r.run);
-            notes.extend(r.notes);
-            errored |= r.errored;
-            continue;
-        }
-        if matches!(
-            granval::case::penetration::kind_of(path).as_deref(),
-            Ok("penetration")
-        ) {
-            match granval::case::penetration::PenetrationCase::load(path) {
-                Err(e) => {
-                    checks.push(granval::compare::Check::error(
-                        path.display().to_string(),
-                        e.to_string(),
-                    ));
-                    errored = true;
-                }
-                Ok(case) => {
-                    eprintln!("== {} ({})", case.name, path.display());
-                    let r = granval::penetration::ensemble::compare_case(
-                        &case,
-                        opts,
-                        &report_dir.join(&case.name),
-                    );
-                    checks.extend(r.checks);
-                    runs.extend(r.run);
-                    notes.extend(r.notes);
-                    errored |= r.errored;
-                }
-            }
-            continue;
-        }
-        match Case::load(path) {
-            Err(e) => {
-                checks.push(granval::compare::Check::error(
-                    path.display().to_string(),
-                    e.to_string(),
-                ));
-                errored = true;
-            }
-            Ok(case) => {
-                eprintln!("== {} ({})", case.name, path.display());
-                let r = pipeline::compare_case(&case, opts, &report_dir.join(&case.name));
-                checks.extend(r.checks);
-                runs.extend(r.run);
-                notes.extend(r.notes);
-                errored |= r.errored;
-            }
-        }
-    }
-    finish(
-        &Report::new(checks, runs, notes, errored),
-        report_dir,
-        title,
-    )
+fn load(path: &Path) -> Result<AnyCase> {
+    Ok(AnyCase::load(path)?)
 }
 
-/// `granval run` for a penetration case: prepare the bed natively, then penetrate.
-fn run_penetration(case: &Path, native: bool, out: &Path) -> Result<ExitCode> {
-    let case = granval::case::penetration::PenetrationCase::load(case)?;
-    if !native {
-        anyhow::bail!(
-            "penetration runs in LIGGGHTS go through `granval compare` (both engines start from the natively prepared bed)"
-        );
-    }
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let t0 = std::time::Instant::now();
-    let bed = granval::penetration::prepare_bed(&case, true)?;
-    println!(
-        "{} (prepared in {:.1} s)",
-        granval::physics::dem::packing::bed_note(&case, &bed),
-        t0.elapsed().as_secs_f64()
-    );
-    let run = granval::penetration::run_native(
-        &case,
-        &bed,
-        granval::case::Perturbation::default(),
-        true,
-    )?;
-    if case.ensemble_beds > 1 {
-        println!(
-            "note: `granval run` penetrates bed 0 only; `granval compare` runs all {} beds",
-            case.ensemble_beds
-        );
-    }
-    granval::rundata::force::write_force_csv(&out.join("force.csv"), &run.samples)?;
-    granval::rundata::provenance::write_provenance(&out.join("provenance.json"), &run.provenance)?;
-    println!(
-        "{} force samples written to {} ({:.1} s)",
-        run.samples.len(),
-        out.join("force.csv").display(),
-        run.provenance.wall_time_s
-    );
-    Ok(ExitCode::SUCCESS)
-}
-
-/// `granval reference refresh` for a penetration case: every bed of its ensemble in live
-/// LIGGGHTS (np 2), stored as a deck directory with the run's outputs and provenance.
-fn refresh_penetration(path: &Path, reference: &Path) -> Result<()> {
-    use granval::penetration::{self as pen, deck_dir};
-    let case = granval::case::penetration::PenetrationCase::load(path)?;
-    let root = reference.join("penetration").join(&case.name);
-    if root.exists() {
-        std::fs::remove_dir_all(&root)
-            .with_context(|| format!("cannot clear {}", root.display()))?;
-    }
-    std::fs::create_dir_all(&root)?;
-    std::fs::copy(path, root.join(deck_dir::CASE_FILE))?;
-    for k in 0..case.ensemble_beds {
-        let ck = case.realisation(k);
-        let dir = root.join(deck_dir::bed_dir_name(k));
-        let bed = pen::prepare_bed(&ck, true)?;
-        let run = pen::run_liggghts(&ck, &bed, &dir, 2, true)?;
-        granval::rundata::provenance::write_provenance(
-            &dir.join("provenance.json"),
-            &run.provenance,
-        )?;
-        println!(
-            "{:<32} bed {k}: {} force samples recorded in {} ({:.0} s)",
-            case.name,
-            run.samples,
-            dir.display(),
-            run.provenance.wall_time_s
-        );
-    }
-    Ok(())
-}
-
-/// `granval deck`: the case's deck directory, ready for LIGGGHTS here or on a cluster.
-fn write_deck(
-    case: &Path,
-    out: &Path,
-    bed: granval::penetration::deck_dir::BedBy,
-) -> Result<ExitCode> {
-    let kind = granval::case::penetration::kind_of(case)?;
-    if kind != "penetration" {
-        anyhow::bail!(
-            "{}: `granval deck` writes penetration decks; this case has kind = {kind:?}",
-            case.display()
-        );
-    }
-    let case = granval::case::penetration::PenetrationCase::load(case)?;
-    let dirs = granval::penetration::deck_dir::write(&case, out, bed, true)?;
-    for d in &dirs {
-        println!("{}", d.display());
-    }
-    println!(
-        "{} deck director{} written; see {}",
-        dirs.len(),
-        if dirs.len() == 1 { "y" } else { "ies" },
-        out.join("README.md").display()
-    );
-    Ok(ExitCode::SUCCESS)
-}
-
-/// `granval analyze`: a deck directory after LIGGGHTS ran in it.
-fn analyze(dir: &Path, native: bool, opts: &Options, report: &Path) -> Result<ExitCode> {
-    let r = granval::penetration::deck_dir::analyze(dir, native, opts, report)?;
-    let report_ = Report::new(r.checks, r.run.into_iter().collect(), r.notes, r.errored);
-    let code = finish(
-        &report_,
-        report,
-        &format!("granval analyze {}", dir.display()),
-    )?;
-    if !native && !report_.errored && report_.checks.is_empty() {
-        // Nothing was compared on purpose: the LIGGGHTS observables are the product.
-        println!("--no-native: LIGGGHTS observables only, nothing gated");
-        return Ok(ExitCode::SUCCESS);
-    }
-    Ok(code)
-}
-
-/// `granval compare/check` entry for one impact2d case file.
-fn impact2d_compare(path: &Path, opts: &Options, report_dir: &Path) -> pipeline::CaseResult {
-    match granval::case::impact2d::Impact2dCase::load(path) {
-        Err(e) => pipeline::CaseResult {
+/// `compare` of one case file into `out/<case name>/`.
+fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOutcome {
+    match AnyCase::load(path) {
+        Err(e) => CaseOutcome {
             checks: vec![granval::compare::Check::error(
                 path.display().to_string(),
                 e.to_string(),
             )],
-            run: None,
-            notes: vec![],
-            errored: true,
+            ..CaseOutcome::default()
         },
         Ok(case) => {
-            eprintln!("== {} ({})", case.name, path.display());
-            granval::impact2d::compare_case(&case, opts, &report_dir.join(&case.name))
+            eprintln!("== {} ({})", case.name(), path.display());
+            let dir = out.join(case.name());
+            with_experiment!(case, stress, |exp| runner::compare(&exp, opts, &dir))
         }
     }
 }
 
-/// `granval run` for an impact2d case: every variant in one engine, from the
-/// natively prepared bed; OUT/<variant>/{intruder,energy}.csv + provenance.json.
-fn run_impact2d(path: &Path, engine: EngineName, out: &Path, np: usize) -> Result<ExitCode> {
-    use granval::impact2d as i2;
-    if matches!(engine, EngineName::Liggghts) {
-        anyhow::bail!("impact2d cases are 2D: use --engine native or --engine lammps");
+fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
+    let (mut checks, mut runs, mut notes) = (vec![], vec![], vec![]);
+    for o in outcomes {
+        checks.extend(o.checks);
+        runs.extend(o.run);
+        notes.extend(o.notes);
     }
-    let case = granval::case::impact2d::Impact2dCase::load(path)?;
-    let beds = i2::prepare_beds(&case, true)?;
-    for (p, b) in &beds.beds {
-        println!("{}", i2::bed_note(&case, *p, b));
-    }
-    for v in &case.variants {
-        let scene = i2::scene(&case, v, &beds)?;
-        let dir = out.join(&v.label);
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("cannot create {}", dir.display()))?;
-        let run = match engine {
-            EngineName::Native => i2::run_native(&case, &scene, true)?,
-            EngineName::Lammps => i2::run_lammps(&case, &scene, &dir.join("lammps-run"), np)?,
-            EngineName::Liggghts => {
-                anyhow::bail!("impact2d cases are 2D: use --engine native or --engine lammps")
-            }
-        };
-        let (o, _) = i2::observe(&case, v, &scene, &run)?;
-        granval::analysis::impact::write_intruder_csv(
-            &dir.join("intruder.csv"),
-            &run.samples,
-            scene.surface,
-            scene.bottom_offset,
-        )?;
-        granval::analysis::impact::write_energy_csv(&dir.join("energy.csv"), &run.energy)?;
-        granval::rundata::provenance::write_provenance(
-            &dir.join("provenance.json"),
-            &run.provenance,
-        )?;
-        println!(
-            "{:<24} final depth {:.3} d, max depth {:.3} d ({} engine, {:.1} s) -> {}",
-            v.label,
-            o.final_depth,
-            o.max_depth,
-            run.provenance.engine,
-            run.provenance.wall_time_s,
-            dir.display()
-        );
-    }
-    Ok(ExitCode::SUCCESS)
-}
-
-/// `granval reference refresh --suite impact2d`: record every variant in live LAMMPS
-/// and report the final-depth drift against the previous record.
-fn refresh_impact2d(
-    cases: &Path,
-    suite: &str,
-    reference: &Path,
-    only: Option<&Path>,
-) -> Result<ExitCode> {
-    use granval::impact2d as i2;
-    let version = granval::engines::lammps::installed_version(&granval::engines::lammps::binary())
-        .context("reference refresh for impact2d needs a live LAMMPS (`apt-get install lammps`)")?;
-    println!("using {version}");
-    let mut paths = pipeline::suite_cases(cases, suite)?;
-    if let Some(o) = only {
-        paths.retain(|p| p == o);
-        anyhow::ensure!(
-            !paths.is_empty(),
-            "{} is not a case of suite {suite} in {}",
-            o.display(),
-            cases.display()
-        );
-    }
-    for path in paths {
-        let case = granval::case::impact2d::Impact2dCase::load(&path)?;
-        let beds = i2::prepare_beds(&case, true)?;
-        for v in &case.variants {
-            let scene = i2::scene(&case, v, &beds)?;
-            let rec = i2::record_dir(reference, &case, v);
-            let previous = i2::recorded(&rec, &scene)
-                .ok()
-                .and_then(|r| i2::observe(&case, v, &scene, &r).ok());
-            let tmp = tempfile::tempdir()?;
-            let run = i2::run_lammps(&case, &scene, tmp.path(), 1)?;
-            i2::store_reference(&run, tmp.path(), &rec, &scene)?;
-            let (now, _) = i2::observe(&case, v, &scene, &run)?;
-            let drift = match previous {
-                Some((p, _)) => format!("{:+.2e} d", now.final_depth - p.final_depth),
-                None => "new".into(),
-            };
-            println!(
-                "{:<14} {:<20} final depth {:.3} d, drift vs previous record {drift}, {:.1} s -> {}",
-                case.name,
-                v.label,
-                now.final_depth,
-                run.provenance.wall_time_s,
-                rec.display()
-            );
-        }
-    }
-    Ok(ExitCode::SUCCESS)
+    Report::new(checks, runs, notes)
 }
 
 fn real_main() -> Result<ExitCode> {
@@ -504,38 +284,27 @@ fn real_main() -> Result<ExitCode> {
             case,
             engine,
             out,
-            np,
+            common,
         } => {
-            if granval::case::impact2d::kind_of(&case)? == "impact2d" {
-                return run_impact2d(&case, engine, &out, np);
-            }
-            if granval::case::penetration::kind_of(&case)? == "penetration" {
-                return run_penetration(&case, matches!(engine, EngineName::Native), &out);
-            }
-            let case = Case::load(&case)?;
-            std::fs::create_dir_all(&out)
-                .with_context(|| format!("cannot create {}", out.display()))?;
-            let result = match engine {
-                EngineName::Native => Native {
-                    progress: true,
-                    ..Native::default()
+            let opts = options(&common);
+            let c = load(&case)?;
+            let wrong = match (&c, engine) {
+                (AnyCase::Impact2d(_), EngineName::Liggghts) => Some("2D: use native or lammps"),
+                (AnyCase::Micro(_) | AnyCase::Penetration(_), EngineName::Lammps) => {
+                    Some("3D: use native or liggghts")
                 }
-                .run(&case, &out)?,
-                EngineName::Liggghts => Liggghts {
-                    mpi_procs: np,
-                    ..Liggghts::default()
-                }
-                .run(&case, &out)?,
-                EngineName::Lammps => {
-                    anyhow::bail!("--engine lammps runs 2D impact2d cases only")
-                }
+                _ => None,
             };
-            pipeline::save_run(&out, &result)?;
-            println!(
-                "{} frames written to {}",
-                result.frames.len(),
-                out.join("particles.csv").display()
-            );
+            if let Some(w) = wrong {
+                bail!("{}: --engine does not fit this case ({w})", case.display());
+            }
+            fresh_dir(&out, common.force)?;
+            let native = engine == EngineName::Native;
+            let lines =
+                with_experiment!(c, false, |exp| runner::run_one(&exp, native, &opts, &out))?;
+            for l in lines {
+                println!("{l}");
+            }
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Compare {
@@ -543,27 +312,54 @@ fn real_main() -> Result<ExitCode> {
             report,
             common,
         } => {
-            let name = case.display().to_string();
-            run_suite(
-                &[case],
-                &options(&common),
+            fresh_dir(&report, common.force)?;
+            let o = compare_one(&case, false, &options(&common), &report);
+            finish(
+                &report_of(vec![o]),
                 &report,
-                &format!("granval compare {name}"),
+                &format!("granval compare {}", case.display()),
             )
         }
         Cmd::Check {
             suite,
             report,
             cases,
+            only,
             common,
         } => {
-            let paths = pipeline::suite_cases(&cases, &suite)?;
-            run_suite(
-                &paths,
-                &options(&common),
-                &report,
-                &format!("granval check --suite {suite}"),
-            )
+            let s = suite::load(&cases, &suite)?;
+            let mut entries = s.cases.clone();
+            if let Some(o) = &only {
+                entries.retain(|e| &e.path == o);
+                if entries.is_empty() {
+                    bail!("--only {}: not a case of suite {suite}", o.display());
+                }
+            }
+            fresh_dir(&report, common.force)?;
+            let opts = options(&common);
+            let started = std::time::Instant::now();
+            let mut outcomes = Vec::new();
+            for e in &entries {
+                let t = std::time::Instant::now();
+                let o = Options {
+                    gate_theory: e.theory,
+                    ..opts.clone()
+                };
+                outcomes.push(compare_one(&e.path, e.stress, &o, &report));
+                eprintln!(
+                    "   {} took {:.0} s",
+                    e.path.display(),
+                    t.elapsed().as_secs_f64()
+                );
+            }
+            let mut r = report_of(outcomes);
+            r.notes.push(format!(
+                "suite {suite}: {} ({} case(s), {:.0} s)",
+                s.description,
+                entries.len(),
+                started.elapsed().as_secs_f64()
+            ));
+            finish(&r, &report, &format!("granval check --suite {suite}"))
         }
         Cmd::Reference {
             cmd:
@@ -574,137 +370,136 @@ fn real_main() -> Result<ExitCode> {
                     only,
                 },
         } => {
-            if suite == "impact2d" {
-                return refresh_impact2d(&cases, &suite, &reference, only.as_deref());
-            }
-            let version = liggghts::installed_version("liggghts")
-                .context("reference refresh needs a live LIGGGHTS (`apt-get install liggghts`)")?;
-            println!("using {version}");
-            let mut paths = pipeline::suite_cases(&cases, &suite)?;
-            if let Some(o) = &only {
-                paths.retain(|p| p == o);
-                anyhow::ensure!(
-                    !paths.is_empty(),
-                    "--only {}: not a case of suite {suite} in {}",
-                    o.display(),
-                    cases.display()
-                );
-            }
-            for path in paths {
-                if granval::case::penetration::kind_of(&path)? == "penetration" {
-                    refresh_penetration(&path, &reference)?;
-                    continue;
+            let paths: Vec<PathBuf> = match only {
+                Some(p) => vec![p],
+                None => suite::load(&cases, &suite)?
+                    .cases
+                    .into_iter()
+                    .map(|e| e.path)
+                    .collect(),
+            };
+            // One process, as `compare` runs the reference by default (penetration runs
+            // use at least two either way).
+            let opts = Options {
+                reference_root: reference,
+                mpi_procs: 1,
+                progress: true,
+                ..Options::default()
+            };
+            for p in paths {
+                let c = load(&p)?;
+                let lines = with_experiment!(c, false, |exp| runner::refresh(&exp, &opts))?;
+                for l in lines {
+                    println!("{l}");
                 }
-                let case = Case::load(&path)?;
-                let dir = reference.join(&case.kind).join(&case.name);
-                let previous = granval::engines::recorded::Recorded { dir: dir.clone() }
-                    .run(&case, &dir)
-                    .ok();
-                std::fs::create_dir_all(&dir)?;
-                let out = Liggghts::default().run(&case, &dir)?;
-                pipeline::save_run(&dir, &out)?;
-                let drift = match previous {
-                    Some(prev) => {
-                        granval::compare::trajectory::compare(&case, &out.frames, &prev.frames)
-                            .iter()
-                            .map(|c| format!("{} {:.2e}", c.metric, c.value))
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    }
-                    None => "new".into(),
-                };
-                println!(
-                    "{:<32} {} frames  drift vs previous record: {drift}",
-                    case.name,
-                    out.frames.len()
-                );
             }
             Ok(ExitCode::SUCCESS)
         }
-        Cmd::Deck { case, out, bed } => write_deck(&case, &out, bed),
+        Cmd::Deck {
+            case,
+            out,
+            bed,
+            common,
+        } => {
+            let opts = options(&common);
+            fresh_dir(&out, common.force)?;
+            let dirs = match load(&case)? {
+                AnyCase::Penetration(c) => {
+                    granval::experiments::penetration::deck_dir::write(&c, &out, bed, true)?
+                }
+                c => with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?,
+            };
+            for d in &dirs {
+                println!("{}", d.display());
+            }
+            println!(
+                "{} deck director{} written",
+                dirs.len(),
+                if dirs.len() == 1 { "y" } else { "ies" }
+            );
+            Ok(ExitCode::SUCCESS)
+        }
         Cmd::Analyze {
             dir,
             report,
             no_native,
             common,
-        } => analyze(&dir, !no_native, &options(&common), &report),
-        Cmd::Bench { n, steps } => {
-            granval::bench::run(n, steps)?;
+        } => {
+            fresh_dir(&report, common.force)?;
+            let o = granval::experiments::penetration::deck_dir::analyze(
+                &dir,
+                !no_native,
+                &options(&common),
+                &report,
+            )?;
+            let r = report_of(vec![o]);
+            let code = finish(&r, &report, &format!("granval analyze {}", dir.display()))?;
+            if no_native
+                && !r.errored
+                && r.checks.iter().all(|c| {
+                    c.gate == granval::compare::Gate::Coverage
+                        || c.gate == granval::compare::Gate::Published
+                })
+            {
+                println!(
+                    "--no-native: LIGGGHTS observables only, nothing compared between engines"
+                );
+            }
+            Ok(code)
+        }
+        Cmd::Bench {
+            n,
+            steps,
+            reps,
+            penetration,
+        } => {
+            match penetration {
+                Some(case) => {
+                    granval::bench::run_penetration(&case, steps.unwrap_or(10_000), reps)?;
+                }
+                None => granval::bench::run(n, steps.unwrap_or(2000), reps)?,
+            }
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Stress {
             case,
             out,
-            np,
             reuse,
             kernel_width,
-            fdr_from,
+            study,
+            common,
         } => {
-            let case = granval::case::penetration::PenetrationCase::load(&case)?;
-            let opts = Options {
-                mpi_procs: np,
-                progress: true,
-                ..Options::default()
-            };
-            std::fs::create_dir_all(&out)?;
-            let so = granval::stress_fields::StressOptions {
-                reuse,
-                width_over_d: kernel_width,
-                fdr_from,
-            };
-            let rep = granval::stress_fields::run_case(&case, &opts, &out, &so)?;
-            let n = &rep.negative_control_check;
-            let mut notes = vec![
-                format!(
-                    "negative control (must FAIL): {} = {:.3} deg (tolerance {}) -> {}; {}",
-                    n.name,
-                    n.value,
-                    n.tolerance,
-                    if n.passed {
-                        "PASSED: the control did not bite"
-                    } else {
-                        "FAILED as it must"
-                    },
-                    n.detail
-                ),
-                format!(
-                    "kernel method (not gated), phi over depths: {}",
-                    rep.beds
-                        .iter()
-                        .map(|b| format!(
-                            "bed {} native {:.2} +- {:.2} deg, LIGGGHTS {:.2} +- {:.2} deg",
-                            b.bed,
-                            b.native.phi_kernel_deg,
-                            b.native.phi_kernel_std_deg,
-                            b.liggghts.phi_kernel_deg,
-                            b.liggghts.phi_kernel_std_deg
-                        ))
-                        .collect::<Vec<_>>()
-                        .join("; ")
-                ),
-            ];
-            notes.extend(rep.notes.iter().cloned());
-            notes.push(format!(
-                "wall time: field analysis {:.1} s",
-                rep.analysis_wall_s
-            ));
-            let errored = rep.checks.iter().any(|c| c.metric == "error");
-            let report = Report::new(rep.checks.clone(), vec![], notes.clone(), errored);
-            report.write(&out, &format!("{}: stress fields and MALT", case.name))?;
-            for c in &rep.checks {
-                let verdict = if c.passed { "PASS" } else { "FAIL" };
-                println!(
-                    "{verdict} {}: {} = {:.4} (tolerance {}) {}",
-                    c.name, c.metric, c.value, c.tolerance, c.detail
+            let mut opts = options(&common);
+            opts.reuse = reuse;
+            opts.study = study;
+            opts.stress = true;
+            opts.mpi_procs = opts.mpi_procs.max(2);
+            if let Some(w) = kernel_width
+                && !(w.is_finite() && w > 0.0 && w <= 5.0)
+            {
+                bail!("--kernel-width {w}: must lie in (0, 5] grain diameters");
+            }
+            opts.kernel_width = kernel_width;
+            let c = load(&case)?;
+            let AnyCase::Penetration(pc) = c else {
+                bail!(
+                    "{}: `granval stress` takes a penetration case",
+                    case.display()
                 );
+            };
+            if !reuse {
+                fresh_dir(&out, common.force)?;
             }
-            for note in &notes {
-                println!("{note}");
-            }
-            for p in granval::stress_fields::output_files(&out, rep.beds.len()) {
-                println!("wrote {}", p.display());
-            }
-            Ok(ExitCode::from(report.exit_code() as u8))
+            let exp = granval::experiments::penetration::Penetration {
+                case: pc,
+                stress: true,
+            };
+            let o = runner::compare(&exp, &opts, &out);
+            finish(
+                &report_of(vec![o]),
+                &out,
+                &format!("{}: stress fields and MALT", exp.name()),
+            )
         }
         Cmd::CgBench { contacts, grid } => {
             let t = granval::analysis::cg_bench::time_cg(contacts, grid)?;
@@ -723,7 +518,7 @@ fn real_main() -> Result<ExitCode> {
         Cmd::Malt { phi, k, table } => {
             use granval::analysis::malt;
             if let Some(phi) = phi {
-                let q = malt::k_phi(phi.to_radians())?;
+                let q = malt::k_phi_deg(phi)?;
                 println!(
                     "K_phi({phi} deg) = {:.9} (quadrature error estimate {:.1e})",
                     q.value, q.abs_err
@@ -739,7 +534,7 @@ fn real_main() -> Result<ExitCode> {
                 }
             }
             if phi.is_none() && k.is_none() && !table {
-                anyhow::bail!("give --phi DEG, --k VALUE or --table");
+                bail!("give --phi DEG, --k VALUE or --table");
             }
             Ok(ExitCode::SUCCESS)
         }

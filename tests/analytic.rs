@@ -268,3 +268,150 @@ fn intruder_face_is_a_plane_wall() {
         "intruder face and plane wall differ: {worst:e}"
     );
 }
+
+/// Hertz's closed form for an elastic impact at relative normal speed `v`: effective
+/// modulus `y` (1/Y* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2), radius `r` and mass `m`. Returns
+/// (contact duration, peak overlap, peak force).
+fn hertz(y: f64, r: f64, m: f64, v: f64) -> (f64, f64, f64) {
+    let k = 4.0 / 3.0 * y * r.sqrt();
+    let d_max = (5.0 * m * v * v / (4.0 * k)).powf(0.4);
+    let integral = std::f64::consts::PI.sqrt() * 0.887_263_817_503_075_4 / 1.068_628_702_119_319_4;
+    (2.0 * integral * d_max / v, d_max, k * d_max.powf(1.5))
+}
+
+/// A shipped hard-material case made elastic (e = 1), without gravity, output every step.
+fn hard_case(rel: &str, edit: impl Fn(String) -> String) -> Case {
+    let text = std::fs::read_to_string(common::root().join(rel)).unwrap();
+    let text = edit(
+        text.replace("restitution = 0.9", "restitution = 1.0")
+            .replace("restitution = 0.8", "restitution = 1.0")
+            .replace("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, 0.0]")
+            .replace("output_every = 10", "output_every = 1"),
+    );
+    Case::from_toml_str(&text, Path::new(rel)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Runs `case`, measuring overlap(sim) over the contact: (duration, peak overlap, peak
+/// normal force on particle 0 via `force`, outgoing / incoming normal speed).
+fn measure(
+    case: &Case,
+    overlap: impl Fn(&Simulation) -> f64,
+    normal_speed: impl Fn(&Simulation) -> f64,
+    force: impl Fn(&Simulation) -> f64,
+) -> (f64, f64, f64, f64) {
+    let mut sim = Simulation::from_case(case);
+    sim.setup().unwrap();
+    let v_in = normal_speed(&sim);
+    let (mut t_in, mut t_out, mut peak, mut fmax) = (None, None, 0.0f64, 0.0f64);
+    for _ in 0..case.n_steps {
+        sim.step().unwrap();
+        let d = overlap(&sim);
+        let t = sim.step as f64 * case.dt;
+        if d > 0.0 {
+            t_in.get_or_insert(t);
+            peak = peak.max(d);
+            fmax = fmax.max(force(&sim));
+        } else if t_in.is_some() {
+            t_out = Some(t);
+            break;
+        }
+    }
+    (
+        t_out.expect("separate") - t_in.expect("touch"),
+        peak,
+        fmax,
+        -normal_speed(&sim) / v_in,
+    )
+}
+
+#[test]
+fn glass_spheres_follow_hertz_and_restitution() {
+    // Elastic: duration, peak overlap and peak force against Hertz, to 1 % (the time
+    // resolution: dt = 1e-7 s over a ~7.7e-6 s contact is 1.3 %, so the duration is
+    // measured with dt / 10).
+    let case = hard_case("cases/micro/glass-head-on.toml", |t| {
+        t.replace("dt = 1e-7", "dt = 1e-8")
+    });
+    let (e_mod, nu, r): (f64, f64, f64) = (6.3e10, 0.24, 1.0e-3);
+    let m = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3) * 2500.0;
+    let y = 1.0 / (2.0 * (1.0 - nu * nu) / e_mod);
+    let (tc, dmax, fmax) = hertz(y, r / 2.0, m / 2.0, 1.0);
+    let (t, d, f, e) = measure(
+        &case,
+        |s| 2.0 * r - vec3::norm(vec3::sub(s.x[0], s.x[1])),
+        |s| s.v[0][0] - s.v[1][0],
+        |s| -s.f[0][0],
+    );
+    eprintln!(
+        "glass: t_c {t:.6e} vs {tc:.6e} s, d_max {d:.6e} vs {dmax:.6e} m, F_max {f:.6e} vs {fmax:.6e} N, e {e:.6}"
+    );
+    assert!((t / tc - 1.0).abs() < 0.01, "duration {t} vs Hertz {tc}");
+    assert!(
+        (d / dmax - 1.0).abs() < 0.01,
+        "peak overlap {d} vs Hertz {dmax}"
+    );
+    assert!(
+        (f / fmax - 1.0).abs() < 0.01,
+        "peak force {f} vs Hertz {fmax}"
+    );
+    assert!(
+        (e - 1.0).abs() < 1e-3,
+        "elastic impact lost energy: e = {e}"
+    );
+    // Damped: the measured restitution is the input one.
+    let text =
+        std::fs::read_to_string(common::root().join("cases/micro/glass-head-on.toml")).unwrap();
+    for want in [0.5, 0.9] {
+        let c = Case::from_toml_str(
+            &text
+                .replace("restitution = 0.9", &format!("restitution = {want}"))
+                .replace("dt = 1e-7", "dt = 1e-8"),
+            Path::new("glass.toml"),
+        )
+        .unwrap();
+        let (_, _, _, got) = measure(
+            &c,
+            |s| 2.0 * r - vec3::norm(vec3::sub(s.x[0], s.x[1])),
+            |s| s.v[0][0] - s.v[1][0],
+            |s| -s.f[0][0],
+        );
+        eprintln!("glass: input e = {want}, measured {got:.6}");
+        assert!(
+            (got / want - 1.0).abs() < 0.01,
+            "input e = {want}, measured {got}"
+        );
+    }
+}
+
+#[test]
+fn steel_on_alumina_plane_follows_hertz() {
+    // Normal impact on the plane: R* = R, m* = m, 1/Y* = (1 - nu_s^2)/E_s + (1 - nu_a^2)/E_a.
+    let case = hard_case("cases/micro/steel-on-alumina.toml", |t| {
+        t.replace(
+            "v = [0.5, 0.0, -0.8660254037844386]\nomega = [0.0, 100.0, 0.0]",
+            "v = [0.0, 0.0, -1.0]\nomega = [0.0, 0.0, 0.0]",
+        )
+        .replace("dt = 5e-8", "dt = 5e-9")
+    });
+    let r: f64 = 1.0e-3;
+    let m = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3) * 7850.0;
+    let y = 1.0 / ((1.0 - 0.09) / 2.1e11 + (1.0 - 0.22 * 0.22) / 3.7e11);
+    let (tc, dmax, fmax) = hertz(y, r, m, 1.0);
+    let (t, d, f, e) = measure(&case, |s| r - s.x[0][2], |s| s.v[0][2], |s| s.f[0][2]);
+    eprintln!(
+        "steel on alumina: t_c {t:.6e} vs {tc:.6e} s, d_max {d:.6e} vs {dmax:.6e} m, F_max {f:.6e} vs {fmax:.6e} N, e {e:.6}"
+    );
+    assert!((t / tc - 1.0).abs() < 0.01, "duration {t} vs Hertz {tc}");
+    assert!(
+        (d / dmax - 1.0).abs() < 0.01,
+        "peak overlap {d} vs Hertz {dmax}"
+    );
+    assert!(
+        (f / fmax - 1.0).abs() < 0.01,
+        "peak force {f} vs Hertz {fmax}"
+    );
+    assert!(
+        (e - 1.0).abs() < 1e-3,
+        "elastic impact lost energy: e = {e}"
+    );
+}

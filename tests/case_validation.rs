@@ -29,6 +29,47 @@ fn assert_mentions(msg: &str, parts: &[&str]) {
 #[test]
 fn all_shipped_cases_load() {
     assert!(common::micro_cases().len() >= 11);
+    // Every case file of every kind, in or out of a suite.
+    let mut n = 0;
+    for kind in ["micro", "penetration", "impact2d"] {
+        for e in std::fs::read_dir(common::root().join("cases").join(kind)).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "toml") {
+                granval::case::AnyCase::load(&p).unwrap_or_else(|e| panic!("{e}"));
+                n += 1;
+            }
+        }
+    }
+    assert!(n >= 11 + 5 + 9, "{n} case files");
+}
+
+/// A negative control must name gates its case kind has and must perturb something.
+#[test]
+fn bad_negative_control_is_an_error() {
+    let control = |must_fail: &str, perturbation: &str| {
+        format!(
+            "{}\n[[negative_control]]\nname = \"wrong\"\nmust_fail = {must_fail}\nperturbation = {perturbation}\n",
+            base()
+        )
+    };
+    let m = err(&control("[\"k_phi\"]", "{ friction_factor = 1.1 }"));
+    assert_mentions(
+        &m,
+        &["cases/bad.toml", "negative_control[0].must_fail", "k_phi"],
+    );
+    let m = err(&control("[]", "{ friction_factor = 1.1 }"));
+    assert_mentions(&m, &["negative_control[0].must_fail"]);
+    let m = err(&control("[\"velocity\"]", "{}"));
+    assert_mentions(&m, &["negative_control[0].perturbation", "changes nothing"]);
+    let m = err(&control("[\"velocity\"]", "{ friction_factor = -1.0 }"));
+    assert_mentions(
+        &m,
+        &["negative_control[0].perturbation.friction_factor", ">= 0"],
+    );
+    // The same control with a micro gate and a real perturbation is accepted.
+    let ok = control("[\"velocity\"]", "{ friction_factor = 1.1 }");
+    let c = Case::from_toml_str(&ok, Path::new("cases/ok.toml")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(c.negative_controls.len(), 1);
 }
 
 #[test]

@@ -1,15 +1,10 @@
 //! The stable interface: `granval check/compare` write report.json shaped
-//! {"passed", "checks": [{name, metric, value, tolerance, passed}]} and exit 0/1/2.
+//! {"passed", "checks": [{name, gate, metric, value, tolerance, status, passed}]} and
+//! exit 0/1/2; outputs go into a fresh directory.
 
 mod common;
 
-use std::process::Command;
-
-fn granval() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_granval"));
-    c.current_dir(common::root());
-    c
-}
+use common::granval;
 
 #[test]
 fn compare_writes_report_and_exits_zero() {
@@ -31,11 +26,27 @@ fn compare_writes_report_and_exits_zero() {
             .unwrap();
     assert_eq!(report["passed"], true);
     let checks = report["checks"].as_array().unwrap();
-    assert_eq!(checks.len(), 3);
+    // The three trajectory gates and the coverage check (enough dynamics compared).
+    let mut gates: Vec<&str> = checks.iter().map(|c| c["gate"].as_str().unwrap()).collect();
+    gates.sort();
+    assert_eq!(
+        gates,
+        ["angular_velocity", "coverage", "position", "velocity"],
+        "{checks:?}"
+    );
     for c in checks {
-        for k in ["name", "metric", "value", "tolerance", "passed"] {
+        for k in [
+            "name",
+            "gate",
+            "metric",
+            "value",
+            "tolerance",
+            "status",
+            "passed",
+        ] {
             assert!(c.get(k).is_some(), "check lacks {k}: {c}");
         }
+        assert_eq!((&c["status"], &c["passed"]), (&"pass".into(), &true.into()));
     }
     assert!(out.path().join("report.md").exists() && out.path().join("report.junit.xml").exists());
     assert!(
@@ -134,4 +145,121 @@ fn require_live_refuses_fallback() {
         .output()
         .unwrap();
     assert_eq!(st.status.code(), Some(2));
+}
+
+/// Outputs go into a fresh directory: a non-empty one is refused (exit 2, nothing
+/// written) unless `--force` clears it.
+#[test]
+fn non_empty_output_directory_is_refused_unless_forced() {
+    let out = tempfile::tempdir().unwrap();
+    let stale = out.path().join("stale.txt");
+    std::fs::write(&stale, "from an earlier run").unwrap();
+    let st = granval()
+        .args(["compare", "cases/micro/spin.toml", "--report"])
+        .arg(out.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("not empty") && err.contains("--force"),
+        "{err}"
+    );
+    assert!(stale.exists() && !out.path().join("report.json").exists());
+    let st = granval()
+        .args(["compare", "cases/micro/spin.toml", "--force", "--report"])
+        .arg(out.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        st.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    assert!(!stale.exists() && out.path().join("report.json").exists());
+}
+
+/// `--reference-mode recorded` uses the sealed record even with LIGGGHTS installed, and
+/// the report says so.
+#[test]
+fn reference_mode_recorded_uses_the_seal() {
+    let out = tempfile::tempdir().unwrap();
+    let st = granval()
+        .args([
+            "compare",
+            "cases/micro/head-on-e05.toml",
+            "--reference-mode",
+            "recorded",
+            "--report",
+        ])
+        .arg(out.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        st.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&st.stdout)
+    );
+    let md = std::fs::read_to_string(out.path().join("report.md")).unwrap();
+    assert!(
+        md.contains("RECORDED") && md.contains("seal verified"),
+        "{md}"
+    );
+}
+
+/// `check --suite NAME --only CASE` runs that one case of the suite into the report
+/// directory; a case outside the suite is an error.
+#[test]
+fn check_suite_only_one_case() {
+    let out = tempfile::tempdir().unwrap();
+    let st = granval()
+        .args([
+            "check",
+            "--suite",
+            "micro",
+            "--only",
+            "cases/micro/spin.toml",
+            "--report",
+        ])
+        .arg(out.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        st.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("report.json")).unwrap())
+            .unwrap();
+    assert_eq!(report["passed"], true);
+    let names: Vec<&str> = report["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        !names.is_empty() && names.iter().all(|n| n.starts_with("spin")),
+        "{names:?}"
+    );
+    assert!(out.path().join("spin/native/particles.csv").exists());
+    let other = tempfile::tempdir().unwrap();
+    let st = granval()
+        .args([
+            "check",
+            "--suite",
+            "micro",
+            "--only",
+            "cases/impact2d/ci.toml",
+            "--report",
+        ])
+        .arg(other.path())
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("not a case of suite micro"));
 }

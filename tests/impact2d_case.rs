@@ -18,9 +18,23 @@ fn err(text: &str) -> String {
 
 #[test]
 fn shipped_cases_load() {
-    for p in granval::pipeline::suite_cases(&common::root().join("cases"), "impact2d").unwrap() {
-        Impact2dCase::load(&p).unwrap_or_else(|e| panic!("{e}"));
+    let cases = common::root().join("cases");
+    let suite = granval::experiments::suite::load(&cases, "impact2d").unwrap();
+    for e in &suite.cases {
+        Impact2dCase::load(&e.path).unwrap_or_else(|e| panic!("{e}"));
     }
+    // The suite takes every impact2d case file.
+    let files = std::fs::read_dir(cases.join("impact2d"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "toml")
+        })
+        .count();
+    assert_eq!(suite.cases.len(), files);
 }
 
 #[test]
@@ -141,4 +155,27 @@ fn cli_rejects_bad_impact2d_input_with_exit_code_2() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("2D"));
+}
+
+/// What `granval check --suite ci` gates on K's Fig 2 bed (the checks of the former
+/// tests/impact2d_fig2.rs): six speeds, each cross-checked against LAMMPS, and the
+/// linearity claim for v >= 0.4 evaluated in each engine on at least three of them.
+#[test]
+fn fig2_speed_case_sweeps_six_speeds_with_the_linearity_claim() {
+    let path = common::root().join("cases/impact2d/fig2-speed.toml");
+    let c = Impact2dCase::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(c.variants.len(), 6, "one final-depth cross-check per speed");
+    let Some(granval::case::impact2d::Claim::Linear { from, r2_min }) = c.claim else {
+        panic!("fig2-speed.toml must claim linearity: {:?}", c.claim)
+    };
+    assert_eq!(from, 0.4);
+    assert!(r2_min >= 0.9, "{r2_min}");
+    assert!(
+        c.variants.iter().filter(|v| v.x >= from).count() >= 3,
+        "a line needs 3 speeds >= {from}"
+    );
+    let suite = granval::experiments::suite::load(&common::root().join("cases"), "ci").unwrap();
+    for f in ["impact2d/fig2-speed.toml", "impact2d/fig2-v0.7.toml"] {
+        assert!(suite.cases.iter().any(|e| e.path.ends_with(f)), "{f}");
+    }
 }

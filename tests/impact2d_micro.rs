@@ -78,19 +78,46 @@ fn native_rows(mut sys: System, n: u64, every: u64) -> Vec<(u64, u64, [f64; 5])>
 
 fn lammps_rows(sys: &System, n: u64, every: u64, name: &str) -> Vec<(u64, u64, [f64; 5])> {
     let rec = common::root().join("reference/impact2d/micro").join(name);
+    let outputs = Outputs {
+        n_steps: n,
+        intruder_every: 0,
+        snapshot_every: every,
+    };
+    // The record stands in for LAMMPS only if it was made from today's inputs (these
+    // records are test fixtures, not sealed cases: the check is done here). Left out:
+    // thermo lines (screen output only) and the z extent of the 2D box (no physics).
+    let today = tempfile::tempdir().unwrap();
+    lammps::write_inputs(sys, &outputs, today.path()).unwrap();
+    for f in [lammps::DECK_FILE, lammps::DATA_FILE] {
+        let physics = |p: &Path| {
+            std::fs::read_to_string(p)
+                .unwrap_or_default()
+                .lines()
+                .filter(|l| !l.starts_with("thermo") && !l.ends_with("zlo zhi"))
+                .map(|l| format!("{l}\n"))
+                .collect::<String>()
+        };
+        assert_eq!(
+            physics(&rec.join(f)),
+            physics(&today.path().join(f)),
+            "[{name}] {} differs from today's LAMMPS input: re-record with GRANVAL_RECORD=1 and a live lmp",
+            rec.join(f).display()
+        );
+    }
+    // Reference data never comes from the native engine.
+    let recorded = granval::rundata::provenance::read_provenance(&rec.join("provenance.json"))
+        .unwrap_or_else(|e| panic!("[{name}] {e:#}"));
+    assert_eq!(
+        recorded.engine,
+        granval::rundata::provenance::EngineKind::Lammps,
+        "[{name}] {}",
+        rec.display()
+    );
     let live = lammps::installed_version(&lammps::binary()).is_some();
     let dump = if live {
         let dir = tempfile::tempdir().unwrap().keep();
         let fin = Lammps::default()
-            .run(
-                sys,
-                &Outputs {
-                    n_steps: n,
-                    intruder_every: 0,
-                    snapshot_every: every,
-                },
-                &dir,
-            )
+            .run(sys, &outputs, &dir)
             .unwrap_or_else(|e| panic!("{e:#}"));
         eprintln!("[{name}] reference: LIVE {}", fin.version);
         if std::env::var("GRANVAL_RECORD").is_ok_and(|v| v == "1") {
@@ -130,7 +157,7 @@ fn record(dir: &Path, rec: &Path, fin: &lammps::Finished) {
         std::fs::copy(dir.join(f), rec.join(f)).unwrap();
     }
     let p = granval::rundata::provenance::Provenance {
-        engine: "lammps".into(),
+        engine: granval::rundata::provenance::EngineKind::Lammps,
         version: fin.version.clone(),
         command: fin.command.clone(),
         input_hash: fin.input_hash.clone(),

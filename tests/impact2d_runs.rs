@@ -1,29 +1,46 @@
 //! The impact experiment at CI size (cases/impact2d/ci*.toml), both engines from the
 //! same bed: native vs LAMMPS final depth and D(t), K's claims in each engine, and the
 //! negative control (friction models swapped in the native engine) that must make the
-//! cross-check fail. LAMMPS runs live when `lmp` is installed; otherwise the recorded
-//! runs under reference/impact2d/ are used and the log says so; with
+//! cross-check fail. LAMMPS runs live when `lmp` is installed; otherwise the sealed
+//! recorded runs under reference/impact2d/ are used and the log says so; with
 //! GRANVAL_REQUIRE_LIVE=1 a missing `lmp` is a failure. All cases share one prepared
 //! bed per packing (prepared once per process).
 
 mod common;
 
+use granval::case::Perturbation;
 use granval::case::impact2d::Impact2dCase;
-use granval::compare::Check;
-use granval::impact2d::{Tweak, compare_case_with};
+use granval::compare::{Check, Gate, Status};
+use granval::experiments::impact2d::{Impact2d, label_dir};
+use granval::experiments::{Experiment, Role, reference, runner};
+use granval::rundata::provenance::EngineKind;
 
 fn case(name: &str) -> Impact2dCase {
     Impact2dCase::load(&common::root().join("cases/impact2d").join(name))
         .unwrap_or_else(|e| panic!("{e}"))
 }
 
-fn run(name: &str, tweak: Tweak) -> Vec<Check> {
-    run_in(name, tweak, tempfile::tempdir().unwrap().path())
+fn exp(name: &str) -> Impact2d {
+    Impact2d { case: case(name) }
 }
 
-fn run_in(name: &str, tweak: Tweak, out: &std::path::Path) -> Vec<Check> {
-    let c = case(name);
-    let r = compare_case_with(&c, &common::options(), out, tweak);
+/// The native engine with K's friction models swapped (static k_t = 0.8 k_n <->
+/// kinetic k_t = 0) in every contact.
+fn swapped() -> Perturbation {
+    Perturbation {
+        swap_friction_model: true,
+        ..Perturbation::default()
+    }
+}
+
+fn run(name: &str) -> Vec<Check> {
+    run_in(name, tempfile::tempdir().unwrap().path())
+}
+
+/// `granval compare` of the case (with the negative controls its file declares).
+fn run_in(name: &str, out: &std::path::Path) -> Vec<Check> {
+    common::live(EngineKind::Lammps, name);
+    let r = runner::compare(&exp(name), &common::options(), out);
     for n in &r.notes {
         eprintln!("[{name}] note: {n}");
     }
@@ -33,25 +50,33 @@ fn run_in(name: &str, tweak: Tweak, out: &std::path::Path) -> Vec<Check> {
             run.reference_engine, run.reference_version, run.reference_source
         );
     }
-    for c in &r.checks {
-        eprintln!(
-            "[{name}] {} {}: {:.4} (tol {}) {}",
-            if c.passed { "PASS" } else { "FAIL" },
-            c.name,
-            c.value,
-            c.tolerance,
-            c.detail
-        );
-    }
+    common::show(name, &r.checks);
+    assert!(r.run.is_some(), "{name}: {:?}", r.checks);
     assert!(
-        !r.errored,
+        r.checks.iter().all(|c| !c.is_error()),
         "{name}: errored: {:?}",
-        r.checks
-            .iter()
-            .filter(|c| c.metric == "error")
-            .collect::<Vec<_>>()
+        r.checks.iter().filter(|c| c.is_error()).collect::<Vec<_>>()
     );
     r.checks
+}
+
+/// The case's checks with the friction models swapped in the native engine, against the
+/// same reference runs.
+fn run_swapped(name: &str) -> Vec<Check> {
+    common::live(EngineKind::Lammps, name);
+    let out = tempfile::tempdir().unwrap();
+    let checks = common::checks_with(
+        &exp(name),
+        Role::Control(&swapped()),
+        &common::options(),
+        out.path(),
+    );
+    common::show(&format!("{name}, friction swapped"), &checks);
+    assert!(
+        checks.iter().all(|c| !c.is_error()),
+        "{name}: errored: {checks:?}"
+    );
+    checks
 }
 
 fn named<'a>(checks: &'a [Check], part: &str) -> Vec<&'a Check> {
@@ -63,23 +88,38 @@ fn named<'a>(checks: &'a [Check], part: &str) -> Vec<&'a Check> {
 #[test]
 fn native_matches_lammps_on_the_ci_bed() {
     let out = tempfile::tempdir().unwrap();
-    let checks = run_in("ci.toml", Tweak::None, out.path());
-    assert_eq!(checks.len(), 2);
+    let checks = run_in("ci.toml", out.path());
+    // The two cross-checks of the one variant (final depth, D(t)); every check passes,
+    // the negative controls declared in ci.toml included.
+    let cross: Vec<_> = checks
+        .iter()
+        .filter(|c| c.gate == Gate::FinalDepth || c.gate == Gate::DepthSeries)
+        .collect();
+    assert_eq!(cross.len(), 2, "{checks:?}");
     for c in &checks {
-        assert!(c.passed, "{c:?}");
+        assert!(c.passed && c.status == Status::Pass, "{c:?}");
     }
     // Energies (kinetic model: no tangential spring energy) can only be dissipated:
     // KE + PE + normal elastic energy never exceeds its initial value by more than
     // the integrator's error; and both engines agree while their trajectories do.
-    let read = |who: &str| {
-        granval::analysis::impact::read_energy_csv(
-            &out.path().join("base").join(who).join("energy.csv"),
-        )
-        .unwrap()
+    let c = case("ci.toml");
+    let unit = label_dir(&c.variants[0]);
+    let read = |p: &std::path::Path| {
+        granval::rundata::impact::read_energy_csv(p).unwrap_or_else(|e| panic!("{e:#}"))
     };
-    let (a, b) = (read("native"), read("lammps"));
+    let a = read(&runner::unit_out(out.path(), &unit).join("native/energy.csv"));
+    // LAMMPS' series: from this run when it ran live, else from the sealed record.
+    let live = runner::resolve(&exp("ci.toml"), &common::options())
+        .unwrap()
+        .is_some();
+    let b = if live {
+        read(&runner::reference_out(out.path(), &unit, EngineKind::Lammps).join("energy.csv"))
+    } else {
+        let root = reference::record_root(&common::options().reference_root, "impact2d", "ci");
+        read(&reference::unit_dir(&root, &unit).join("energy.csv"))
+    };
     assert_eq!(a.len(), b.len());
-    let total = |e: &granval::analysis::impact::EnergySample, p0: f64| {
+    let total = |e: &granval::rundata::impact::EnergySample, p0: f64| {
         e.kinetic + (e.potential - p0) + e.elastic
     };
     let e0 = total(&a[0], a[0].potential);
@@ -102,45 +142,58 @@ fn native_matches_lammps_on_the_ci_bed() {
 }
 
 /// The recorded LAMMPS run of the CI case (what a machine without `lmp` compares
-/// against) matches today's native run of the same scene.
+/// against) is sealed to today's case and scene, and matches today's native run of the
+/// same scene.
 #[test]
 fn recorded_lammps_reference_matches_native() {
-    use granval::impact2d as i2;
-    let c = case("ci.toml");
-    let beds = i2::prepare_beds(&c, false).unwrap();
-    let v = &c.variants[0];
-    let scene = i2::scene(&c, v, &beds).unwrap();
-    let rec = i2::record_dir(&common::root().join("reference"), &c, v);
-    let reference = i2::recorded(&rec, &scene).unwrap_or_else(|e| panic!("{e:#}"));
+    let exp = exp("ci.toml");
+    let opts = common::recorded();
+    let units = exp.units(&opts).unwrap();
+    assert_eq!(units.len(), 1);
+    let dir = tempfile::tempdir().unwrap();
+    let reference = common::reference_runs(&exp, &units, &opts, dir.path());
+    let (u, reference) = (&units[0], &reference[0]);
     eprintln!(
-        "[ci] recorded reference: {} {}",
-        reference.provenance.version,
-        rec.display()
+        "[ci] recorded reference: {} ({})",
+        reference.provenance.version, reference.provenance.date
     );
+    assert_eq!(reference.provenance.engine, EngineKind::Lammps);
     assert!(reference.provenance.version.starts_with("LAMMPS ("));
-    let native = i2::run_native(&c, &scene, false).unwrap();
-    let (a, sa) = i2::observe(&c, v, &scene, &native).unwrap();
-    let (b, sb) = i2::observe(&c, v, &scene, &reference).unwrap();
+    let native = exp
+        .run_native(u, Role::Main, &dir.path().join("native"), &opts)
+        .unwrap();
+    let c = &exp.case;
+    let v = &u.variant;
+    let (a, sa) = granval::experiments::impact2d::observe(c, v, &u.scene, &native).unwrap();
+    let (b, sb) = granval::experiments::impact2d::observe(c, v, &u.scene, reference).unwrap();
     let rms = granval::analysis::impact::rms_distance(&sa, &sb)
         .map(|r| r / c.scales.d)
         .map_err(|e| e.to_string());
-    for k in granval::compare::impact2d::cross_check(&c, &a, &b, rms, "lammps") {
+    let checks = granval::compare::impact2d::cross_check(c, &a, &b, rms, "lammps");
+    assert!(
+        checks.iter().any(|k| k.gate == Gate::FinalDepth),
+        "{checks:?}"
+    );
+    for k in checks {
         assert!(k.passed, "{k:?}");
     }
 }
 
 #[test]
 fn swapped_friction_in_the_native_engine_fails_the_cross_check() {
-    let checks = run("ci.toml", Tweak::SwapFriction);
+    let checks = run_swapped("ci.toml");
     for part in ["final depth", "D(t) distance"] {
         for c in named(&checks, part) {
-            assert!(!c.passed, "negative control passed: {c:?}");
+            assert!(
+                !c.passed && c.status == Status::Fail,
+                "negative control passed: {c:?}"
+            );
         }
     }
 }
 
 fn claims_pass(name: &str) {
-    let checks = run(name, Tweak::None);
+    let checks = run(name);
     for engine in ["claim (native)", "claim (lammps)"] {
         for c in named(&checks, engine) {
             assert!(c.passed, "{c:?}");
@@ -158,9 +211,12 @@ fn static_friction_penetrates_less_than_kinetic() {
 
 #[test]
 fn swapped_friction_breaks_the_friction_claim_in_the_native_engine() {
-    let checks = run("ci-friction.toml", Tweak::SwapFriction);
+    let checks = run_swapped("ci-friction.toml");
     for c in named(&checks, "claim (native)") {
-        assert!(!c.passed, "negative control passed: {c:?}");
+        assert!(
+            !c.passed && c.status == Status::Fail,
+            "negative control passed: {c:?}"
+        );
     }
 }
 
@@ -180,11 +236,11 @@ fn final_depth_grows_as_gravity_drops() {
 }
 
 /// Every speed of the CI-size sweep agrees between the engines. K Fig 8b's linearity
-/// claim is gated on the Fig 2 bed (tests/impact2d_fig2.rs): on this 450-disk bed one
-/// realisation gives R^2 0.84 in both engines (docs/impact2d.md).
+/// claim is gated on the Fig 2 bed (`granval check --suite ci`): on this 450-disk bed
+/// one realisation gives R^2 0.84 in both engines (docs/impact2d.md).
 #[test]
 fn speed_sweep_agrees_between_engines() {
-    let checks = run("ci-speed.toml", Tweak::None);
+    let checks = run("ci-speed.toml");
     assert!(
         checks.iter().all(|c| !c.name.contains("claim")),
         "ci-speed.toml carries no claim"
@@ -198,7 +254,7 @@ fn speed_sweep_agrees_between_engines() {
 
 #[test]
 fn elliptical_cluster_intruder_matches_lammps() {
-    for c in run("ci-ellipse.toml", Tweak::None) {
+    for c in run("ci-ellipse.toml") {
         assert!(c.passed, "{c:?}");
     }
 }

@@ -112,7 +112,8 @@ fn native(case: &PenetrationCase, bed: &Bed) -> Vec<Snapshot> {
         &STEPS,
         |sim| {
             let zb = sim.intruder().unwrap().body.bottom_z();
-            let meta = granval::stress_fields::snapshot_meta(case, bed, "native", sim.step, zb);
+            let meta =
+                granval::analysis::stress_fields::snapshot_meta(case, bed, "native", sim.step, zb);
             out.push(sim.snapshot(meta));
             Ok(())
         },
@@ -124,7 +125,7 @@ fn native(case: &PenetrationCase, bed: &Bed) -> Vec<Snapshot> {
 }
 
 fn liggghts(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Vec<(Vec<Grain>, Vec<Contact>)> {
-    let deck = granval::penetration::liggghts_deck(case, bed).unwrap();
+    let deck = granval::experiments::penetration::bed::liggghts_deck(case, bed).unwrap();
     assert_eq!(deck.n_steps, *STEPS.last().unwrap());
     granval::engines::liggghts::penetration::run_with_snapshots(
         &deck,

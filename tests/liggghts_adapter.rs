@@ -2,10 +2,24 @@
 //! parser, and (when `liggghts` is installed) live runs, including runs that must fail.
 
 use granval::case::Case;
-use granval::engines::Engine;
 use granval::engines::liggghts::{self, Liggghts};
+use granval::rundata::frames::Frame;
+use granval::rundata::provenance::{EngineKind, Provenance};
 use std::path::Path;
 use std::time::{Duration, Instant};
+
+/// A micro run in LIGGGHTS (`engines::liggghts::micro`) and every frame of its dump.
+#[derive(Debug)]
+struct RunOutput {
+    frames: Vec<Frame>,
+    provenance: Provenance,
+}
+
+fn run(lig: &Liggghts, c: &Case, dir: &Path) -> anyhow::Result<RunOutput> {
+    let provenance = liggghts::micro(lig, c, dir)?;
+    let frames = liggghts::micro_frames(c, dir)?.collect::<anyhow::Result<Vec<_>>>()?;
+    Ok(RunOutput { frames, provenance })
+}
 
 /// Two equal spheres on the x axis, one of them spinning, above a z = 0 plane wall that
 /// they never reach (no gravity), so total momentum must be conserved exactly.
@@ -13,7 +27,7 @@ fn two_spheres(youngs: f64, rolling: &str, extra: &str) -> String {
     format!(
         r#"
 [case]
-name = "two-sphere head-on"
+name = "two-sphere-head-on"
 kind = "micro"
 
 [simulation]
@@ -181,26 +195,19 @@ fn deck_gravity_cylinder_two_types_no_rolling() {
 
 #[test]
 fn refuses_values_liggghts_would_refuse() {
-    let c = case(&two_spheres(4.9e6, "cdt", ""));
+    let c = case(&two_spheres(5e6, "cdt", "").replace("restitution = 0.8", "restitution = 0.05"));
     let msg = format!("{:#}", liggghts::write_deck(&c, "d", "x").unwrap_err());
     println!("{msg}");
     assert!(
-        msg.contains("test.toml") && msg.contains("youngs_modulus") && msg.contains("4.9e6"),
+        msg.contains("test.toml") && msg.contains("restitution") && msg.contains("5e-2"),
         "{msg}"
     );
     assert!(liggghts::write_data_file(&c).is_err());
     // The engine refuses before running anything.
     let dir = tempfile::tempdir().unwrap();
-    let err = Liggghts::default().run(&c, dir.path()).unwrap_err();
-    assert!(format!("{err:#}").contains("youngs_modulus"));
+    let err = run(&Liggghts::default(), &c, dir.path()).unwrap_err();
+    assert!(format!("{err:#}").contains("restitution"));
     assert!(!dir.path().join("dump.granval").exists() && !dir.path().join("in.granval").exists());
-
-    let c = case(&two_spheres(5e6, "cdt", "").replace("restitution = 0.8", "restitution = 0.05"));
-    let msg = format!("{:#}", liggghts::write_deck(&c, "d", "x").unwrap_err());
-    assert!(
-        msg.contains("test.toml") && msg.contains("restitution") && msg.contains("5e-2"),
-        "{msg}"
-    );
 
     let c =
         case(&two_spheres(5e6, "cdt", "").replace("poisson_ratio = 0.3", "poisson_ratio = -0.2"));
@@ -209,6 +216,62 @@ fn refuses_values_liggghts_would_refuse() {
         msg.contains("test.toml") && msg.contains("poisson_ratio") && msg.contains("-2e-1"),
         "{msg}"
     );
+    assert!(liggghts::write_data_file(&c).is_err());
+    let dir = tempfile::tempdir().unwrap();
+    let err = run(&Liggghts::default(), &c, dir.path()).unwrap_err();
+    assert!(format!("{err:#}").contains("poisson_ratio"));
+    assert!(!dir.path().join("dump.granval").exists() && !dir.path().join("in.granval").exists());
+}
+
+/// Young's moduli outside LIGGGHTS' 5e6-1e9 Pa range check (glass, steel, soft
+/// grains) are written unchanged, with `soft_particles yes` / `hard_particles yes`
+/// lifting only that check; LIGGGHTS accepts the deck and the provenance says so.
+#[test]
+fn soft_and_hard_materials_lift_the_range_check_unchanged() {
+    for (e, on, off) in [
+        (4.9e6, "soft_particles yes", "hard_particles"),
+        (2e9, "hard_particles yes", "soft_particles"),
+    ] {
+        let c = case(&two_spheres(e, "cdt", ""));
+        let deck = liggghts::write_deck(&c, "d", "x").unwrap();
+        let lines: Vec<&str> = deck.lines().collect();
+        let modulus = format!("fix m1 all property/global youngsModulus peratomtype {e:e}");
+        assert!(
+            lines.contains(&on) && lines.contains(&modulus.as_str()),
+            "{deck}"
+        );
+        assert!(!deck.contains(off), "{deck}");
+        let pos = |s: &str| lines.iter().position(|l| l.starts_with(s)).unwrap();
+        assert!(pos(on) < pos("read_data"), "{deck}");
+        assert!(liggghts::write_data_file(&c).is_ok());
+        assert_eq!(
+            liggghts::hardness_note(&c.materials).len(),
+            1,
+            "{e:e}: one switch"
+        );
+    }
+    let deck = liggghts::write_deck(&case(&two_spheres(5e7, "cdt", "")), "d", "x").unwrap();
+    assert!(
+        !deck.contains("soft_particles") && !deck.contains("hard_particles"),
+        "{deck}"
+    );
+    if live().is_none() {
+        return;
+    }
+    for (e, on) in [(4.9e6, "soft_particles yes"), (2e9, "hard_particles yes")] {
+        let c = case(&two_spheres(e, "cdt", ""));
+        let dir = tempfile::tempdir().unwrap();
+        let out = run(&Liggghts::default(), &c, dir.path())
+            .unwrap_or_else(|err| panic!("E = {e:e}: {err:#}"));
+        assert_eq!(out.frames.len(), liggghts::expected_frames(&c));
+        assert!(
+            out.provenance.notes.iter().any(|n| n.starts_with(on)),
+            "{:?}",
+            out.provenance.notes
+        );
+        // The collision happened with the material as written.
+        assert!(out.frames.last().unwrap().particles[1].v[0] > 0.2);
+    }
 }
 
 const DUMP: &str = "ITEM: TIMESTEP
@@ -287,7 +350,7 @@ fn parses_a_hand_written_dump() {
     assert!(liggghts::parse_dump(&dir.path().join("nope"), 1e-6).is_err());
 }
 
-fn momentum(fr: &granval::engines::Frame, c: &Case) -> [f64; 3] {
+fn momentum(fr: &Frame, c: &Case) -> [f64; 3] {
     let mut p = [0.0; 3];
     for s in &fr.particles {
         let m = c.particles.iter().find(|q| q.id == s.id).unwrap().mass();
@@ -305,7 +368,7 @@ fn live_two_sphere_collision() {
     let c = case(&two_spheres(5e7, "cdt", ""));
     let dir = tempfile::tempdir().unwrap();
     let t0 = Instant::now();
-    let out = Liggghts::default().run(&c, dir.path()).unwrap();
+    let out = run(&Liggghts::default(), &c, dir.path()).unwrap();
     println!(
         "live run: {:.3} s total, provenance wall_time_s = {:.3}",
         t0.elapsed().as_secs_f64(),
@@ -329,12 +392,14 @@ fn live_two_sphere_collision() {
         liggghts::write_deck(&c, "dump.granval", "data.granval").unwrap()
     );
     let p = &out.provenance;
-    assert_eq!(p.engine, "liggghts");
+    assert_eq!(p.engine, EngineKind::Liggghts);
     assert!(p.version.starts_with("LIGGGHTS (Version"), "{}", p.version);
     assert_eq!(p.command, "liggghts -in in.granval -log log.liggghts");
     assert_eq!(p.threads, 1);
     assert_eq!(p.case_file, "test.toml");
-    assert_eq!(p.input_hash.len(), 64);
+    assert_eq!(p.input_hash.hex().len(), 64);
+    // The fingerprint a recorded reference must match: the deck and data file given.
+    assert_eq!(p.input_hash, liggghts::micro_input_hash(&c).unwrap());
 
     // Full precision in the dump: initial state must round-trip exactly.
     let f0 = &out.frames[0];
@@ -385,11 +450,14 @@ fn live_two_sphere_collision() {
 
     // The same case on two MPI ranks gives the same trajectory (to round-off).
     let dir2 = tempfile::tempdir().unwrap();
-    let out2 = Liggghts {
-        mpi_procs: 2,
-        ..Liggghts::default()
-    }
-    .run(&c, dir2.path())
+    let out2 = run(
+        &Liggghts {
+            mpi_procs: 2,
+            ..Liggghts::default()
+        },
+        &c,
+        dir2.path(),
+    )
     .unwrap();
     println!(
         "mpirun -np 2: wall_time_s = {:.3}",
@@ -424,8 +492,7 @@ fn live_lost_atom_is_an_error() {
     let toml = two_spheres(5e7, "cdt", "").replace("v = [0.7, 0.0, 0.0]", "v = [0.7, 0.0, 30.0]");
     let c = case(&toml);
     let dir = tempfile::tempdir().unwrap();
-    let err = Liggghts::default()
-        .run(&c, dir.path())
+    let err = run(&Liggghts::default(), &c, dir.path())
         .expect_err("a particle leaving a fixed box must fail the run");
     let msg = format!("{err:#}");
     println!("{msg}");
@@ -464,12 +531,15 @@ fn live_broken_inputs_are_errors() {
     );
     for np in [1, 2] {
         let dir = tempfile::tempdir().unwrap();
-        let err = Liggghts {
-            binary: bin.clone(),
-            mpi_procs: np,
-            ..Liggghts::default()
-        }
-        .run(&c, dir.path())
+        let err = run(
+            &Liggghts {
+                binary: bin.clone(),
+                mpi_procs: np,
+                ..Liggghts::default()
+            },
+            &c,
+            dir.path(),
+        )
         .expect_err("particle outside the box");
         let msg = format!("{err:#}");
         println!("np={np}: {msg}");
@@ -482,11 +552,14 @@ fn live_broken_inputs_are_errors() {
     // Unknown command after the run: the dump is complete, but the run must still fail.
     let bin = saboteur(bin_dir.path(), "echo 'bogus_command 1' >> in.granval");
     let dir = tempfile::tempdir().unwrap();
-    let err = Liggghts {
-        binary: bin,
-        ..Liggghts::default()
-    }
-    .run(&c, dir.path())
+    let err = run(
+        &Liggghts {
+            binary: bin,
+            ..Liggghts::default()
+        },
+        &c,
+        dir.path(),
+    )
     .expect_err("unknown command");
     let msg = format!("{err:#}");
     println!("{msg}");
@@ -497,11 +570,14 @@ fn live_broken_inputs_are_errors() {
 
     // A binary that does not exist.
     let dir = tempfile::tempdir().unwrap();
-    let err = Liggghts {
-        binary: "/nonexistent/liggghts".into(),
-        ..Liggghts::default()
-    }
-    .run(&c, dir.path())
+    let err = run(
+        &Liggghts {
+            binary: "/nonexistent/liggghts".into(),
+            ..Liggghts::default()
+        },
+        &c,
+        dir.path(),
+    )
     .unwrap_err();
     assert!(format!("{err:#}").contains("cannot start"), "{err:#}");
     assert!(liggghts::installed_version("/nonexistent/liggghts").is_none());
@@ -522,12 +598,15 @@ fn live_timeout_kills_the_run() {
     for np in [1, 2] {
         let dir = tempfile::tempdir().unwrap();
         let t0 = Instant::now();
-        let err = Liggghts {
-            mpi_procs: np,
-            timeout: Duration::from_secs(1),
-            ..Liggghts::default()
-        }
-        .run(&c, dir.path())
+        let err = run(
+            &Liggghts {
+                mpi_procs: np,
+                timeout: Duration::from_secs(1),
+                ..Liggghts::default()
+            },
+            &c,
+            dir.path(),
+        )
         .expect_err("must time out");
         let msg = format!("{err:#}");
         println!("np={np}: {msg}");
@@ -555,7 +634,7 @@ fn live_cylinder_gravity_epsd2_runs() {
         .replace("id = 2\ntype = 1", "id = 7\ntype = 2");
     let c = case(&toml);
     let dir = tempfile::tempdir().unwrap();
-    let out = Liggghts::default().run(&c, dir.path()).unwrap();
+    let out = run(&Liggghts::default(), &c, dir.path()).unwrap();
     println!("{:#?}", out.provenance.notes);
     assert_eq!(out.frames.len(), 11);
     assert_eq!(

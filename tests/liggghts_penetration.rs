@@ -2,8 +2,9 @@
 //! limits, deck content, the force-file parser, and (when `liggghts` is installed) live
 //! runs in cgs and SI, plus runs that must fail.
 
+mod common;
+
 use granval::case::{Material, PairTable, Particle, RollingModel};
-use granval::engines::liggghts::installed_version;
 use granval::engines::liggghts::penetration::{
     self, DATA_FILE, DECK_FILE, FORCE_FILE, ForceSample, PenetrationDeck, STL_FILE, Units,
     choose_units, parse_force_file, write_deck_dir,
@@ -324,17 +325,13 @@ fn invalid_geometry_is_refused() {
     assert!(penetration::deck_text(&d).is_err());
 }
 
+/// Live LIGGGHTS, or a loud skip (a failure with GRANVAL_REQUIRE_LIVE=1).
 fn liggghts_or_skip(test: &str) -> bool {
-    match installed_version("liggghts") {
-        Some(v) => {
-            eprintln!("{test}: using {v}");
-            true
-        }
-        None => {
-            eprintln!("SKIPPED {test}: `liggghts` is not installed or does not run");
-            false
-        }
+    let live = common::live(granval::rundata::provenance::EngineKind::Liggghts, test);
+    if !live {
+        eprintln!("SKIPPED {test}: `liggghts` is not installed or does not run");
     }
+    live
 }
 
 /// Mean fz (N) over the second half of the run, and the checks every live run must pass.

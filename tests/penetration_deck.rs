@@ -2,33 +2,26 @@
 //! hold the exact bed, analysis of a LIGGGHTS run of a deck reproduces `compare`, and the
 //! full-size Feng deck starts under mpirun.
 
+mod common;
+
 use granval::analysis::fdr::{self, FdrBinner, Scales};
 use granval::case::penetration::PenetrationCase;
-use granval::engines::liggghts::installed_version;
-use granval::penetration::{self as pen, deck_dir};
-use std::path::{Path, PathBuf};
+use granval::experiments::penetration::{Penetration, bed as pen, deck_dir};
+use granval::experiments::{Options, RefMode, runner};
+use granval::rundata::provenance::EngineKind;
+use std::path::Path;
 use std::process::Command;
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use common::root;
 
 /// Live LIGGGHTS, or a loud skip — never a silent one, and never in CI (where
 /// GRANVAL_REQUIRE_LIVE=1 turns a missing LIGGGHTS into a failure).
 fn liggghts_or_skip(test: &str) -> bool {
-    match installed_version("liggghts") {
-        Some(v) => {
-            eprintln!("{test}: LIVE {v}");
-            true
-        }
-        None if std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1") => {
-            panic!("{test}: LIGGGHTS is required (GRANVAL_REQUIRE_LIVE=1) but not installed")
-        }
-        None => {
-            eprintln!("SKIPPED {test}: `liggghts` is not installed");
-            false
-        }
+    let live = common::live(EngineKind::Liggghts, test);
+    if !live {
+        eprintln!("SKIPPED {test}: `liggghts` is not installed");
     }
+    live
 }
 
 /// A 300-grain bed (E above LIGGGHTS' 5e6 Pa floor), two beds, written to `dir`.
@@ -66,6 +59,34 @@ fn binner_applies_eq5_and_memory_does_not_grow_with_samples() {
     assert!((fit.p0 - 3.0).abs() < 1e-9, "p0 = {}", fit.p0);
     assert!(b.push(f64::NAN, 1.0).is_err());
     assert!(FdrBinner::new(&scales, surface, 0.0).is_err());
+}
+
+/// Sec. 3's quasi-static check compares the native K_phi at two speeds: it passes for
+/// the same force-depth relation and fails for one whose K_phi really differs (the
+/// check's own negative control; `granval check --suite ci` runs the check itself on
+/// the CI case, where a control run has no second speed to fail it with).
+#[test]
+fn quasi_static_check_catches_a_different_k_phi() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = tiny_case(tmp.path());
+    let fdr_of = |k: f64| {
+        let h: Vec<f64> = (0..120).map(|i| 0.005 + 0.01 * i as f64).collect();
+        let p = h.iter().map(|h| k * h + 3.0).collect();
+        fdr::Fdr::new(h, p).unwrap()
+    };
+    let obs = |k: f64| {
+        granval::compare::penetration::ensemble(&case, &[&fdr_of(k)])
+            .unwrap_or_else(|e| panic!("{e:#}"))
+    };
+    let (fast, same, wrong) = (obs(20.0), obs(20.0 * 1.02), obs(20.0 * 0.79));
+    let ok = granval::compare::penetration::quasi_static(&case, &fast, &same, case.speed / 2.0);
+    assert!(ok.passed, "{ok:?}");
+    let bad = granval::compare::penetration::quasi_static(&case, &fast, &wrong, case.speed);
+    assert!(
+        !bad.passed && bad.gate == granval::compare::Gate::QuasiStatic,
+        "{bad:?}"
+    );
+    assert!((bad.value - 0.21).abs() < 1e-6, "{bad:?}");
 }
 
 #[test]
@@ -152,32 +173,53 @@ fn analyze_of_a_deck_run_reproduces_compare() {
     if !liggghts_or_skip("analyze_of_a_deck_run_reproduces_compare") {
         return;
     }
+    let _mpi = common::mpi_lock();
     let tmp = tempfile::tempdir().unwrap();
     let case = tiny_case(tmp.path());
-    let opts = granval::pipeline::Options {
+    let opts = Options {
         reference_root: tmp.path().join("no-reference"),
+        ref_mode: RefMode::Live,
         mpi_procs: 2,
         ..Default::default()
     };
     let cmp_dir = tmp.path().join("compare");
-    let compared = pen::ensemble::compare_case(&case, &opts, &cmp_dir);
+    let exp = Penetration {
+        case: case.clone(),
+        stress: false,
+    };
+    let compared = runner::compare(&exp, &opts, &cmp_dir);
+    assert!(compared.run.is_some(), "{:?}", compared.checks);
     assert!(!compared.checks.is_empty());
+    assert!(
+        compared.checks.iter().all(|c| !c.is_error()),
+        "{:?}",
+        compared.checks
+    );
 
     let deck = tmp.path().join("deck");
     let dirs = deck_dir::write(&case, &deck, deck_dir::BedBy::Native, false).unwrap();
     for (k, d) in dirs.iter().enumerate() {
-        // `granval deck` writes exactly the inputs `compare` ran.
+        // `granval deck` writes exactly the inputs `compare` ran (in OUT/bed-K/liggghts/).
         for f in ["in.penetration", "data.bed", "intruder.stl"] {
             let a = std::fs::read(d.join(f)).unwrap();
-            let b = std::fs::read(cmp_dir.join(format!("bed-{k}")).join(f)).unwrap();
+            let b = std::fs::read(cmp_dir.join(format!("bed-{k}/liggghts")).join(f)).unwrap();
             assert!(a == b, "bed-{k}/{f} differs between deck and compare");
         }
         let o = run_liggghts(d, 2, &[]);
         assert!(o.status.success(), "LIGGGHTS failed in {}", d.display());
     }
     let analyzed = deck_dir::analyze(&deck, true, &opts, &tmp.path().join("analyze")).unwrap();
-    assert_eq!(analyzed.checks.len(), compared.checks.len());
-    for (a, c) in analyzed.checks.iter().zip(&compared.checks) {
+    same_checks(&analyzed.checks, &compared.checks);
+    // `granval analyze` of the `compare` output itself (LIGGGHTS outputs in
+    // OUT/bed-K/liggghts/) gives the same report too.
+    let again =
+        deck_dir::analyze(&cmp_dir, true, &opts, &tmp.path().join("analyze-compare")).unwrap();
+    same_checks(&again.checks, &compared.checks);
+}
+
+fn same_checks(analyzed: &[granval::compare::Check], compared: &[granval::compare::Check]) {
+    assert_eq!(analyzed.len(), compared.len());
+    for (a, c) in analyzed.iter().zip(compared) {
         assert_eq!(a.name, c.name);
         assert_eq!(a.passed, c.passed, "{}", a.name);
         let same = (a.value.is_nan() && c.value.is_nan())
@@ -196,6 +238,7 @@ fn full_size_d2mm_deck_starts_under_mpirun() {
     if !liggghts_or_skip("full_size_d2mm_deck_starts_under_mpirun") {
         return;
     }
+    let _mpi = common::mpi_lock();
     let case = PenetrationCase::load(&root().join("cases/penetration/feng-table2-d2mm.toml"))
         .unwrap_or_else(|e| panic!("{e}"));
     let tmp = tempfile::tempdir().unwrap();

@@ -4,6 +4,7 @@
 mod common;
 
 use granval::case::penetration::PenetrationCase;
+use granval::experiments::penetration::bed::{liggghts_deck, prepare_bed};
 use std::path::Path;
 
 fn tiny(extra: &str) -> String {
@@ -13,7 +14,7 @@ fn tiny(extra: &str) -> String {
 #[test]
 fn bed_settles_and_intruder_meets_resistance() {
     let case = PenetrationCase::from_toml_str(&tiny(""), Path::new("tiny.toml")).unwrap();
-    let bed = granval::penetration::prepare_bed(&case, false).unwrap();
+    let bed = prepare_bed(&case, false).unwrap();
     eprintln!("{}", granval::physics::dem::packing::bed_note(&case, &bed));
     assert!(bed.ke_ratio < 1e-6);
     assert!(
@@ -27,8 +28,20 @@ fn bed_settles_and_intruder_meets_resistance() {
         .map(|p| p.x[2] + p.radius)
         .fold(0.0, f64::max);
     assert!(bed.surface_z > 0.0 && bed.surface_z <= top);
-    let run = granval::penetration::run_native(&case, &bed, Default::default(), false).unwrap();
-    let s = &run.samples;
+    let (samples, provenance) = granval::engines::native::penetration(
+        &case,
+        &bed,
+        &Default::default(),
+        &[],
+        |_| Ok(()),
+        |_, _| {},
+    )
+    .unwrap();
+    assert_eq!(
+        provenance.engine,
+        granval::rundata::provenance::EngineKind::Native
+    );
+    let s = &samples;
     // Constant-speed drive: z_bottom falls by v dt per step exactly (to round-off).
     let dz = (s[0].z_bottom - s.last().unwrap().z_bottom) / (s.last().unwrap().t - s[0].t);
     assert!(
@@ -93,7 +106,7 @@ fn stl_rim_error_sets_the_segment_count() {
         ke_at_end_of_pour: 0.0,
     };
     let segments = |c: &PenetrationCase| {
-        let d = granval::penetration::liggghts_deck(c, &bed).unwrap();
+        let d = liggghts_deck(c, &bed).unwrap();
         segments_for_rim_error(d.rim_error_frac)
     };
     assert_eq!((segments(&case), segments(&fine)), (24, 72));
@@ -101,12 +114,51 @@ fn stl_rim_error_sets_the_segment_count() {
 
 #[test]
 fn shipped_penetration_cases_load() {
-    for p in granval::pipeline::suite_cases(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("cases"),
-        "penetration",
-    )
-    .unwrap()
-    {
-        PenetrationCase::load(&p).unwrap_or_else(|e| panic!("{e}"));
+    let cases = common::root().join("cases");
+    let suite = granval::experiments::suite::load(&cases, "penetration").unwrap();
+    assert!(!suite.cases.is_empty());
+    for e in &suite.cases {
+        PenetrationCase::load(&e.path).unwrap_or_else(|e| panic!("{e}"));
     }
+    // Every penetration case file, in a suite or not.
+    let mut n = 0;
+    for e in std::fs::read_dir(cases.join("penetration")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") {
+            PenetrationCase::load(&p).unwrap_or_else(|e| panic!("{e}"));
+            n += 1;
+        }
+    }
+    assert!(n >= suite.cases.len());
+}
+
+/// What `granval check --suite ci` gates on the CI penetration case (the checks of the
+/// former tests/penetration_ci.rs): Sec. 3's quasi-static test needs a second speed,
+/// and the mu_gg = 0.3 negative control must fail K_phi against the same LIGGGHTS runs.
+#[test]
+fn ci_case_carries_the_quasi_static_speed_and_the_mu_gg_control() {
+    let path = common::root().join("cases/penetration/ci.toml");
+    let case = PenetrationCase::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        case.quasi_static_speed.is_some_and(|v| v != case.speed),
+        "ci.toml must carry [quasi_static] speed for Sec. 3's test"
+    );
+    let g = case.grain_type;
+    assert!(
+        case.negative_controls.iter().any(|c| {
+            c.perturbation.pair_friction == Some((g, g, 0.3))
+                && c.must_fail.contains(&granval::compare::Gate::KPhi)
+        }),
+        "{:?}",
+        case.negative_controls
+    );
+    let suite = granval::experiments::suite::load(&common::root().join("cases"), "ci").unwrap();
+    assert!(
+        suite
+            .cases
+            .iter()
+            .any(|e| e.path.ends_with("penetration/ci.toml") && e.stress),
+        "{:?}",
+        suite.cases
+    );
 }

@@ -9,9 +9,14 @@ mod common;
 
 use granval::analysis::coarse_grain::{CgParams, CoarseGrainer, azimuthal_average};
 use granval::analysis::stress;
+use granval::analysis::stress_fields::{self, Forces, WindowFields};
 use granval::case::penetration::PenetrationCase;
+use granval::compare::Status;
+use granval::compare::stress::{self as cs, EnginePoint};
+use granval::experiments::penetration::bed::{bed_hash, liggghts_deck, prepare_bed};
+use granval::experiments::penetration::{Penetration, Unit};
+use granval::experiments::{Experiment, Options, Role};
 use granval::rundata::snapshot::{self, Contact, ContactKind, Grain, Snapshot, SnapshotMeta};
-use granval::stress_fields::{self, EnginePoint, Forces};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -303,8 +308,20 @@ fn tiny_case_with(intruder_diameter: f64) -> PenetrationCase {
 }
 
 /// The tiny case's TOML, `analysis` lines added to `[analysis]` and `tail` appended.
+/// An intruder wider than 12 mm gets a 40 mm container (instead of 32 mm), so that two
+/// grain diameters fit between it and the wall, as case validation requires.
 fn tiny_case_text_raw(intruder_diameter: f64, analysis: &str, tail: &str) -> String {
-    common::tiny_penetration_toml(intruder_diameter, analysis, tail)
+    let text = common::tiny_penetration_toml(intruder_diameter, analysis, tail);
+    if intruder_diameter > 0.012 {
+        let container = "[container]\ndiameter = 0.032\n";
+        assert!(
+            text.contains(container),
+            "tests/data/penetration-tiny.toml changed shape"
+        );
+        text.replacen(container, "[container]\ndiameter = 0.040\n", 1)
+    } else {
+        text
+    }
 }
 
 fn tiny_case_text(intruder_diameter: f64, analysis: &str, tail: &str) -> PenetrationCase {
@@ -322,11 +339,36 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
     let case = tiny_case();
     assert_eq!(case.snapshot_h, vec![0.24, 0.373, 0.61, 1.0, 1.2]);
     assert_eq!(case.snapshot_window, 5);
-    let bed = granval::penetration::prepare_bed(&case, false).unwrap();
+    let bed = prepare_bed(&case, false).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let snaps = dir.path().join("snapshots");
-    let run = stress_fields::run_native(&case, &bed, Default::default(), &snaps, false).unwrap();
+    // The experiment's own native run of the bed with the stress option: snapshots in
+    // dir/snapshots, the force series in dir/force.csv.
     let plan = stress_fields::snapshot_plan(&case, &bed);
+    let unit = Unit {
+        k: 0,
+        bed_hash: bed_hash(&bed),
+        case: case.clone(),
+        bed: bed.clone(),
+        plan: Some(plan.clone()),
+        study_plan: None,
+    };
+    let exp = Penetration {
+        case: case.clone(),
+        stress: true,
+    };
+    let native = exp
+        .run_native(&unit, Role::Main, dir.path(), &Options::default())
+        .unwrap();
+    let snaps = dir
+        .path()
+        .join(granval::experiments::penetration::SNAPSHOT_DIR);
+    assert_eq!(native.snapshots.as_deref(), Some(snaps.as_path()));
+    let samples = granval::rundata::force::read_force_csv(
+        &dir.path()
+            .join(granval::experiments::penetration::FORCE_CSV),
+    )
+    .unwrap();
+    assert_eq!(samples.len() as u64, native.run.samples);
     assert_eq!(stress_fields::SnapshotPlan::read(&snaps).unwrap(), plan);
     assert_eq!(snapshot::list(&snaps).unwrap().len(), plan.steps.len());
     let windows = case.snapshot_windows();
@@ -394,8 +436,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
             );
         }
         if step % case.force_every == 0 {
-            let sample = run
-                .samples
+            let sample = samples
                 .iter()
                 .find(|x| (x.t / case.dt).round() as u64 == step)
                 .unwrap();
@@ -436,14 +477,11 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         worst > 1e-9,
         "the snapshot must be a re-evaluation, not the integrated force"
     );
-    let full = stress_fields::analyse_engine(
-        "native",
-        &snaps,
-        Some(&dir.path().join("fields")),
-        Forces::Full,
-        0.5,
-    )
-    .unwrap();
+    let fields = dir.path().join("fields");
+    let mut write =
+        |wi: usize, w: &WindowFields| granval::report::stress::write_outputs(&fields, wi, w);
+    let full = stress_fields::analyse_engine("native", &snaps, Forces::Full, 0.5, Some(&mut write))
+        .unwrap();
     assert_eq!(full.windows.len(), plan.windows.len());
     for w in &full.windows {
         let p = w.phi_basic.expect("window-averaged phi from eq 9");
@@ -473,7 +511,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
     // Outputs are per window, not per snapshot.
     assert!(!dir.path().join("fields/fields_05_rz.csv").exists());
     let normal =
-        stress_fields::analyse_engine("native-normal", &snaps, None, Forces::NormalOnly, 0.5)
+        stress_fields::analyse_engine("native-normal", &snaps, Forces::NormalOnly, 0.5, None)
             .unwrap();
     eprintln!(
         "tiny bed, window-averaged: phi full {:.2} +- {:.2} deg (kernel {:.2}), normal forces only {:.2} +- {:.2} deg (kernel {:.2}); instantaneous: full {:.2} +- {:.2}, normal only {:.2} +- {:.2}",
@@ -489,11 +527,11 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         normal.phi_instant_std_deg
     );
     let tol = &case.tolerances;
-    let same = stress_fields::phi_check("tiny", tol, &point(&full), &point(&full));
+    let same = cs::phi_check("tiny", tol, &point(&full), &point(&full));
     assert!(same.passed && same.value == 0.0);
-    let neg = stress_fields::phi_check("tiny", tol, &point(&full), &point(&normal));
+    let neg = cs::phi_check("tiny", tol, &point(&full), &point(&normal));
     assert!(
-        !neg.passed,
+        !neg.passed && neg.status == Status::Fail,
         "dropping tangential forces must fail the phi check: {neg:?}"
     );
 }
@@ -530,7 +568,7 @@ fn liggghts_snapshot_matches_native_contacts() {
     // A wide intruder (R = 10 mm, 2.5 grain diameters) so that grains touch the interior
     // of its bottom face, away from the rim.
     let case = tiny_case_with(0.020);
-    let bed = granval::penetration::prepare_bed(&case, false).unwrap();
+    let bed = prepare_bed(&case, false).unwrap();
     let top = granval::physics::dem::penetration::start_z(&case, &bed) - case.start_gap;
     let zb = top - 1.5e-3;
     let sim_case = granval::physics::dem::packing::container_case(
@@ -549,7 +587,7 @@ fn liggghts_snapshot_matches_native_contacts() {
     );
     sim.setup().unwrap();
     let nat = sim.snapshot(meta(4e-3));
-    let mut deck = granval::penetration::liggghts_deck(&case, &bed).unwrap();
+    let mut deck = liggghts_deck(&case, &bed).unwrap();
     deck.intruder_bottom_z0 = zb;
     deck.n_steps = 10;
     deck.force_every = 10;
@@ -827,17 +865,18 @@ fn malt_checks_pass_on_the_curve_and_fail_off_it() {
         unified_malt: None,
         fdr_source: "test".into(),
     };
-    let on = stress_fields::malt_checks("c", tol, &point(25.94, 23.0, Ok((0.16, 0.61, 0.999))));
+    let on = cs::malt_checks("c", tol, &point(25.94, 23.0, Ok((0.16, 0.61, 0.999))));
     assert_eq!(on.len(), 3);
     assert!(on.iter().all(|c| c.passed), "{on:?}");
     assert!(on[0].value < 2e-3 && on[1].value < 0.01);
     // K 60 % too high at this phi: about 4 degrees off the curve.
-    let off = stress_fields::malt_checks("c", tol, &point(25.94, 36.8, Ok((0.16, 0.61, 0.95))));
+    let off = cs::malt_checks("c", tol, &point(25.94, 36.8, Ok((0.16, 0.61, 0.95))));
     assert!(off.iter().all(|c| !c.passed), "{off:?}");
     assert!((off[0].value - 0.6).abs() < 0.01 && off[1].value > 3.0);
-    let err = stress_fields::malt_checks("c", tol, &point(f64::NAN, 23.0, Err("no phi".into())));
+    let err = cs::malt_checks("c", tol, &point(f64::NAN, 23.0, Err("no phi".into())));
     assert!(
-        err.iter().all(|c| !c.passed && c.metric == "error"),
+        err.iter()
+            .all(|c| !c.passed && c.metric == "error" && c.status == Status::Error),
         "{err:?}"
     );
 }
@@ -857,71 +896,137 @@ fn malt_md_derived_values() {
     }
 }
 
+/// The live stress run of the tiny case's 2 beds (`granval stress`: the penetration
+/// experiment with the stress option through the runner), made once per process and
+/// kept in target/tmp/stress-tiny/ for inspection; `None` without LIGGGHTS.
+struct StressRun {
+    case: PenetrationCase,
+    out: std::path::PathBuf,
+    opts: Options,
+    outcome: granval::experiments::runner::CaseOutcome,
+    /// stress.json.
+    report: serde_json::Value,
+}
+
+fn stress_run() -> Option<&'static StressRun> {
+    static RUN: std::sync::OnceLock<Option<StressRun>> = std::sync::OnceLock::new();
+    RUN.get_or_init(|| {
+        if !common::live(
+            granval::rundata::provenance::EngineKind::Liggghts,
+            "stress end to end",
+        ) {
+            eprintln!("LIGGGHTS not installed: stress pipeline end to end skipped");
+            return None;
+        }
+        let _mpi = common::mpi_lock();
+        let root = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("stress-tiny");
+        let _ = std::fs::remove_dir_all(&root);
+        std::fs::create_dir_all(&root).unwrap();
+        // The case file must exist: the runner copies it next to the outputs.
+        let case_file = root.join("tiny.toml");
+        std::fs::write(
+            &case_file,
+            tiny_case_text_raw(0.010, "", "\n[ensemble]\nbeds = 2\n"),
+        )
+        .unwrap();
+        let case = PenetrationCase::load(&case_file).unwrap();
+        let opts = Options {
+            reference_root: root.join("no-reference"),
+            ref_mode: granval::experiments::RefMode::Live,
+            mpi_procs: 1,
+            stress: true,
+            ..Default::default()
+        };
+        let out = root.join("stress");
+        let exp = Penetration {
+            case: case.clone(),
+            stress: true,
+        };
+        let outcome = granval::experiments::runner::compare(&exp, &opts, &out);
+        common::show("stress tiny", &outcome.checks);
+        for n in &outcome.notes {
+            eprintln!("[stress tiny] note: {n}");
+        }
+        assert!(outcome.run.is_some(), "{:?}", outcome.checks);
+        let report = serde_json::from_str(
+            &std::fs::read_to_string(out.join("stress.json"))
+                .unwrap_or_else(|e| panic!("stress.json: {e}; checks {:?}", outcome.checks)),
+        )
+        .unwrap();
+        Some(StressRun {
+            case,
+            out,
+            opts,
+            outcome,
+            report,
+        })
+    })
+    .as_ref()
+}
+
+/// A number of stress.json (NaN is written as null).
+fn num(v: &serde_json::Value) -> f64 {
+    v.as_f64().unwrap_or(f64::NAN)
+}
+
+fn window_phis(e: &serde_json::Value) -> Vec<f64> {
+    e["windows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| num(&w["phi_basic"]["phi_deg"]))
+        .collect()
+}
+
 /// `granval stress` end to end on the tiny case's 2 beds (live LIGGGHTS): per bed both
 /// engines take `snapshot_window` snapshots per depth at identical steps, finite phi
 /// from each; each engine's phi pools both beds; every gated check present with a
-/// finite value, the outputs written; `--fdr-from` a `granval compare` directory of the
-/// same case fits K_phi and the unified FDR on its ensemble mean; `--reuse` without it
-/// re-analyses to the same phi, on the mean FDR of the stress run's own beds with a note
-/// saying so.
+/// finite value, the outputs written; K_phi and the unified FDR come from the mean FDR
+/// of the run's own beds, natively the same K_phi as the same beds run without
+/// snapshots (taking snapshots does not perturb the run). (`--fdr-from`, K_phi from a
+/// separate `granval compare` directory, was removed on purpose: the stress run's own
+/// force series are that FDR.)
 #[test]
 fn stress_pipeline_end_to_end_on_a_tiny_bed() {
-    if granval::engines::liggghts::installed_version("liggghts").is_none() {
-        eprintln!("LIGGGHTS not installed: stress pipeline end to end skipped");
-        return;
-    }
-    let case = tiny_case_text(0.010, "", "\n[ensemble]\nbeds = 2\n");
-    let dir = tempfile::tempdir().unwrap();
-    let opts = granval::pipeline::Options {
-        mpi_procs: 1,
-        ..Default::default()
-    };
-    // The case file must exist for `granval compare` (it copies it into its output).
-    let case_file = dir.path().join("tiny.toml");
-    std::fs::write(
-        &case_file,
-        tiny_case_text_raw(0.010, "", "\n[ensemble]\nbeds = 2\n"),
-    )
-    .unwrap();
-    let case = granval::case::penetration::PenetrationCase {
-        source: case_file.clone(),
-        ..case
-    };
-    let cmp = dir.path().join("compare");
-    let res = granval::penetration::ensemble::compare_case(&case, &opts, &cmp);
-    assert!(!res.errored, "{:?}", res.checks);
-    let out = dir.path().join("stress");
-    let so = stress_fields::StressOptions {
-        fdr_from: Some(cmp.clone()),
-        ..Default::default()
-    };
-    let rep = stress_fields::run_case(&case, &opts, &out, &so).unwrap();
+    let Some(run) = stress_run() else { return };
+    let (case, out, rep) = (&run.case, &run.out, &run.report);
     let n_windows = case.snapshot_h.len();
-    assert_eq!(rep.beds.len(), 2, "every bed of the ensemble");
-    for (k, b) in rep.beds.iter().enumerate() {
-        assert_eq!((b.bed, b.seed), (k, case.seed + k as u64));
-        for e in [&b.native, &b.liggghts] {
-            assert_eq!(e.windows.len(), n_windows, "{}", e.engine);
-            for w in &e.windows {
-                assert_eq!(w.steps.len(), case.snapshot_window, "{}: {w:?}", e.engine);
-                assert_eq!(w.instantaneous.len(), case.snapshot_window);
+    let beds = rep["beds"].as_array().unwrap();
+    assert_eq!(beds.len(), 2, "every bed of the ensemble");
+    for (k, b) in beds.iter().enumerate() {
+        assert_eq!(
+            (b["bed"].as_u64(), b["seed"].as_u64()),
+            (Some(k as u64), Some(case.seed + k as u64))
+        );
+        for e in [&b["native"], &b["liggghts"]] {
+            let name = e["engine"].as_str().unwrap();
+            let windows = e["windows"].as_array().unwrap();
+            assert_eq!(windows.len(), n_windows, "{name}");
+            for w in windows {
+                assert_eq!(
+                    w["steps"].as_array().unwrap().len(),
+                    case.snapshot_window,
+                    "{name}: {w}"
+                );
+                assert_eq!(
+                    w["instantaneous"].as_array().unwrap().len(),
+                    case.snapshot_window
+                );
             }
-            assert!(
-                e.phi_deg.is_finite() && e.phi_deg > 0.0,
-                "{}: {}",
-                e.engine,
-                e.phi_deg
-            );
+            let phi = num(&e["phi_deg"]);
+            assert!(phi.is_finite() && phi > 0.0, "{name}: {phi}");
         }
-        let steps = |e: &stress_fields::EngineFields| {
-            e.windows
+        let steps = |e: &serde_json::Value| {
+            e["windows"]
+                .as_array()
+                .unwrap()
                 .iter()
-                .map(|w| w.steps.clone())
+                .map(|w| w["steps"].clone())
                 .collect::<Vec<_>>()
         };
-        assert_eq!(steps(&b.native), steps(&b.liggghts));
+        assert_eq!(steps(&b["native"]), steps(&b["liggghts"]));
         // LIGGGHTS really wrote every planned step (not just the plan file).
-        let ld = stress_fields::bed_dir(&out, k).join("liggghts");
+        let ld = out.join(format!("bed-{k}")).join("liggghts");
         let plan = stress_fields::SnapshotPlan::read(&ld.join("snapshots")).unwrap();
         for (i, &step) in plan.steps.iter().enumerate() {
             assert_eq!(
@@ -932,73 +1037,89 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
         }
     }
     // The beds are different beds: their phis differ.
-    assert_ne!(rep.beds[0].native.phi_deg, rep.beds[1].native.phi_deg);
+    assert_ne!(
+        num(&beds[0]["native"]["phi_deg"]),
+        num(&beds[1]["native"]["phi_deg"])
+    );
     // Each engine's point pools both beds' windows.
-    for (p, pick) in [
-        (
-            &rep.native_point,
-            (|b: &stress_fields::BedStress| b.native.phi_by_window()) as fn(&_) -> Vec<f64>,
-        ),
-        (&rep.liggghts_point, |b| b.liggghts.phi_by_window()),
-    ] {
-        let pooled: Vec<f64> = rep.beds.iter().flat_map(pick).collect();
-        assert_eq!(p.phi_by_window.len(), 2 * n_windows);
+    for engine in ["native", "liggghts"] {
+        let p = &rep[format!("{engine}_point")];
+        let pooled: Vec<f64> = beds.iter().flat_map(|b| window_phis(&b[engine])).collect();
+        assert_eq!(p["phi_by_window"].as_array().unwrap().len(), 2 * n_windows);
         let finite: Vec<f64> = pooled.into_iter().filter(|x| x.is_finite()).collect();
         let mean = finite.iter().sum::<f64>() / finite.len() as f64;
-        assert!((p.phi_deg - mean).abs() < 1e-12, "{} vs {mean}", p.phi_deg);
-        assert_eq!(p.phi_by_bed.len(), 2);
+        let phi = num(&p["phi_deg"]);
+        assert!((phi - mean).abs() < 1e-12, "{phi} vs {mean}");
+        assert_eq!(p["phi_by_bed"].as_array().unwrap().len(), 2);
+        // K_phi and the unified fit from the mean FDR of the run's own two beds.
+        let src = p["fdr_source"].as_str().unwrap();
+        assert!(
+            src.contains("mean FDR of the 2 bed(s) of this run"),
+            "{src}"
+        );
     }
-    let names: Vec<&str> = rep.checks.iter().map(|c| c.name.as_str()).collect();
+    let checks = &run.outcome.checks;
+    let stress_gates = [
+        granval::compare::Gate::Phi,
+        granval::compare::Gate::MaltK,
+        granval::compare::Gate::MaltPhi,
+        granval::compare::Gate::UnifiedFit,
+        granval::compare::Gate::NegativeControl,
+    ];
+    let stress_checks: Vec<_> = checks
+        .iter()
+        .filter(|c| stress_gates.contains(&c.gate))
+        .collect();
+    let names: Vec<&str> = stress_checks.iter().map(|c| c.name.as_str()).collect();
     for want in [
         "tiny: phi native vs liggghts",
         "tiny: native MALT distance in K",
         "tiny: native MALT distance in phi",
+        "tiny: native unified FDR fit",
         "tiny: liggghts MALT distance in K",
+        "tiny: liggghts MALT distance in phi",
         "tiny: liggghts unified FDR fit",
+        "tiny: negative control \"tangential forces dropped\"",
     ] {
         assert!(names.contains(&want), "missing check {want}: {names:?}");
     }
-    assert!(
-        rep.checks[0].detail.contains("bed by bed over 2"),
-        "{}",
-        rep.checks[0].detail
-    );
-    assert!(
-        rep.checks
-            .iter()
-            .filter(|c| c.metric != "error")
-            .all(|c| c.value.is_finite())
-    );
-    // Negative control with the window-averaged estimator: native stress without
-    // tangential forces against LIGGGHTS must fail the phi check.
-    assert!(
-        !rep.negative_control_check.passed,
-        "{:?}",
-        rep.negative_control_check
-    );
-    for p in [&rep.native_point, &rep.liggghts_point] {
+    let phi = stress_checks
+        .iter()
+        .find(|c| c.name == "tiny: phi native vs liggghts")
+        .unwrap();
+    assert!(phi.detail.contains("bed by bed over 2"), "{}", phi.detail);
+    // Every stress gate was evaluated: a value, not an error or "not compared".
+    for c in &stress_checks {
         assert!(
-            p.fdr_source.contains("mean FDR of 2 beds"),
-            "{}",
-            p.fdr_source
+            c.status == Status::Pass || c.status == Status::Fail,
+            "{c:?}"
         );
+        assert!(c.value.is_finite(), "{c:?}");
     }
+    // Negative control with the window-averaged estimator: native stress without
+    // tangential forces against LIGGGHTS must fail the phi check, and the control's own
+    // check passes because it did.
+    let neg = &rep["negative_control_check"];
+    assert_eq!(neg["passed"], false, "{neg}");
+    assert_eq!(neg["status"], "fail", "{neg}");
+    let control = stress_checks
+        .iter()
+        .find(|c| c.gate == granval::compare::Gate::NegativeControl)
+        .unwrap();
+    assert_eq!(control.status, Status::Pass, "{control:?}");
     eprintln!(
-        "tiny beds: phi native {:.2} +- {:.2}, LIGGGHTS {:.2} +- {:.2}; negative control {:?}; K_phi native {:.2}, LIGGGHTS {:.2} ({}); {}",
-        rep.native_point.phi_deg,
-        rep.native_point.phi_std_deg,
-        rep.liggghts_point.phi_deg,
-        rep.liggghts_point.phi_std_deg,
-        (
-            rep.negative_control_check.value,
-            rep.negative_control_check.passed
-        ),
-        rep.native_point.k_phi,
-        rep.liggghts_point.k_phi,
-        rep.native_point.fdr_source,
-        rep.checks[0].detail
+        "tiny beds: phi native {:.2} +- {:.2}, LIGGGHTS {:.2} +- {:.2}; negative control {:.2} deg; K_phi native {:.2}, LIGGGHTS {:.2} ({}); {}",
+        num(&rep["native_point"]["phi_deg"]),
+        num(&rep["native_point"]["phi_std_deg"]),
+        num(&rep["liggghts_point"]["phi_deg"]),
+        num(&rep["liggghts_point"]["phi_std_deg"]),
+        num(&neg["value"]),
+        num(&rep["native_point"]["k_phi"]),
+        num(&rep["liggghts_point"]["k_phi"]),
+        rep["native_point"]["fdr_source"],
+        phi.detail
     );
-    for f in ["stress.json", "phi_snapshots.csv", "k_phi.svg"] {
+    for f in ["stress.json", "phi_snapshots.csv", "k_phi.svg", "fdr.svg"] {
         assert!(out.join(f).exists(), "{f} not written");
     }
     let csv = std::fs::read_to_string(out.join("phi_snapshots.csv")).unwrap();
@@ -1014,9 +1135,16 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
         3 * n_windows * (1 + case.snapshot_window)
     );
     for k in 0..2 {
+        let bed = out.join(format!("bed-{k}"));
+        assert!(
+            bed.join("native/force.csv").exists(),
+            "bed {k} native force.csv"
+        );
+        assert!(
+            bed.join("liggghts/force.txt").exists(),
+            "bed {k} liggghts force.txt"
+        );
         for e in ["native", "liggghts"] {
-            let d = stress_fields::bed_dir(&out, k).join(e);
-            assert!(d.join("force.csv").exists(), "bed {k} {e} force.csv");
             for f in [
                 "gamma_00.svg",
                 "velocity_00.svg",
@@ -1024,76 +1152,109 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
                 "fields_00_rz.csv",
                 "fields_00_3d.csv",
             ] {
-                assert!(d.join("fields").join(f).exists(), "bed {k} {e}/{f}");
+                assert!(
+                    bed.join("fields").join(e).join(f).exists(),
+                    "bed {k} fields/{e}/{f}"
+                );
             }
         }
     }
-    // report.md is written by the CLI, everything else by run_case.
-    for p in stress_fields::output_files(&out, 2) {
-        assert!(
-            p.exists() || p.ends_with("report.md"),
-            "{} listed but not written",
-            p.display()
-        );
-    }
-    let again = stress_fields::run_case(
-        &case,
-        &opts,
-        &out,
-        &stress_fields::StressOptions {
-            reuse: true,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    for (a, b) in again.beds.iter().zip(&rep.beds) {
-        assert_eq!(a.native.phi_deg, b.native.phi_deg);
-        assert_eq!(a.liggghts.phi_deg, b.liggghts.phi_deg);
-    }
-    // Without --fdr-from: the mean FDR of the stress run's own beds, the same beds
-    // `compare` ran, so natively the same K_phi (LIGGGHTS ran at np 1 in `compare`, at
-    // np 2 here: other round-off, another trajectory).
-    assert!(
-        again
-            .native_point
-            .fdr_source
-            .contains("stress run's 2 bed(s)"),
-        "{}",
-        again.native_point.fdr_source
-    );
-    assert!(again.notes.iter().any(|n| n.contains("no --fdr-from")));
-    let (a, b) = (again.native_point.k_phi, rep.native_point.k_phi);
-    assert!((a / b - 1.0).abs() < 1e-9, "{a} vs {b}");
-    // --reuse refuses snapshots taken with other windows.
-    let other = granval::case::penetration::PenetrationCase {
-        snapshot_window: 3,
-        ..case.clone()
+    // The same beds run natively without snapshots give the same K_phi: taking
+    // snapshots does not perturb the run.
+    let exp = Penetration {
+        case: case.clone(),
+        stress: false,
     };
-    let e = stress_fields::run_case(
-        &other,
-        &opts,
-        &out,
-        &stress_fields::StressOptions {
-            reuse: true,
-            ..Default::default()
-        },
-    )
-    .expect_err("other windows must be refused");
-    let e = format!("{e:#}");
-    assert!(
-        e.starts_with("bed 0: ") && e.contains("windows") && e.contains("without --reuse"),
-        "{e}"
+    let plain = tempfile::tempdir().unwrap();
+    let units = exp.units(&run.opts).unwrap();
+    let fdrs: Vec<_> = units
+        .iter()
+        .map(|u| {
+            exp.run_native(
+                u,
+                Role::Main,
+                &plain.path().join(exp.unit_name(u)),
+                &run.opts,
+            )
+            .unwrap()
+            .run
+            .fdr
+        })
+        .collect();
+    let o =
+        granval::compare::penetration::ensemble(case, &fdrs.iter().collect::<Vec<_>>()).unwrap();
+    let (a, b) = (o.fit.k_phi, num(&rep["native_point"]["k_phi"]));
+    assert!((a / b - 1.0).abs() < 1e-9, "{a} vs {b}");
+}
+
+/// Copies a directory tree.
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let (src, dst) = (e.path(), to.join(e.file_name()));
+        if src.is_dir() {
+            copy_tree(&src, &dst);
+        } else {
+            std::fs::copy(&src, &dst).unwrap();
+        }
+    }
+}
+
+/// `granval stress --reuse`: the snapshots of an earlier run are re-analysed without
+/// running either engine again, to the same phi; snapshots taken with other windows are
+/// refused, naming the bed and saying to run without --reuse.
+#[test]
+fn stress_reuse_reanalyses_the_snapshots_of_a_run() {
+    let Some(run) = stress_run() else { return };
+    let scratch = tempfile::tempdir().unwrap();
+    let out = scratch.path().join("stress");
+    copy_tree(&run.out, &out);
+    let log = out.join("bed-0/liggghts/log.liggghts");
+    let before = std::fs::metadata(&log).unwrap().modified().unwrap();
+    let opts = Options {
+        reuse: true,
+        ..run.opts.clone()
+    };
+    let exp = Penetration {
+        case: run.case.clone(),
+        stress: true,
+    };
+    let again = granval::experiments::runner::compare(&exp, &opts, &out);
+    assert!(again.run.is_some(), "{:?}", again.checks);
+    assert_eq!(
+        std::fs::metadata(&log).unwrap().modified().unwrap(),
+        before,
+        "--reuse ran LIGGGHTS again"
     );
-    // --fdr-from refuses a directory of another experiment.
-    let mut changed = case.clone();
-    changed.speed *= 2.0;
-    let e = stress_fields::ensemble_fdr(&changed, &cmp, 0.0, 0.0)
-        .err()
-        .expect("another experiment must be refused")
-        .to_string();
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("stress.json")).unwrap()).unwrap();
+    let beds = |r: &serde_json::Value| r["beds"].as_array().unwrap().clone();
+    for (a, b) in beds(&rep).iter().zip(&beds(&run.report)) {
+        for e in ["native", "liggghts"] {
+            assert_eq!(num(&a[e]["phi_deg"]), num(&b[e]["phi_deg"]), "{e}");
+        }
+    }
+    // --reuse refuses snapshots taken with other windows.
+    let other = Penetration {
+        case: PenetrationCase {
+            snapshot_window: 3,
+            ..run.case.clone()
+        },
+        stress: true,
+    };
+    let refused = granval::experiments::runner::compare(&other, &opts, &out);
+    let e = refused
+        .checks
+        .iter()
+        .find(|c| c.is_error())
+        .unwrap_or_else(|| panic!("other windows must be refused: {:?}", refused.checks));
     assert!(
-        e.contains("different experiment") && e.contains("speed"),
-        "{e}"
+        e.detail.contains("bed 0")
+            && e.detail.contains("windows")
+            && e.detail.contains("without --reuse"),
+        "{}",
+        e.detail
     );
 }
 
@@ -1312,14 +1473,13 @@ fn a_field_translated_with_the_intruder_averages_to_itself() {
 #[test]
 fn paired_difference_of_window_phis() {
     let (m, se, n) =
-        stress_fields::paired_difference(&[30.0, 32.0, f64::NAN, 35.0], &[31.0, 34.0, 33.0, 36.0])
-            .unwrap();
+        cs::paired_difference(&[30.0, 32.0, f64::NAN, 35.0], &[31.0, 34.0, 33.0, 36.0]).unwrap();
     assert_eq!(n, 3, "the undefined window is left out");
     assert!((m + 4.0 / 3.0).abs() < 1e-12);
     // differences -1, -2, -1: sd = sqrt(1/3), se = sd / sqrt(3) = 1/3
     assert!((se - 1.0 / 3.0).abs() < 1e-12);
-    assert!(stress_fields::paired_difference(&[1.0, 2.0], &[1.0]).is_none());
-    assert!(stress_fields::paired_difference(&[1.0], &[2.0]).is_none());
+    assert!(cs::paired_difference(&[1.0, 2.0], &[1.0]).is_none());
+    assert!(cs::paired_difference(&[1.0], &[2.0]).is_none());
 }
 
 /// The phi check gates the pooled phi and reports the bed-by-bed differences: three
@@ -1340,7 +1500,7 @@ fn phi_check_reports_beds() {
         unified_malt: None,
         fdr_source: "n/a".into(),
     };
-    let c = stress_fields::phi_check(
+    let c = cs::phi_check(
         "c",
         tol,
         &point([34.51, 35.81, 35.74]),

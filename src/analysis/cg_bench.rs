@@ -1,4 +1,4 @@
-//! Throughput of the coarse graining (issue 4: 1e6 contacts onto a 50^3 grid must take
+//! Throughput of the coarse graining (target: 1e6 contacts onto a 50^3 grid must take
 //! seconds): a jittered simple-cubic packing with its nearest-neighbour contacts, shared
 //! by `granval cg-bench` and `benches/coarse_grain.rs`.
 

@@ -644,7 +644,7 @@ pub fn uniform_grid(lo: f64, hi: f64, n: usize) -> Result<Vec<f64>> {
         .collect())
 }
 
-/// FDR distance (DESIGN.md): RMS of `p_a - p_b` on `n` uniformly spaced
+/// FDR distance: RMS of `p_a - p_b` on `n` uniformly spaced
 /// depths over `[h_lo, h_hi]` (inclusive), divided by the mean of
 /// `(p_a + p_b)/2` on the same grid. Meant for regime C. Errors if the grid
 /// leaves either data range or the mean resistance is not positive.

@@ -31,6 +31,14 @@ pub fn depth(samples: &[IntruderSample], surface: f64, bottom_offset: f64) -> Ve
 }
 
 /// Mean of D over `t >= t_end - window`.
+/// Samples of D(t) in the final window of length `window`.
+pub fn final_window_samples(d: &[(f64, f64)], window: f64) -> usize {
+    let Some(&(t_end, _)) = d.last() else {
+        return 0;
+    };
+    d.iter().filter(|(t, _)| *t >= t_end - window).count()
+}
+
 pub fn final_depth(d: &[(f64, f64)], window: f64) -> Result<f64> {
     let Some(&(t_end, _)) = d.last() else {
         bail!("no intruder samples");

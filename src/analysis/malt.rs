@@ -197,7 +197,18 @@ pub fn k_phi(phi: f64) -> Result<Quad> {
 
 /// Upper end of the bracket searched by [`phi_of_k`]; covers every friction
 /// angle of practical granular media (K(60 deg) is in the thousands).
-const PHI_MAX_DEG: f64 = 60.0;
+pub const PHI_MAX_DEG: f64 = 60.0;
+
+/// [`k_phi`] of an angle in degrees, restricted to [0, [`PHI_MAX_DEG`]]: granular
+/// internal friction angles lie well inside it, and beyond it eq 10's exp(pi tan phi)
+/// growth (K(89 deg) ~ 1e122) is a number without meaning for a granular bed.
+pub fn k_phi_deg(phi_deg: f64) -> Result<Quad> {
+    ensure!(
+        phi_deg.is_finite() && (0.0..=PHI_MAX_DEG).contains(&phi_deg),
+        "phi = {phi_deg} deg: MALT's K_phi is evaluated for 0 <= phi <= {PHI_MAX_DEG} deg (internal friction angles of granular materials; K grows as exp(pi tan phi) toward 90 deg)"
+    );
+    k_phi(phi_deg.to_radians())
+}
 
 /// Inverse: phi (radians) with K(phi) = k, for k >= 1 (error for k < 1 or
 /// non-finite), by a bracketing root finder (Brent) on [0, 60 deg] to 1e-12 rad.

@@ -4,3 +4,4 @@ pub mod fdr;
 pub mod impact;
 pub mod malt;
 pub mod stress;
+pub mod stress_fields;

@@ -46,6 +46,8 @@ struct File {
     claim: Option<Claim>,
     #[serde(default)]
     compare: Option<Tolerances>,
+    #[serde(default)]
+    negative_control: Vec<super::control::RawControl>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -332,12 +334,15 @@ pub struct Impact2dCase {
     pub variants: Vec<Variant>,
     pub claim: Option<Claim>,
     pub tolerances: Tolerances,
+    pub negative_controls: Vec<super::NegativeControl>,
 }
 
-/// The `[case] kind` of a case file (same peek as the penetration loader uses).
-pub fn kind_of(path: &Path) -> Result<String, CaseError> {
-    super::penetration::kind_of(path)
-}
+/// Gates an impact2d comparison produces (what its negative controls may name).
+pub const IMPACT2D_GATES: &[super::Gate] = &[
+    super::Gate::FinalDepth,
+    super::Gate::DepthSeries,
+    super::Gate::Claim,
+];
 
 fn unit_interval(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
     if v.is_finite() && v > 0.0 && v <= 1.0 {
@@ -365,6 +370,28 @@ fn material(ctx: &Ctx, prefix: &str, m: &MaterialIn) -> Result<Material2d, CaseE
 }
 
 impl Impact2dCase {
+    /// What the runs depend on (scales, bed, intruder, protocol, every variant), not the
+    /// name, description, analysis window, claim, tolerances or controls. A recorded
+    /// reference is sealed to its sha256.
+    pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
+        let view = serde_json::json!({
+            "kind": "impact2d",
+            "scales": self.scales,
+            "dt": self.dt,
+            "n_steps": self.n_steps,
+            "output_every": self.output_every,
+            "energy_every": self.energy_every,
+            "skin": self.skin,
+            "bed": [self.count as f64, self.length, self.polydispersity, self.seed as f64, self.initial_speed, self.settle_ke, self.max_settle_time, self.wall_d, self.top_gap],
+            "base_packing": self.base_packing,
+            "shape": self.shape,
+            "intruder": [self.intruder_mass, self.release_height],
+            "base": self.base,
+            "variants": self.variants,
+        });
+        crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
+    }
+
     pub fn load(path: &Path) -> Result<Impact2dCase, CaseError> {
         let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
             file: path.to_path_buf(),
@@ -381,6 +408,7 @@ impl Impact2dCase {
         let ctx = Ctx {
             file: path.to_path_buf(),
         };
+        super::validate::case_name(&ctx, &raw.case.name)?;
         if raw.case.kind != "impact2d" {
             return Err(ctx.bad(
                 "case.kind",
@@ -749,7 +777,11 @@ impl Impact2dCase {
         positive(&ctx, "compare.final_depth_abs", tolerances.final_depth_abs)?;
         positive(&ctx, "compare.depth_rms", tolerances.depth_rms)?;
 
+        // Wall disks are type 2, the intruder type 3 (a pair_friction control names them).
+        let negative_controls =
+            super::control::controls(&ctx, &raw.negative_control, 3, IMPACT2D_GATES)?;
         Ok(Impact2dCase {
+            negative_controls,
             name: raw.case.name,
             description: raw.case.description,
             source: path.to_path_buf(),

@@ -1,5 +1,5 @@
 //! Case files: parsed once from TOML, validated once, then trusted by every later stage
-//! (DESIGN.md "Data flow"). All quantities in the validated [`Case`] are SI.
+//! (docs/architecture.md). All quantities in the validated [`Case`] are SI.
 
 mod error;
 pub mod impact2d;
@@ -9,29 +9,67 @@ pub(crate) mod validate;
 
 pub use error::CaseError;
 
-/// Overridable knobs for negative controls and experiments: the native engine run with
-/// deliberately wrong physics must make the comparison fail.
-#[derive(Debug, Clone, Copy)]
-pub struct Perturbation {
-    pub friction_factor: f64,
-    pub restitution_shift: f64,
-    pub poisson_shift: f64,
-    /// Replaces the sliding friction of one type pair (0-based types), e.g. mu_gg.
-    pub pair_friction: Option<(usize, usize, f64)>,
+mod control;
+
+pub use control::{Gate, NegativeControl, Perturbation};
+
+use std::path::{Path, PathBuf};
+
+/// A case file of any kind, its `[case] kind` read in this one place.
+#[derive(Debug, Clone)]
+pub enum AnyCase {
+    Micro(Case),
+    Penetration(penetration::PenetrationCase),
+    Impact2d(impact2d::Impact2dCase),
 }
 
-impl Default for Perturbation {
-    fn default() -> Self {
-        Perturbation {
-            friction_factor: 1.0,
-            restitution_shift: 0.0,
-            poisson_shift: 0.0,
-            pair_friction: None,
+impl AnyCase {
+    pub fn load(path: &Path) -> Result<AnyCase, CaseError> {
+        let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
+            file: path.to_path_buf(),
+            error,
+        })?;
+        AnyCase::from_toml_str(&text, path)
+    }
+
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<AnyCase, CaseError> {
+        #[derive(serde::Deserialize)]
+        struct Peek {
+            case: PeekCase,
+        }
+        #[derive(serde::Deserialize)]
+        struct PeekCase {
+            kind: String,
+        }
+        let peek: Peek = toml::from_str(text).map_err(|e| CaseError::Parse {
+            file: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        match peek.case.kind.as_str() {
+            "micro" => Case::from_toml_str(text, path).map(AnyCase::Micro),
+            "penetration" => {
+                penetration::PenetrationCase::from_toml_str(text, path).map(AnyCase::Penetration)
+            }
+            "impact2d" => impact2d::Impact2dCase::from_toml_str(text, path).map(AnyCase::Impact2d),
+            other => Err(error::Ctx {
+                file: path.to_path_buf(),
+            }
+            .bad(
+                "case.kind",
+                other,
+                "supported kinds: \"micro\", \"penetration\", \"impact2d\"",
+            )),
+        }
+    }
+
+    pub fn name(&self) -> &str {
+        match self {
+            AnyCase::Micro(c) => &c.name,
+            AnyCase::Penetration(c) => &c.name,
+            AnyCase::Impact2d(c) => &c.name,
         }
     }
 }
-
-use std::path::{Path, PathBuf};
 
 /// Which contact models a case uses; names follow LIGGGHTS' `pair_style gran` keywords.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -163,6 +201,7 @@ pub struct Case {
     pub tolerances: Tolerances,
     /// Rayleigh time of the smallest/softest grain (Feng Sec. 2), for reports.
     pub rayleigh_time: f64,
+    pub negative_controls: Vec<NegativeControl>,
 }
 
 impl Case {
@@ -184,6 +223,28 @@ impl Case {
 
     pub fn n_types(&self) -> usize {
         self.materials.len()
+    }
+
+    /// What a run of this case depends on, in a fixed form: the physics, not the name,
+    /// description, file location, tolerances or controls. A recorded reference is
+    /// sealed to its sha256, so a reformatted case file keeps its record while a changed
+    /// friction coefficient (or another case's record) is refused.
+    pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
+        let view = serde_json::json!({
+            "kind": "micro",
+            "dt": self.dt,
+            "n_steps": self.n_steps,
+            "output_every": self.output_every,
+            "gravity": self.gravity,
+            "neighbor_skin": self.neighbor_skin,
+            "rolling": self.rolling,
+            "domain": [self.domain_lo, self.domain_hi],
+            "materials": self.materials,
+            "pairs": self.pairs,
+            "particles": self.particles,
+            "walls": self.walls,
+        });
+        crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
 
     pub fn min_radius(&self) -> f64 {

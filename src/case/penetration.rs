@@ -4,7 +4,7 @@
 
 use super::error::{CaseError, Ctx};
 use super::validate::{finite, physics, positive};
-use super::{Material, PairTable, RollingModel, schema};
+use super::{Gate, Material, NegativeControl, PairTable, RollingModel, schema};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -29,6 +29,10 @@ struct File {
     quasi_static: Option<QuasiStatic>,
     #[serde(default)]
     published: Option<Published>,
+    #[serde(default)]
+    published_phi: Option<PublishedPhi>,
+    #[serde(default)]
+    negative_control: Vec<super::control::RawControl>,
 }
 
 /// Realisations: granular penetration is chaotic, so one bed gives K_phi only to about
@@ -53,6 +57,19 @@ struct QuasiStatic {
 #[serde(deny_unknown_fields)]
 pub struct Published {
     pub k_phi: f64,
+    /// Where the number comes from (table / figure / section).
+    pub source: String,
+}
+
+/// A published internal friction angle to check the stress-field phi against (e.g.
+/// Feng et al.'s frictionless spheres, phi = 9 +- 1 deg): |phi - phi_deg| <= abs_deg for
+/// both engines and both estimators (docs/stress.md, rule 1).
+#[derive(Debug, Clone, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PublishedPhi {
+    pub phi_deg: f64,
+    /// Tolerance in degrees.
+    pub abs_deg: f64,
     /// Where the number comes from (table / figure / section).
     pub source: String,
 }
@@ -182,7 +199,7 @@ struct Analysis {
     /// Width in h of the bins the force series is averaged into while it is read
     /// (default 0.01): memory stays bounded however many samples a run writes.
     h_bin: Option<f64>,
-    /// Depths h = depth / R of the contact snapshots for the stress fields (issue 4);
+    /// Depths h = depth / R of the contact snapshots for the stress fields (Feng et al. Fig 5);
     /// the final depth (steady state) is always added. Default: Fig. 5's
     /// [0.24, 0.373, 0.61, 1.0], those shallower than the final depth. An empty list
     /// keeps only the final depth.
@@ -250,7 +267,7 @@ pub const DEFAULT_SNAPSHOT_H: [f64; 4] = [0.24, 0.373, 0.61, 1.0];
 #[derive(Debug, Deserialize, Clone, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Tolerances {
-    /// |K_native / K_ref - 1| (default 0.10, the issue's target).
+    /// |K_native / K_ref - 1| (default 0.10).
     #[serde(default = "d_k")]
     pub k_phi_rel: f64,
     /// RMS(p_a - p_b) / mean p over regime C (default 0.15).
@@ -267,17 +284,17 @@ pub struct Tolerances {
     /// |K / K_published - 1| (default 0.10).
     #[serde(default = "d_k")]
     pub published_k_rel: f64,
-    /// |phi_test - phi_ref| in degrees, phi from the stress fields (default 1.5, issue 4).
+    /// |phi_test - phi_ref| in degrees, phi from the stress fields (default 1.5).
     #[serde(default = "d_phi")]
     pub phi_abs_deg: f64,
     /// |K_phi / K(phi) - 1| of an engine's (phi, K_phi) point against the MALT curve
-    /// (default 0.25, issue 4's goal).
+    /// (default 0.25).
     #[serde(default = "d_malt_k")]
     pub malt_k_rel: f64,
     /// |phi(K_phi) - phi| in degrees, the same distance measured along phi (default 1.5).
     #[serde(default = "d_phi")]
     pub malt_phi_abs_deg: f64,
-    /// Minimum R^2 of the unified FDR fit, eqs 13-15 (default 0.98, issue 4).
+    /// Minimum R^2 of the unified FDR fit, eqs 13-15 (default 0.98).
     #[serde(default = "d_r2")]
     pub unified_r2_min: f64,
 }
@@ -367,29 +384,23 @@ pub struct PenetrationCase {
     pub ensemble_beds: usize,
     pub quasi_static_speed: Option<f64>,
     pub published: Option<Published>,
+    pub published_phi: Option<PublishedPhi>,
     pub rayleigh_time: f64,
+    pub negative_controls: Vec<NegativeControl>,
 }
 
-/// The `[case] kind` of a file, to choose its loader.
-pub fn kind_of(path: &Path) -> Result<String, CaseError> {
-    #[derive(Deserialize)]
-    struct Peek {
-        case: PeekCase,
-    }
-    #[derive(Deserialize)]
-    struct PeekCase {
-        kind: String,
-    }
-    let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
-        file: path.to_path_buf(),
-        error,
-    })?;
-    let p: Peek = toml::from_str(&text).map_err(|e| CaseError::Parse {
-        file: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    Ok(p.case.kind)
-}
+/// Gates a penetration comparison produces (what its negative controls may name).
+pub const PENETRATION_GATES: &[Gate] = &[
+    Gate::KPhi,
+    Gate::FdrDistance,
+    Gate::RegimeBoundaries,
+    Gate::QuasiStatic,
+    Gate::Published,
+    Gate::Phi,
+    Gate::MaltK,
+    Gate::MaltPhi,
+    Gate::UnifiedFit,
+];
 
 impl PenetrationCase {
     /// The time-averaging windows of the contact snapshots, one per `snapshot_h` entry.
@@ -400,6 +411,27 @@ impl PenetrationCase {
             self.snapshot_window,
             self.snapshot_window_h,
         )
+    }
+
+    /// What the runs of this case depend on, in a fixed form: the physics, bed and
+    /// intruder protocol, not the name, description, analysis ranges, tolerances,
+    /// published values or controls. A recorded reference is sealed to its sha256.
+    pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
+        let view = serde_json::json!({
+            "kind": "penetration",
+            "dt": self.dt,
+            "gravity": self.gravity,
+            "neighbor_skin": self.neighbor_skin,
+            "rolling": self.rolling,
+            "materials": self.materials,
+            "pairs": self.pairs,
+            "container": [self.container_radius, self.container_height, self.wall_type],
+            "grains": [self.grain_type, self.density, serde_json::to_value(self.diameter).unwrap_or_default(), self.count, self.seed],
+            "preparation": [self.settle_ke_ratio, self.max_settle_time],
+            "intruder": [self.intruder_type, self.intruder_radius, self.intruder_length, self.speed, self.start_gap, self.final_depth, self.force_every as f64, self.stl_rim_error],
+            "beds": self.ensemble_beds,
+        });
+        crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
 
     /// Bed `k` of the ensemble: the same case with seed `seed + k`.
@@ -433,6 +465,7 @@ impl PenetrationCase {
                 "this loader reads kind = \"penetration\"",
             ));
         }
+        super::validate::case_name(&ctx, &raw.case.name)?;
         let (rolling, materials, pairs) =
             physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
         let n_types = materials.len();
@@ -494,6 +527,13 @@ impl PenetrationCase {
             (Some(n), None) => return Err(ctx.bad("bed.count", n, "must be >= 1")),
             (None, Some(h)) => {
                 let h = positive(&ctx, "bed.fill_height", h)?;
+                if h >= container_height {
+                    return Err(ctx.bad(
+                        "bed.fill_height",
+                        h,
+                        format!("the bed would overflow the container (container.height = {container_height:e} m)"),
+                    ));
+                }
                 let v_grain = std::f64::consts::PI / 6.0 * d_mean.powi(3);
                 (packing_guess * std::f64::consts::PI * container_radius.powi(2) * h / v_grain)
                     .round() as usize
@@ -550,6 +590,17 @@ impl PenetrationCase {
                 "intruder.diameter",
                 i.diameter,
                 "must be smaller than the container diameter",
+            ));
+        }
+        let gap = container_radius - intruder_radius;
+        if gap < 2.0 * diameter.max() {
+            return Err(ctx.bad(
+                "intruder.diameter",
+                i.diameter,
+                format!(
+                    "leaves a gap of {gap:e} m to the container wall, less than two grain diameters ({:e} m): grains could not flow past the intruder",
+                    2.0 * diameter.max()
+                ),
             ));
         }
         if final_depth >= intruder_length {
@@ -627,6 +678,23 @@ impl PenetrationCase {
             positive(&ctx, "published.k_phi", p.k_phi)?;
             if p.source.trim().is_empty() {
                 return Err(ctx.bad("published.source", &p.source, "cite the table or figure"));
+            }
+        }
+        if let Some(p) = &raw.published_phi {
+            if !(p.phi_deg.is_finite() && p.phi_deg > 0.0 && p.phi_deg < 60.0) {
+                return Err(ctx.bad(
+                    "published_phi.phi_deg",
+                    p.phi_deg,
+                    "must lie in (0, 60) deg (the MALT domain)",
+                ));
+            }
+            positive(&ctx, "published_phi.abs_deg", p.abs_deg)?;
+            if p.source.trim().is_empty() {
+                return Err(ctx.bad(
+                    "published_phi.source",
+                    &p.source,
+                    "cite the table or figure",
+                ));
             }
         }
         if !(tolerances.unified_r2_min > 0.0 && tolerances.unified_r2_min < 1.0) {
@@ -708,7 +776,10 @@ impl PenetrationCase {
             }
         }
 
+        let negative_controls =
+            super::control::controls(&ctx, &raw.negative_control, n_types, PENETRATION_GATES)?;
         Ok(PenetrationCase {
+            negative_controls,
             name: raw.case.name,
             description: raw.case.description,
             source: path.to_path_buf(),
@@ -745,6 +816,7 @@ impl PenetrationCase {
             ensemble_beds,
             quasi_static_speed,
             published: raw.published,
+            published_phi: raw.published_phi,
             rayleigh_time: rayleigh,
         })
     }

@@ -18,6 +18,8 @@ pub struct CaseFile {
     pub walls: Vec<Wall>,
     #[serde(default)]
     pub compare: Option<Compare>,
+    #[serde(default)]
+    pub negative_control: Vec<super::control::RawControl>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -120,7 +122,7 @@ pub enum Wall {
 }
 
 /// Tolerances of the trajectory comparison. Defaults (documented in the README) are the
-/// issue's acceptance criteria: 1e-6 relative in velocities and angular velocities,
+/// project's acceptance criteria: 1e-6 relative in velocities and angular velocities,
 /// 1e-6 of the smallest radius in positions.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -6,6 +6,37 @@ use super::schema;
 use super::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances, Wall};
 use std::path::Path;
 
+/// Gates a micro comparison produces (what its negative controls may name).
+pub const MICRO_GATES: &[super::Gate] = &[
+    super::Gate::Position,
+    super::Gate::Velocity,
+    super::Gate::AngularVelocity,
+];
+
+/// More time steps than any run on one machine can take (1e12 steps of the fastest
+/// micro case would take weeks): a duration that large is a typo.
+pub const MAX_STEPS: f64 = 1e12;
+
+/// Case names become directory names under `--report` and `reference/`: only
+/// `[A-Za-z0-9._-]`, not starting with a dot, so a name can never climb out of them.
+pub(super) fn case_name(ctx: &Ctx, name: &str) -> Result<(), CaseError> {
+    let ok = !name.is_empty()
+        && name.len() <= 100
+        && !name.starts_with('.')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "._-".contains(c));
+    if ok {
+        Ok(())
+    } else {
+        Err(ctx.bad(
+            "case.name",
+            name,
+            "must be 1-100 characters of [A-Za-z0-9._-], not starting with '.' (it names output directories)",
+        ))
+    }
+}
+
 pub(super) fn finite(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
     if v.is_finite() {
         Ok(v)
@@ -208,9 +239,7 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
 
         return Err(ctx.bad("case.kind", &raw.case.kind, "supported kinds: \"micro\""));
     }
-    if raw.case.name.trim().is_empty() {
-        return Err(ctx.bad("case.name", &raw.case.name, "must not be empty"));
-    }
+    case_name(&ctx, &raw.case.name)?;
 
     let (rolling, materials, pairs) =
         physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
@@ -244,6 +273,16 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             return Err(ctx.bad(f("type"), p.type_, format!("must be in 1..={n_types}")));
         }
         let radius = positive(&ctx, &f("radius"), p.radius)?;
+        let smallest_side = (0..3).map(|c| hi[c] - lo[c]).fold(f64::INFINITY, f64::min);
+        if 2.0 * radius > smallest_side {
+            return Err(ctx.bad(
+                f("radius"),
+                radius,
+                format!(
+                    "the sphere is wider than the domain box (smallest side {smallest_side:e} m)"
+                ),
+            ));
+        }
         let density = positive(&ctx, &f("density"), p.density)?;
         let x = vec3(&ctx, &f("x"), p.x)?;
         for c in 0..3 {
@@ -350,6 +389,15 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
     }
     let duration = positive(&ctx, "simulation.duration", raw.simulation.duration)?;
     let n_steps = (duration / dt).round();
+    if n_steps > MAX_STEPS {
+        return Err(ctx.bad(
+            "simulation.duration",
+            duration,
+            format!(
+                "is {n_steps:.3e} time steps of {dt:e} s; more than {MAX_STEPS:.0e} cannot finish"
+            ),
+        ));
+    }
     if (n_steps * dt - duration).abs() > 1e-9 * duration {
         return Err(ctx.bad(
             "simulation.duration",
@@ -385,7 +433,11 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         },
     };
 
+    let negative_controls =
+        super::control::controls(&ctx, &raw.negative_control, n_types, MICRO_GATES)?;
+
     Ok(Case {
+        negative_controls,
         name: raw.case.name,
         kind: raw.case.kind,
         description: raw.case.description,

@@ -1,4 +1,4 @@
-//! Impact checks (issue 5): native vs LAMMPS per variant (final depth, D(t) RMS
+//! Impact checks (Kondic et al.): native vs LAMMPS per variant (final depth, D(t) RMS
 //! distance), and K's claims over a sweep, evaluated separately in each engine.
 
 use super::Check;
@@ -13,6 +13,8 @@ pub struct VariantObs {
     pub max_depth: f64,
     /// Largest |v| of the intruder in the final window (d / tau_c): is it at rest?
     pub final_speed: f64,
+    /// Samples the final depth was averaged over.
+    pub final_samples: usize,
 }
 
 /// Native vs reference for one variant. `rms` is the D(t) RMS distance in d, or the
@@ -26,8 +28,24 @@ pub fn cross_check(
 ) -> Vec<Check> {
     let tol = &case.tolerances;
     let name = |w: &str| format!("{} [{}]: {w}", case.name, a.label);
+    let n = a.final_samples.min(b.final_samples);
+    if let Some(c) = super::coverage::fit_points(
+        &name("coverage of the final-depth window"),
+        "intruder samples in the final window (final_window / output_every)",
+        n,
+    ) {
+        return vec![
+            c,
+            Check::not_compared(
+                name(&format!("final depth native vs {reference}")),
+                crate::compare::Gate::FinalDepth,
+                "too few samples in the final window",
+            ),
+        ];
+    }
     let mut out = vec![Check::at_most(
         name(&format!("final depth native vs {reference}")),
+        crate::compare::Gate::FinalDepth,
         "|D_native - D_ref| / d",
         (a.final_depth - b.final_depth).abs(),
         tol.final_depth_abs,
@@ -43,6 +61,7 @@ pub fn cross_check(
     out.push(match rms {
         Ok(r) => Check::at_most(
             name("D(t) distance"),
+            crate::compare::Gate::DepthSeries,
             "RMS(D_native - D_ref) / d",
             r,
             tol.depth_rms,
@@ -64,6 +83,13 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
         .join(", ");
     Some(match claim {
         Claim::Increasing { min_step } => {
+            if obs.len() < 2 {
+                return Some(Check::not_compared(
+                    format!("{}: claim ({engine})", case.name),
+                    crate::compare::Gate::Claim,
+                    "a trend needs at least 2 variants",
+                ));
+            }
             // Largest D_k + min_step - D_{k+1}: <= 0 iff every step rises by min_step.
             let worst = obs
                 .windows(2)
@@ -74,6 +100,7 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
                     "{}: claim ({engine}): final depth increases along {param}",
                     case.name
                 ),
+                crate::compare::Gate::Claim,
                 "max_k (D_k + min_step - D_k+1) / d",
                 worst,
                 0.0,
@@ -82,6 +109,16 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
         }
         Claim::Linear { from, r2_min } => {
             let pts: Vec<&VariantObs> = obs.iter().filter(|o| o.x >= *from).collect();
+            if pts.len() < 3 {
+                return Some(Check::not_compared(
+                    format!("{}: claim ({engine})", case.name),
+                    crate::compare::Gate::Claim,
+                    format!(
+                        "a line through {} point(s) tests nothing: at least 3 variants with {param} >= {from} are needed",
+                        pts.len()
+                    ),
+                ));
+            }
             let x: Vec<f64> = pts.iter().map(|o| o.x).collect();
             let y: Vec<f64> = pts.iter().map(|o| o.final_depth).collect();
             match crate::analysis::impact::linear_r2(&x, &y) {
@@ -90,6 +127,7 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
                         "{}: claim ({engine}): final depth linear in {param} for {param} >= {from}",
                         case.name
                     ),
+                    crate::compare::Gate::Claim,
                     "1 - R^2 of the least-squares line",
                     // A falling line is no support for "grows linearly".
                     if b > 0.0 { 1.0 - r2 } else { f64::INFINITY },
@@ -130,6 +168,7 @@ mod tests {
                 final_depth: d,
                 max_depth: d,
                 final_speed: 0.0,
+                final_samples: 100,
             })
             .collect()
     }

@@ -1,53 +1,135 @@
 //! Turns two runs (or a run and a published/theoretical value) into named metrics with
 //! tolerances and a verdict each. Nothing here knows which engine produced what.
 
+pub mod coverage;
 pub mod impact2d;
 pub mod penetration;
+pub mod stress;
 pub mod trajectory;
 
 use serde::{Deserialize, Serialize};
 
-/// One gated comparison. The JSON shape `{name, metric, value, tolerance, passed}` is
-/// the stable interface CI scripts read; `detail` says where the worst value occurred.
+/// The verdict of one check. Only `Pass` lets a run exit 0: a check that could not be
+/// evaluated (`NotCompared`: too little data to mean anything) or whose inputs failed
+/// (`Error`: a crashed engine, a corrupt reference) is never a pass.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    Pass,
+    Fail,
+    NotCompared,
+    Error,
+}
+
+pub use crate::case::Gate;
+
+/// One gated comparison. The JSON shape `{name, gate, metric, value, tolerance, status,
+/// passed, detail}` is the stable interface CI scripts read (`passed` is `status ==
+/// pass`, kept for scripts written before `status` existed).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Check {
     pub name: String,
+    pub gate: Gate,
     pub metric: String,
     pub value: f64,
     pub tolerance: f64,
+    pub status: Status,
     pub passed: bool,
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub detail: String,
 }
 
 impl Check {
-    /// A check that passes when `value <= tolerance`. NaN never passes.
+    fn with_status(
+        name: impl Into<String>,
+        gate: Gate,
+        metric: impl Into<String>,
+        value: f64,
+        tolerance: f64,
+        status: Status,
+        detail: impl Into<String>,
+    ) -> Check {
+        Check {
+            name: name.into(),
+            gate,
+            metric: metric.into(),
+            value,
+            tolerance,
+            status,
+            passed: status == Status::Pass,
+            detail: detail.into(),
+        }
+    }
+
+    /// Passes when `value <= tolerance`. NaN never passes.
     pub fn at_most(
         name: impl Into<String>,
+        gate: Gate,
         metric: impl Into<String>,
         value: f64,
         tolerance: f64,
         detail: impl Into<String>,
     ) -> Check {
-        Check {
-            name: name.into(),
-            metric: metric.into(),
-            value,
-            tolerance,
-            passed: value <= tolerance,
-            detail: detail.into(),
-        }
+        let status = if value <= tolerance {
+            Status::Pass
+        } else {
+            Status::Fail
+        };
+        Check::with_status(name, gate, metric, value, tolerance, status, detail)
     }
 
-    /// A reference engine that crashed or produced nothing: a failed check, never a pass.
+    /// Passes when `value >= minimum`. NaN never passes.
+    pub fn at_least(
+        name: impl Into<String>,
+        gate: Gate,
+        metric: impl Into<String>,
+        value: f64,
+        minimum: f64,
+        detail: impl Into<String>,
+    ) -> Check {
+        let status = if value >= minimum {
+            Status::Pass
+        } else {
+            Status::Fail
+        };
+        Check::with_status(name, gate, metric, value, minimum, status, detail)
+    }
+
+    /// A check that failed on its face (e.g. a regime present in one engine only).
+    pub fn failed(
+        name: impl Into<String>,
+        gate: Gate,
+        metric: impl Into<String>,
+        value: f64,
+        detail: impl Into<String>,
+    ) -> Check {
+        Check::with_status(name, gate, metric, value, 0.0, Status::Fail, detail)
+    }
+
+    /// A stage that produced nothing to compare: never a pass.
     pub fn error(name: impl Into<String>, message: impl Into<String>) -> Check {
-        Check {
-            name: name.into(),
-            metric: "error".into(),
-            value: f64::NAN,
-            tolerance: 0.0,
-            passed: false,
-            detail: message.into(),
-        }
+        Check::error_in(name, Gate::Run, message)
+    }
+
+    /// A gate whose inputs could not be computed.
+    pub fn error_in(name: impl Into<String>, gate: Gate, message: impl Into<String>) -> Check {
+        Check::with_status(name, gate, "error", f64::NAN, 0.0, Status::Error, message)
+    }
+
+    /// Too little data for the gate to mean anything: not a pass, not a physics failure.
+    pub fn not_compared(name: impl Into<String>, gate: Gate, reason: impl Into<String>) -> Check {
+        Check::with_status(
+            name,
+            gate,
+            "not compared",
+            f64::NAN,
+            0.0,
+            Status::NotCompared,
+            reason,
+        )
+    }
+
+    pub fn is_error(&self) -> bool {
+        self.status == Status::Error
     }
 }

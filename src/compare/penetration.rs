@@ -1,4 +1,4 @@
-//! Penetration comparison (issue 3): two force-depth relations from the same bed,
+//! Penetration comparison (Feng et al. Sec. 3): two force-depth relations from the same bed,
 //! reduced to K_phi, the FDR distance and the regime boundaries, each a gated check.
 
 use super::Check;
@@ -132,6 +132,24 @@ pub fn ensemble(case: &PenetrationCase, members: &[&Fdr]) -> Result<Observables>
     Ok(obs)
 }
 
+/// Coverage of the steady-state fit of one engine's mean FDR: enough points in
+/// regime C for K_phi to mean anything ([`super::coverage::MIN_FIT_POINTS`]).
+pub fn fit_coverage(case: &PenetrationCase, o: &Observables, engine: &str) -> Vec<Check> {
+    let n = o.fdr.h.iter().filter(|&&h| h >= case.fit_h_min).count();
+    let name = format!("{}: coverage of the K_phi fit ({engine})", case.name);
+    match super::coverage::fit_points(&name, "regime C (h >= fit_h_min) of the mean FDR", n) {
+        Some(c) => vec![c],
+        None => vec![Check::at_least(
+            name,
+            crate::compare::Gate::Coverage,
+            "FDR points in regime C",
+            n as f64,
+            super::coverage::MIN_FIT_POINTS as f64,
+            format!("h >= {}", case.fit_h_min),
+        )],
+    }
+}
+
 /// Sec. 3's quasi-static test: K_phi at the case speed and at `quasi_static.speed`.
 pub fn quasi_static(
     case: &PenetrationCase,
@@ -141,6 +159,7 @@ pub fn quasi_static(
 ) -> Check {
     Check::at_most(
         format!("{}: quasi-static K_phi", case.name),
+        crate::compare::Gate::QuasiStatic,
         "|K(v2) / K(v1) - 1|",
         (v2.fit.k_phi / v1.fit.k_phi - 1.0).abs(),
         case.tolerances.quasi_static_k_rel,
@@ -160,6 +179,7 @@ pub fn published(case: &PenetrationCase, obs: &Observables, engine: &str) -> Opt
     let p = case.published.as_ref()?;
     Some(Check::at_most(
         format!("{}: K_phi vs published ({engine})", case.name),
+        crate::compare::Gate::Published,
         "|K / K_published - 1|",
         (obs.fit.k_phi / p.k_phi - 1.0).abs(),
         case.tolerances.published_k_rel,
@@ -180,6 +200,7 @@ pub fn compare(case: &PenetrationCase, test: &Observables, reference: &Observabl
     let name = |w: &str| format!("{}: {w}", case.name);
     let mut checks = vec![Check::at_most(
         name("K_phi"),
+        crate::compare::Gate::KPhi,
         "|K_test / K_ref - 1|",
         (test.fit.k_phi / reference.fit.k_phi - 1.0).abs(),
         tol.k_phi_rel,
@@ -207,6 +228,7 @@ pub fn compare(case: &PenetrationCase, test: &Observables, reference: &Observabl
         match fdr::rms_distance_over_mean(&test.fdr, &reference.fdr, case.fit_h_min, h_hi, 200) {
             Ok(d) => Check::at_most(
                 name("FDR distance"),
+                crate::compare::Gate::FdrDistance,
                 "RMS(p_test - p_ref) / mean p, regime C",
                 d,
                 tol.fdr_distance,
@@ -236,6 +258,7 @@ pub fn boundary_checks(
         (Ok(a), Ok(b)) => vec![
             Check::at_most(
                 name("h_A"),
+                crate::compare::Gate::RegimeBoundaries,
                 "|h_A,test - h_A,ref|",
                 (a.h_a - b.h_a).abs(),
                 tol.h_a_abs,
@@ -248,6 +271,7 @@ pub fn boundary_checks(
             ),
             Check::at_most(
                 name("h_B"),
+                crate::compare::Gate::RegimeBoundaries,
                 "|h_B,test - h_B,ref|",
                 (a.h_b - b.h_b).abs(),
                 tol.h_b_abs,
@@ -260,17 +284,16 @@ pub fn boundary_checks(
             } else {
                 "reference"
             };
-            vec![Check {
-                name: name("regime boundaries"),
-                metric: "three regimes resolved in one engine only".into(),
-                value: 1.0,
-                tolerance: 0.0,
-                passed: false,
-                detail: format!(
+            vec![Check::failed(
+                name("regime boundaries"),
+                crate::compare::Gate::RegimeBoundaries,
+                "three regimes resolved in one engine only",
+                1.0,
+                format!(
                     "{which} has h_A = {:.3}, h_B = {:.3}; the other: {e}",
                     a.h_a, a.h_b
                 ),
-            }]
+            )]
         }
         (Err(_), Err(_)) => vec![],
     }

@@ -1,5 +1,5 @@
 //! Micro comparison: two trajectories of the same few grains must agree at every output
-//! step (DESIGN.md "Same start, fair comparison").
+//! step (the deterministic kind of comparison: a contact-law bug shows at once).
 //!
 //! Metrics (worst over all output steps and particles):
 //! - positions: |x_a - x_b| / r_min, with r_min the smallest radius in the case;
@@ -8,12 +8,15 @@
 //!   or V / r_min if the reference never rotates (so spurious spin still counts).
 //!
 //! Vector norms rather than components keep the metric frame-independent and avoid
-//! dividing by a component that happens to cross zero.
+//! dividing by a component that happens to cross zero. The frames are fed one pair at
+//! a time ([`Trajectory::push`]): V and W are only known at the end, and since dividing
+//! by a positive constant preserves order, max(|dv|) / V is the worst |dv| / V exactly.
 
-use super::Check;
+use super::coverage::MicroCoverage;
+use super::{Check, Gate};
 use crate::case::Case;
-use crate::engines::Frame;
 use crate::numerics::vec3::{norm, sub};
+use crate::rundata::frames::Frame;
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Worst {
@@ -29,90 +32,169 @@ impl Worst {
         }
     }
     fn detail(&self) -> String {
-        format!("worst at step {} particle {}", self.step, self.id)
+        if self.value == 0.0 {
+            "identical at every output step".into()
+        } else {
+            format!("worst at step {} particle {}", self.step, self.id)
+        }
     }
 }
 
-/// Compares `test` against `reference`; returns the checks for this case.
-pub fn compare(case: &Case, test: &[Frame], reference: &[Frame]) -> Vec<Check> {
-    let name = |what: &str| format!("{}: {what}", case.name);
-    if test.len() != reference.len() {
-        return vec![Check::error(
-            name("frames"),
-            format!(
-                "{} output frames vs {} in the reference",
-                test.len(),
-                reference.len()
-            ),
-        )];
-    }
-    let vscale = reference
-        .iter()
-        .flat_map(|f| f.particles.iter().map(|p| norm(p.v)))
-        .fold(0.0, f64::max);
-    let r_min = case.min_radius();
-    let wmax = reference
-        .iter()
-        .flat_map(|f| f.particles.iter().map(|p| norm(p.omega)))
-        .fold(0.0, f64::max);
-    let wscale = if wmax > 0.0 { wmax } else { vscale / r_min };
-    if vscale <= 0.0 {
-        return vec![Check::error(
-            name("frames"),
-            "reference run never moves: nothing to compare",
-        )];
-    }
-    let (mut wx, mut wv, mut ww) = (Worst::default(), Worst::default(), Worst::default());
-    for (a, b) in test.iter().zip(reference) {
-        if a.step != b.step || a.particles.len() != b.particles.len() {
-            return vec![Check::error(
-                name("frames"),
-                format!(
-                    "frame mismatch: step {} ({} particles) vs step {} ({} particles)",
-                    a.step,
-                    a.particles.len(),
-                    b.step,
-                    b.particles.len()
-                ),
-            )];
+/// The comparison of one micro case, fed frame pair by frame pair.
+pub struct Trajectory<'a> {
+    case: &'a Case,
+    dx: Worst,
+    dv: Worst,
+    dw: Worst,
+    vmax_ref: f64,
+    wmax_ref: f64,
+    frames: usize,
+    coverage: MicroCoverage<'a>,
+    mismatch: Option<String>,
+}
+
+impl<'a> Trajectory<'a> {
+    pub fn new(case: &'a Case) -> Trajectory<'a> {
+        Trajectory {
+            case,
+            dx: Worst::default(),
+            dv: Worst::default(),
+            dw: Worst::default(),
+            vmax_ref: 0.0,
+            wmax_ref: 0.0,
+            frames: 0,
+            coverage: MicroCoverage::new(case),
+            mismatch: None,
         }
+    }
+
+    /// Adds the frames of one output step; a structural mismatch (different steps,
+    /// particle sets) stops the comparison and becomes an error check.
+    pub fn push(&mut self, a: &Frame, b: &Frame) {
+        if self.mismatch.is_some() {
+            return;
+        }
+        if a.step != b.step || a.particles.len() != b.particles.len() {
+            self.mismatch = Some(format!(
+                "frame mismatch: step {} ({} particles) vs step {} ({} particles)",
+                a.step,
+                a.particles.len(),
+                b.step,
+                b.particles.len()
+            ));
+            return;
+        }
+        let r_min = self.case.min_radius();
         for (p, q) in a.particles.iter().zip(&b.particles) {
             if p.id != q.id {
-                return vec![Check::error(
-                    name("frames"),
-                    format!(
-                        "particle ids differ at step {}: {} vs {}",
-                        a.step, p.id, q.id
-                    ),
-                )];
+                self.mismatch = Some(format!(
+                    "particle ids differ at step {}: {} vs {}",
+                    a.step, p.id, q.id
+                ));
+                return;
             }
-            wx.update(norm(sub(p.x, q.x)) / r_min, a.step, p.id);
-            wv.update(norm(sub(p.v, q.v)) / vscale, a.step, p.id);
-            ww.update(norm(sub(p.omega, q.omega)) / wscale, a.step, p.id);
+            self.dx.update(norm(sub(p.x, q.x)) / r_min, a.step, p.id);
+            self.dv.update(norm(sub(p.v, q.v)), a.step, p.id);
+            self.dw.update(norm(sub(p.omega, q.omega)), a.step, p.id);
+            self.vmax_ref = self.vmax_ref.max(norm(q.v));
+            self.wmax_ref = self.wmax_ref.max(norm(q.omega));
+        }
+        self.coverage.push(b);
+        self.frames += 1;
+    }
+
+    /// A run ended with a different number of frames than the other.
+    pub fn length_mismatch(&mut self, test: usize, reference: usize) {
+        if self.mismatch.is_none() {
+            self.mismatch = Some(format!(
+                "{test} output frames vs {reference} in the reference"
+            ));
         }
     }
-    let tol = &case.tolerances;
-    vec![
-        Check::at_most(
-            name("position"),
-            "max |dx| / r_min",
-            wx.value,
-            tol.position_frac_radius,
-            wx.detail(),
-        ),
-        Check::at_most(
-            name("velocity"),
-            "max |dv| / max|v_ref|",
-            wv.value,
-            tol.velocity_rel,
-            wv.detail(),
-        ),
-        Check::at_most(
-            name("angular velocity"),
-            "max |dw| / max|w_ref|",
-            ww.value,
-            tol.velocity_rel,
-            ww.detail(),
-        ),
-    ]
+
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// The checks of the case: coverage first, then position, velocity and angular
+    /// velocity. Without coverage the trajectory gates are NOT COMPARED.
+    pub fn finish(self) -> Vec<Check> {
+        let name = |what: &str| format!("{}: {what}", self.case.name);
+        if let Some(m) = self.mismatch {
+            return vec![Check::error(name("frames"), m)];
+        }
+        let coverage = self.coverage.check(&name("coverage"));
+        let gates = [
+            (Gate::Position, "position", "max |dx| / r_min"),
+            (Gate::Velocity, "velocity", "max |dv| / max|v_ref|"),
+            (
+                Gate::AngularVelocity,
+                "angular velocity",
+                "max |dw| / max|w_ref|",
+            ),
+        ];
+        if !coverage.passed {
+            let mut out = vec![coverage];
+            out.extend(gates.iter().map(|(g, n, _)| {
+                Check::not_compared(
+                    name(n),
+                    *g,
+                    "the comparison did not cover enough dynamics (see the coverage check)",
+                )
+            }));
+            return out;
+        }
+        let vscale = self.vmax_ref;
+        if vscale <= 0.0 {
+            return vec![Check::error(
+                name("frames"),
+                "reference run never moves: nothing to compare",
+            )];
+        }
+        let wscale = if self.wmax_ref > 0.0 {
+            self.wmax_ref
+        } else {
+            vscale / self.case.min_radius()
+        };
+        let tol = &self.case.tolerances;
+        vec![
+            coverage,
+            Check::at_most(
+                name("position"),
+                Gate::Position,
+                gates[0].2,
+                self.dx.value,
+                tol.position_frac_radius,
+                self.dx.detail(),
+            ),
+            Check::at_most(
+                name("velocity"),
+                Gate::Velocity,
+                gates[1].2,
+                self.dv.value / vscale,
+                tol.velocity_rel,
+                self.dv.detail(),
+            ),
+            Check::at_most(
+                name("angular velocity"),
+                Gate::AngularVelocity,
+                gates[2].2,
+                self.dw.value / wscale,
+                tol.velocity_rel,
+                self.dw.detail(),
+            ),
+        ]
+    }
+}
+
+/// Compares whole trajectories held in memory (small runs, tests).
+pub fn compare(case: &Case, test: &[Frame], reference: &[Frame]) -> Vec<Check> {
+    let mut t = Trajectory::new(case);
+    if test.len() != reference.len() {
+        t.length_mismatch(test.len(), reference.len());
+    }
+    for (a, b) in test.iter().zip(reference) {
+        t.push(a, b);
+    }
+    t.finish()
 }

@@ -1,62 +1,129 @@
-//! The in-process Rust DEM as an [`Engine`].
+//! The in-process Rust solvers as engines: they take the same inputs as the reference
+//! engines and leave the same run data (frames streamed to `particles.csv`, force
+//! samples, impact series), each with its provenance.
 
-use super::Engine;
-use super::RunOutput;
-use crate::case::Case;
 use crate::case::Perturbation;
-use crate::physics::dem;
-use crate::rundata::provenance::{Provenance, now_utc, sha256_hex};
+use crate::case::penetration::PenetrationCase;
+use crate::physics::dem::{self, Simulation, packing::Bed};
+use crate::physics::dem2d::energy::EnergyModel;
+use crate::physics::dem2d::impact::Scene;
+use crate::rundata::force::ForceSample;
+use crate::rundata::frames::FrameWriter;
+use crate::rundata::impact::{EnergySample, IntruderSample};
+use crate::rundata::provenance::{EngineKind, Provenance, Sha256, now_utc};
+use anyhow::Result;
 use std::path::Path;
+use std::time::Instant;
 
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Native {
-    /// Deliberately wrong physics for negative controls; default is the case as written.
-    pub perturbation: Perturbation,
-    pub progress: bool,
+/// Provenance of an in-process run that began at `start`.
+pub fn provenance(
+    input_hash: Sha256,
+    case_file: &Path,
+    start: Instant,
+    what: &str,
+    pert: &Perturbation,
+    mut notes: Vec<String>,
+) -> Provenance {
+    if !pert.is_none() {
+        notes.insert(0, format!("PERTURBED physics (negative control): {pert:?}"));
+    }
+    Provenance {
+        engine: EngineKind::Native,
+        version: format!("granval {} native {what}", env!("CARGO_PKG_VERSION")),
+        command: "in-process".into(),
+        input_hash,
+        date: now_utc(),
+        wall_time_s: start.elapsed().as_secs_f64(),
+        threads: rayon::current_num_threads(),
+        case_file: case_file.display().to_string(),
+        notes,
+    }
 }
 
-impl Engine for Native {
-    fn name(&self) -> &'static str {
-        "native"
-    }
+/// A micro case, every output frame streamed to `csv` (memory does not grow with the
+/// number of frames).
+pub fn micro(
+    case: &crate::case::Case,
+    pert: &Perturbation,
+    csv: &Path,
+    on_step: impl FnMut(u64),
+) -> Result<Provenance> {
+    let start = Instant::now();
+    let mut w = FrameWriter::create(csv)?;
+    dem::run(case, *pert, on_step, |f| w.write(&f))?;
+    w.finish()?;
+    Ok(provenance(
+        case.canonical_hash(),
+        &case.source,
+        start,
+        "3D DEM",
+        pert,
+        vec![],
+    ))
+}
 
-    fn run(&self, case: &Case, _dir: &Path) -> anyhow::Result<RunOutput> {
-        let start = std::time::Instant::now();
-        let bar = crate::report::progress::bar(self.progress, case.n_steps, "native");
-        let mut frames = Vec::new();
-        dem::run(
-            case,
-            self.perturbation,
-            |s| {
-                if s.is_multiple_of(1000) {
-                    bar.set_position(s);
-                }
-            },
-            |f| {
-                frames.push(f);
-                Ok(())
-            },
-        )?;
-        bar.finish_and_clear();
-        let case_text = std::fs::read(&case.source).unwrap_or_default();
-        let p = self.perturbation;
-        let mut notes = Vec::new();
-        if p.friction_factor != 1.0 || p.restitution_shift != 0.0 || p.poisson_shift != 0.0 {
-            notes.push(format!("PERTURBED physics (negative control): {p:?}"));
-        }
-        Ok(RunOutput {
-            frames,
-            provenance: Provenance {
-                engine: "native".into(),
-                version: format!("granval {} native DEM", env!("CARGO_PKG_VERSION")),
-                command: "in-process".into(),
-                input_hash: sha256_hex(&case_text),
-                date: now_utc(),
-                wall_time_s: start.elapsed().as_secs_f64(),
-                threads: rayon::current_num_threads(),
-                case_file: case.source.display().to_string(),
-                notes,
-            },
-        })
+/// A penetration run from `bed`: the force samples, and `on_snapshot` called after each
+/// step listed in `snapshot_steps` (contact snapshots for the stress fields).
+pub fn penetration(
+    case: &PenetrationCase,
+    bed: &Bed,
+    pert: &Perturbation,
+    snapshot_steps: &[u64],
+    on_snapshot: impl FnMut(&Simulation) -> Result<()>,
+    on_step: impl FnMut(u64, u64),
+) -> Result<(Vec<ForceSample>, Provenance)> {
+    let start = Instant::now();
+    let samples = dem::penetration::run_with_snapshots(
+        case,
+        bed,
+        *pert,
+        snapshot_steps,
+        on_snapshot,
+        on_step,
+    )?;
+    let mut notes = vec![dem::packing::bed_note(case, bed)];
+    if !snapshot_steps.is_empty() {
+        notes.push(format!("snapshots at steps {snapshot_steps:?}"));
     }
+    Ok((
+        samples,
+        provenance(
+            case.canonical_hash(),
+            &case.source,
+            start,
+            "3D DEM",
+            pert,
+            notes,
+        ),
+    ))
+}
+
+/// A 2D impact scene.
+#[allow(clippy::too_many_arguments)]
+pub fn impact2d(
+    scene: &Scene,
+    n_steps: u64,
+    output_every: u64,
+    energy_every: u64,
+    energy: &EnergyModel,
+    input_hash: Sha256,
+    case_file: &Path,
+    pert: &Perturbation,
+    on_step: impl FnMut(u64),
+) -> Result<(Vec<IntruderSample>, Vec<EnergySample>, Provenance)> {
+    let start = Instant::now();
+    let scene = crate::physics::dem2d::impact::perturbed(scene, pert);
+    let (samples, energies) = crate::physics::dem2d::impact::run_native(
+        &scene,
+        n_steps,
+        output_every,
+        energy_every,
+        energy,
+        on_step,
+    )?;
+    Ok((
+        samples,
+        energies,
+        provenance(input_hash, case_file, start, "2D DEM", pert, vec![]),
+    ))
 }

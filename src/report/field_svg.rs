@@ -1,4 +1,4 @@
-//! SVG figures of the stress-field analysis (issue 4): colour maps of gamma and of the
+//! SVG figures of the stress-field analysis (Feng et al. Fig 5-7): colour maps of gamma and of the
 //! velocity in the (r, z) plane (the paper's Fig. 5) with the incipient-yield region and
 //! the stagnant zone outlined, and the K-phi plane (Fig. 7) with error bars.
 

@@ -5,11 +5,12 @@
 pub mod field_svg;
 pub mod plot;
 pub mod progress;
+pub mod stress;
 pub mod svg;
 pub mod svg_impact;
 pub mod vtk;
 
-use crate::compare::Check;
+use crate::compare::{Check, Status};
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -38,19 +39,19 @@ pub struct Report {
     /// Anything a reader must know to trust the verdict (e.g. recorded fallback).
     #[serde(default)]
     pub notes: Vec<String>,
-    /// True if some stage failed to produce a result (engine crash, bad input).
+    /// True if some stage failed to produce a result (engine crash, bad input, a
+    /// corrupt reference) or a gate could not be evaluated (not compared).
     #[serde(default)]
     pub errored: bool,
 }
 
 impl Report {
-    pub fn new(
-        checks: Vec<Check>,
-        runs: Vec<CaseRun>,
-        notes: Vec<String>,
-        errored: bool,
-    ) -> Report {
-        let passed = !errored && !checks.is_empty() && checks.iter().all(|c| c.passed);
+    pub fn new(checks: Vec<Check>, runs: Vec<CaseRun>, notes: Vec<String>) -> Report {
+        let errored = checks
+            .iter()
+            .any(|c| matches!(c.status, Status::Error | Status::NotCompared));
+        let passed =
+            !errored && !checks.is_empty() && checks.iter().all(|c| c.status == Status::Pass);
         Report {
             passed,
             checks,
@@ -60,7 +61,7 @@ impl Report {
         }
     }
 
-    /// 0 all passed, 1 some check failed, 2 something errored.
+    /// 0 all passed, 1 some check failed, 2 something errored or could not be compared.
     pub fn exit_code(&self) -> i32 {
         if self.errored {
             2
@@ -114,7 +115,12 @@ impl Report {
                 c.metric,
                 c.value,
                 c.tolerance,
-                if c.passed { "pass" } else { "**FAIL**" },
+                match c.status {
+                    Status::Pass => "pass",
+                    Status::Fail => "**FAIL**",
+                    Status::NotCompared => "**NOT COMPARED**",
+                    Status::Error => "**ERROR**",
+                },
                 c.detail.replace('|', "/").replace('\n', " ")
             );
         }
@@ -147,12 +153,13 @@ impl Report {
                 .replace('>', "&gt;")
                 .replace('"', "&quot;")
         };
-        let failures = self.checks.iter().filter(|c| !c.passed).count();
+        let count = |st: Status| self.checks.iter().filter(|c| c.status == st).count();
         let mut s = format!(
-            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"{}\" tests=\"{}\" failures=\"{}\">\n",
+            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"{}\" tests=\"{}\" failures=\"{}\" errors=\"{}\">\n",
             esc(title),
             self.checks.len(),
-            failures
+            count(Status::Fail),
+            count(Status::Error) + count(Status::NotCompared)
         );
         for c in &self.checks {
             let _ = write!(
@@ -160,15 +167,26 @@ impl Report {
                 "  <testcase name=\"{}\" classname=\"granval\">",
                 esc(&c.name)
             );
-            if !c.passed {
-                let _ = write!(
-                    s,
-                    "<failure message=\"{} = {:e} &gt; {:e}\">{}</failure>",
-                    esc(&c.metric),
-                    c.value,
-                    c.tolerance,
-                    esc(&c.detail)
-                );
+            match c.status {
+                Status::Pass => {}
+                Status::Fail => {
+                    let _ = write!(
+                        s,
+                        "<failure message=\"{} = {:e}, tolerance {:e}\">{}</failure>",
+                        esc(&c.metric),
+                        c.value,
+                        c.tolerance,
+                        esc(&c.detail)
+                    );
+                }
+                Status::Error | Status::NotCompared => {
+                    let _ = write!(
+                        s,
+                        "<error message=\"{}\">{}</error>",
+                        esc(&c.metric),
+                        esc(&c.detail)
+                    );
+                }
             }
             s.push_str("</testcase>\n");
         }

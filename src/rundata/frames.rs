@@ -22,18 +22,31 @@ pub struct Frame {
     pub particles: Vec<ParticleState>,
 }
 
-/// Column order of `particles.csv`, fixed by the issue so scripts can rely on it.
+/// Column order of `particles.csv`, fixed (documented in the README) so scripts can rely on it.
 pub const CSV_HEADER: [&str; 14] = [
     "t", "id", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz",
 ];
 
-/// Writes frames as `particles.csv`. `{:e}` of an f64 is shortest-round-trip, so the
-/// file carries full double precision without a fixed digit count.
-pub fn write_particles_csv(path: &Path, frames: &[Frame]) -> Result<()> {
-    let mut w = csv::Writer::from_path(path)
-        .with_context(|| format!("cannot create {}", path.display()))?;
-    w.write_record(CSV_HEADER)?;
-    for fr in frames {
+/// `particles.csv`, written one frame at a time. `{:e}` of an f64 is
+/// shortest-round-trip, so the file carries full double precision without a fixed
+/// digit count.
+pub struct FrameWriter {
+    w: csv::Writer<std::fs::File>,
+    path: std::path::PathBuf,
+}
+
+impl FrameWriter {
+    pub fn create(path: &Path) -> Result<FrameWriter> {
+        let mut w = csv::Writer::from_path(path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
+        w.write_record(CSV_HEADER)?;
+        Ok(FrameWriter {
+            w,
+            path: path.to_path_buf(),
+        })
+    }
+
+    pub fn write(&mut self, fr: &Frame) -> Result<()> {
         for p in &fr.particles {
             let mut rec: Vec<String> = Vec::with_capacity(14);
             rec.push(format!("{:e}", fr.t));
@@ -43,69 +56,152 @@ pub fn write_particles_csv(path: &Path, frames: &[Frame]) -> Result<()> {
                     rec.push(format!("{c:e}"));
                 }
             }
-            w.write_record(&rec)?;
+            self.w
+                .write_record(&rec)
+                .with_context(|| format!("cannot write {}", self.path.display()))?;
         }
+        Ok(())
     }
-    w.flush()?;
-    Ok(())
+
+    pub fn finish(mut self) -> Result<()> {
+        self.w
+            .flush()
+            .with_context(|| format!("cannot write {}", self.path.display()))
+    }
 }
 
-/// Reads `particles.csv` back into frames (grouped by consecutive equal `t`). Step
-/// numbers are recovered from `t / dt`.
-pub fn read_particles_csv(path: &Path, dt: f64) -> Result<Vec<Frame>> {
-    let mut r =
-        csv::Reader::from_path(path).with_context(|| format!("cannot open {}", path.display()))?;
-    let header: Vec<String> = r.headers()?.iter().map(str::to_string).collect();
-    if header != CSV_HEADER {
-        anyhow::bail!(
-            "{}: header {:?} is not the expected {:?}",
-            path.display(),
-            header,
-            CSV_HEADER
-        );
+/// Writes frames as `particles.csv`.
+pub fn write_particles_csv(path: &Path, frames: &[Frame]) -> Result<()> {
+    let mut w = FrameWriter::create(path)?;
+    for fr in frames {
+        w.write(fr)?;
     }
-    let mut frames: Vec<Frame> = Vec::new();
-    for (line, rec) in r.records().enumerate() {
-        let rec = rec.with_context(|| format!("{}: record {}", path.display(), line + 2))?;
+    w.finish()
+}
+
+/// `particles.csv` read back one frame at a time (rows grouped by consecutive equal
+/// `t`); step numbers are recovered from `t / dt`.
+pub struct CsvFrames {
+    path: std::path::PathBuf,
+    dt: f64,
+    records: csv::StringRecordsIntoIter<std::fs::File>,
+    line: usize,
+    pending: Option<(f64, ParticleState)>,
+    done: bool,
+}
+
+impl CsvFrames {
+    pub fn open(path: &Path, dt: f64) -> Result<CsvFrames> {
+        let mut r = csv::Reader::from_path(path)
+            .with_context(|| format!("cannot open {}", path.display()))?;
+        let header: Vec<String> = r.headers()?.iter().map(str::to_string).collect();
+        if header != CSV_HEADER {
+            anyhow::bail!(
+                "{}: header {:?} is not the expected {:?}",
+                path.display(),
+                header,
+                CSV_HEADER
+            );
+        }
+        Ok(CsvFrames {
+            path: path.to_path_buf(),
+            dt,
+            records: r.into_records(),
+            line: 1,
+            pending: None,
+            done: false,
+        })
+    }
+
+    fn row(&mut self) -> Result<Option<(f64, ParticleState)>> {
+        let Some(rec) = self.records.next() else {
+            return Ok(None);
+        };
+        self.line += 1;
+        let (path, line) = (&self.path, self.line);
+        let rec = rec.with_context(|| format!("{}: record {line}", path.display()))?;
+        if rec.len() != CSV_HEADER.len() {
+            anyhow::bail!(
+                "{}: line {line}: {} columns, expected {}",
+                path.display(),
+                rec.len(),
+                CSV_HEADER.len()
+            );
+        }
         let num = |k: usize| -> Result<f64> {
             rec[k].parse::<f64>().with_context(|| {
                 format!(
-                    "{}: line {}: column {} = {:?} is not a number",
+                    "{}: line {line}: column {} = {:?} is not a number",
                     path.display(),
-                    line + 2,
                     CSV_HEADER[k],
                     &rec[k]
                 )
             })
         };
         let t = num(0)?;
-        let id: u64 = rec[1].parse().with_context(|| {
-            format!(
-                "{}: line {}: bad id {:?}",
-                path.display(),
-                line + 2,
-                &rec[1]
-            )
-        })?;
+        let id: u64 = rec[1]
+            .parse()
+            .with_context(|| format!("{}: line {line}: bad id {:?}", path.display(), &rec[1]))?;
         let v3 = |k: usize| -> Result<[f64; 3]> { Ok([num(k)?, num(k + 1)?, num(k + 2)?]) };
-        let p = ParticleState {
-            id,
-            x: v3(2)?,
-            v: v3(5)?,
-            omega: v3(8)?,
-            f: v3(11)?,
+        Ok(Some((
+            t,
+            ParticleState {
+                id,
+                x: v3(2)?,
+                v: v3(5)?,
+                omega: v3(8)?,
+                f: v3(11)?,
+            },
+        )))
+    }
+
+    pub fn next_frame(&mut self) -> Result<Option<Frame>> {
+        let first = match self.pending.take() {
+            Some(r) => r,
+            None => match self.row()? {
+                Some(r) => r,
+                None => return Ok(None),
+            },
         };
-        match frames.last_mut() {
-            Some(fr) if fr.t == t => fr.particles.push(p),
-            _ => frames.push(Frame {
-                step: (t / dt).round() as u64,
-                t,
-                particles: vec![p],
-            }),
+        let t = first.0;
+        let mut particles = vec![first.1];
+        loop {
+            match self.row()? {
+                Some(r) if r.0 == t => particles.push(r.1),
+                Some(r) => {
+                    self.pending = Some(r);
+                    break;
+                }
+                None => break,
+            }
+        }
+        particles.sort_by_key(|p| p.id);
+        Ok(Some(Frame {
+            step: (t / self.dt).round() as u64,
+            t,
+            particles,
+        }))
+    }
+}
+
+impl Iterator for CsvFrames {
+    type Item = Result<Frame>;
+    fn next(&mut self) -> Option<Result<Frame>> {
+        if self.done {
+            return None;
+        }
+        match self.next_frame() {
+            Ok(Some(f)) => Some(Ok(f)),
+            Ok(None) => None,
+            Err(e) => {
+                self.done = true;
+                Some(Err(e))
+            }
         }
     }
-    for fr in &mut frames {
-        fr.particles.sort_by_key(|p| p.id);
-    }
-    Ok(frames)
+}
+
+/// Reads a whole `particles.csv` (small runs and tests).
+pub fn read_particles_csv(path: &Path, dt: f64) -> Result<Vec<Frame>> {
+    CsvFrames::open(path, dt)?.collect()
 }

@@ -5,15 +5,109 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+/// Which program produced a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EngineKind {
+    Native,
+    Liggghts,
+    Lammps,
+}
+
+impl EngineKind {
+    /// Only these may produce data under `reference/`.
+    pub fn is_reference(self) -> bool {
+        matches!(self, EngineKind::Liggghts | EngineKind::Lammps)
+    }
+
+    pub fn label(self) -> &'static str {
+        match self {
+            EngineKind::Native => "native",
+            EngineKind::Liggghts => "LIGGGHTS",
+            EngineKind::Lammps => "LAMMPS",
+        }
+    }
+}
+
+impl std::fmt::Display for EngineKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.label())
+    }
+}
+
+/// A SHA-256 digest, written as 64 lowercase hex digits.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct Sha256(String);
+
+impl Sha256 {
+    pub fn of(bytes: &[u8]) -> Sha256 {
+        Sha256(sha256_hex(bytes))
+    }
+
+    /// Digest of a file, read in chunks.
+    pub fn of_file(path: &Path) -> Result<Sha256> {
+        use sha2::Digest;
+        use std::io::Read;
+        let mut f =
+            std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+        let mut h = sha2::Sha256::new();
+        let mut buf = vec![0u8; 1 << 16];
+        loop {
+            let n = f
+                .read(&mut buf)
+                .with_context(|| format!("cannot read {}", path.display()))?;
+            if n == 0 {
+                break;
+            }
+            h.update(&buf[..n]);
+        }
+        Ok(Sha256(hex::encode(h.finalize())))
+    }
+
+    pub fn hex(&self) -> &str {
+        &self.0
+    }
+}
+
+impl TryFrom<String> for Sha256 {
+    type Error = String;
+    fn try_from(s: String) -> std::result::Result<Sha256, String> {
+        if s.len() == 64
+            && s.bytes()
+                .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+        {
+            Ok(Sha256(s))
+        } else {
+            Err(format!(
+                "{s:?} is not a SHA-256 digest (64 lowercase hex digits)"
+            ))
+        }
+    }
+}
+
+impl From<Sha256> for String {
+    fn from(h: Sha256) -> String {
+        h.0
+    }
+}
+
+impl std::fmt::Display for Sha256 {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
 /// Where a run came from: enough to reproduce it and to refuse to trust it blindly.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Provenance {
-    pub engine: String,
+    pub engine: EngineKind,
     /// Version line (LIGGGHTS: the first line of its log; native: crate version).
     pub version: String,
     pub command: String,
-    /// SHA-256 of the input deck (LIGGGHTS) or of the case file (native).
-    pub input_hash: String,
+    /// SHA-256 of what the engine was given: deck and data files (reference engines),
+    /// the case's canonical content or scene (native).
+    pub input_hash: Sha256,
     pub date: String,
     pub wall_time_s: f64,
     pub threads: usize,

@@ -1,4 +1,4 @@
-//! Contact snapshots (issue 4): grains and every force-carrying contact at one instant,
+//! Contact snapshots (stress fields, Feng et al. eqs 6-9): grains and every force-carrying contact at one instant,
 //! the engine-neutral input of the coarse-grained stress and velocity fields.
 //!
 //! **Convention (both engines, identical):** every contact is stored from the side of

@@ -2,10 +2,11 @@
 //! loud, so a green test on a machine without LIGGGHTS is never mistaken for a live one.
 #![allow(dead_code)]
 
-use granval::case::Case;
-use granval::engines::Frame;
-use granval::pipeline::{self, Options};
-use std::path::{Path, PathBuf};
+use granval::case::{AnyCase, Case};
+use granval::experiments::{Options, RefMode, reference};
+use granval::rundata::provenance::EngineKind;
+use std::path::PathBuf;
+use std::process::Command;
 
 pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -16,40 +17,66 @@ pub fn load(rel: &str) -> Case {
 }
 
 pub fn micro_cases() -> Vec<Case> {
-    pipeline::suite_cases(&root().join("cases"), "micro")
+    granval::experiments::suite::load(&root().join("cases"), "micro")
         .expect("micro suite")
+        .cases
         .iter()
-        .map(|p| Case::load(p).unwrap_or_else(|e| panic!("{e}")))
+        .map(
+            |e| match AnyCase::load(&e.path).unwrap_or_else(|e| panic!("{e}")) {
+                AnyCase::Micro(c) => c,
+                _ => panic!("{}: not a micro case", e.path.display()),
+            },
+        )
         .collect()
 }
 
+/// Options of the tests: references under `reference/` (or under
+/// `GRANVAL_TEST_REFERENCE`, to check freshly recorded references before they replace
+/// the shipped ones).
 pub fn options() -> Options {
     Options {
-        reference_root: root().join("reference"),
+        reference_root: std::env::var_os("GRANVAL_TEST_REFERENCE")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| root().join("reference")),
         ..Options::default()
     }
-}
-
-/// The reference trajectory of a case: live LIGGGHTS when installed (required in CI via
-/// GRANVAL_REQUIRE_LIVE=1), otherwise the recorded run — and the test log says which.
-pub fn reference_frames(case: &Case, scratch: &Path) -> Vec<Frame> {
-    let (out, source, notes) = pipeline::reference_run(case, &options(), scratch)
-        .unwrap_or_else(|e| panic!("reference run of {}: {e:#}", case.name));
-    if source == "live" {
-        eprintln!("[{}] reference: LIVE {}", case.name, out.provenance.version);
-    } else {
-        eprintln!(
-            "[{}] reference: FALLBACK to {source} (LIGGGHTS not installed). {}",
-            case.name,
-            notes.join(" ")
-        );
-    }
-    out.frames
 }
 
 /// GRANVAL_REQUIRE_LIVE=1: reference engines must run live, no recorded fallback.
 pub fn require_live() -> bool {
     std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1")
+}
+
+/// Whether `engine` runs live here; panics when live engines are required but missing,
+/// and says loudly when a test falls back to the recorded references.
+pub fn live(engine: EngineKind, test: &str) -> bool {
+    let live = reference::installed(engine).is_some();
+    if !live {
+        assert!(
+            !require_live(),
+            "GRANVAL_REQUIRE_LIVE=1 but {engine} is not installed"
+        );
+        eprintln!(
+            "[{test}] FALLBACK: {engine} is not installed; using the sealed recorded references"
+        );
+    } else {
+        eprintln!("[{test}] reference: LIVE {engine}");
+    }
+    live
+}
+
+/// Options that force the sealed recorded reference.
+pub fn recorded() -> Options {
+    Options {
+        ref_mode: RefMode::Recorded,
+        ..options()
+    }
+}
+
+pub fn granval() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_granval"));
+    c.current_dir(root());
+    c
 }
 
 /// The 300-grain penetration case of `tests/data/penetration-tiny.toml` (E above
@@ -69,4 +96,107 @@ pub fn tiny_penetration_toml(intruder_diameter: f64, analysis: &str, tail: &str)
     )
     .replacen(fit, &format!("{fit}{analysis}\n"), 1)
         + tail
+}
+
+/// The reference runs of `exp`'s units as `runner::compare` would take them: live when
+/// the options allow it and the engine is installed (outputs under `dir`), otherwise the
+/// sealed record (verified). Says which, loudly.
+pub fn reference_runs<E: granval::experiments::Experiment>(
+    exp: &E,
+    units: &[E::Unit],
+    opts: &Options,
+    dir: &std::path::Path,
+) -> Vec<E::RefRun> {
+    use granval::experiments::runner;
+    let engine = exp.reference_engine();
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    let live = runner::resolve(exp, opts).unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
+    match live {
+        Some(version) => {
+            eprintln!("[{}] reference: LIVE {version}", exp.name());
+            units
+                .iter()
+                .zip(&names)
+                .map(|(u, n)| {
+                    exp.run_reference(u, &runner::reference_out(dir, n, engine), opts)
+                        .unwrap_or_else(|e| panic!("{} {n}: {e:#}", exp.name()))
+                })
+                .collect()
+        }
+        None => {
+            assert!(
+                !require_live() || opts.ref_mode == RefMode::Recorded,
+                "GRANVAL_REQUIRE_LIVE=1 but {engine} is not installed"
+            );
+            let root = reference::record_root(&opts.reference_root, exp.kind(), exp.name());
+            eprintln!(
+                "[{}] reference: RECORDED {} (sealed)",
+                exp.name(),
+                root.display()
+            );
+            let fingerprints: Vec<_> = units
+                .iter()
+                .zip(&names)
+                .map(|(u, n)| (n.clone(), exp.fingerprint(u).unwrap()))
+                .collect();
+            let seal = reference::verify(
+                &root,
+                exp.source(),
+                &exp.canonical_hash(),
+                engine,
+                &fingerprints,
+            )
+            .unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
+            units
+                .iter()
+                .zip(&names)
+                .map(|(u, n)| {
+                    exp.read_record(u, n, &seal)
+                        .unwrap_or_else(|e| panic!("{} {n}: {e:#}", exp.name()))
+                })
+                .collect()
+        }
+    }
+}
+
+/// Every check of `exp` with the native engine run in `role` (e.g. a negative control
+/// not declared in the case file) against the same reference runs `runner::compare`
+/// uses; outputs under `out`.
+pub fn checks_with<E: granval::experiments::Experiment>(
+    exp: &E,
+    role: granval::experiments::Role,
+    opts: &Options,
+    out: &std::path::Path,
+) -> Vec<granval::compare::Check> {
+    use granval::experiments::runner;
+    let units = exp
+        .units(opts)
+        .unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
+    let refs = reference_runs(exp, &units, opts, out);
+    let natives: Vec<_> = units
+        .iter()
+        .map(|u| {
+            let n = exp.unit_name(u);
+            exp.run_native(u, role, &runner::unit_out(out, &n).join("native"), opts)
+                .unwrap_or_else(|e| panic!("{} {n}: {e:#}", exp.name()))
+        })
+        .collect();
+    exp.checks(&units, &natives, &refs, out, opts).checks
+}
+
+/// Prints checks as a report would.
+pub fn show(label: &str, checks: &[granval::compare::Check]) {
+    for c in checks {
+        eprintln!(
+            "[{label}] {:?} {}: {:.4} (tol {}) {}",
+            c.status, c.name, c.value, c.tolerance, c.detail
+        );
+    }
+}
+
+/// Held by a test while it runs MPI jobs: two `mpirun -np 2` at once on a 2-core machine
+/// oversubscribe it, and busy-waiting MPI ranks then slow each other down many times.
+pub fn mpi_lock() -> std::sync::MutexGuard<'static, ()> {
+    static MPI: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    MPI.lock().unwrap_or_else(|p| p.into_inner())
 }

@@ -2,8 +2,9 @@
 //! the snapshots streamed into the same samples the native run produces.
 
 use super::{Finished, Lammps, Outputs, parse};
-use crate::analysis::impact::{EnergyModel, EnergySample, IntruderSample, SnapDisk, energies};
+use crate::physics::dem2d::energy::{EnergyModel, SnapDisk, energies};
 use crate::physics::dem2d::impact::Scene;
+use crate::rundata::impact::{EnergySample, IntruderSample};
 use anyhow::{Result, bail};
 use std::path::Path;
 

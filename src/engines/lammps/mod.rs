@@ -12,7 +12,7 @@ pub mod parse;
 
 use crate::engines::process::{self, Transcript, TranscriptFiles};
 use crate::physics::dem2d::System;
-use crate::rundata::provenance::sha256_hex;
+use crate::rundata::provenance::Sha256;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -64,7 +64,7 @@ pub struct Finished {
     pub version: String,
     pub command: String,
     /// sha256 of deck + data.
-    pub input_hash: String,
+    pub input_hash: Sha256,
     pub wall_time_s: f64,
     pub warnings: Vec<String>,
 }
@@ -72,6 +72,24 @@ pub struct Finished {
 /// The banner of an installed `binary`, or `None` if it is missing or does not run.
 pub fn installed_version(binary: &str) -> Option<String> {
     process::installed_banner(binary, VERSION_PREFIX)
+}
+
+/// Writes the deck and data file for `sys` into `dir` (what `granval deck` leaves and
+/// what [`Lammps::run`] runs); returns their texts.
+pub fn write_inputs(sys: &System, out: &Outputs, dir: &Path) -> Result<()> {
+    inputs(sys, out, dir).map(|_| ())
+}
+
+fn inputs(sys: &System, out: &Outputs, dir: &Path) -> Result<(String, String)> {
+    let deck = deck::write_deck(sys, out)?;
+    let data = deck::write_data(sys);
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create run directory {}", dir.display()))?;
+    for (name, text) in [(DECK_FILE, &deck), (DATA_FILE, &data)] {
+        let p = dir.join(name);
+        std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    Ok((deck, data))
 }
 
 impl Lammps {
@@ -97,8 +115,6 @@ impl Lammps {
     /// Writes the deck and data for `sys`, runs LAMMPS in `dir` and checks that it
     /// finished cleanly and wrote the outputs `out` asks for.
     pub fn run(&self, sys: &System, out: &Outputs, dir: &Path) -> Result<Finished> {
-        let deck = deck::write_deck(sys, out)?;
-        let data = deck::write_data(sys);
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create run directory {}", dir.display()))?;
         process::remove_stale(
@@ -112,10 +128,7 @@ impl Lammps {
                 SNAP_FILE,
             ],
         )?;
-        for (name, text) in [(DECK_FILE, &deck), (DATA_FILE, &data)] {
-            let p = dir.join(name);
-            std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
-        }
+        let (deck, data) = inputs(sys, out, dir)?;
         let argv = self.argv();
         let command = process::command_line(&argv);
         let fin = process::run(
@@ -152,7 +165,7 @@ impl Lammps {
             dir: dir.to_path_buf(),
             version,
             command,
-            input_hash: sha256_hex(format!("{deck}{data}").as_bytes()),
+            input_hash: Sha256::of(format!("{deck}{data}").as_bytes()),
             wall_time_s: fin.wall_time_s,
             warnings: tr.warnings(),
         })

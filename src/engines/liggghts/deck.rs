@@ -4,13 +4,16 @@
 //! Every float is written with Rust's `{:e}` (shortest round-trip representation), so
 //! LIGGGHTS parses back exactly the f64 the case holds: the deck carries no rounding.
 
-use crate::case::{Case, Material, PairTable, RollingModel, Wall};
+use crate::case::{Case, Material, PairTable, Particle, RollingModel, Wall};
 use anyhow::{Result, bail};
 use std::fmt::Write;
 
 /// LIGGGHTS refuses `youngsModulus` below this in SI units (`global_properties.cpp`,
 /// "youngsModulus >= 5e6 required for SI units"), unless `soft_particles yes`.
 pub const MIN_YOUNGS_MODULUS_SI: f64 = 5e6;
+/// ... and above this ("youngsModulus <= 1e9 required for SI units (use command
+/// 'hard_particles yes' to override)").
+pub const MAX_YOUNGS_MODULUS_SI: f64 = 1e9;
 /// LIGGGHTS requires `0.05 < coefficientRestitution <= 1`.
 pub const MIN_RESTITUTION_EXCLUSIVE: f64 = 0.05;
 
@@ -83,6 +86,110 @@ pub(super) fn write_contact_model(
     writeln!(s, "pair_coeff * *")
 }
 
+/// Whether the materials need LIGGGHTS' `soft_particles yes` / `hard_particles yes`.
+/// Both switches only lift LIGGGHTS' range check of Young's modulus (5e6-1e9 Pa in SI,
+/// 5e7-1e10 barye in cgs: the same pressures); the material is written unchanged, so
+/// glass, steel and alumina run as they are.
+pub fn hardness(materials: &[Material]) -> (bool, bool) {
+    let soft = materials
+        .iter()
+        .any(|m| m.youngs_modulus < MIN_YOUNGS_MODULUS_SI);
+    let hard = materials
+        .iter()
+        .any(|m| m.youngs_modulus > MAX_YOUNGS_MODULUS_SI);
+    (soft, hard)
+}
+
+/// The switch lines of [`hardness`], each with the comment that says why.
+pub(super) fn write_hardness(s: &mut String, soft: bool, hard: bool) -> std::fmt::Result {
+    if soft {
+        writeln!(
+            s,
+            "# disables LIGGGHTS' youngsModulus >= 5e6 Pa range check; materials are unchanged"
+        )?;
+        writeln!(s, "soft_particles yes")?;
+    }
+    if hard {
+        writeln!(
+            s,
+            "# disables LIGGGHTS' youngsModulus <= 1e9 Pa range check; materials are unchanged"
+        )?;
+        writeln!(s, "hard_particles yes")?;
+    }
+    Ok(())
+}
+
+/// Provenance lines for the switches a deck of these materials sets.
+pub fn hardness_note(materials: &[Material]) -> Vec<String> {
+    let (soft, hard) = hardness(materials);
+    let mut v = Vec::new();
+    if soft {
+        v.push(
+            "soft_particles yes (LIGGGHTS' E >= 5e6 Pa check disabled; materials unchanged)".into(),
+        );
+    }
+    if hard {
+        v.push(
+            "hard_particles yes (LIGGGHTS' E <= 1e9 Pa check disabled; materials unchanged)".into(),
+        );
+    }
+    v
+}
+
+/// The `read_data` file of a granular atom set: box, atom types, `Atoms` (sphere style
+/// `atom-ID atom-type diameter density x y z`, types 1-based) and `Velocities`
+/// (`atom-ID vx vy vz omegax omegay omegaz`). `l`, `v`, `rho` convert SI lengths,
+/// velocities and densities into the deck's units (1 for SI); rad/s is the same in
+/// both. The one data-file writer of every LIGGGHTS deck granval writes.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn data_text(
+    title: &str,
+    particles: &[Particle],
+    n_types: usize,
+    lo: [f64; 3],
+    hi: [f64; 3],
+    l: f64,
+    v: f64,
+    rho: f64,
+) -> String {
+    let mut s = String::new();
+    // The first line of a data file is always skipped by read_data.
+    let _ = writeln!(
+        s,
+        "LIGGGHTS data file written by granval: {}",
+        comment_safe(title)
+    );
+    let _ = writeln!(s);
+    let _ = writeln!(s, "{} atoms", particles.len());
+    let _ = writeln!(s, "{n_types} atom types");
+    let _ = writeln!(s);
+    for (k, ax) in ["x", "y", "z"].iter().enumerate() {
+        let _ = writeln!(s, "{} {} {ax}lo {ax}hi", f(lo[k] * l), f(hi[k] * l));
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "Atoms");
+    let _ = writeln!(s);
+    for p in particles {
+        // 2*r is exact in binary floating point; LIGGGHTS halves it back exactly.
+        let _ = writeln!(
+            s,
+            "{} {} {} {} {}",
+            p.id,
+            p.type_ + 1,
+            f(2.0 * p.radius * l),
+            f(p.density * rho),
+            join(p.x.map(|x| x * l))
+        );
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "Velocities");
+    let _ = writeln!(s);
+    for p in particles {
+        let _ = writeln!(s, "{} {} {}", p.id, join(p.v.map(|x| x * v)), join(p.omega));
+    }
+    s
+}
+
 /// Keeps free text (case names) harmless inside a LIGGGHTS comment: no `$` variable
 /// expansion, no `&` continuation, no line breaks.
 fn comment_safe(s: &str) -> String {
@@ -103,11 +210,9 @@ pub fn check_liggghts_limits(case: &Case) -> Result<()> {
     let file = case.source.display();
     for (t, m) in case.materials.iter().enumerate() {
         let ty = t + 1;
-        if m.youngs_modulus.is_nan() || m.youngs_modulus < MIN_YOUNGS_MODULUS_SI {
+        if !(m.youngs_modulus.is_finite() && m.youngs_modulus > 0.0) {
             bail!(
-                "{file}: field `youngs_modulus` of material type {ty} = {:e} Pa: LIGGGHTS 3.8 refuses youngsModulus < 5e6 Pa in SI units \
-                 (\"youngsModulus >= 5e6 required for SI units\"); granval does not change materials — use a stiffer material \
-                 or run this case with the native engine only",
+                "{file}: field `youngs_modulus` of material type {ty} = {:e} Pa cannot be written into a LIGGGHTS deck",
                 m.youngs_modulus
             );
         }
@@ -146,47 +251,16 @@ pub fn expected_frames(case: &Case) -> usize {
 /// (`atom-ID vx vy vz omegax omegay omegaz`). Types are written 1-based.
 pub fn write_data_file(case: &Case) -> Result<String> {
     check_liggghts_limits(case)?;
-    let mut s = String::new();
-    // The first line of a data file is always skipped by read_data.
-    writeln!(
-        s,
-        "LIGGGHTS data file written by granval for case {}",
-        comment_safe(&case.name)
-    )?;
-    writeln!(s)?;
-    writeln!(s, "{} atoms", case.particles.len())?;
-    writeln!(s, "{} atom types", case.n_types())?;
-    writeln!(s)?;
-    for (k, ax) in ["x", "y", "z"].iter().enumerate() {
-        writeln!(
-            s,
-            "{} {} {ax}lo {ax}hi",
-            f(case.domain_lo[k]),
-            f(case.domain_hi[k])
-        )?;
-    }
-    writeln!(s)?;
-    writeln!(s, "Atoms")?;
-    writeln!(s)?;
-    for p in &case.particles {
-        // 2*r is exact in binary floating point; LIGGGHTS halves it back exactly.
-        writeln!(
-            s,
-            "{} {} {} {} {}",
-            p.id,
-            p.type_ + 1,
-            f(2.0 * p.radius),
-            f(p.density),
-            join(p.x)
-        )?;
-    }
-    writeln!(s)?;
-    writeln!(s, "Velocities")?;
-    writeln!(s)?;
-    for p in &case.particles {
-        writeln!(s, "{} {} {}", p.id, join(p.v), join(p.omega))?;
-    }
-    Ok(s)
+    Ok(data_text(
+        &format!("case {}", case.name),
+        &case.particles,
+        case.n_types(),
+        case.domain_lo,
+        case.domain_hi,
+        1.0,
+        1.0,
+        1.0,
+    ))
 }
 
 /// The input deck. `dump_file` and `data_file` are written into the deck verbatim
@@ -235,6 +309,8 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
     writeln!(s, "newton off")?;
     writeln!(s, "communicate single vel yes")?;
     writeln!(s, "processors * * *")?;
+    let (soft, hard) = hardness(&case.materials);
+    write_hardness(&mut s, soft, hard)?;
     writeln!(s, "read_data {data_file}")?;
     writeln!(s, "neighbor {} bin", f(case.neighbor_skin))?;
     writeln!(s, "neigh_modify delay 0")?;

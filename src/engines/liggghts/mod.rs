@@ -12,19 +12,19 @@ mod dump;
 pub mod penetration;
 pub mod snapshot;
 pub mod stl;
+pub mod units;
 
 pub use deck::{
     DUMP_COLUMNS, MIN_RESTITUTION_EXCLUSIVE, MIN_YOUNGS_MODULUS_SI, check_liggghts_limits,
     expected_frames, write_data_file, write_deck,
 };
-pub use dump::parse_dump;
+pub use deck::{hardness, hardness_note};
+pub use dump::{DumpFrames, parse_dump};
 
 use crate::case::Case;
-use crate::engines::Engine;
-use crate::engines::RunOutput;
 use crate::engines::process::{self, Transcript, TranscriptFiles};
-use crate::rundata::provenance::{Provenance, now_utc, sha256_hex};
-use anyhow::{Context, Result};
+use crate::rundata::provenance::{EngineKind, Provenance, Sha256, now_utc};
+use anyhow::{Context, Result, bail};
 use std::path::Path;
 use std::time::Duration;
 
@@ -83,108 +83,118 @@ pub fn installed_version(binary: &str) -> Option<String> {
     process::installed_banner(binary, VERSION_PREFIX)
 }
 
-impl Engine for Liggghts {
-    fn name(&self) -> &'static str {
-        "liggghts"
+/// Runs a micro case in LIGGGHTS in `dir` (deck, data file, dump, log, transcript all
+/// stay there) and checks that the dump holds every expected frame of every particle.
+/// The frames are read afterwards with [`micro_frames`], one at a time.
+pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
+    let deck = write_deck(case, DUMP_FILE, DATA_FILE)?;
+    let data = write_data_file(case)?;
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create run directory {}", dir.display()))?;
+    process::remove_stale(dir, &[DUMP_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE])?;
+    for (name, text) in [(DECK_FILE, &deck), (DATA_FILE, &data)] {
+        let p = dir.join(name);
+        std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
     }
 
-    fn run(&self, case: &Case, dir: &Path) -> Result<RunOutput> {
-        let deck = write_deck(case, DUMP_FILE, DATA_FILE)?;
-        let data = write_data_file(case)?;
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create run directory {}", dir.display()))?;
-        process::remove_stale(dir, &[DUMP_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE])?;
-        for (name, text) in [(DECK_FILE, &deck), (DATA_FILE, &data)] {
-            let p = dir.join(name);
-            std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
-        }
-
-        let argv = self.argv();
-        let command = process::command_line(&argv);
-        let fin = process::run(
-            &argv,
-            dir,
-            &dir.join(STDOUT_FILE),
-            &dir.join(STDERR_FILE),
-            self.timeout,
+    let argv = lig.argv();
+    let command = process::command_line(&argv);
+    let fin = process::run(
+        &argv,
+        dir,
+        &dir.join(STDOUT_FILE),
+        &dir.join(STDERR_FILE),
+        lig.timeout,
+    )
+    .with_context(|| {
+        format!(
+            "LIGGGHTS run of case {} failed to start",
+            case.source.display()
         )
-        .with_context(|| {
-            format!(
-                "LIGGGHTS run of case {} failed to start",
-                case.source.display()
-            )
-        })?;
+    })?;
 
-        let tr = Transcript::read(TRANSCRIPT, dir);
-        let what = format!("LIGGGHTS run of case {}", case.source.display());
-        tr.check_exit(&fin, self.timeout, &what, &command, dir)?;
-        let fail = |reason: String| tr.failure(&what, &command, dir, &reason);
-        let dump_path = dir.join(DUMP_FILE);
-        match std::fs::metadata(&dump_path) {
-            Err(_) => {
-                return Err(fail(format!(
-                    "no dump file {} was written",
-                    dump_path.display()
-                )));
-            }
-            Ok(m) if m.len() == 0 => {
-                return Err(fail(format!("dump file {} is empty", dump_path.display())));
-            }
-            Ok(_) => {}
-        }
-        let frames = parse_dump(&dump_path, case.dt).map_err(|e| fail(format!("{e:#}")))?;
-
-        let expected = expected_frames(case);
-        if frames.len() != expected {
-            let which = if frames.len() < expected {
-                "fewer"
-            } else {
-                "more"
-            };
+    let tr = Transcript::read(TRANSCRIPT, dir);
+    let what = format!("LIGGGHTS run of case {}", case.source.display());
+    tr.check_exit(&fin, lig.timeout, &what, &command, dir)?;
+    let fail = |reason: String| tr.failure(&what, &command, dir, &reason);
+    let dump_path = dir.join(DUMP_FILE);
+    match std::fs::metadata(&dump_path) {
+        Err(_) => {
             return Err(fail(format!(
-                "{} has {} frames, {which} than the expected {expected} (n_steps {} / output_every {} + 1)",
-                dump_path.display(),
-                frames.len(),
-                case.n_steps,
-                case.output_every
+                "no dump file {} was written",
+                dump_path.display()
             )));
         }
-        for (k, fr) in frames.iter().enumerate() {
-            let step = k as u64 * case.output_every;
-            if fr.step != step {
-                return Err(fail(format!(
-                    "frame {k} of {} is step {}, expected step {step}",
-                    dump_path.display(),
-                    fr.step
-                )));
-            }
-            if fr.particles.len() != case.particles.len() {
-                return Err(fail(format!(
-                    "step {} of {} has {} particles, the case has {}",
-                    fr.step,
-                    dump_path.display(),
-                    fr.particles.len(),
-                    case.particles.len()
-                )));
-            }
+        Ok(m) if m.len() == 0 => {
+            return Err(fail(format!("dump file {} is empty", dump_path.display())));
         }
-
-        let version = tr.version(VERSION_PREFIX);
-        let mut notes = vec![format!("run directory: {}", dir.display())];
-        notes.extend(tr.warnings());
-        Ok(RunOutput {
-            frames,
-            provenance: Provenance {
-                engine: "liggghts".to_string(),
-                version,
-                command,
-                input_hash: sha256_hex(format!("{deck}{data}").as_bytes()),
-                date: now_utc(),
-                wall_time_s: fin.wall_time_s,
-                threads: self.mpi_procs.max(1),
-                case_file: case.source.display().to_string(),
-                notes,
-            },
-        })
+        Ok(_) => {}
     }
+    check_dump(case, &dump_path).map_err(|e| fail(format!("{e:#}")))?;
+
+    let version = tr.version(VERSION_PREFIX);
+    let mut notes = vec![format!("run directory: {}", dir.display())];
+    notes.extend(hardness_note(&case.materials));
+    notes.extend(tr.warnings());
+    Ok(Provenance {
+        engine: EngineKind::Liggghts,
+        version,
+        command,
+        input_hash: micro_input_hash(case)?,
+        date: now_utc(),
+        wall_time_s: fin.wall_time_s,
+        threads: lig.mpi_procs.max(1),
+        case_file: case.source.display().to_string(),
+        notes,
+    })
+}
+
+/// sha256 of what LIGGGHTS is given for a micro case (deck and data file): the
+/// fingerprint a recorded reference must match.
+pub fn micro_input_hash(case: &Case) -> Result<Sha256> {
+    let deck = write_deck(case, DUMP_FILE, DATA_FILE)?;
+    let data = write_data_file(case)?;
+    Ok(Sha256::of(format!("{deck}{data}").as_bytes()))
+}
+
+/// The frames of a finished micro run in `dir`, one at a time.
+pub fn micro_frames(case: &Case, dir: &Path) -> Result<DumpFrames> {
+    DumpFrames::open(&dir.join(DUMP_FILE), case.dt)
+}
+
+/// Every frame a complete run writes, at the expected steps, with every particle.
+fn check_dump(case: &Case, dump_path: &Path) -> Result<()> {
+    let expected = expected_frames(case);
+    let mut n = 0usize;
+    for fr in DumpFrames::open(dump_path, case.dt)? {
+        let fr = fr?;
+        let step = n as u64 * case.output_every;
+        if fr.step != step {
+            bail!(
+                "frame {n} of {} is step {}, expected step {step}",
+                dump_path.display(),
+                fr.step
+            );
+        }
+        if fr.particles.len() != case.particles.len() {
+            bail!(
+                "step {} of {} has {} particles, the case has {}",
+                fr.step,
+                dump_path.display(),
+                fr.particles.len(),
+                case.particles.len()
+            );
+        }
+        n += 1;
+    }
+    if n != expected {
+        let which = if n < expected { "fewer" } else { "more" };
+        bail!(
+            "{} has {n} frames, {which} than the expected {expected} (n_steps {} / output_every {} + 1)",
+            dump_path.display(),
+            case.n_steps,
+            case.output_every
+        );
+    }
+    Ok(())
 }

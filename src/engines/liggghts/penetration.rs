@@ -26,11 +26,16 @@
 //! Force sign convention: `f` is the force the grains exert on the intruder, in the global
 //! frame; pushing down into a bed gives `f[2] > 0` (the bed resists, pushing up).
 
-use super::deck::{f, join, model_keywords, write_contact_model};
-use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE, TRANSCRIPT, VERSION_PREFIX};
+use super::deck::{f, model_keywords, write_contact_model};
+pub use super::units::{
+    LIGGGHTS_MAX_E_CGS, LIGGGHTS_MAX_E_PA, LIGGGHTS_MIN_E_CGS, LIGGGHTS_MIN_E_PA, Units,
+    choose_units,
+};
+pub use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE};
+use super::{TRANSCRIPT, VERSION_PREFIX};
 use crate::case::{Material, PairTable, Particle, RollingModel};
 use crate::engines::process::{self, Transcript};
-use crate::rundata::provenance::{Provenance, now_utc, sha256_hex};
+use crate::rundata::provenance::{EngineKind, Provenance, Sha256, now_utc};
 use anyhow::{Context, Result, bail};
 use std::fmt::Write as _;
 use std::io::BufRead;
@@ -42,113 +47,6 @@ pub const DATA_FILE: &str = "data.bed";
 pub const STL_FILE: &str = "intruder.stl";
 pub const FORCE_FILE: &str = "force.txt";
 pub const README_FILE: &str = "README.md";
-
-/// LIGGGHTS' range check on `youngsModulus`, in Pa, identical in SI and cgs
-/// (5e6..1e9 Pa = 5e7..1e10 barye), measured on LIGGGHTS 3.8.0.
-pub const LIGGGHTS_MIN_E_PA: f64 = 5e6;
-pub const LIGGGHTS_MAX_E_PA: f64 = 1e9;
-/// The same limits as LIGGGHTS states them for `units cgs` (barye).
-pub const LIGGGHTS_MIN_E_CGS: f64 = 5e7;
-pub const LIGGGHTS_MAX_E_CGS: f64 = 1e10;
-
-/// Unit system of a deck. Inputs are always SI; this is what gets written.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Units {
-    Si,
-    Cgs,
-}
-
-impl Units {
-    pub fn keyword(self) -> &'static str {
-        match self {
-            Units::Si => "si",
-            Units::Cgs => "cgs",
-        }
-    }
-    /// SI -> deck factor for lengths (m -> cm).
-    pub fn length(self) -> f64 {
-        match self {
-            Units::Si => 1.0,
-            Units::Cgs => 100.0,
-        }
-    }
-    /// Velocities (m/s -> cm/s) and accelerations (m/s^2 -> cm/s^2): time is s in both.
-    pub fn velocity(self) -> f64 {
-        self.length()
-    }
-    /// Densities (kg/m^3 -> g/cm^3).
-    pub fn density(self) -> f64 {
-        match self {
-            Units::Si => 1.0,
-            Units::Cgs => 1e-3,
-        }
-    }
-    /// Pressures / Young's modulus (Pa -> barye = dyn/cm^2).
-    pub fn pressure(self) -> f64 {
-        match self {
-            Units::Si => 1.0,
-            Units::Cgs => 10.0,
-        }
-    }
-    /// Forces (N -> dyn).
-    pub fn force(self) -> f64 {
-        match self {
-            Units::Si => 1.0,
-            Units::Cgs => 1e5,
-        }
-    }
-    /// Mass (kg -> g).
-    pub fn mass(self) -> f64 {
-        match self {
-            Units::Si => 1.0,
-            Units::Cgs => 1e3,
-        }
-    }
-    fn names(self) -> &'static str {
-        match self {
-            Units::Si => "SI: s, m, N",
-            Units::Cgs => "cgs: s, cm, dyn",
-        }
-    }
-    /// Young's modulus range LIGGGHTS accepts in this unit system, in that system's units.
-    pub fn youngs_range(self) -> (f64, f64) {
-        match self {
-            Units::Si => (LIGGGHTS_MIN_E_PA, LIGGGHTS_MAX_E_PA),
-            Units::Cgs => (LIGGGHTS_MIN_E_CGS, LIGGGHTS_MAX_E_CGS),
-        }
-    }
-}
-
-/// Si when LIGGGHTS accepts every Young's modulus in SI, else Cgs when it accepts them in
-/// cgs, else an error naming the value. Measured on LIGGGHTS 3.8.0, both systems impose
-/// the same physical range (5e6..1e9 Pa), so in practice this returns Si or an error; a
-/// soft material (e.g. Table 2's G = 1 MPa, E = 2.6 MPa) needs `soft_particles = true`,
-/// which disables LIGGGHTS' check without changing the material.
-pub fn choose_units(materials: &[Material]) -> Result<Units> {
-    'units: for u in [Units::Si, Units::Cgs] {
-        let (lo, hi) = u.youngs_range();
-        for m in materials {
-            let e = m.youngs_modulus * u.pressure();
-            if !(e >= lo && e <= hi) {
-                continue 'units;
-            }
-        }
-        return Ok(u);
-    }
-    for (t, m) in materials.iter().enumerate() {
-        let e = m.youngs_modulus;
-        if !(LIGGGHTS_MIN_E_PA..=LIGGGHTS_MAX_E_PA).contains(&e) {
-            bail!(
-                "material type {} has youngs_modulus = {e:e} Pa: LIGGGHTS 3.8 accepts 5e6..1e9 Pa in SI units and \
-                 5e7..1e10 barye (the same 5e6..1e9 Pa) in cgs units, so no choice of units represents it; \
-                 granval does not change materials — set soft_particles (E below the range) or hard_particles \
-                 (above) on the deck to make LIGGGHTS skip its range check with the material unchanged",
-                t + 1
-            );
-        }
-    }
-    bail!("no materials given")
-}
 
 /// One penetration run. ALL inputs in SI; the intruder's axis is the container's (x = y = 0).
 #[derive(Debug, Clone)]
@@ -220,7 +118,7 @@ pub struct DeckFiles {
     /// Azimuthal segments of the intruder STL (4n facets).
     pub stl_segments: usize,
     /// SHA-256 of deck + data file + STL text.
-    pub input_hash: String,
+    pub input_hash: Sha256,
 }
 
 /// One line of `force.txt`, converted to SI.
@@ -416,46 +314,16 @@ pub fn validate(d: &PenetrationDeck) -> Result<()> {
 pub fn data_text(d: &PenetrationDeck) -> Result<String> {
     validate(d)?;
     let u = d.units;
-    let (l, v, rho) = (u.length(), u.velocity(), u.density());
-    let mut s = String::new();
-    writeln!(
-        s,
-        "LIGGGHTS data file written by granval: penetration bed ({} units)",
-        u.keyword()
-    )?;
-    writeln!(s)?;
-    writeln!(s, "{} atoms", d.particles.len())?;
-    writeln!(s, "{} atom types", d.materials.len())?;
-    writeln!(s)?;
-    for (k, ax) in ["x", "y", "z"].iter().enumerate() {
-        writeln!(
-            s,
-            "{} {} {ax}lo {ax}hi",
-            f(d.domain_lo[k] * l),
-            f(d.domain_hi[k] * l)
-        )?;
-    }
-    writeln!(s)?;
-    writeln!(s, "Atoms")?;
-    writeln!(s)?;
-    for p in &d.particles {
-        writeln!(
-            s,
-            "{} {} {} {} {}",
-            p.id,
-            p.type_ + 1,
-            f(2.0 * p.radius * l),
-            f(p.density * rho),
-            join(p.x.map(|x| x * l))
-        )?;
-    }
-    writeln!(s)?;
-    writeln!(s, "Velocities")?;
-    writeln!(s)?;
-    for p in &d.particles {
-        writeln!(s, "{} {} {}", p.id, join(p.v.map(|x| x * v)), join(p.omega))?;
-    }
-    Ok(s)
+    Ok(super::deck::data_text(
+        &format!("penetration bed ({} units)", u.keyword()),
+        &d.particles,
+        d.materials.len(),
+        d.domain_lo,
+        d.domain_hi,
+        u.length(),
+        u.velocity(),
+        u.density(),
+    ))
 }
 
 /// Thermo output interval: about 1 % of the run, so a progress bar can follow the log.
@@ -511,20 +379,7 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
     // The bed fills the lower part of a tall box: LIGGGHTS' default grid splits z
     // first and leaves the grains on one rank, so only x and y are decomposed.
     writeln!(s, "processors * * 1")?;
-    if d.soft_particles {
-        writeln!(
-            s,
-            "# disables LIGGGHTS' youngsModulus >= 5e6 Pa range check; materials are unchanged"
-        )?;
-        writeln!(s, "soft_particles yes")?;
-    }
-    if d.hard_particles {
-        writeln!(
-            s,
-            "# disables LIGGGHTS' youngsModulus <= 1e9 Pa range check; materials are unchanged"
-        )?;
-        writeln!(s, "hard_particles yes")?;
-    }
+    super::deck::write_hardness(&mut s, d.soft_particles, d.hard_particles)?;
     writeln!(
         s,
         "read_data {}",
@@ -767,7 +622,7 @@ pub fn write_deck_dir_with_snapshots(
         stl: dir.join(STL_FILE),
         readme: dir.join(README_FILE),
         stl_segments: segments,
-        input_hash: sha256_hex(format!("{deck}{data}{stl}").as_bytes()),
+        input_hash: Sha256::of(format!("{deck}{data}{stl}").as_bytes()),
     };
     for (p, text) in [
         (&files.deck, &deck),
@@ -964,7 +819,28 @@ pub fn run_existing(
     Ok((out, prov))
 }
 
-fn input_hash(dir: &Path) -> String {
+/// sha256 of what LIGGGHTS is given for `d` without snapshot dumps (deck, data file,
+/// STL): the fingerprint of a penetration bed's reference run. Equal to the
+/// `input_hash` of [`write_deck_dir`].
+pub fn input_hash_of(d: &PenetrationDeck) -> Result<Sha256> {
+    let deck = deck_text(d)?;
+    let data = data_text(d)?;
+    let l = d.units.length();
+    let z_stl = if d.settle.is_some() {
+        0.0
+    } else {
+        d.intruder_bottom_z0 * l
+    };
+    let (stl, _) = super::stl::flat_cylinder_stl(
+        d.intruder_radius * l,
+        d.intruder_length * l,
+        [0.0, 0.0, z_stl],
+        d.rim_error_frac,
+    );
+    Ok(Sha256::of(format!("{deck}{data}{stl}").as_bytes()))
+}
+
+fn input_hash(dir: &Path) -> Sha256 {
     let mut inputs = Vec::new();
     for name in [DECK_FILE, DATA_FILE, LATTICE_FILE, STL_FILE] {
         // A missing input is left for LIGGGHTS to report (its error is the useful one).
@@ -972,7 +848,7 @@ fn input_hash(dir: &Path) -> String {
             inputs.extend_from_slice(&b);
         }
     }
-    sha256_hex(&inputs)
+    Sha256::of(&inputs)
 }
 
 /// Follows LIGGGHTS' log while it grows: the step of the newest thermo line.
@@ -1164,7 +1040,7 @@ pub fn read_outputs(
         })
         .unwrap_or(1);
     Ok(Provenance {
-        engine: "liggghts".to_string(),
+        engine: EngineKind::Liggghts,
         version,
         command: format!("run outside granval (log says {procs} procs)"),
         input_hash: input_hash(dir),

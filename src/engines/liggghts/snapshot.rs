@@ -1,4 +1,4 @@
-//! Contact snapshots from LIGGGHTS 3.8 (issue 4): the deck block that dumps every
+//! Contact snapshots from LIGGGHTS 3.8 (stress fields, Feng et al. eqs 6-9): the deck block that dumps every
 //! grain-grain and grain-mesh contact (`compute pair/gran/local`, `compute
 //! wall/gran/local`, `dump local`) and the grains (`dump custom`) at chosen steps, and a
 //! streaming reader of those dumps that holds one snapshot in memory at a time.
@@ -15,7 +15,7 @@
 //!   the variable returns (it must return a step after the current one);
 //! - `%.17g` formats round-trip an f64.
 
-use super::penetration::Units;
+use super::units::Units;
 use crate::rundata::snapshot::{Contact, ContactKind, Grain};
 use anyhow::{Context, Result, bail};
 use std::collections::HashSet;

@@ -1,4 +1,4 @@
-//! Enumeration of the contacts, for contact snapshots (stress fields, issue 4).
+//! Enumeration of the contacts, for contact snapshots (stress fields, Feng et al. eqs 6-9).
 //!
 //! Two readings of "the contact force at step n" exist, and they differ for sliding
 //! contacts:
@@ -160,6 +160,7 @@ impl Simulation {
 }
 
 #[cfg(test)]
+#[allow(clippy::items_after_test_module)] // the snapshot writer below came later
 mod tests {
     use super::*;
     use crate::case::Case;

@@ -101,6 +101,7 @@ pub fn container_case(case: &PenetrationCase, particles: Vec<Particle>, top: f64
             position_frac_radius: 1e-6,
         },
         rayleigh_time: case.rayleigh_time,
+        negative_controls: vec![],
     }
 }
 

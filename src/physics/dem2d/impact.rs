@@ -195,13 +195,14 @@ pub fn run_native(
     n_steps: u64,
     output_every: u64,
     energy_every: u64,
-    model: &crate::analysis::impact::EnergyModel,
+    model: &super::energy::EnergyModel,
     mut progress: impl FnMut(u64),
 ) -> Result<(
-    Vec<crate::analysis::impact::IntruderSample>,
-    Vec<crate::analysis::impact::EnergySample>,
+    Vec<crate::rundata::impact::IntruderSample>,
+    Vec<crate::rundata::impact::EnergySample>,
 )> {
-    use crate::analysis::impact::{IntruderSample, SnapDisk, energies};
+    use super::energy::{SnapDisk, energies};
+    use crate::rundata::impact::IntruderSample;
     let mut sys = scene.sys.clone();
     sys.setup();
     let mut samples = Vec::new();
@@ -249,4 +250,18 @@ pub fn intruder_cm(sys: &System) -> ([f64; 2], [f64; 2]) {
     }
     let k = sys.intruder[0];
     (sys.disks[k].x, sys.disks[k].v)
+}
+
+/// The scene made wrong on purpose for a negative control (the reference engine always
+/// gets the untouched scene): friction model swapped (k_t = 0.8 k_n <-> 0) and/or
+/// friction coefficients scaled.
+pub fn perturbed(scene: &Scene, pert: &crate::case::Perturbation) -> Scene {
+    let mut s = scene.clone();
+    for c in &mut s.sys.coeffs {
+        if pert.swap_friction_model {
+            c.kt = if c.kt > 0.0 { 0.0 } else { 0.8 * c.kn };
+        }
+        c.mu *= pert.friction_factor;
+    }
+    s
 }

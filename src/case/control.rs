@@ -1,0 +1,215 @@
+//! Negative controls as case files declare them: a deliberately wrong native run and
+//! the gates it must make fail. A gate that no wrong physics can fail proves nothing, so
+//! every kind of gated check has a control somewhere in the suites.
+//!
+//! ```toml
+//! [[negative_control]]
+//! name = "mu_gg = 0.3 instead of Table 2's 0.5"
+//! must_fail = ["k_phi"]
+//! perturbation = { pair_friction = { types = [1, 1], value = 0.3 } }
+//! ```
+
+use super::error::{CaseError, Ctx};
+use serde::{Deserialize, Serialize};
+
+/// What a check gates, as a stable identifier: case files name gates in their negative
+/// controls and CI scripts may select on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Gate {
+    /// Micro trajectories: positions, velocities, angular velocities.
+    Position,
+    Velocity,
+    AngularVelocity,
+    /// Penetration: steady-state slope, curve distance, regime boundaries, speed.
+    KPhi,
+    FdrDistance,
+    RegimeBoundaries,
+    QuasiStatic,
+    /// A run against a published number (e.g. Feng et al. Table 3).
+    Published,
+    /// Impact: final depth and D(t) distance native vs reference, a paper's claim.
+    FinalDepth,
+    DepthSeries,
+    Claim,
+    /// Stress fields: phi native vs reference, (phi, K_phi) against MALT, unified fit.
+    Phi,
+    MaltK,
+    MaltPhi,
+    UnifiedFit,
+    /// A negative control: passes only when the wrong physics made its gates fail.
+    NegativeControl,
+    /// Did the comparison see enough dynamics to mean anything (frames, contacts,
+    /// points in a fitted range)?
+    Coverage,
+    /// A stage failed to produce a result (engine crash, bad reference, I/O).
+    Run,
+}
+
+impl Gate {
+    pub fn key(self) -> String {
+        serde_json::to_value(self)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default()
+    }
+}
+
+/// Deliberately wrong physics for the native engine. The default is the case as
+/// written.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Perturbation {
+    /// Every sliding friction coefficient multiplied by this.
+    pub friction_factor: f64,
+    /// Added to every restitution coefficient (capped at 1).
+    pub restitution_shift: f64,
+    /// Added to every Poisson ratio.
+    pub poisson_shift: f64,
+    /// Replaces the sliding friction of one type pair (0-based types), e.g. mu_gg.
+    pub pair_friction: Option<(usize, usize, f64)>,
+    /// 2D: static <-> kinetic friction model (k_t = 0.8 k_n <-> 0) in every contact.
+    pub swap_friction_model: bool,
+}
+
+impl Default for Perturbation {
+    fn default() -> Self {
+        Perturbation {
+            friction_factor: 1.0,
+            restitution_shift: 0.0,
+            poisson_shift: 0.0,
+            pair_friction: None,
+            swap_friction_model: false,
+        }
+    }
+}
+
+impl Perturbation {
+    pub fn is_none(&self) -> bool {
+        *self == Perturbation::default()
+    }
+}
+
+/// One control of a case.
+#[derive(Debug, Clone, Serialize)]
+pub struct NegativeControl {
+    pub name: String,
+    pub perturbation: Perturbation,
+    pub must_fail: Vec<Gate>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawControl {
+    name: String,
+    must_fail: Vec<Gate>,
+    perturbation: RawPerturbation,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPerturbation {
+    friction_factor: Option<f64>,
+    restitution_shift: Option<f64>,
+    poisson_shift: Option<f64>,
+    pair_friction: Option<RawPairFriction>,
+    #[serde(default)]
+    swap_friction_model: bool,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPairFriction {
+    types: [usize; 2],
+    value: f64,
+}
+
+/// Validates the `[[negative_control]]` tables of a case with `n_types` atom types;
+/// `gates` are the gates this case kind produces.
+pub(crate) fn controls(
+    ctx: &Ctx,
+    raw: &[RawControl],
+    n_types: usize,
+    gates: &[Gate],
+) -> Result<Vec<NegativeControl>, CaseError> {
+    let mut out = Vec::with_capacity(raw.len());
+    for (k, c) in raw.iter().enumerate() {
+        let f = |n: &str| format!("negative_control[{k}].{n}");
+        if c.name.trim().is_empty() {
+            return Err(ctx.bad(f("name"), &c.name, "must not be empty"));
+        }
+        if c.must_fail.is_empty() {
+            return Err(ctx.bad(
+                f("must_fail"),
+                "[]",
+                "name at least one gate the control must fail",
+            ));
+        }
+        for g in &c.must_fail {
+            if !gates.contains(g) {
+                return Err(ctx.bad(
+                    f("must_fail"),
+                    g.key(),
+                    format!(
+                        "this case kind has no such gate; its gates: {}",
+                        gates.iter().map(|g| g.key()).collect::<Vec<_>>().join(", ")
+                    ),
+                ));
+            }
+        }
+        let p = &c.perturbation;
+        let mut pert = Perturbation::default();
+        let finite = |n: &str, v: f64| -> Result<f64, CaseError> {
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(ctx.bad(
+                    f(&format!("perturbation.{n}")),
+                    v,
+                    "must be a finite number",
+                ))
+            }
+        };
+        if let Some(v) = p.friction_factor {
+            let v = finite("friction_factor", v)?;
+            if v < 0.0 {
+                return Err(ctx.bad(f("perturbation.friction_factor"), v, "must be >= 0"));
+            }
+            pert.friction_factor = v;
+        }
+        if let Some(v) = p.restitution_shift {
+            pert.restitution_shift = finite("restitution_shift", v)?;
+        }
+        if let Some(v) = p.poisson_shift {
+            pert.poisson_shift = finite("poisson_shift", v)?;
+        }
+        if let Some(pf) = &p.pair_friction {
+            let [a, b] = pf.types;
+            if a < 1 || b < 1 || a > n_types || b > n_types {
+                return Err(ctx.bad(
+                    f("perturbation.pair_friction.types"),
+                    pf.types,
+                    format!("types must be in 1..={n_types}"),
+                ));
+            }
+            let v = finite("pair_friction.value", pf.value)?;
+            if v < 0.0 {
+                return Err(ctx.bad(f("perturbation.pair_friction.value"), v, "must be >= 0"));
+            }
+            pert.pair_friction = Some((a - 1, b - 1, v));
+        }
+        pert.swap_friction_model = p.swap_friction_model;
+        if pert.is_none() {
+            return Err(ctx.bad(
+                f("perturbation"),
+                "{}",
+                "changes nothing: a control must perturb the physics",
+            ));
+        }
+        out.push(NegativeControl {
+            name: c.name.clone(),
+            perturbation: pert,
+            must_fail: c.must_fail.clone(),
+        });
+    }
+    Ok(out)
+}

@@ -1,0 +1,116 @@
+//! Coverage before verdict: a comparison must show that it compared the dynamics, or
+//! its gates are NOT COMPARED (and the run exits 2). Two engines that agree on a run in
+//! which nothing happened have shown nothing.
+//!
+//! Rules (fixed here, each with a test that fails without it):
+//! - micro: at least [`MIN_FRAMES_AFTER_START`] output frames after step 0, and either a
+//!   frame with a contact force (some |f_i - m_i g| above [`CONTACT_FORCE_FRAC`] of the
+//!   case's force scale m max(|g|, V^2 / r_min)) or, for a contact-free case, measurable
+//!   motion (some grain displaced by at least [`MIN_MOTION_FRAC`] of r_min);
+//! - fitted ranges (penetration, impact): at least [`MIN_FIT_POINTS`] points in every
+//!   fitted range ([`fit_points`]).
+
+use super::{Check, Gate};
+use crate::case::Case;
+use crate::numerics::vec3::{norm, scale, sub};
+use crate::rundata::frames::Frame;
+
+pub const MIN_FRAMES_AFTER_START: usize = 10;
+pub const CONTACT_FORCE_FRAC: f64 = 1e-6;
+pub const MIN_MOTION_FRAC: f64 = 0.01;
+pub const MIN_FIT_POINTS: usize = 10;
+
+/// What the reference frames of a micro case covered.
+pub struct MicroCoverage<'a> {
+    case: &'a Case,
+    frames: usize,
+    contact_frames: usize,
+    first_x: Vec<[f64; 3]>,
+    max_displacement: f64,
+    max_speed: f64,
+    max_residual: f64,
+    mass_by_id: std::collections::HashMap<u64, f64>,
+}
+
+impl<'a> MicroCoverage<'a> {
+    pub fn new(case: &'a Case) -> MicroCoverage<'a> {
+        MicroCoverage {
+            case,
+            frames: 0,
+            contact_frames: 0,
+            first_x: Vec::new(),
+            max_displacement: 0.0,
+            max_speed: 0.0,
+            max_residual: 0.0,
+            mass_by_id: case.particles.iter().map(|p| (p.id, p.mass())).collect(),
+        }
+    }
+
+    /// Adds one reference frame (particles sorted by id, as every reader returns them).
+    /// NaN residuals (an unknown id) never count as contact.
+    pub fn push(&mut self, f: &Frame) {
+        if self.frames == 0 {
+            self.first_x = f.particles.iter().map(|p| p.x).collect();
+        }
+        self.frames += 1;
+        let mut residual: f64 = 0.0;
+        for (k, p) in f.particles.iter().enumerate() {
+            let m = self.mass_by_id.get(&p.id).copied().unwrap_or(f64::NAN);
+            // Contact acceleration: the force beyond gravity, per unit mass.
+            residual = residual.max(norm(sub(p.f, scale(self.case.gravity, m))) / m);
+            self.max_speed = self.max_speed.max(norm(p.v));
+            if let Some(x0) = self.first_x.get(k) {
+                self.max_displacement = self.max_displacement.max(norm(sub(p.x, *x0)));
+            }
+        }
+        self.max_residual = self.max_residual.max(residual);
+        self.contact_frames += usize::from(self.residual_is_contact(residual));
+    }
+
+    /// Acceleration scale of the case: max(|g|, V^2 / r_min), V the largest speed seen.
+    fn accel_scale(&self) -> f64 {
+        norm(self.case.gravity).max(self.max_speed * self.max_speed / self.case.min_radius())
+    }
+
+    fn residual_is_contact(&self, residual: f64) -> bool {
+        let a = self.accel_scale();
+        a > 0.0 && residual > CONTACT_FORCE_FRAC * a
+    }
+
+    pub fn check(&self, name: &str) -> Check {
+        let after_start = self.frames.saturating_sub(1);
+        let r_min = self.case.min_radius();
+        let moved = self.max_displacement >= MIN_MOTION_FRAC * r_min;
+        let detail = format!(
+            "{after_start} frames after step 0 (need >= {MIN_FRAMES_AFTER_START}); {} with a contact force; largest displacement {:.3e} r_min (need a contact or >= {MIN_MOTION_FRAC})",
+            self.contact_frames,
+            self.max_displacement / r_min
+        );
+        let ok = after_start >= MIN_FRAMES_AFTER_START && (self.contact_frames > 0 || moved);
+        if ok {
+            Check::at_least(
+                name,
+                Gate::Coverage,
+                "output frames after step 0",
+                after_start as f64,
+                MIN_FRAMES_AFTER_START as f64,
+                detail,
+            )
+        } else {
+            Check::not_compared(name, Gate::Coverage, detail)
+        }
+    }
+}
+
+/// Coverage of one fitted range: `n` points where at least [`MIN_FIT_POINTS`] are needed.
+pub fn fit_points(name: &str, what: &str, n: usize) -> Option<Check> {
+    (n < MIN_FIT_POINTS).then(|| {
+        Check::not_compared(
+            name,
+            Gate::Coverage,
+            format!(
+                "{what}: {n} points, fewer than the {MIN_FIT_POINTS} a fit needs to mean anything"
+            ),
+        )
+    })
+}

@@ -1,0 +1,493 @@
+//! The 2D impact experiment (Kondic et al.): beds prepared natively, one unit per sweep
+//! variant (a scene: the bed, the walls and the intruder with its speed), each run
+//! natively and in LAMMPS from the same scene; final depth and D(t) per variant, the
+//! paper's claim over the sweep in each engine.
+
+use super::reference::Verified;
+use super::{Estimate, Experiment, Options, Role, Run, Verdict};
+use crate::analysis::impact as obs;
+use crate::case::NegativeControl;
+use crate::case::impact2d::{Impact2dCase, Packing, Variant};
+use crate::compare::Check;
+use crate::compare::impact2d::{self as cmp, VariantObs};
+use crate::engines::lammps::{self, Lammps};
+use crate::physics::dem2d::bed::{self, Bed};
+use crate::physics::dem2d::energy::EnergyModel;
+use crate::physics::dem2d::impact::{self as scene_mod, Scene};
+use crate::rundata::impact::{
+    EnergySample, IntruderSample, read_energy_csv, read_intruder_csv, write_energy_csv,
+    write_intruder_csv,
+};
+use crate::rundata::provenance::{
+    EngineKind, Provenance, Sha256, now_utc, read_provenance, write_provenance,
+};
+use anyhow::{Context, Result};
+use std::path::{Path, PathBuf};
+
+pub struct Impact2d {
+    pub case: Impact2dCase,
+}
+
+/// One variant and the scene both engines start from.
+pub struct Unit {
+    pub variant: Variant,
+    pub scene: Scene,
+    /// How its bed was prepared (for the report).
+    pub bed_note: String,
+}
+
+/// The series of one run.
+pub struct ImpactRun {
+    pub samples: Vec<IntruderSample>,
+    pub energy: Vec<EnergySample>,
+    pub provenance: Provenance,
+}
+
+impl Run for ImpactRun {
+    fn provenance(&self) -> &Provenance {
+        &self.provenance
+    }
+}
+
+const PROVENANCE_FILE: &str = "provenance.json";
+const INTRUDER_CSV: &str = "intruder.csv";
+const ENERGY_CSV: &str = "energy.csv";
+
+fn write_series(dir: &Path, run: &ImpactRun, scene: &Scene) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    write_intruder_csv(
+        &dir.join(INTRUDER_CSV),
+        &run.samples,
+        scene.surface,
+        scene.bottom_offset,
+    )?;
+    write_energy_csv(&dir.join(ENERGY_CSV), &run.energy)?;
+    write_provenance(&dir.join(PROVENANCE_FILE), &run.provenance)
+}
+
+impl Experiment for Impact2d {
+    type Unit = Unit;
+    type NativeRun = ImpactRun;
+    type RefRun = ImpactRun;
+
+    fn name(&self) -> &str {
+        &self.case.name
+    }
+    fn kind(&self) -> &'static str {
+        "impact2d"
+    }
+    fn source(&self) -> &Path {
+        &self.case.source
+    }
+    fn reference_engine(&self) -> EngineKind {
+        EngineKind::Lammps
+    }
+    fn canonical_hash(&self) -> Sha256 {
+        self.case.canonical_hash()
+    }
+    fn negative_controls(&self) -> &[NegativeControl] {
+        &self.case.negative_controls
+    }
+
+    fn estimate(&self) -> Estimate {
+        let c = &self.case;
+        let n = c.count as f64 + c.length / (c.wall_d.max(1e-300) / c.scales.d) * 3.0;
+        let runs = (c.variants.len() * (1 + c.negative_controls.len())) as f64;
+        let steps = c.n_steps as f64;
+        Estimate {
+            particle_steps: n * steps * runs,
+            particles: n,
+            output_bytes: runs
+                * 200.0
+                * (steps / c.output_every as f64 + steps / c.energy_every as f64),
+            memory_bytes: 2e3 * n + 1e8,
+        }
+    }
+
+    fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
+        let beds = prepare_beds(&self.case, opts.progress)?;
+        self.case
+            .variants
+            .iter()
+            .map(|v| {
+                Ok(Unit {
+                    variant: v.clone(),
+                    scene: scene_mod::build(&self.case, v, beds.get(v.packing))?,
+                    bed_note: bed_note(&self.case, v.packing, beds.get(v.packing)),
+                })
+            })
+            .collect()
+    }
+
+    fn unit_name(&self, u: &Unit) -> String {
+        label_dir(&u.variant)
+    }
+
+    fn fingerprint(&self, u: &Unit) -> Result<Sha256> {
+        Ok(scene_hash(&u.scene))
+    }
+
+    fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<ImpactRun> {
+        let c = &self.case;
+        let bar = crate::report::progress::bar(opts.progress, c.n_steps, "native");
+        let (samples, energy, provenance) = crate::engines::native::impact2d(
+            &u.scene,
+            c.n_steps,
+            c.output_every,
+            c.energy_every,
+            &energy_model(&u.scene),
+            scene_hash(&u.scene),
+            &c.source,
+            &role.perturbation(),
+            |s| bar.set_position(s),
+        )?;
+        bar.finish_and_clear();
+        let run = ImpactRun {
+            samples,
+            energy,
+            provenance,
+        };
+        write_series(dir, &run, &u.scene)?;
+        Ok(run)
+    }
+
+    fn write_deck(&self, u: &Unit, dir: &Path, _opts: &Options) -> Result<()> {
+        let c = &self.case;
+        lammps::write_inputs(
+            &u.scene.sys,
+            &lammps::deck::Outputs {
+                n_steps: c.n_steps,
+                intruder_every: c.output_every,
+                snapshot_every: c.energy_every,
+            },
+            dir,
+        )
+    }
+
+    fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<ImpactRun> {
+        let c = &self.case;
+        let lmp = Lammps {
+            mpi_procs: opts.mpi_procs,
+            ..Lammps::default()
+        };
+        let r = lammps::impact::run(
+            &lmp,
+            &u.scene,
+            c.n_steps,
+            c.output_every,
+            c.energy_every,
+            &energy_model(&u.scene),
+            dir,
+        )?;
+        let mut notes = vec![format!("scene sha256 {}", scene_hash(&u.scene))];
+        notes.extend(r.finished.warnings.iter().cloned());
+        let run = ImpactRun {
+            samples: r.samples,
+            energy: r.energy,
+            provenance: Provenance {
+                engine: EngineKind::Lammps,
+                version: r.finished.version.clone(),
+                command: r.finished.command.clone(),
+                input_hash: r.finished.input_hash.clone(),
+                date: now_utc(),
+                wall_time_s: r.finished.wall_time_s,
+                threads: opts.mpi_procs.max(1),
+                case_file: c.source.display().to_string(),
+                notes,
+            },
+        };
+        write_series(dir, &run, &u.scene)?;
+        Ok(run)
+    }
+
+    fn record(&self, u: &Unit, run: &ImpactRun, run_dir: &Path, rec: &Path) -> Result<()> {
+        std::fs::create_dir_all(rec).with_context(|| format!("cannot create {}", rec.display()))?;
+        for f in [lammps::DECK_FILE, lammps::DATA_FILE, lammps::LOG_FILE] {
+            std::fs::copy(run_dir.join(f), rec.join(f))
+                .with_context(|| format!("copying {f} to {}", rec.display()))?;
+        }
+        write_series(rec, run, &u.scene)
+    }
+
+    fn read_record(&self, _u: &Unit, name: &str, seal: &Verified) -> Result<ImpactRun> {
+        Ok(ImpactRun {
+            samples: read_intruder_csv(&seal.file(name, INTRUDER_CSV)?)?,
+            energy: read_energy_csv(&seal.file(name, ENERGY_CSV)?)?,
+            provenance: read_provenance(&seal.file(name, PROVENANCE_FILE)?)?,
+        })
+    }
+
+    fn drift(&self, previous: &ImpactRun, now: &ImpactRun) -> String {
+        let last = |r: &ImpactRun| r.samples.last().map(|s| s.x[1]).unwrap_or(f64::NAN);
+        format!(
+            "final intruder height {:+.2e} d",
+            (last(now) - last(previous)) / self.case.scales.d
+        )
+    }
+
+    fn checks(
+        &self,
+        units: &[Unit],
+        native: &[ImpactRun],
+        reference: &[ImpactRun],
+        out: &Path,
+        _opts: &Options,
+    ) -> Verdict {
+        let case = &self.case;
+        let (tau, d) = (case.scales.tau_c, case.scales.d);
+        let mut checks = Vec::new();
+        let mut notes: Vec<String> = Vec::new();
+        for u in units {
+            if !notes.contains(&u.bed_note) {
+                notes.push(u.bed_note.clone());
+            }
+        }
+        let (mut native_obs, mut ref_obs) = (Vec::new(), Vec::new());
+        let mut series_svg: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        let mut complete = true;
+        for ((u, a), b) in units.iter().zip(native).zip(reference) {
+            let v = &u.variant;
+            match (observe(case, v, &u.scene, a), observe(case, v, &u.scene, b)) {
+                (Ok((oa, sa)), Ok((ob, sb))) => {
+                    let rms = obs::rms_distance(&sa, &sb)
+                        .map(|r| r / d)
+                        .map_err(|e| format!("{e:#}"));
+                    checks.extend(cmp::cross_check(case, &oa, &ob, rms, "lammps"));
+                    let scaled = |s: &[(f64, f64)]| {
+                        s.iter().map(|p| (p.0 / tau, p.1 / d)).collect::<Vec<_>>()
+                    };
+                    series_svg.push((format!("native {}", v.label), scaled(&sa)));
+                    series_svg.push((format!("LAMMPS {}", v.label), scaled(&sb)));
+                    native_obs.push(oa);
+                    ref_obs.push(ob);
+                }
+                (a, b) => {
+                    complete = false;
+                    checks.push(Check::error(
+                        format!("{} [{}]: observables", case.name, v.label),
+                        format!(
+                            "native: {:?}; lammps: {:?}",
+                            a.err().map(|e| format!("{e:#}")),
+                            b.err().map(|e| format!("{e:#}"))
+                        ),
+                    ));
+                }
+            }
+        }
+        if complete {
+            checks.extend(cmp::claim_check(case, "native", &native_obs));
+            checks.extend(cmp::claim_check(case, "lammps", &ref_obs));
+            let refs: Vec<(&str, &[(f64, f64)])> = series_svg
+                .iter()
+                .map(|(l, s)| (l.as_str(), s.as_slice()))
+                .collect();
+            if let Err(e) = crate::report::svg_impact::depth_overlay(
+                &out.join("depth.svg"),
+                &refs,
+                &format!("{}: D(t), native vs LAMMPS", case.name),
+            ) {
+                notes.push(format!("SVG not written: {e:#}"));
+            }
+            if let Err(e) = std::fs::write(
+                out.join("final_depths.json"),
+                serde_json::to_string_pretty(
+                    &serde_json::json!({"native": native_obs, "lammps": ref_obs}),
+                )
+                .unwrap_or_default(),
+            ) {
+                notes.push(format!("final_depths.json not written: {e}"));
+            }
+        }
+        Verdict { checks, notes }
+    }
+}
+
+/// The beds a case needs, one per packing, in first-use order.
+pub struct Beds {
+    pub beds: Vec<(Packing, Bed)>,
+}
+
+impl Beds {
+    pub fn get(&self, p: Packing) -> &Bed {
+        &self
+            .beds
+            .iter()
+            .find(|b| b.0 == p)
+            .expect("bed prepared for every packing")
+            .1
+    }
+}
+
+pub fn bed_note(case: &Impact2dCase, p: Packing, b: &Bed) -> String {
+    let s = &case.scales;
+    format!(
+        "{} bed ({:?}): {} grains ({} removed by smoothing), settled in {:.0} tau_c to total KE {:.2e} m g d, packing fraction {:.3}, surface at {:.2} d above the floor",
+        case.name,
+        p,
+        b.grains.len(),
+        b.removed,
+        b.settle_time / s.tau_c,
+        b.final_ke / (s.m * s.g0 * s.d),
+        b.packing_fraction,
+        (b.surface_at(0.5 * case.length, case.length) - b.floor) / s.d
+    )
+}
+
+/// Beds already prepared in this process, by sha256 of their specification:
+/// preparation is deterministic, so cases sharing a bed (a test binary running the
+/// CI cases) settle it once.
+type BedSlot = std::sync::Arc<std::sync::Mutex<Option<Bed>>>;
+static BED_MEMO: std::sync::Mutex<std::collections::BTreeMap<String, BedSlot>> =
+    std::sync::Mutex::new(std::collections::BTreeMap::new());
+
+/// Opt-in cache of prepared beds (settling a 6000-disk bed to 1e-10 m g d takes
+/// minutes): only when `GRANVAL_BED_CACHE=DIR` is set, one JSON file per bed
+/// specification (sha256 of the spec and the crate version). Preparation is
+/// deterministic, so a hit is the bed that would be prepared; tests never set it.
+fn cache_file(spec: &bed::BedSpec) -> Option<PathBuf> {
+    let dir = std::env::var_os("GRANVAL_BED_CACHE")?;
+    let key = Sha256::of(
+        format!(
+            "{} {}",
+            env!("CARGO_PKG_VERSION"),
+            serde_json::to_string(spec).ok()?
+        )
+        .as_bytes(),
+    );
+    Some(PathBuf::from(dir).join(format!("impact2d-bed-{key}.json")))
+}
+
+pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
+    let mut beds: Vec<(Packing, Bed)> = Vec::new();
+    for v in &case.variants {
+        if beds.iter().any(|b| b.0 == v.packing) {
+            continue;
+        }
+        let spec = scene_mod::bed_spec(case, v.packing);
+        let key =
+            Sha256::of(serde_json::to_string(&spec).unwrap_or_default().as_bytes()).to_string();
+        let slot = {
+            let mut memo = BED_MEMO.lock().unwrap_or_else(|p| p.into_inner());
+            memo.entry(key).or_default().clone()
+        };
+        // Held while preparing, so a second case needing this bed waits for it.
+        let mut slot = slot.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(b) = slot.as_ref() {
+            beds.push((v.packing, b.clone()));
+            continue;
+        }
+        let cache = cache_file(&spec);
+        let cached = cache
+            .as_ref()
+            .and_then(|p| std::fs::read(p).ok())
+            .and_then(|t| serde_json::from_slice::<Bed>(&t).ok());
+        let b = match cached {
+            Some(b) => b,
+            None => {
+                let bar = crate::report::progress::bar(progress, 1, "settle");
+                let scale = case.scales.m * case.scales.g0 * case.scales.d;
+                let tau = case.scales.tau_c;
+                let b = bed::prepare(&spec, |t, ke| {
+                    bar.set_message(format!(
+                        "t = {:.0} tau_c, KE = {:.1e} m g d",
+                        t / tau,
+                        ke / scale
+                    ))
+                })
+                .with_context(|| {
+                    format!(
+                        "{}: preparing the {:?} bed",
+                        case.source.display(),
+                        v.packing
+                    )
+                })?;
+                bar.finish_and_clear();
+                if let Some(path) = &cache {
+                    let _ = std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")));
+                    let _ = std::fs::write(path, serde_json::to_vec(&b).unwrap_or_default());
+                }
+                b
+            }
+        };
+        *slot = Some(b.clone());
+        beds.push((v.packing, b));
+    }
+    Ok(Beds { beds })
+}
+
+/// Energies: walls frozen; wall-wall and (cluster) intruder-intruder pairs excluded.
+pub fn energy_model(scene: &Scene) -> EnergyModel {
+    let n = scene.sys.n_types;
+    let cluster = scene.sys.cluster.is_some();
+    let mut kn = Vec::with_capacity(n * n);
+    for a in 0..n {
+        for b in 0..n {
+            let off = (a == 1 && b == 1) || (cluster && a == 2 && b == 2);
+            kn.push((!off).then_some(scene.sys.coeffs[a * n + b].kn));
+        }
+    }
+    EnergyModel {
+        n_types: n,
+        kn,
+        frozen_type: vec![false, true, false],
+        gravity: scene.sys.gravity,
+        bx: scene.sys.bx,
+    }
+}
+
+/// The scene's fingerprint: sha256 of its LAMMPS data file (every disk, mass,
+/// position and velocity, full precision) and coefficients.
+pub fn scene_hash(scene: &Scene) -> Sha256 {
+    let mut text = lammps::deck::write_data(&scene.sys);
+    for c in &scene.sys.coeffs {
+        text += &format!("{c:?}\n");
+    }
+    text += &format!("g {:e} dt {:e}\n", scene.sys.gravity, scene.sys.dt);
+    Sha256::of(text.as_bytes())
+}
+
+/// Final and maximum depth (in d) of one run.
+pub fn observe(
+    case: &Impact2dCase,
+    v: &Variant,
+    scene: &Scene,
+    run: &ImpactRun,
+) -> Result<(VariantObs, Vec<(f64, f64)>)> {
+    let d = case.scales.d;
+    let series = obs::depth(&run.samples, scene.surface, scene.bottom_offset);
+    let fin = obs::final_depth(&series, case.final_window)?;
+    let max = series.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    let t_end = run.samples.last().map(|s| s.t).unwrap_or(0.0);
+    let final_speed = run
+        .samples
+        .iter()
+        .filter(|s| s.t >= t_end - case.final_window)
+        .map(|s| s.v[0].hypot(s.v[1]))
+        .fold(0.0, f64::max)
+        / case.scales.velocity();
+    Ok((
+        VariantObs {
+            label: v.label.clone(),
+            x: v.x,
+            final_depth: fin / d,
+            max_depth: max / d,
+            final_speed,
+            final_samples: obs::final_window_samples(&series, case.final_window),
+        },
+        series,
+    ))
+}
+
+/// Directory name of a variant: its label with `=` kept, other odd characters `_`.
+pub fn label_dir(v: &Variant) -> String {
+    v.label
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "=.-".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,248 @@
+//! Micro cases (a few grains, walls): one unit, the case itself. Both engines' frames
+//! are compared output step by output step, streamed from disk: the native run writes
+//! `particles.csv`, LIGGGHTS its dump, and neither trajectory is held in memory.
+
+use super::reference::Verified;
+use super::{Estimate, Experiment, Options, Role, Run, Verdict};
+use crate::case::{Case, NegativeControl};
+use crate::compare::Check;
+use crate::compare::trajectory::Trajectory;
+use crate::engines::liggghts::{self, DumpFrames, Liggghts};
+use crate::rundata::frames::{CsvFrames, Frame};
+use crate::rundata::provenance::{
+    EngineKind, Provenance, Sha256, read_provenance, write_provenance,
+};
+use anyhow::{Context, Result, bail};
+use std::path::{Path, PathBuf};
+
+pub const PARTICLES_FILE: &str = "particles.csv";
+const PROVENANCE_FILE: &str = "provenance.json";
+
+pub struct Micro {
+    pub case: Case,
+}
+
+/// A finished run: where its frames are, and where it came from.
+pub struct MicroRun {
+    frames: FrameFile,
+    provenance: Provenance,
+}
+
+enum FrameFile {
+    Csv(PathBuf),
+    Dump(PathBuf),
+}
+
+impl Run for MicroRun {
+    fn provenance(&self) -> &Provenance {
+        &self.provenance
+    }
+}
+
+impl MicroRun {
+    fn open(&self, case: &Case) -> Result<Box<dyn Iterator<Item = Result<Frame>>>> {
+        Ok(match &self.frames {
+            FrameFile::Csv(p) => Box::new(CsvFrames::open(p, case.dt)?),
+            FrameFile::Dump(p) => Box::new(DumpFrames::open(p, case.dt)?),
+        })
+    }
+}
+
+/// Feeds two frame streams into the comparison; a read error ends it as an error check.
+pub fn compare_streams(
+    case: &Case,
+    test: impl Iterator<Item = Result<Frame>>,
+    reference: impl Iterator<Item = Result<Frame>>,
+) -> Vec<Check> {
+    let mut t = Trajectory::new(case);
+    let (mut test, mut reference) = (test, reference);
+    let (mut na, mut nb) = (0usize, 0usize);
+    loop {
+        match (test.next(), reference.next()) {
+            (None, None) => break,
+            (Some(Err(e)), _) | (_, Some(Err(e))) => {
+                return vec![Check::error(
+                    format!("{}: frames", case.name),
+                    format!("{e:#}"),
+                )];
+            }
+            (Some(Ok(a)), Some(Ok(b))) => {
+                na += 1;
+                nb += 1;
+                t.push(&a, &b);
+            }
+            (Some(Ok(_)), None) => {
+                na += 1;
+                na += test.by_ref().count();
+                t.length_mismatch(na, nb);
+                break;
+            }
+            (None, Some(Ok(_))) => {
+                nb += 1;
+                nb += reference.by_ref().count();
+                t.length_mismatch(na, nb);
+                break;
+            }
+        }
+    }
+    t.finish()
+}
+
+impl Experiment for Micro {
+    type Unit = ();
+    type NativeRun = MicroRun;
+    type RefRun = MicroRun;
+
+    fn name(&self) -> &str {
+        &self.case.name
+    }
+    fn kind(&self) -> &'static str {
+        "micro"
+    }
+    fn source(&self) -> &Path {
+        &self.case.source
+    }
+    fn reference_engine(&self) -> EngineKind {
+        EngineKind::Liggghts
+    }
+    fn canonical_hash(&self) -> Sha256 {
+        self.case.canonical_hash()
+    }
+    fn negative_controls(&self) -> &[NegativeControl] {
+        &self.case.negative_controls
+    }
+
+    fn estimate(&self) -> Estimate {
+        let n = self.case.particles.len() as f64;
+        let steps = self.case.n_steps as f64;
+        let frames = steps / self.case.output_every as f64 + 1.0;
+        // About 300 bytes per particle per frame in particles.csv and in the dump;
+        // memory: the state plus neighbour list, ~2 kB per particle.
+        Estimate {
+            particle_steps: n * steps * (1 + self.case.negative_controls.len()) as f64,
+            particles: n,
+            output_bytes: 2.0 * 300.0 * n * frames,
+            memory_bytes: 2e3 * n + 1e8,
+        }
+    }
+
+    fn units(&self, _opts: &Options) -> Result<Vec<()>> {
+        Ok(vec![()])
+    }
+    fn unit_name(&self, _unit: &()) -> String {
+        String::new()
+    }
+    fn fingerprint(&self, _unit: &()) -> Result<Sha256> {
+        liggghts::micro_input_hash(&self.case)
+    }
+
+    fn run_native(&self, _unit: &(), role: Role, dir: &Path, opts: &Options) -> Result<MicroRun> {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let csv = dir.join(PARTICLES_FILE);
+        let bar = crate::report::progress::bar(opts.progress, self.case.n_steps, "native");
+        let provenance =
+            crate::engines::native::micro(&self.case, &role.perturbation(), &csv, |s| {
+                if s.is_multiple_of(1000) {
+                    bar.set_position(s);
+                }
+            })?;
+        bar.finish_and_clear();
+        write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
+        Ok(MicroRun {
+            frames: FrameFile::Csv(csv),
+            provenance,
+        })
+    }
+
+    fn write_deck(&self, _unit: &(), dir: &Path, _opts: &Options) -> Result<()> {
+        std::fs::create_dir_all(dir)?;
+        let deck = liggghts::write_deck(&self.case, liggghts::DUMP_FILE, liggghts::DATA_FILE)?;
+        std::fs::write(dir.join(liggghts::DECK_FILE), deck)?;
+        std::fs::write(
+            dir.join(liggghts::DATA_FILE),
+            liggghts::write_data_file(&self.case)?,
+        )?;
+        Ok(())
+    }
+
+    fn run_reference(&self, _unit: &(), dir: &Path, opts: &Options) -> Result<MicroRun> {
+        let lig = Liggghts {
+            mpi_procs: opts.mpi_procs,
+            ..Liggghts::default()
+        };
+        let provenance = liggghts::micro(&lig, &self.case, dir)?;
+        write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
+        Ok(MicroRun {
+            frames: FrameFile::Dump(dir.join(liggghts::DUMP_FILE)),
+            provenance,
+        })
+    }
+
+    fn record(&self, _unit: &(), run: &MicroRun, run_dir: &Path, rec: &Path) -> Result<()> {
+        std::fs::create_dir_all(rec)?;
+        for f in [
+            liggghts::DECK_FILE,
+            liggghts::DATA_FILE,
+            liggghts::DUMP_FILE,
+            liggghts::LOG_FILE,
+        ] {
+            std::fs::copy(run_dir.join(f), rec.join(f))
+                .with_context(|| format!("copying {f} into {}", rec.display()))?;
+        }
+        let mut p = run.provenance.clone();
+        p.notes.retain(|n| !n.starts_with("run directory"));
+        write_provenance(&rec.join(PROVENANCE_FILE), &p)
+    }
+
+    fn read_record(&self, _unit: &(), name: &str, seal: &Verified) -> Result<MicroRun> {
+        let provenance = read_provenance(&seal.file(name, PROVENANCE_FILE)?)?;
+        if !provenance.engine.is_reference() {
+            bail!(
+                "{}: engine {} is not a reference engine",
+                seal.root.display(),
+                provenance.engine
+            );
+        }
+        Ok(MicroRun {
+            frames: FrameFile::Dump(seal.file(name, liggghts::DUMP_FILE)?),
+            provenance,
+        })
+    }
+
+    fn drift(&self, previous: &MicroRun, now: &MicroRun) -> String {
+        match (now.open(&self.case), previous.open(&self.case)) {
+            (Ok(a), Ok(b)) => compare_streams(&self.case, a, b)
+                .iter()
+                .filter(|c| c.gate != crate::compare::Gate::Coverage)
+                .map(|c| format!("{} {:.2e}", c.metric, c.value))
+                .collect::<Vec<_>>()
+                .join(", "),
+            (a, b) => format!(
+                "not comparable: {:?} / {:?}",
+                a.err().map(|e| e.to_string()),
+                b.err().map(|e| e.to_string())
+            ),
+        }
+    }
+
+    fn checks(
+        &self,
+        _units: &[()],
+        native: &[MicroRun],
+        reference: &[MicroRun],
+        _out: &Path,
+        _opts: &Options,
+    ) -> Verdict {
+        let checks = match (native[0].open(&self.case), reference[0].open(&self.case)) {
+            (Ok(a), Ok(b)) => compare_streams(&self.case, a, b),
+            (Err(e), _) | (_, Err(e)) => vec![Check::error(
+                format!("{}: frames", self.case.name),
+                format!("{e:#}"),
+            )],
+        };
+        Verdict {
+            checks,
+            notes: vec![],
+        }
+    }
+}

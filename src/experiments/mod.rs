@@ -1,0 +1,249 @@
+//! Experiments: every case kind says what its units of work are and how to run, record
+//! and compare them; [`runner`] does the rest once for all kinds (reference source,
+//! seals, outputs, negative controls, errors as checks, the report).
+//!
+//! A *unit* is what one engine run covers: the whole case (micro), one bed of an
+//! ensemble (penetration), one variant of a sweep (impact2d). Units are prepared
+//! natively (a bed is poured by the native engine) so both engines start from the same
+//! state; each unit has a *fingerprint*, the sha256 of the reference engine's input,
+//! which a recorded reference must match.
+
+pub mod impact2d;
+pub mod micro;
+pub mod penetration;
+pub mod reference;
+pub mod runner;
+pub mod suite;
+
+use crate::case::{NegativeControl, Perturbation};
+use crate::compare::Check;
+use crate::rundata::provenance::{EngineKind, Provenance, Sha256};
+use anyhow::Result;
+use std::path::{Path, PathBuf};
+
+pub use reference::RefMode;
+
+/// Runs `$body` with `$exp` bound to the experiment of an [`crate::case::AnyCase`]
+/// (`$stress`: the penetration stress option): the one place a case kind chooses its
+/// experiment.
+#[macro_export]
+macro_rules! with_experiment {
+    ($case:expr, $stress:expr, |$exp:ident| $body:expr) => {
+        match $case {
+            $crate::case::AnyCase::Micro(case) => {
+                let $exp = $crate::experiments::micro::Micro { case };
+                $body
+            }
+            $crate::case::AnyCase::Penetration(case) => {
+                let $exp = $crate::experiments::penetration::Penetration {
+                    case,
+                    stress: $stress,
+                };
+                $body
+            }
+            $crate::case::AnyCase::Impact2d(case) => {
+                let $exp = $crate::experiments::impact2d::Impact2d { case };
+                $body
+            }
+        }
+    };
+}
+
+/// How a comparison runs; built once from the command line.
+#[derive(Debug, Clone)]
+pub struct Options {
+    pub reference_root: PathBuf,
+    pub ref_mode: RefMode,
+    /// MPI processes for the reference engine.
+    pub mpi_procs: usize,
+    pub progress: bool,
+    /// Accept runs larger than the resource limits ([`limits`]).
+    pub allow_large: bool,
+    /// Penetration: also take contact snapshots and compute the stress fields, phi and
+    /// the MALT checks (`granval stress`; a case's `[stress]` table turns it on too).
+    pub stress: bool,
+    /// Stress analysis: Gaussian range w of eq 6 in grain diameters.
+    pub kernel_width: Option<f64>,
+    /// Stress analysis: re-analyse the snapshots of an earlier run in the output
+    /// directory instead of running the engines again.
+    pub reuse: bool,
+    /// Gate the comparisons with theory (the MALT curve); when false they are reported
+    /// with their would-be verdict but not gated (the CI suite gates engine agreement,
+    /// the release suite gates theory).
+    pub gate_theory: bool,
+    /// Stress analysis: also the estimator study of docs/stress.md (null window,
+    /// Janssen, convergence): one extra run per bed in each engine.
+    pub study: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            reference_root: PathBuf::from("reference"),
+            ref_mode: if std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1") {
+                RefMode::Live
+            } else {
+                RefMode::Auto
+            },
+            mpi_procs: 1,
+            progress: false,
+            allow_large: false,
+            stress: false,
+            kernel_width: None,
+            reuse: false,
+            gate_theory: true,
+            study: false,
+        }
+    }
+}
+
+/// Why the native engine runs: the comparison itself, or a negative control (which
+/// skips extra runs, such as a second speed, that its gates do not need).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Role<'a> {
+    Main,
+    Control(&'a Perturbation),
+}
+
+impl Role<'_> {
+    pub fn perturbation(&self) -> Perturbation {
+        match self {
+            Role::Main => Perturbation::default(),
+            Role::Control(p) => **p,
+        }
+    }
+}
+
+/// Anything that came out of one engine run.
+pub trait Run {
+    fn provenance(&self) -> &Provenance;
+}
+
+/// What the checks of an experiment produced besides the checks.
+#[derive(Debug, Default)]
+pub struct Verdict {
+    pub checks: Vec<Check>,
+    pub notes: Vec<String>,
+}
+
+/// Resource estimate of a comparison, made before anything runs.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Estimate {
+    /// Particle-steps of all native runs.
+    pub particle_steps: f64,
+    /// Largest number of particles in one run.
+    pub particles: f64,
+    /// Bytes of output files written.
+    pub output_bytes: f64,
+    /// Peak memory of one native run, bytes.
+    pub memory_bytes: f64,
+}
+
+/// One case kind, as the runner sees it.
+pub trait Experiment {
+    type Unit;
+    type NativeRun: Run;
+    type RefRun: Run;
+
+    fn name(&self) -> &str;
+    /// `micro`, `penetration`, `impact2d`: the directory under `reference/`.
+    fn kind(&self) -> &'static str;
+    fn source(&self) -> &Path;
+    fn reference_engine(&self) -> EngineKind;
+    /// sha256 of the case's run-relevant content; a record is sealed to it.
+    fn canonical_hash(&self) -> Sha256;
+    fn negative_controls(&self) -> &[NegativeControl];
+    fn estimate(&self) -> Estimate;
+
+    /// The units, prepared (beds poured, scenes built).
+    fn units(&self, opts: &Options) -> Result<Vec<Self::Unit>>;
+    /// Directory name of a unit (`""`: the case directory itself).
+    fn unit_name(&self, unit: &Self::Unit) -> String;
+    /// sha256 of the reference engine's input for this unit.
+    fn fingerprint(&self, unit: &Self::Unit) -> Result<Sha256>;
+
+    fn run_native(
+        &self,
+        unit: &Self::Unit,
+        role: Role,
+        dir: &Path,
+        opts: &Options,
+    ) -> Result<Self::NativeRun>;
+    /// Writes the reference engine's deck (and data, meshes) for the unit into `dir`.
+    fn write_deck(&self, unit: &Self::Unit, dir: &Path, opts: &Options) -> Result<()>;
+    /// Runs the reference engine live in `dir` and reads what it produced.
+    fn run_reference(&self, unit: &Self::Unit, dir: &Path, opts: &Options) -> Result<Self::RefRun>;
+    /// Stores a live reference run as a record in `rec` (then sealed by the runner).
+    fn record(
+        &self,
+        unit: &Self::Unit,
+        run: &Self::RefRun,
+        run_dir: &Path,
+        rec: &Path,
+    ) -> Result<()>;
+    /// Reads the record of a unit from a verified seal.
+    fn read_record(
+        &self,
+        unit: &Self::Unit,
+        name: &str,
+        seal: &reference::Verified,
+    ) -> Result<Self::RefRun>;
+    /// How a fresh reference run differs from the previous record (`reference refresh`).
+    fn drift(&self, previous: &Self::RefRun, now: &Self::RefRun) -> String;
+
+    /// Every check of the case from the runs of both engines, unit by unit; outputs
+    /// (CSV, SVG) go to `out`.
+    fn checks(
+        &self,
+        units: &[Self::Unit],
+        native: &[Self::NativeRun],
+        reference: &[Self::RefRun],
+        out: &Path,
+        opts: &Options,
+    ) -> Verdict;
+}
+
+/// Resource limits checked before a run ([`Options::allow_large`] lifts them).
+pub mod limits {
+    use super::Estimate;
+
+    /// Native particle-steps a comparison may take: about a week at the measured
+    /// 3e6 particle-steps/s of one core.
+    pub const MAX_PARTICLE_STEPS: f64 = 2e12;
+    /// Output written by one comparison.
+    pub const MAX_OUTPUT_BYTES: f64 = 50e9;
+
+    /// Memory available now (`MemAvailable` of /proc/meminfo), if known.
+    pub fn available_memory() -> Option<f64> {
+        let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+        let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+        let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kb * 1024.0)
+    }
+
+    /// Why the estimate cannot run here, naming the quantity and the case field behind it.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x <= max)`: a NaN estimate is refused
+    pub fn refuse(e: &Estimate, fields: &str) -> Option<String> {
+        if !(e.particle_steps <= MAX_PARTICLE_STEPS) {
+            return Some(format!(
+                "{:.2e} particle-steps (from {fields}) exceed the limit of {MAX_PARTICLE_STEPS:.0e} (about a week of one core); shorten the run or pass --allow-large",
+                e.particle_steps
+            ));
+        }
+        if !(e.output_bytes <= MAX_OUTPUT_BYTES) {
+            return Some(format!(
+                "the run would write {:.2e} bytes of output (from {fields}); the limit is {MAX_OUTPUT_BYTES:.0e}: raise output_every or pass --allow-large",
+                e.output_bytes
+            ));
+        }
+        if let Some(avail) = available_memory()
+            && !(e.memory_bytes <= 0.8 * avail)
+        {
+            return Some(format!(
+                "the run needs about {:.2e} bytes of memory for {:.0} particles, more than 80 % of the {avail:.2e} available; pass --allow-large to try anyway",
+                e.memory_bytes, e.particles
+            ));
+        }
+        None
+    }
+}

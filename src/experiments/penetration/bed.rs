@@ -1,0 +1,138 @@
+//! Beds of a penetration case: native preparation (pour and settle, Feng et al. Sec. 2),
+//! their fingerprint, the LIGGGHTS deck that starts from them, and the streaming eq-5
+//! reducer both engines' force series go through.
+
+use crate::analysis::fdr::{Fdr, FdrBinner, Scales};
+use crate::case::penetration::PenetrationCase;
+use crate::engines::liggghts::penetration::PenetrationDeck;
+use crate::physics::dem;
+use crate::physics::dem::packing::{self, Bed};
+use crate::rundata::provenance::{Provenance, Sha256};
+use anyhow::Result;
+
+/// One engine's run reduced to what the comparison needs: the binned FDR (eq 5).
+#[derive(Debug, Clone)]
+pub struct EngineRun {
+    pub fdr: Fdr,
+    pub samples: u64,
+    pub provenance: Provenance,
+}
+
+/// The streaming eq-5 reducer of a run from `bed`: its own psi and surface.
+pub fn binner(case: &PenetrationCase, bed: &Bed) -> Result<FdrBinner> {
+    FdrBinner::new(
+        &Scales {
+            rho_g: case.density,
+            psi: bed.psi,
+            g: case.gravity,
+            radius: case.intruder_radius,
+        },
+        bed.surface_z,
+        case.h_bin,
+    )
+}
+
+/// Prepares the bed natively (pour + settle to the case's KE criterion).
+pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
+    let bar = crate::report::progress::bar(progress, 1, "settle");
+    let bed = packing::prepare(case, |t, ratio| {
+        bar.set_message(format!("t = {t:.3} s, KE ratio {ratio:.1e}"))
+    })?;
+    bar.finish_and_clear();
+    Ok(bed)
+}
+
+/// The LIGGGHTS deck of a penetration case started from `bed` (identical grains,
+/// container, intruder start and speed as the native run).
+pub fn liggghts_deck(case: &PenetrationCase, bed: &Bed) -> Result<PenetrationDeck> {
+    use crate::engines::liggghts::penetration::Units;
+    let (lo, hi) = packing::domain(case, dem::penetration::box_top(case, bed));
+    // LIGGGHTS refuses E < 5e6 Pa (Table 2's G = 1 MPa gives E = 2.6 MPa) in SI *and* in
+    // cgs (5e7 barye). Its own `soft_particles yes` lifts only that range check; the
+    // material is written unchanged, never stiffened.
+    let (soft, hard) = crate::engines::liggghts::hardness(&case.materials);
+    Ok(PenetrationDeck {
+        units: Units::Si,
+        materials: case.materials.clone(),
+        pairs: case.pairs.clone(),
+        rolling: case.rolling,
+        dt: case.dt,
+        gravity: case.gravity,
+        container_radius: case.container_radius,
+        floor_z: 0.0,
+        domain_lo: lo,
+        domain_hi: hi,
+        particles: bed.particles.clone(),
+        intruder_radius: case.intruder_radius,
+        intruder_length: case.intruder_length,
+        intruder_type: case.intruder_type,
+        intruder_bottom_z0: dem::penetration::start_z(case, bed),
+        speed: case.speed,
+        n_steps: dem::penetration::n_steps(case, bed),
+        force_every: case.force_every,
+        neighbor_skin: case.neighbor_skin,
+        rim_error_frac: case.stl_rim_error,
+        wall_type: case.wall_type,
+        soft_particles: soft,
+        hard_particles: hard,
+        settle: None,
+    })
+}
+
+/// Fingerprint of a bed (positions, radii, velocities), so a recorded LIGGGHTS run is
+/// only ever compared with a native run from the very same grains.
+pub fn bed_hash(bed: &Bed) -> Sha256 {
+    let mut bytes = Vec::with_capacity(bed.particles.len() * 80);
+    for p in &bed.particles {
+        for v in
+            p.x.iter()
+                .chain(&p.v)
+                .chain(&p.omega)
+                .chain(std::iter::once(&p.radius))
+        {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    Sha256::of(&bytes)
+}
+
+/// The LIGGGHTS deck of bed `k` of a case whose bed LIGGGHTS prepares itself (see
+/// [`crate::engines::liggghts::penetration::Settle`]): the same loose lattice as the
+/// native pour, settled with the same criterion, then penetrated.
+pub fn liggghts_settle_deck(case: &PenetrationCase) -> Result<PenetrationDeck> {
+    use crate::engines::liggghts::penetration::Settle;
+    let lattice = packing::lattice(case)?;
+    let lattice_top = lattice
+        .iter()
+        .map(|p| p.x[2] + p.radius)
+        .fold(0.0, f64::max);
+    let dmax = case.diameter.max();
+    // Upper bound of the start height (the settled bed is lower than the lattice).
+    let z0_bound = lattice_top + case.start_gap;
+    let fill_guess = lattice_top;
+    let bed = Bed {
+        particles: lattice,
+        surface_z: fill_guess,
+        psi: f64::NAN,
+        ke_ratio: f64::NAN,
+        settle_time: f64::NAN,
+        ke_at_end_of_pour: f64::NAN,
+    };
+    let mut d = liggghts_deck(case, &bed)?;
+    let (lo, hi) = packing::domain(case, z0_bound + case.intruder_length + dmax);
+    d.domain_lo = lo;
+    d.domain_hi = hi;
+    d.intruder_bottom_z0 = z0_bound;
+    // Travel: gap + final depth + one grain (the highest top is at most ~d_max above
+    // the mean surface), so the tip reaches at least `final_depth`.
+    d.n_steps = ((case.start_gap + case.final_depth + dmax) / case.speed / case.dt).ceil() as u64;
+    let check_every = 50;
+    d.settle = Some(Settle {
+        ke_ratio: case.settle_ke_ratio,
+        check_every,
+        max_checks: (case.max_settle_time / case.dt / check_every as f64).ceil() as u64,
+        footprint_radius: case.intruder_radius + dmax,
+        start_gap: case.start_gap,
+    });
+    Ok(d)
+}

@@ -1,0 +1,263 @@
+//! Self-contained LIGGGHTS deck directories — what a researcher takes to a cluster — and
+//! their analysis after LIGGGHTS ran there (`granval deck` / `granval analyze`).
+//!
+//! Layout (also what `granval compare` leaves behind, so `analyze` can re-read it):
+//! ```text
+//! DIR/case.toml            the case, copied verbatim
+//! DIR/README.md            how to run every bed, on one core or with mpirun
+//! DIR/bed-K/in.penetration deck of bed K (read_data data.bed, intruder.stl)
+//! DIR/bed-K/data.bed       the natively prepared bed K (seed bed.seed + K), exact
+//! DIR/bed-K/intruder.stl   the intruder mesh at its start position
+//! DIR/bed-K/README.md      what each input and output file holds
+//! ```
+
+use super::bed::{bed_hash, liggghts_deck, liggghts_settle_deck, prepare_bed};
+use super::{Unit, bed_dir_name, fdr_checks, reduce_liggghts_dir};
+use crate::case::penetration::PenetrationCase;
+use crate::engines::liggghts::penetration::{self as lp, Units};
+use crate::experiments::runner::CaseOutcome;
+use crate::experiments::{Options, Role};
+use crate::physics::dem::packing::{self, Bed};
+use crate::report::CaseRun;
+use anyhow::{Context, Result, bail, ensure};
+use std::path::{Path, PathBuf};
+
+pub const CASE_FILE: &str = "case.toml";
+
+/// Who prepares the beds of a deck directory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BedBy {
+    /// granval's native pour; `data.bed` holds the exact settled bed, so the native
+    /// engine can penetrate the very same grains (the engine comparison).
+    Native,
+    /// LIGGGHTS pours and settles the same loose lattice with the same criterion
+    /// (`data.lattice` in, `bed.dump` out): for full-size beds a native pour would take
+    /// hours for.
+    Liggghts,
+}
+
+/// Whether a bed directory settles its own bed in LIGGGHTS.
+pub fn settles_in_liggghts(dir: &Path) -> bool {
+    dir.join(lp::LATTICE_FILE).exists()
+}
+
+/// Prepares every bed of the case (or leaves that to LIGGGHTS) and writes the deck
+/// directory `out`.
+pub fn write(
+    case: &PenetrationCase,
+    out: &Path,
+    bed_by: BedBy,
+    progress: bool,
+) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    std::fs::copy(&case.source, out.join(CASE_FILE)).with_context(|| {
+        format!(
+            "cannot copy {} to {}",
+            case.source.display(),
+            out.join(CASE_FILE).display()
+        )
+    })?;
+    let mut dirs = Vec::new();
+    let mut lines = Vec::new();
+    for k in 0..case.ensemble_beds {
+        let ck = case.realisation(k);
+        let dir = out.join(bed_dir_name(k));
+        let (deck, psi) = match bed_by {
+            BedBy::Native => {
+                let bed = prepare_bed(&ck, progress)?;
+                (liggghts_deck(&ck, &bed)?, format!("{:.4}", bed.psi))
+            }
+            BedBy::Liggghts => (liggghts_settle_deck(&ck)?, "measured after settling".into()),
+        };
+        lp::write_deck_dir(&deck, &dir)?;
+        lines.push(format!(
+            "| {} | {} | {} | {psi} | {} |",
+            bed_dir_name(k),
+            ck.seed,
+            deck.particles.len(),
+            deck.n_steps
+        ));
+        dirs.push(dir);
+    }
+    std::fs::write(out.join("README.md"), readme(case, &lines, bed_by))
+        .with_context(|| format!("cannot write {}", out.join("README.md").display()))?;
+    Ok(dirs)
+}
+
+fn readme(case: &PenetrationCase, rows: &[String], bed_by: BedBy) -> String {
+    let prep = match bed_by {
+        BedBy::Native => {
+            "each prepared by granval's native engine (pour and settle, Feng et al. Sec. 2) and written exactly (`data.bed`); LIGGGHTS only penetrates"
+        }
+        BedBy::Liggghts => {
+            "each poured and settled by LIGGGHTS itself from the loose lattice in `data.lattice` with the protocol of Feng et al. Sec. 2 (mean KE below the case's ratio of its peak); the settled bed is written to `bed.dump`, then the intruder starts above the highest grain under it"
+        }
+    };
+    format!(
+        "# LIGGGHTS penetration decks for `{name}` (written by granval)\n\n\
+         {desc}\n\n\
+         {n} independent bed(s), {prep}. The case file is copied as `{CASE_FILE}`.\n\n\
+         | directory | seed | grains | packing fraction | steps |\n|---|---|---|---|---|\n{rows}\n\n\
+         ## Run\n\n\
+         Each `bed-K` directory is self-contained. One core:\n\n\
+         \x20   for d in bed-*; do (cd $d && liggghts -in in.penetration -log log.liggghts); done\n\n\
+         N MPI ranks (add `--allow-run-as-root` when running as root):\n\n\
+         \x20   for d in bed-*; do (cd $d && mpirun -np N liggghts -in in.penetration -log log.liggghts); done\n\n\
+         The beds are independent jobs: on a cluster submit one job per directory.\n\n\
+         ## Analyse\n\n\
+         Bring the directory back (at least `{CASE_FILE}` and every `bed-K` with its inputs, \
+         `force.txt`, `log.liggghts` and, for LIGGGHTS-settled beds, `bed.dump`) and run\n\n\
+         \x20   granval analyze DIR --report OUT\n\n\
+         It checks that every run is complete, reduces each `force.txt` to the force-depth \
+         relation while reading it, re-runs the native engine from the same `data.bed` (skip \
+         with `--no-native`) and writes the same report as `granval compare`.\n",
+        name = case.name,
+        desc = case.description,
+        n = case.ensemble_beds,
+        rows = rows.join("\n"),
+    )
+}
+
+/// The bed a deck directory starts from, read back from its `data.bed`.
+pub fn read_bed(case: &PenetrationCase, dir: &Path) -> Result<Bed> {
+    let particles = if settles_in_liggghts(dir) {
+        lp::parse_bed_dump(&dir.join(lp::BED_DUMP_FILE), Units::Si, case.density)?
+    } else {
+        lp::parse_data_file(&dir.join(lp::DATA_FILE), Units::Si)?
+    };
+    let surface_z = packing::surface_height(case, &particles);
+    let psi = packing::packing_fraction(case, &particles, surface_z);
+    Ok(Bed {
+        particles,
+        surface_z,
+        psi,
+        ke_ratio: f64::NAN,
+        settle_time: f64::NAN,
+        ke_at_end_of_pour: f64::NAN,
+    })
+}
+
+/// The `bed-K` directories of a deck directory, in K order.
+pub fn bed_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut found = Vec::new();
+    for e in std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))? {
+        let e = e?;
+        if let Some(k) = e
+            .file_name()
+            .to_str()
+            .and_then(|n| n.strip_prefix("bed-"))
+            .and_then(|k| k.parse::<usize>().ok())
+            && e.path().is_dir()
+        {
+            found.push((k, e.path()));
+        }
+    }
+    found.sort();
+    for (i, (k, _)) in found.iter().enumerate() {
+        if *k != i {
+            bail!(
+                "{}: bed directories must be bed-0, bed-1, ... without gaps; found bed-{k} where bed-{i} belongs",
+                dir.display()
+            );
+        }
+    }
+    Ok(found.into_iter().map(|(_, p)| p).collect())
+}
+
+/// `granval analyze DIR`: the deck directory after LIGGGHTS ran in it (here or on a
+/// cluster), reduced to the same checks as `granval compare`. With `native`, the native
+/// engine penetrates each `data.bed` as `compare` does. The LIGGGHTS outputs of bed K
+/// are read from `DIR/bed-K/` (a `granval deck` directory) or `DIR/bed-K/liggghts/` (a
+/// `granval compare` output directory).
+pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Result<CaseOutcome> {
+    let case = PenetrationCase::load(&dir.join(CASE_FILE))?;
+    let beds = bed_dirs(dir)?;
+    ensure!(
+        !beds.is_empty(),
+        "{}: no bed-0, bed-1, ... directories (written by `granval deck`)",
+        dir.display()
+    );
+    if beds.len() != case.ensemble_beds {
+        bail!(
+            "{}: {} bed directories but {} declares ensemble.beds = {}",
+            dir.display(),
+            beds.len(),
+            dir.join(CASE_FILE).display(),
+            case.ensemble_beds
+        );
+    }
+    let mut units = Vec::new();
+    let mut reference = Vec::new();
+    let mut natives = Vec::new();
+    let mut notes = Vec::new();
+    for (k, bdir) in beds.iter().enumerate() {
+        let bdir = if bdir.join("liggghts").join(lp::DECK_FILE).exists() {
+            bdir.join("liggghts")
+        } else {
+            bdir.clone()
+        };
+        let ck = case.realisation(k);
+        let bed = read_bed(&ck, &bdir)?;
+        notes.push(format!(
+            "bed {k}: {} grains read from {} (sha256 {}), surface z = {:.6e} m, psi = {:.4}",
+            bed.particles.len(),
+            bdir.display(),
+            bed_hash(&bed),
+            bed.surface_z,
+            bed.psi
+        ));
+        reference.push(reduce_liggghts_dir(&ck, &bed, &bdir)?);
+        let u = Unit {
+            k,
+            bed_hash: bed_hash(&bed),
+            case: ck,
+            bed,
+            plan: None,
+            study_plan: None,
+        };
+        if native {
+            let exp = super::Penetration {
+                case: case.clone(),
+                stress: false,
+            };
+            use crate::experiments::Experiment;
+            natives.push(exp.run_native(
+                &u,
+                Role::Main,
+                &out_dir.join(bed_dir_name(k)).join("native"),
+                opts,
+            )?);
+        }
+        units.push(u);
+    }
+    let v = fdr_checks(
+        &case,
+        &units,
+        &natives.iter().map(|r| &r.run).collect::<Vec<_>>(),
+        &natives
+            .iter()
+            .filter_map(|r| r.slow.as_ref())
+            .collect::<Vec<_>>(),
+        &reference.iter().collect::<Vec<_>>(),
+        out_dir,
+    );
+    notes.extend(v.notes);
+    let wall = |it: &mut dyn Iterator<Item = f64>| it.sum::<f64>();
+    Ok(CaseOutcome {
+        checks: v.checks,
+        run: Some(CaseRun {
+            case: case.name.clone(),
+            case_file: dir.join(CASE_FILE).display().to_string(),
+            test_engine: if native { "native" } else { "none" }.into(),
+            reference_engine: "LIGGGHTS".into(),
+            reference_version: reference
+                .first()
+                .map(|r| r.provenance.version.clone())
+                .unwrap_or_default(),
+            reference_source: format!("run directory {}", dir.display()),
+            wall_time_test_s: wall(&mut natives.iter().map(|r| r.run.provenance.wall_time_s)),
+            wall_time_reference_s: wall(&mut reference.iter().map(|r| r.provenance.wall_time_s)),
+        }),
+        notes,
+    })
+}

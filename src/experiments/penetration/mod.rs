@@ -1,0 +1,669 @@
+//! Quasi-static penetration (Feng et al. Sec. 2-3): one unit per bed of the ensemble
+//! (`[ensemble] beds`, seeds `seed + k`), each prepared natively and penetrated by both
+//! engines from exactly the same grains. A single bed at CI scale gives K_phi only to
+//! about +-15 % (two correct engines started from the same bed diverge grain by grain
+//! within milliseconds), so the checks compare the ensemble-mean FDRs.
+//!
+//! With the stress option (`granval stress`, or a suite entry with `stress = true`)
+//! both engines also take contact snapshots at the same steps; [`stress`] turns them
+//! into the stress fields, phi and the MALT checks. Snapshots are never recorded under
+//! `reference/`, so the stress checks need a live LIGGGHTS.
+//!
+//! Output layout of `compare`: `OUT/bed-K/liggghts/` (the LIGGGHTS deck directory of
+//! bed K with its outputs), `OUT/bed-K/native/` (force.csv, provenance.json, snapshots),
+//! `OUT/fdr_*.csv`, `OUT/fdr.svg`, and with stress the fields and `k_phi.svg`.
+
+pub mod bed;
+pub mod deck_dir;
+pub mod stress;
+
+use super::reference::Verified;
+use super::{Estimate, Experiment, Options, Role, Run, Verdict};
+use crate::analysis::stress_fields::SnapshotPlan;
+use crate::case::NegativeControl;
+use crate::case::penetration::PenetrationCase;
+use crate::compare::{Check, penetration as cp};
+use crate::engines::liggghts::penetration as lp;
+use crate::physics::dem::packing::{self, Bed};
+use crate::rundata::force::write_force_csv;
+use crate::rundata::provenance::{
+    EngineKind, Provenance, Sha256, read_provenance, write_provenance,
+};
+use anyhow::{Context, Result, ensure};
+use bed::{EngineRun, binner, liggghts_deck, prepare_bed};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+pub const PROVENANCE_FILE: &str = "provenance.json";
+pub const FORCE_CSV: &str = "force.csv";
+/// Where a run keeps its contact snapshots (stress option).
+pub const SNAPSHOT_DIR: &str = "snapshots";
+/// LIGGGHTS penetration runs are killed after this long.
+pub const LIGGGHTS_TIMEOUT: Duration = Duration::from_secs(4 * 3600);
+
+pub struct Penetration {
+    pub case: PenetrationCase,
+    /// Take contact snapshots and gate the stress fields too.
+    pub stress: bool,
+}
+
+/// One bed of the ensemble.
+pub struct Unit {
+    pub k: usize,
+    /// The case with this bed's seed.
+    pub case: PenetrationCase,
+    pub bed: Bed,
+    pub bed_hash: Sha256,
+    /// Snapshot steps (stress option).
+    pub plan: Option<SnapshotPlan>,
+    /// Snapshot steps of the estimator study's extra run (`granval stress --study`).
+    pub study_plan: Option<SnapshotPlan>,
+}
+
+pub struct NativeRun {
+    pub run: EngineRun,
+    /// At `[quasi_static] speed` (main runs only).
+    pub slow: Option<EngineRun>,
+    pub snapshots: Option<PathBuf>,
+    /// Snapshots of the estimator study's extra run (`DIR/study/snapshots`).
+    pub study_snapshots: Option<PathBuf>,
+}
+
+pub struct RefRun {
+    pub run: EngineRun,
+    pub snapshots: Option<PathBuf>,
+    /// Snapshots of the estimator study's extra run (`DIR/study/snapshots`).
+    pub study_snapshots: Option<PathBuf>,
+}
+
+/// Where a unit's estimator-study run goes, inside the engine's run directory.
+pub const STUDY_DIR: &str = "study";
+
+impl Run for NativeRun {
+    fn provenance(&self) -> &Provenance {
+        &self.run.provenance
+    }
+}
+
+impl Run for RefRun {
+    fn provenance(&self) -> &Provenance {
+        &self.run.provenance
+    }
+}
+
+pub fn bed_dir_name(k: usize) -> String {
+    format!("bed-{k}")
+}
+
+/// A native run of `case` from `bed` (force series reduced while kept for force.csv),
+/// with snapshots into `dir/snapshots` when a plan is given.
+fn native_run(
+    case: &PenetrationCase,
+    bed: &Bed,
+    role: Role,
+    plan: Option<&SnapshotPlan>,
+    dir: &Path,
+    progress: bool,
+    reuse: bool,
+) -> Result<EngineRun> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    if reuse && let Some(run) = reuse_native(case, bed, plan, dir)? {
+        return Ok(run);
+    }
+    let n = crate::physics::dem::penetration::n_steps(case, bed);
+    let bar = crate::report::progress::bar(progress, n, "native");
+    let snap_dir = dir.join(SNAPSHOT_DIR);
+    let steps = plan.map(|p| p.steps.clone()).unwrap_or_default();
+    let (samples, provenance) = crate::engines::native::penetration(
+        case,
+        bed,
+        &role.perturbation(),
+        &steps,
+        |sim| stress::write_native_snapshot(case, bed, plan, &snap_dir, sim),
+        |s, _| bar.set_position(s),
+    )?;
+    bar.finish_and_clear();
+    if let Some(p) = plan {
+        p.write(&snap_dir)?;
+    }
+    write_force_csv(&dir.join(FORCE_CSV), &samples)?;
+    write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
+    let mut b = binner(case, bed)?;
+    for s in &samples {
+        b.push(s.z_bottom, s.f[2])?;
+    }
+    Ok(EngineRun {
+        fdr: b.fdr(),
+        samples: b.samples(),
+        provenance,
+    })
+}
+
+/// `--reuse` of a run whose snapshots followed another plan (other depths or windows)
+/// would analyse different fields: refused.
+fn check_reused_plan(plan: &SnapshotPlan, snap_dir: &Path) -> Result<()> {
+    let stored = SnapshotPlan::read(snap_dir).with_context(|| {
+        format!(
+            "{}: --reuse found no snapshot plan; run without --reuse",
+            snap_dir.display()
+        )
+    })?;
+    ensure!(
+        &stored == plan,
+        "{}: --reuse: these snapshots were taken in windows {:?} (depth: snapshots), the case asks for {:?}; run without --reuse",
+        snap_dir.display(),
+        stored
+            .windows
+            .iter()
+            .map(|w| (w.h_target, w.steps.len()))
+            .collect::<Vec<_>>(),
+        plan.windows
+            .iter()
+            .map(|w| (w.h_target, w.steps.len()))
+            .collect::<Vec<_>>()
+    );
+    Ok(())
+}
+
+/// `--reuse`: an earlier native run of this very case and bed in `dir` (its provenance
+/// names the case's canonical hash and the bed; its snapshots follow the same plan), or
+/// `None` when there is nothing complete to reuse.
+fn reuse_native(
+    case: &PenetrationCase,
+    bed: &Bed,
+    plan: Option<&SnapshotPlan>,
+    dir: &Path,
+) -> Result<Option<EngineRun>> {
+    let (force, prov) = (dir.join(FORCE_CSV), dir.join(PROVENANCE_FILE));
+    if !force.exists() || !prov.exists() {
+        return Ok(None);
+    }
+    if let Some(p) = plan {
+        check_reused_plan(p, &dir.join(SNAPSHOT_DIR))?;
+    }
+    let mut provenance = read_provenance(&prov)?;
+    let bed_note = packing::bed_note(case, bed);
+    ensure!(
+        provenance.input_hash == case.canonical_hash() && provenance.notes.contains(&bed_note),
+        "{}: --reuse found a run of another case or bed; run without --reuse",
+        dir.display()
+    );
+    let mut b = binner(case, bed)?;
+    for s in crate::rundata::force::read_force_csv(&force)? {
+        b.push(s.z_bottom, s.f[2])?;
+    }
+    provenance
+        .notes
+        .push(format!("reused from {}", dir.display()));
+    Ok(Some(EngineRun {
+        fdr: b.fdr(),
+        samples: b.samples(),
+        provenance,
+    }))
+}
+
+/// Reduces a finished LIGGGHTS run in `dir` (made here, recorded, or brought back from
+/// a cluster) while reading its force file.
+pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Result<EngineRun> {
+    let deck = if deck_dir::settles_in_liggghts(dir) {
+        bed::liggghts_settle_deck(case)?
+    } else {
+        liggghts_deck(case, bed)?
+    };
+    let mut b = binner(case, bed)?;
+    let mut provenance = lp::read_outputs(&deck, dir, |s| b.push(s.z_bottom, s.f[2]))
+        .with_context(|| format!("LIGGGHTS run in {}", dir.display()))?;
+    if let Ok(on_disk) = std::fs::read_to_string(dir.join(lp::DECK_FILE))
+        && on_disk != lp::deck_text(&deck)?
+        && !on_disk.contains(crate::engines::liggghts::snapshot::PAIR_PREFIX)
+    {
+        provenance.notes.push(format!(
+            "{} differs from the deck granval writes for this case and bed (edited by hand?)",
+            dir.join(lp::DECK_FILE).display()
+        ));
+    }
+    provenance.notes.push(packing::bed_note(case, bed));
+    provenance
+        .notes
+        .push(format!("bed sha256 {}", bed::bed_hash(bed)));
+    Ok(EngineRun {
+        fdr: b.fdr(),
+        samples: b.samples(),
+        provenance,
+    })
+}
+
+/// One LIGGGHTS run of unit `u` in `dir`, with contact snapshots at the steps of `plan`
+/// (converted into `dir/snapshots`); with `--reuse`, an earlier run of the same deck and
+/// plan in `dir` is read instead.
+fn liggghts_run(
+    u: &Unit,
+    plan: Option<&SnapshotPlan>,
+    dir: &Path,
+    opts: &Options,
+) -> Result<RefRun> {
+    let deck = liggghts_deck(&u.case, &u.bed)?;
+    std::fs::create_dir_all(dir)?;
+    if opts.reuse
+        && dir.join(lp::FORCE_FILE).exists()
+        && let Some(plan) = plan
+    {
+        check_reused_plan(plan, &dir.join(SNAPSHOT_DIR)).with_context(|| format!("bed {}", u.k))?;
+        let on_disk = std::fs::read_to_string(dir.join(lp::DECK_FILE)).unwrap_or_default();
+        ensure!(
+            on_disk == lp::deck_text_with_snapshots(&deck, &plan.steps)?,
+            "{}: --reuse found a LIGGGHTS run of another case or bed (its deck differs); run without --reuse",
+            dir.display()
+        );
+        let mut run = reduce_liggghts_dir(&u.case, &u.bed, dir)?;
+        run.provenance
+            .notes
+            .push(format!("reused from {}", dir.display()));
+        return Ok(RefRun {
+            run,
+            snapshots: Some(dir.join(SNAPSHOT_DIR)),
+            study_snapshots: None,
+        });
+    }
+    let np = opts.mpi_procs.max(2);
+    let bar = crate::report::progress::bar(opts.progress, deck.n_steps, "LIGGGHTS");
+    let mut b = binner(&u.case, &u.bed)?;
+    let mut provenance = match plan {
+        None => lp::run_streaming(
+            &deck,
+            dir,
+            np,
+            LIGGGHTS_TIMEOUT,
+            |step| bar.set_position(step),
+            |s| b.push(s.z_bottom, s.f[2]),
+        )?,
+        Some(plan) => {
+            let (samples, prov) =
+                lp::run_with_snapshots(&deck, dir, np, LIGGGHTS_TIMEOUT, &plan.steps)?;
+            for s in &samples {
+                b.push(s.z_bottom, s.f[2])?;
+            }
+            prov
+        }
+    };
+    bar.finish_and_clear();
+    provenance.notes.push(packing::bed_note(&u.case, &u.bed));
+    provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
+    let snapshots = match plan {
+        Some(plan) => Some(stress::convert_liggghts_snapshots(
+            &u.case,
+            &u.bed,
+            plan,
+            &deck,
+            dir,
+            &mut provenance,
+        )?),
+        None => None,
+    };
+    write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
+    Ok(RefRun {
+        run: EngineRun {
+            fdr: b.fdr(),
+            samples: b.samples(),
+            provenance,
+        },
+        snapshots,
+        study_snapshots: None,
+    })
+}
+
+impl Penetration {
+    /// A negative control whose gates include a stress gate (phi, published phi, MALT)
+    /// needs the snapshots too: its native run takes them (stress option only).
+    fn control_takes_snapshots(&self, role: Role) -> bool {
+        let Role::Control(p) = role else {
+            return false;
+        };
+        self.stress
+            && self.case.negative_controls.iter().any(|c| {
+                c.perturbation == *p
+                    && c.must_fail.iter().any(|g| {
+                        matches!(
+                            g,
+                            crate::compare::Gate::Phi
+                                | crate::compare::Gate::MaltK
+                                | crate::compare::Gate::MaltPhi
+                                | crate::compare::Gate::UnifiedFit
+                        ) || (*g == crate::compare::Gate::Published
+                            && self.case.published_phi.is_some())
+                    })
+            })
+    }
+}
+
+impl Experiment for Penetration {
+    type Unit = Unit;
+    type NativeRun = NativeRun;
+    type RefRun = RefRun;
+
+    fn name(&self) -> &str {
+        &self.case.name
+    }
+    fn kind(&self) -> &'static str {
+        "penetration"
+    }
+    fn source(&self) -> &Path {
+        &self.case.source
+    }
+    fn reference_engine(&self) -> EngineKind {
+        EngineKind::Liggghts
+    }
+    fn canonical_hash(&self) -> Sha256 {
+        self.case.canonical_hash()
+    }
+    fn negative_controls(&self) -> &[NegativeControl] {
+        &self.case.negative_controls
+    }
+
+    fn estimate(&self) -> Estimate {
+        let c = &self.case;
+        let n = c.count as f64;
+        let travel = c.start_gap + c.final_depth + c.diameter.max();
+        let steps = travel / c.speed / c.dt;
+        let slow = c.quasi_static_speed.map_or(0.0, |v| travel / v / c.dt);
+        let controls = c.negative_controls.len() as f64;
+        let beds = c.ensemble_beds as f64;
+        Estimate {
+            // Penetration runs plus settling (of the order of max_settle_time).
+            particle_steps: beds * n * (steps * (1.0 + controls) + slow + c.max_settle_time / c.dt),
+            particles: n,
+            output_bytes: beds * (3.0 + controls) * 100.0 * steps / c.force_every as f64
+                + if self.stress {
+                    beds * 2.0 * 60.0 * 300.0 * n * 4.0
+                } else {
+                    0.0
+                },
+            memory_bytes: 3e3 * n + 2e8,
+        }
+    }
+
+    fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
+        (0..self.case.ensemble_beds)
+            .map(|k| {
+                let ck = self.case.realisation(k);
+                let bed = prepare_bed(&ck, opts.progress)
+                    .with_context(|| format!("preparing bed {k} (seed {})", ck.seed))?;
+                let plan = self
+                    .stress
+                    .then(|| crate::analysis::stress_fields::snapshot_plan(&ck, &bed));
+                let study_plan = (self.stress && opts.study)
+                    .then(|| crate::analysis::stress_fields::study_plan(&ck, &bed));
+                Ok(Unit {
+                    k,
+                    bed_hash: bed::bed_hash(&bed),
+                    case: ck,
+                    bed,
+                    plan,
+                    study_plan,
+                })
+            })
+            .collect()
+    }
+
+    fn unit_name(&self, u: &Unit) -> String {
+        bed_dir_name(u.k)
+    }
+
+    fn fingerprint(&self, u: &Unit) -> Result<Sha256> {
+        lp::input_hash_of(&liggghts_deck(&u.case, &u.bed)?)
+    }
+
+    fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<NativeRun> {
+        let main = role == Role::Main;
+        let plan = if main || self.control_takes_snapshots(role) {
+            u.plan.as_ref()
+        } else {
+            None
+        };
+        let run = native_run(&u.case, &u.bed, role, plan, dir, opts.progress, opts.reuse)?;
+        let study_snapshots = match (&u.study_plan, main) {
+            (Some(sp), true) => {
+                let sdir = dir.join(STUDY_DIR);
+                native_run(
+                    &u.case,
+                    &u.bed,
+                    role,
+                    Some(sp),
+                    &sdir,
+                    opts.progress,
+                    opts.reuse,
+                )?;
+                Some(sdir.join(SNAPSHOT_DIR))
+            }
+            _ => None,
+        };
+        let slow = match (main, u.case.quasi_static_speed) {
+            (true, Some(v2)) => {
+                let slow_case = PenetrationCase {
+                    speed: v2,
+                    ..u.case.clone()
+                };
+                Some(native_run(
+                    &slow_case,
+                    &u.bed,
+                    role,
+                    None,
+                    &dir.join(format!("v{v2}")),
+                    opts.progress,
+                    opts.reuse,
+                )?)
+            }
+            _ => None,
+        };
+        Ok(NativeRun {
+            run,
+            slow,
+            snapshots: plan.map(|_| dir.join(SNAPSHOT_DIR)),
+            study_snapshots,
+        })
+    }
+
+    fn write_deck(&self, u: &Unit, dir: &Path, _opts: &Options) -> Result<()> {
+        lp::write_deck_dir(&liggghts_deck(&u.case, &u.bed)?, dir).map(|_| ())
+    }
+
+    fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<RefRun> {
+        let mut main = liggghts_run(u, u.plan.as_ref(), dir, opts)?;
+        if let Some(sp) = &u.study_plan {
+            let sdir = dir.join(STUDY_DIR);
+            let study = liggghts_run(u, Some(sp), &sdir, opts)
+                .with_context(|| format!("bed {}: estimator-study run", u.k))?;
+            main.study_snapshots = study.snapshots;
+        }
+        Ok(main)
+    }
+
+    fn record(&self, _u: &Unit, run: &RefRun, run_dir: &Path, rec: &Path) -> Result<()> {
+        std::fs::create_dir_all(rec).with_context(|| format!("cannot create {}", rec.display()))?;
+        for f in [
+            lp::DECK_FILE,
+            lp::DATA_FILE,
+            lp::STL_FILE,
+            lp::FORCE_FILE,
+            lp::LOG_FILE,
+            crate::engines::liggghts::STDOUT_FILE,
+        ] {
+            std::fs::copy(run_dir.join(f), rec.join(f))
+                .with_context(|| format!("copying {f} into {}", rec.display()))?;
+        }
+        let mut p = run.run.provenance.clone();
+        p.notes.retain(|n| !n.starts_with("run directory"));
+        write_provenance(&rec.join(PROVENANCE_FILE), &p)
+    }
+
+    fn read_record(&self, u: &Unit, name: &str, seal: &Verified) -> Result<RefRun> {
+        // Every file the reduction reads must be sealed.
+        for f in [lp::FORCE_FILE, lp::LOG_FILE, lp::DECK_FILE, PROVENANCE_FILE] {
+            seal.file(name, f)?;
+        }
+        let recorded = read_provenance(&seal.file(name, PROVENANCE_FILE)?)?;
+        ensure!(
+            recorded.engine == EngineKind::Liggghts,
+            "{}: not a LIGGGHTS record (engine {})",
+            seal.root.display(),
+            recorded.engine
+        );
+        let dir = super::reference::unit_dir(&seal.root, name);
+        let mut run = reduce_liggghts_dir(&u.case, &u.bed, &dir)?;
+        run.provenance = recorded;
+        Ok(RefRun {
+            run,
+            snapshots: None,
+            study_snapshots: None,
+        })
+    }
+
+    fn drift(&self, previous: &RefRun, now: &RefRun) -> String {
+        match (
+            cp::observables(&self.case, &previous.run.fdr),
+            cp::observables(&self.case, &now.run.fdr),
+        ) {
+            (Ok(a), Ok(b)) => format!(
+                "K_phi {:.4} -> {:.4} ({:+.2e})",
+                a.fit.k_phi,
+                b.fit.k_phi,
+                b.fit.k_phi - a.fit.k_phi
+            ),
+            (a, b) => format!(
+                "not comparable ({:?} / {:?})",
+                a.err().map(|e| e.to_string()),
+                b.err().map(|e| e.to_string())
+            ),
+        }
+    }
+
+    fn checks(
+        &self,
+        units: &[Unit],
+        native: &[NativeRun],
+        reference: &[RefRun],
+        out: &Path,
+        opts: &Options,
+    ) -> Verdict {
+        let mut v = fdr_checks(
+            &self.case,
+            units,
+            &native.iter().map(|r| &r.run).collect::<Vec<_>>(),
+            &native
+                .iter()
+                .filter_map(|r| r.slow.as_ref())
+                .collect::<Vec<_>>(),
+            &reference.iter().map(|r| &r.run).collect::<Vec<_>>(),
+            out,
+        );
+        let main_run = native.iter().all(|r| r.snapshots.is_some());
+        if self.stress && main_run {
+            let s = stress::checks(&self.case, units, native, reference, out, opts);
+            v.checks.extend(s.checks);
+            v.notes.extend(s.notes);
+        }
+        v
+    }
+}
+
+/// Every FDR check of the experiment from the runs of both engines, with the FDR CSVs
+/// and the overlay SVG written to `out`. Shared by `compare` and `analyze`, so both give
+/// the same report from the same runs.
+pub fn fdr_checks(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: &[&EngineRun],
+    native_slow: &[&EngineRun],
+    reference: &[&EngineRun],
+    out: &Path,
+) -> Verdict {
+    let name = |w: &str| format!("{}: {w}", case.name);
+    let mut notes: Vec<String> = units
+        .iter()
+        .map(|u| {
+            format!(
+                "bed {}: {} (sha256 {})",
+                u.k,
+                packing::bed_note(&u.case, &u.bed),
+                u.bed_hash
+            )
+        })
+        .collect();
+    let mut checks = Vec::new();
+    let obs = |r: &[&EngineRun]| {
+        let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
+        cp::ensemble(case, &f)
+    };
+    let reference = (!reference.is_empty()).then(|| obs(reference));
+    let native_o = (!native.is_empty()).then(|| obs(native));
+    let _ = std::fs::create_dir_all(out);
+    let mut curves = Vec::new();
+    for (label, o) in [("native", &native_o), ("liggghts", &reference)] {
+        match o {
+            Some(Ok(o)) => {
+                checks.extend(cp::fit_coverage(case, o, label));
+                if let Err(e) = crate::analysis::fdr::write_csv(
+                    &out.join(format!("fdr_{label}.csv")),
+                    &o.fdr,
+                    Some(&o.fit),
+                ) {
+                    notes.push(format!("fdr_{label}.csv not written: {e:#}"));
+                }
+                notes.push(format!(
+                    "{label}: K_phi = {:.3} +- {:.3} (R^2 {:.4}) on the mean FDR of {} bed(s); single beds {:?}",
+                    o.fit.k_phi,
+                    o.fit.se_k,
+                    o.fit.r2,
+                    o.members.len(),
+                    o.members
+                        .iter()
+                        .map(|m| format!("K {:.2} R^2 {:.3}", m.0, m.1))
+                        .collect::<Vec<_>>()
+                ));
+                notes.push(format!("{label}: {}", cp::shape_text(o)));
+                if let Some(c) = cp::published(case, o, label) {
+                    checks.push(c);
+                }
+                curves.push((
+                    if label == "native" {
+                        "native"
+                    } else {
+                        "LIGGGHTS"
+                    },
+                    o,
+                ));
+            }
+            Some(Err(e)) => checks.push(Check::error(
+                name(&format!("{label} observables")),
+                format!("{e:#}"),
+            )),
+            None => {}
+        }
+    }
+    if let (Some(Ok(a)), Some(Ok(b))) = (&native_o, &reference) {
+        checks.extend(cp::compare(case, a, b));
+        notes.extend(cp::boundaries_not_compared(a, b));
+    }
+    if let (Some(v2), Some(Ok(a)), false) =
+        (case.quasi_static_speed, &native_o, native_slow.is_empty())
+    {
+        match obs(native_slow) {
+            Ok(slow) => checks.push(cp::quasi_static(case, a, &slow, v2)),
+            Err(e) => checks.push(Check::error(name("quasi-static K_phi"), format!("{e:#}"))),
+        }
+    }
+    let series: Vec<_> = curves
+        .iter()
+        .map(|(l, o)| (*l, o.fdr.h.as_slice(), o.fdr.p.as_slice(), Some(&o.fit)))
+        .collect();
+    if !series.is_empty()
+        && let Err(e) = crate::report::svg::fdr_overlay(
+            &out.join("fdr.svg"),
+            &series,
+            &format!("{}: force-depth relation (mean of beds)", case.name),
+        )
+    {
+        notes.push(format!("SVG not written: {e:#}"));
+    }
+    Verdict { checks, notes }
+}

@@ -1,0 +1,403 @@
+//! The one runner: for any [`Experiment`], resolve the reference source (live, sealed
+//! record, or error), run both engines unit by unit into the output directory, compute
+//! the checks, run the case's negative controls against the same reference runs, and
+//! turn every failure into an error check — never a pass.
+
+use super::reference::{self, RefMode, Source};
+use super::{Experiment, Options, Role, Run};
+use crate::case::NegativeControl;
+use crate::compare::{Check, Gate, Status};
+use crate::report::CaseRun;
+use anyhow::{Context, Result, bail};
+use std::path::{Path, PathBuf};
+
+/// What one case contributed to a report.
+#[derive(Debug, Default)]
+pub struct CaseOutcome {
+    pub checks: Vec<Check>,
+    pub run: Option<CaseRun>,
+    pub notes: Vec<String>,
+}
+
+impl CaseOutcome {
+    fn error(name: &str, what: &str, e: anyhow::Error, notes: Vec<String>) -> CaseOutcome {
+        CaseOutcome {
+            checks: vec![Check::error(format!("{name}: {what}"), format!("{e:#}"))],
+            run: None,
+            notes,
+        }
+    }
+}
+
+/// Output directory of a unit (`""`: the directory itself).
+pub fn unit_out(out: &Path, unit: &str) -> PathBuf {
+    reference::unit_dir(out, unit)
+}
+
+/// The reference engine's run directory inside a unit's output directory.
+pub fn reference_out(
+    out: &Path,
+    unit: &str,
+    exp_engine: crate::rundata::provenance::EngineKind,
+) -> PathBuf {
+    unit_out(out, unit).join(exp_engine.label().to_lowercase())
+}
+
+/// Decides where the reference comes from before anything runs.
+pub fn resolve<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<String>> {
+    let engine = exp.reference_engine();
+    match opts.ref_mode {
+        RefMode::Recorded => Ok(None),
+        RefMode::Live => match reference::installed(engine) {
+            Some(v) => Ok(Some(v)),
+            None => bail!(
+                "{engine} is not installed but live engines are required (GRANVAL_REQUIRE_LIVE=1 / --reference live)"
+            ),
+        },
+        RefMode::Auto => Ok(reference::installed(engine)),
+    }
+}
+
+fn check_limits<E: Experiment>(exp: &E, opts: &Options) -> Result<()> {
+    if opts.allow_large {
+        return Ok(());
+    }
+    if let Some(why) = super::limits::refuse(&exp.estimate(), &exp.source().display().to_string()) {
+        bail!("{}: refused before running: {why}", exp.source().display());
+    }
+    Ok(())
+}
+
+/// `granval compare` / `check` for one case.
+pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcome {
+    let name = exp.name().to_string();
+    if let Err(e) = check_limits(exp, opts) {
+        return CaseOutcome::error(&name, "resource limits", e, vec![]);
+    }
+    let live = match resolve(exp, opts) {
+        Ok(l) => l,
+        Err(e) => return CaseOutcome::error(&name, "reference engine", e, vec![]),
+    };
+    if let Err(e) = std::fs::create_dir_all(out) {
+        return CaseOutcome::error(&name, "output directory", e.into(), vec![]);
+    }
+    // The case file next to its outputs: `granval analyze` re-reads a compare directory.
+    if let Err(e) = std::fs::copy(exp.source(), out.join("case.toml")) {
+        return CaseOutcome::error(&name, "output directory", e.into(), vec![]);
+    }
+    let units = match exp.units(opts) {
+        Ok(u) => u,
+        Err(e) => return CaseOutcome::error(&name, "preparation", e, vec![]),
+    };
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    let engine = exp.reference_engine();
+    let mut notes = Vec::new();
+    let source = match live {
+        Some(version) => Source::Live { version },
+        None => {
+            let fingerprints = match units
+                .iter()
+                .zip(&names)
+                .map(|(u, n)| Ok((n.clone(), exp.fingerprint(u)?)))
+                .collect::<Result<Vec<_>>>()
+            {
+                Ok(f) => f,
+                Err(e) => return CaseOutcome::error(&name, "reference input", e, vec![]),
+            };
+            let root = reference::record_root(&opts.reference_root, exp.kind(), &name);
+            match reference::verify(
+                &root,
+                exp.source(),
+                &exp.canonical_hash(),
+                engine,
+                &fingerprints,
+            ) {
+                Ok(v) => {
+                    notes.push(format!(
+                        "{engine} is not used live here: {name} was compared against the RECORDED {engine} run in {} ({}, sealed {}; seal verified: case, engine input and every file)",
+                        root.display(),
+                        v.seal.engine_version,
+                        v.seal.sealed
+                    ));
+                    Source::Recorded { seal: Box::new(v) }
+                }
+                Err(e) => {
+                    return CaseOutcome::error(
+                        &name,
+                        "recorded reference",
+                        e,
+                        vec![format!(
+                            "the recorded {engine} reference of {name} cannot be used: this is an error, not a pass"
+                        )],
+                    );
+                }
+            }
+        }
+    };
+
+    let mut refs = Vec::with_capacity(units.len());
+    let mut natives = Vec::with_capacity(units.len());
+    for (u, n) in units.iter().zip(&names) {
+        let r = match &source {
+            Source::Live { .. } => exp.run_reference(u, &reference_out(out, n, engine), opts),
+            Source::Recorded { seal } => exp.read_record(u, n, seal),
+            Source::RunDir { dir } => Err(anyhow::anyhow!(
+                "run directory {} is only read by `granval analyze`",
+                dir.display()
+            )),
+        };
+        let r = match r {
+            Ok(r) => r,
+            Err(e) => {
+                notes.push(format!(
+                    "the {engine} reference failed for {name}: this is an error, not a pass"
+                ));
+                return CaseOutcome::error(&name, &unit_label(n, "reference run"), e, notes);
+            }
+        };
+        refs.push(r);
+        match exp.run_native(u, Role::Main, &unit_out(out, n).join("native"), opts) {
+            Ok(r) => natives.push(r),
+            Err(e) => return CaseOutcome::error(&name, &unit_label(n, "native run"), e, notes),
+        }
+    }
+
+    let verdict = exp.checks(&units, &natives, &refs, out, opts);
+    let mut checks = verdict.checks;
+    notes.extend(verdict.notes);
+    for (k, c) in exp.negative_controls().iter().enumerate() {
+        let dir = out.join(format!("control-{k}"));
+        checks.push(negative_control(exp, c, &units, &names, &refs, &dir, opts));
+    }
+    let wall = |rs: &mut dyn Iterator<Item = f64>| rs.sum::<f64>();
+    let run = CaseRun {
+        case: name.clone(),
+        case_file: exp.source().display().to_string(),
+        test_engine: "native".into(),
+        reference_engine: engine.to_string(),
+        reference_version: refs
+            .first()
+            .map(|r| r.provenance().version.clone())
+            .unwrap_or_default(),
+        reference_source: source.describe(),
+        wall_time_test_s: wall(&mut natives.iter().map(|r| r.provenance().wall_time_s)),
+        wall_time_reference_s: wall(&mut refs.iter().map(|r| r.provenance().wall_time_s)),
+    };
+    CaseOutcome {
+        checks,
+        run: Some(run),
+        notes,
+    }
+}
+
+fn unit_label(unit: &str, what: &str) -> String {
+    if unit.is_empty() {
+        what.into()
+    } else {
+        format!("{unit} {what}")
+    }
+}
+
+/// One negative control: the native engine with wrong physics against the same
+/// reference runs. It passes only when every gate it names has at least one check with
+/// status `fail` (an error or a not-compared check is not the control biting).
+fn negative_control<E: Experiment>(
+    exp: &E,
+    c: &NegativeControl,
+    units: &[E::Unit],
+    names: &[String],
+    refs: &[E::RefRun],
+    dir: &Path,
+    opts: &Options,
+) -> Check {
+    let label = format!("{}: negative control \"{}\"", exp.name(), c.name);
+    let mut natives = Vec::with_capacity(units.len());
+    for (u, n) in units.iter().zip(names) {
+        match exp.run_native(
+            u,
+            Role::Control(&c.perturbation),
+            &unit_out(dir, n).join("native"),
+            opts,
+        ) {
+            Ok(r) => natives.push(r),
+            Err(e) => return Check::error_in(label, Gate::NegativeControl, format!("{e:#}")),
+        }
+    }
+    let verdict = exp.checks(units, &natives, refs, dir, opts);
+    let mut missing = Vec::new();
+    let mut summary = Vec::new();
+    for g in &c.must_fail {
+        let of_gate: Vec<&Check> = verdict.checks.iter().filter(|k| k.gate == *g).collect();
+        let failed = of_gate.iter().filter(|k| k.status == Status::Fail).count();
+        summary.push(format!(
+            "{}: {failed} of {} check(s) failed ({})",
+            g.key(),
+            of_gate.len(),
+            of_gate
+                .iter()
+                .map(|k| format!("{} = {:.3e} vs {:.1e}", k.metric, k.value, k.tolerance))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ));
+        if failed == 0 {
+            missing.push(g.key());
+        }
+    }
+    let detail = format!("perturbation {:?}; {}", c.perturbation, summary.join(" | "));
+    if missing.is_empty() {
+        Check::at_most(
+            label,
+            Gate::NegativeControl,
+            "gates that did not fail",
+            0.0,
+            0.0,
+            detail,
+        )
+    } else {
+        Check::failed(
+            label,
+            Gate::NegativeControl,
+            format!("the wrong physics passed {}", missing.join(", ")),
+            missing.len() as f64,
+            format!("the control did not bite: {detail}"),
+        )
+    }
+}
+
+/// `granval run --engine native|<reference>`: one engine, every unit, into `out`.
+pub fn run_one<E: Experiment>(
+    exp: &E,
+    native: bool,
+    opts: &Options,
+    out: &Path,
+) -> Result<Vec<String>> {
+    check_limits(exp, opts)?;
+    let units = exp.units(opts)?;
+    let mut lines = Vec::new();
+    for u in &units {
+        let n = exp.unit_name(u);
+        let dir = unit_out(out, &n);
+        let p = if native {
+            exp.run_native(u, Role::Main, &dir, opts)?
+                .provenance()
+                .clone()
+        } else {
+            if resolve(
+                exp,
+                &Options {
+                    ref_mode: RefMode::Live,
+                    ..opts.clone()
+                },
+            )?
+            .is_none()
+            {
+                bail!("{} is not installed", exp.reference_engine());
+            }
+            exp.run_reference(u, &dir, opts)?.provenance().clone()
+        };
+        lines.push(format!(
+            "{:<24} {} ({}, {:.1} s) -> {}",
+            if n.is_empty() { exp.name() } else { &n },
+            p.engine,
+            p.version,
+            p.wall_time_s,
+            dir.display()
+        ));
+    }
+    Ok(lines)
+}
+
+/// `granval reference refresh`: every unit in the live reference engine, recorded under
+/// `reference/<kind>/<case>/` and sealed; the drift against the previous record is
+/// returned line by line. The new record replaces the old one only when complete.
+pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
+    let engine = exp.reference_engine();
+    let version = reference::installed(engine).with_context(|| {
+        format!("reference refresh needs a live {engine}: it records what the real engine computes")
+    })?;
+    let name = exp.name();
+    let units = exp.units(opts)?;
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    let fingerprints = units
+        .iter()
+        .zip(&names)
+        .map(|(u, n)| Ok((n.clone(), exp.fingerprint(u)?)))
+        .collect::<Result<Vec<_>>>()?;
+    let root = reference::record_root(&opts.reference_root, exp.kind(), name);
+    let previous = reference::verify(
+        &root,
+        exp.source(),
+        &exp.canonical_hash(),
+        engine,
+        &fingerprints,
+    );
+    let fresh = root.with_extension("recording");
+    if fresh.exists() {
+        std::fs::remove_dir_all(&fresh)
+            .with_context(|| format!("cannot clear {}", fresh.display()))?;
+    }
+    let scratch = tempfile::tempdir()?;
+    let mut lines = vec![format!("using {version}")];
+    for (u, n) in units.iter().zip(&names) {
+        let run_dir = unit_out(scratch.path(), n).join("run");
+        let run = exp.run_reference(u, &run_dir, opts)?;
+        let rec = reference::unit_dir(&fresh, n);
+        exp.record(u, &run, &run_dir, &rec)?;
+        let drift = match &previous {
+            Ok(seal) => match exp.read_record(u, n, seal) {
+                Ok(prev) => exp.drift(&prev, &run),
+                Err(e) => format!("previous record unreadable: {e:#}"),
+            },
+            Err(_) if !root.exists() => "new record".into(),
+            Err(e) => format!(
+                "previous record not usable ({})",
+                first_line(&format!("{e:#}"))
+            ),
+        };
+        lines.push(format!(
+            "{name} {}: recorded in {:.1} s; drift vs previous record: {drift}",
+            if n.is_empty() { "" } else { n },
+            run.provenance().wall_time_s
+        ));
+    }
+    std::fs::copy(exp.source(), fresh.join("case.toml"))
+        .with_context(|| format!("copying {} into the record", exp.source().display()))?;
+    reference::write(
+        &fresh,
+        name,
+        exp.kind(),
+        &exp.canonical_hash(),
+        engine,
+        &version,
+        &fingerprints,
+    )?;
+    if root.exists() {
+        std::fs::remove_dir_all(&root)
+            .with_context(|| format!("cannot replace {}", root.display()))?;
+    }
+    std::fs::rename(&fresh, &root)
+        .with_context(|| format!("cannot move {} to {}", fresh.display(), root.display()))?;
+    lines.push(format!(
+        "sealed {}",
+        root.join(reference::SEAL_FILE).display()
+    ));
+    Ok(lines)
+}
+
+fn first_line(s: &str) -> &str {
+    s.lines().next().unwrap_or(s)
+}
+
+/// `granval deck`: the reference engine's input for every unit, without running it.
+pub fn deck<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> Result<Vec<PathBuf>> {
+    let units = exp.units(opts)?;
+    let mut dirs = Vec::new();
+    for u in &units {
+        let dir = unit_out(out, &exp.unit_name(u));
+        exp.write_deck(u, &dir, opts)?;
+        dirs.push(dir);
+    }
+    std::fs::copy(exp.source(), out.join("case.toml"))
+        .with_context(|| format!("copying {} into {}", exp.source().display(), out.display()))?;
+    Ok(dirs)
+}

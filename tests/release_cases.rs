@@ -1,0 +1,95 @@
+//! The release cases (`cases/release/`) and the release suite load and say what
+//! docs/stress.md's pre-registration ("Validating the estimator") fixed for them.
+
+mod common;
+
+use granval::case::AnyCase;
+use granval::case::penetration::PenetrationCase;
+use granval::compare::Gate;
+
+fn penetration(rel: &str) -> PenetrationCase {
+    match AnyCase::load(&common::root().join(rel)).unwrap_or_else(|e| panic!("{e}")) {
+        AnyCase::Penetration(c) => c,
+        _ => panic!("{rel}: not a penetration case"),
+    }
+}
+
+#[test]
+fn release_suite_lists_the_frictionless_and_mid_scale_cases() {
+    let s = granval::experiments::suite::load(&common::root().join("cases"), "release").unwrap();
+    let find = |name: &str| {
+        s.cases
+            .iter()
+            .find(|c| c.path.ends_with(name))
+            .unwrap_or_else(|| panic!("{name} not in the release suite"))
+    };
+    let f = find("release/frictionless-ci.toml");
+    assert!(
+        f.stress && !f.theory,
+        "frictionless: K_phi vs K(phi) reported (rule 1)"
+    );
+    let m = find("release/feng-table2-mid.toml");
+    assert!(m.stress && m.theory, "mid scale: MALT gated against v2");
+    for c in &s.cases {
+        AnyCase::load(&c.path).unwrap_or_else(|e| panic!("{e}"));
+    }
+}
+
+/// The CI case on new seeds is the CI case but for its name and seed.
+#[test]
+fn ci_copy_differs_from_the_ci_case_only_in_seed_and_name() {
+    let ci = penetration("cases/penetration/ci.toml");
+    let new = penetration("cases/release/ci-seeds-20261200.toml");
+    assert_eq!(new.seed, 20261200);
+    assert_eq!(new.ensemble_beds, 3);
+    let same = PenetrationCase {
+        seed: ci.seed,
+        name: ci.name.clone(),
+        description: ci.description.clone(),
+        source: ci.source.clone(),
+        ..new.clone()
+    };
+    assert_eq!(same.canonical_hash(), ci.canonical_hash());
+    assert_eq!(new.snapshot_h, ci.snapshot_h);
+    assert_eq!(new.fit_h_min, ci.fit_h_min);
+    assert_eq!(new.negative_controls.len(), ci.negative_controls.len());
+}
+
+/// Frictionless: mu = 0 for every pair, no rolling model, the CI geometry; phi = 9 +- 2
+/// deg published; the control puts Table 2's friction back and must fail K_phi and the
+/// published phi.
+#[test]
+fn frictionless_case_is_the_ci_geometry_without_friction() {
+    let ci = penetration("cases/penetration/ci.toml");
+    let f = penetration("cases/release/frictionless-ci.toml");
+    assert!(f.pairs.friction.iter().all(|&m| m == 0.0), "{:?}", f.pairs);
+    assert_eq!(f.rolling, granval::case::RollingModel::None);
+    assert_eq!(f.seed, 20261300);
+    assert_eq!(f.ensemble_beds, 3);
+    for (a, b) in [
+        (f.container_radius, ci.container_radius),
+        (f.intruder_radius, ci.intruder_radius),
+        (f.final_depth, ci.final_depth),
+        (f.speed, ci.speed),
+        (f.dt, ci.dt),
+        (f.diameter.mean(), ci.diameter.mean()),
+        (f.fit_h_min, ci.fit_h_min),
+    ] {
+        assert_eq!(a, b);
+    }
+    assert_eq!(f.count, ci.count);
+    assert_eq!(f.snapshot_h, ci.snapshot_h);
+    let p = f.published_phi.as_ref().expect("published phi");
+    assert_eq!((p.phi_deg, p.abs_deg), (9.0, 2.0));
+    let c = &f.negative_controls[0];
+    assert!(c.must_fail.contains(&Gate::KPhi) && c.must_fail.contains(&Gate::Published));
+}
+
+/// Mid scale: the paper's R / d = 7.5, container radius >= 4 R, one bed.
+#[test]
+fn mid_scale_case_has_the_papers_size_ratio() {
+    let m = penetration("cases/release/feng-table2-mid.toml");
+    assert!((m.intruder_radius / m.diameter.mean() - 7.5).abs() < 1e-12);
+    assert!(m.container_radius >= 4.0 * m.intruder_radius);
+    assert_eq!(m.ensemble_beds, 1);
+}
