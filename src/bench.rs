@@ -119,7 +119,9 @@ pub fn lattice_case(n: usize, seed: u64) -> Case {
         tolerances: Tolerances {
             velocity_rel: 1e-6,
             position_frac_radius: 1e-6,
+            orientation_rad: 1e-6,
         },
+        clumps: Default::default(),
         rayleigh_time: rayleigh,
         negative_controls: vec![],
     }

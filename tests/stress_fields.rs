@@ -534,6 +534,35 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         !neg.passed && neg.status == Status::Fail,
         "dropping tangential forces must fail the phi check: {neg:?}"
     );
+    // Estimator v2 (docs/stress.md rule 2) on the same snapshots, pooled over h in
+    // [0.55, 1.3] (the windows at 0.61, 1.0 and 1.2; one bed, so the bootstrap is over
+    // snapshots only): defined, reproducible (fixed seed), paired with itself at zero,
+    // and moved by dropping the tangential forces.
+    use granval::analysis::stress_v2;
+    let (ks, _) = stress_v2::snapshots_in_range(&snaps, 0.55, 1.3).unwrap();
+    assert!(ks.len() >= 2 * case.snapshot_window, "{ks:?}");
+    let bed_snaps = [stress_v2::BedSnapshots {
+        dir: snaps.clone(),
+        ks,
+    }];
+    let v2 = stress_v2::estimate("native", &bed_snaps, Forces::Full, 0.5).unwrap();
+    let again = stress_v2::estimate("native", &bed_snaps, Forces::Full, 0.5).unwrap();
+    let normal2 = stress_v2::estimate("normal", &bed_snaps, Forces::NormalOnly, 0.5).unwrap();
+    eprintln!(
+        "tiny bed, v2: phi {:.2} +- {:.2} deg ({} of {} cells admitted, band {}), normal forces only {:.2} +- {:.2}",
+        v2.phi_deg,
+        v2.sd_deg,
+        v2.n_admitted,
+        v2.n_masked,
+        v2.n_top,
+        normal2.phi_deg,
+        normal2.sd_deg
+    );
+    assert!(v2.phi_deg > 0.0 && v2.phi_deg < 90.0 && v2.sd_deg.is_finite());
+    assert!(v2.n_admitted > 0 && v2.n_admitted <= v2.n_masked && v2.n_top >= 1);
+    assert_eq!(v2.phi_deg.to_bits(), again.phi_deg.to_bits());
+    assert_eq!(stress_v2::paired_sd(&v2, &again), Some(0.0));
+    assert!((v2.phi_deg - normal2.phi_deg).abs() > 1.0);
 }
 
 fn point(f: &stress_fields::EngineFields) -> EnginePoint {

@@ -5,3 +5,5 @@ pub mod impact;
 pub mod malt;
 pub mod stress;
 pub mod stress_fields;
+pub mod stress_study;
+pub mod stress_v2;

@@ -402,7 +402,7 @@ fn running_velocity(m: &mut [f64; 3], count: &mut usize, x: &[f64; 3]) {
 /// shifted); the result is placed at `z0`.
 // One cell index runs over six parallel arrays; iterators would hide that.
 #[allow(clippy::needless_range_loop)]
-fn mean_rz(fields: &[RzField], z0: f64) -> RzField {
+pub(crate) fn mean_rz(fields: &[RzField], z0: f64) -> RzField {
     let first = &fields[0];
     let n = first.nr * first.nz;
     let mut out = RzField {
@@ -513,6 +513,23 @@ pub fn window_fields(
     frame: Frame,
     with_grid3: bool,
 ) -> Result<WindowFields> {
+    window_fields_spaced(snaps, ks, width_over_d, 1.0, frame, with_grid3)
+}
+
+/// [`window_fields`] on an (r, z) grid of spacing `spacing_over_w` times the kernel
+/// width w (the estimator study's grid-spacing convergence; 1 everywhere else).
+pub fn window_fields_spaced(
+    snaps: &[Snapshot],
+    ks: &[usize],
+    width_over_d: f64,
+    spacing_over_w: f64,
+    frame: Frame,
+    with_grid3: bool,
+) -> Result<WindowFields> {
+    ensure!(
+        spacing_over_w > 0.0 && spacing_over_w.is_finite(),
+        "grid spacing factor {spacing_over_w} must be positive"
+    );
     ensure!(!snaps.is_empty(), "a window needs at least one snapshot");
     ensure!(
         ks.len() == snaps.len(),
@@ -554,7 +571,7 @@ pub fn window_fields(
         })
         .collect();
     let params = CgParams::with_width(m0.mean_diameter, width_over_d * m0.mean_diameter)?;
-    let spacing = params.w;
+    let spacing = params.w * spacing_over_w;
     let max_shift = shifts.iter().fold(0.0, |a: f64, s| a.max(s.abs()));
     let nr = (m0.container_radius / spacing).ceil() as usize;
     let nz = ((m0.surface_z + m0.mean_diameter + max_shift - m0.floor_z) / spacing).ceil() as usize;

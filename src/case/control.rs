@@ -21,6 +21,8 @@ pub enum Gate {
     Position,
     Velocity,
     AngularVelocity,
+    /// Micro clump cases: rotation angle between the engines' body orientations.
+    Orientation,
     /// Penetration: steady-state slope, curve distance, regime boundaries, speed.
     KPhi,
     FdrDistance,
@@ -69,6 +71,11 @@ pub struct Perturbation {
     pub pair_friction: Option<(usize, usize, f64)>,
     /// 2D: static <-> kinetic friction model (k_t = 0.8 k_n <-> 0) in every contact.
     pub swap_friction_model: bool,
+    /// Clumps: every principal moment of inertia multiplied by this.
+    pub inertia_factor: f64,
+    /// Clumps: members use their own sphere mass as contact mass instead of the body
+    /// mass LIGGGHTS gives them (particleToInsert_multisphere.cpp:203).
+    pub member_sphere_mass: bool,
 }
 
 impl Default for Perturbation {
@@ -79,6 +86,8 @@ impl Default for Perturbation {
             poisson_shift: 0.0,
             pair_friction: None,
             swap_friction_model: false,
+            inertia_factor: 1.0,
+            member_sphere_mass: false,
         }
     }
 }
@@ -114,6 +123,9 @@ struct RawPerturbation {
     pair_friction: Option<RawPairFriction>,
     #[serde(default)]
     swap_friction_model: bool,
+    inertia_factor: Option<f64>,
+    #[serde(default)]
+    member_sphere_mass: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -198,6 +210,14 @@ pub(crate) fn controls(
             pert.pair_friction = Some((a - 1, b - 1, v));
         }
         pert.swap_friction_model = p.swap_friction_model;
+        if let Some(v) = p.inertia_factor {
+            let v = finite("inertia_factor", v)?;
+            if v <= 0.0 {
+                return Err(ctx.bad(f("perturbation.inertia_factor"), v, "must be > 0"));
+            }
+            pert.inertia_factor = v;
+        }
+        pert.member_sphere_mass = p.member_sphere_mass;
         if pert.is_none() {
             return Err(ctx.bad(
                 f("perturbation"),

@@ -1,7 +1,9 @@
 //! Case files: parsed once from TOML, validated once, then trusted by every later stage
 //! (docs/architecture.md). All quantities in the validated [`Case`] are SI.
 
+pub mod clumps;
 mod error;
+mod fields;
 pub mod impact2d;
 pub mod penetration;
 pub(crate) mod schema;
@@ -176,6 +178,8 @@ impl Wall {
 pub struct Tolerances {
     pub velocity_rel: f64,
     pub position_frac_radius: f64,
+    /// Largest angle (rad) of the rotation between two bodies' orientations.
+    pub orientation_rad: f64,
 }
 
 /// A validated case. Constructed only through [`Case::load`] / [`Case::from_toml_str`].
@@ -198,6 +202,8 @@ pub struct Case {
     pub pairs: PairTable,
     pub particles: Vec<Particle>,
     pub walls: Vec<Wall>,
+    /// Rigid multisphere clumps (empty for sphere-only cases).
+    pub clumps: clumps::Clumps,
     pub tolerances: Tolerances,
     /// Rayleigh time of the smallest/softest grain (Feng Sec. 2), for reports.
     pub rayleigh_time: f64,
@@ -230,7 +236,7 @@ impl Case {
     /// sealed to its sha256, so a reformatted case file keeps its record while a changed
     /// friction coefficient (or another case's record) is refused.
     pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
-        let view = serde_json::json!({
+        let mut view = serde_json::json!({
             "kind": "micro",
             "dt": self.dt,
             "n_steps": self.n_steps,
@@ -244,14 +250,50 @@ impl Case {
             "particles": self.particles,
             "walls": self.walls,
         });
+        // Only clump cases carry the key, so every sphere-only seal stays valid.
+        if !self.clumps.is_empty() {
+            view["clumps"] = serde_json::json!(self.clumps);
+        }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
 
+    /// Smallest sphere radius, clump members included.
     pub fn min_radius(&self) -> f64 {
         self.particles
             .iter()
             .map(|p| p.radius)
+            .chain(
+                self.clumps
+                    .templates
+                    .iter()
+                    .flat_map(|t| t.radii.iter().copied()),
+            )
             .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Mass of every free sphere and every clump body by id (bodies: the whole body).
+    pub fn mass_by_id(&self) -> std::collections::HashMap<u64, f64> {
+        self.particles
+            .iter()
+            .map(|p| (p.id, p.mass()))
+            .chain(
+                self.clumps
+                    .bodies
+                    .iter()
+                    .map(|b| (b.id, self.clumps.template_of(b).mass)),
+            )
+            .collect()
+    }
+
+    /// Number of spheres a run integrates (free spheres and clump members).
+    pub fn n_spheres(&self) -> usize {
+        self.particles.len()
+            + self
+                .clumps
+                .bodies
+                .iter()
+                .map(|b| self.clumps.template_of(b).radii.len())
+                .sum::<usize>()
     }
 }
 

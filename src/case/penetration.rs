@@ -213,6 +213,32 @@ struct Analysis {
     /// (default one mean grain diameter, d_mean / R).
     #[serde(default)]
     snapshot_window_h: Option<f64>,
+    /// Where the K_phi fit ends: "open" (default: the final depth) or "rule3" (where
+    /// the stagnant cone's tip comes within 3 d_g of the floor, docs/stress.md rule 3,
+    /// with the bed-by-bed NOT COMPARED rule).
+    #[serde(default)]
+    k_phi_range: Option<String>,
+    /// The gated phi estimator: "v1" (default: window-averaged, eqs 8-9) or "v2"
+    /// (pooled regime C with bootstrap admission, docs/stress.md rule 2); the other one
+    /// is reported beside it.
+    #[serde(default)]
+    phi_estimator: Option<String>,
+}
+
+/// Where the K_phi fit of regime C ends (docs/stress.md rule 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum KPhiRange {
+    /// h >= fit_h_min to the end of the FDR; the gate without a standard-error rule.
+    Open,
+    /// Rule 3's self-consistent floor clearance, with the bed-by-bed NOT COMPARED rule.
+    Rule3,
+}
+
+/// The phi estimator a case gates (docs/stress.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum PhiEstimator {
+    V1,
+    V2,
 }
 
 /// Default number of snapshots per time-averaging window.
@@ -387,6 +413,8 @@ pub struct PenetrationCase {
     pub published_phi: Option<PublishedPhi>,
     pub rayleigh_time: f64,
     pub negative_controls: Vec<NegativeControl>,
+    pub k_phi_range: KPhiRange,
+    pub phi_estimator: PhiEstimator,
 }
 
 /// Gates a penetration comparison produces (what its negative controls may name).
@@ -642,6 +670,20 @@ impl PenetrationCase {
         ] {
             positive(&ctx, f, v)?;
         }
+        let k_phi_range = match raw.analysis.k_phi_range.as_deref() {
+            None | Some("open") => KPhiRange::Open,
+            Some("rule3") => KPhiRange::Rule3,
+            Some(o) => {
+                return Err(ctx.bad("analysis.k_phi_range", o, "must be \"open\" or \"rule3\""));
+            }
+        };
+        let phi_estimator = match raw.analysis.phi_estimator.as_deref() {
+            None | Some("v1") => PhiEstimator::V1,
+            Some("v2") => PhiEstimator::V2,
+            Some(o) => {
+                return Err(ctx.bad("analysis.phi_estimator", o, "must be \"v1\" or \"v2\""));
+            }
+        };
         let h_bin = match raw.analysis.h_bin {
             Some(b) => positive(&ctx, "analysis.h_bin", b)?,
             None => 0.01,
@@ -818,6 +860,8 @@ impl PenetrationCase {
             published: raw.published,
             published_phi: raw.published_phi,
             rayleigh_time: rayleigh,
+            k_phi_range,
+            phi_estimator,
         })
     }
 }

@@ -13,7 +13,13 @@ pub struct CaseFile {
     pub domain: Domain,
     pub materials: Vec<Material>,
     pub interactions: Vec<Interaction>,
+    #[serde(default)]
     pub particles: Vec<Particle>,
+    /// Rigid multisphere clump templates (`[[clump_templates]]`) and bodies (`[[clumps]]`).
+    #[serde(default)]
+    pub clump_templates: Vec<super::clumps::RawTemplate>,
+    #[serde(default)]
+    pub clumps: Vec<super::clumps::RawClump>,
     #[serde(default)]
     pub walls: Vec<Wall>,
     #[serde(default)]
@@ -129,4 +135,6 @@ pub enum Wall {
 pub struct Compare {
     pub velocity_rel: Option<f64>,
     pub position_frac_radius: Option<f64>,
+    /// Clump cases: largest rotation angle (rad) between the engines' body orientations.
+    pub orientation_rad: Option<f64>,
 }

@@ -11,6 +11,7 @@ pub const MICRO_GATES: &[super::Gate] = &[
     super::Gate::Position,
     super::Gate::Velocity,
     super::Gate::AngularVelocity,
+    super::Gate::Orientation,
 ];
 
 /// More time steps than any run on one machine can take (1e12 steps of the fastest
@@ -37,28 +38,7 @@ pub(super) fn case_name(ctx: &Ctx, name: &str) -> Result<(), CaseError> {
     }
 }
 
-pub(super) fn finite(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(ctx.bad(field, v, "must be a finite number"))
-    }
-}
-
-pub(super) fn positive(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(ctx.bad(field, v, "must be > 0"))
-    }
-}
-
-pub(super) fn vec3(ctx: &Ctx, field: &str, v: [f64; 3]) -> Result<[f64; 3], CaseError> {
-    for (k, c) in v.iter().enumerate() {
-        finite(ctx, &format!("{field}[{k}]"), *c)?;
-    }
-    Ok(v)
-}
+pub(crate) use super::fields::{finite, positive, vec3};
 
 fn axis(ctx: &Ctx, field: &str, s: &str) -> Result<Axis, CaseError> {
     match s {
@@ -258,9 +238,13 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         }
     }
 
-    // Particles.
-    if raw.particles.is_empty() {
-        return Err(ctx.bad("particles", "[]", "at least one particle is required"));
+    // Particles (free spheres); a clump case may have none.
+    if raw.particles.is_empty() && raw.clumps.is_empty() {
+        return Err(ctx.bad(
+            "particles",
+            "[]",
+            "at least one particle (or one [[clumps]] body) is required",
+        ));
     }
     let mut particles = Vec::with_capacity(raw.particles.len());
     let mut seen = std::collections::HashSet::new();
@@ -304,6 +288,18 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             omega: vec3(&ctx, &f("omega"), p.omega)?,
         });
     }
+
+    // Clumps.
+    let templates = super::clumps::templates(&ctx, &raw.clump_templates, n_types)?;
+    let bodies = super::clumps::bodies(&ctx, &raw.clumps, &templates, lo, hi, &seen)?;
+    if bodies.is_empty() && !templates.is_empty() {
+        return Err(ctx.bad(
+            "clump_templates",
+            templates.len(),
+            "templates are defined but no [[clumps]] body uses them",
+        ));
+    }
+    let clumps = super::clumps::Clumps { templates, bodies };
 
     // Walls.
     let mut walls = Vec::with_capacity(raw.walls.len());
@@ -372,9 +368,16 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
     let dt = positive(&ctx, "simulation.dt", raw.simulation.dt)?;
     let rayleigh = particles
         .iter()
-        .map(|p| {
-            let m = &materials[p.type_];
-            super::rayleigh_time(p.radius, p.density, m.shear_modulus, m.poisson_ratio)
+        .map(|p| (p.radius, p.density, p.type_))
+        .chain(
+            clumps
+                .templates
+                .iter()
+                .flat_map(|t| t.radii.iter().map(|r| (*r, t.density, t.type_))),
+        )
+        .map(|(r, rho, ty)| {
+            let m = &materials[ty];
+            super::rayleigh_time(r, rho, m.shear_modulus, m.poisson_ratio)
         })
         .fold(f64::INFINITY, f64::min);
     if dt > rayleigh {
@@ -409,9 +412,36 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         return Err(ctx.bad("simulation.output_every", 0, "must be >= 1"));
     }
     let gravity = vec3(&ctx, "simulation.gravity", raw.simulation.gravity)?;
+    if !clumps.is_empty() {
+        // LIGGGHTS creates free spheres at step 0 but inserts bodies at step 1 (fix
+        // insert/pack, pre_exchange of step 1); the comparison starts at step 1 (t = 0).
+        // A free sphere must therefore not move during step 0 -> 1: at rest, force-free.
+        for (k, p) in particles.iter().enumerate() {
+            if p.v != [0.0; 3] || p.omega != [0.0; 3] {
+                return Err(ctx.bad(
+                    format!("particles[{k}].v"),
+                    (p.v, p.omega),
+                    "in a case with clumps, free spheres must start at rest (v = omega = 0): LIGGGHTS inserts the bodies one step after creating the spheres",
+                ));
+            }
+        }
+        if !particles.is_empty() && gravity != [0.0; 3] {
+            return Err(ctx.bad(
+                "simulation.gravity",
+                gravity,
+                "a case with clumps and free spheres must have zero gravity: the free spheres would fall during the step before the bodies are inserted",
+            ));
+        }
+    }
     let min_r = particles
         .iter()
         .map(|p| p.radius)
+        .chain(
+            clumps
+                .templates
+                .iter()
+                .flat_map(|t| t.radii.iter().copied()),
+        )
         .fold(f64::INFINITY, f64::min);
     let neighbor_skin = match raw.simulation.neighbor_skin {
         Some(s) => positive(&ctx, "simulation.neighbor_skin", s)?,
@@ -422,6 +452,7 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         None => Tolerances {
             velocity_rel: 1e-6,
             position_frac_radius: 1e-6,
+            orientation_rad: 1e-6,
         },
         Some(c) => Tolerances {
             velocity_rel: positive(&ctx, "compare.velocity_rel", c.velocity_rel.unwrap_or(1e-6))?,
@@ -430,11 +461,25 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
                 "compare.position_frac_radius",
                 c.position_frac_radius.unwrap_or(1e-6),
             )?,
+            orientation_rad: positive(
+                &ctx,
+                "compare.orientation_rad",
+                c.orientation_rad.unwrap_or(1e-6),
+            )?,
         },
     };
 
-    let negative_controls =
-        super::control::controls(&ctx, &raw.negative_control, n_types, MICRO_GATES)?;
+    let negative_controls = super::control::controls(
+        &ctx,
+        &raw.negative_control,
+        n_types,
+        // Orientation is gated only where there are bodies to orient.
+        if clumps.is_empty() {
+            &MICRO_GATES[..3]
+        } else {
+            MICRO_GATES
+        },
+    )?;
 
     Ok(Case {
         negative_controls,
@@ -454,6 +499,7 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         pairs,
         particles,
         walls,
+        clumps,
         tolerances,
         rayleigh_time: rayleigh,
     })

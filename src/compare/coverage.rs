@@ -20,6 +20,9 @@ pub const CONTACT_FORCE_FRAC: f64 = 1e-6;
 pub const MIN_MOTION_FRAC: f64 = 0.01;
 pub const MIN_FIT_POINTS: usize = 10;
 
+/// (id, position, velocity, force) of a sphere or a body.
+type State = (u64, [f64; 3], [f64; 3], [f64; 3]);
+
 /// What the reference frames of a micro case covered.
 pub struct MicroCoverage<'a> {
     case: &'a Case,
@@ -42,25 +45,33 @@ impl<'a> MicroCoverage<'a> {
             max_displacement: 0.0,
             max_speed: 0.0,
             max_residual: 0.0,
-            mass_by_id: case.particles.iter().map(|p| (p.id, p.mass())).collect(),
+            mass_by_id: case.mass_by_id(),
         }
     }
 
     /// Adds one reference frame (particles sorted by id, as every reader returns them).
     /// NaN residuals (an unknown id) never count as contact.
     pub fn push(&mut self, f: &Frame) {
+        // Free spheres and clump bodies alike (bodies: the total force incl. gravity,
+        // the body mass, the centre of mass).
+        let states: Vec<State> = f
+            .particles
+            .iter()
+            .map(|p| (p.id, p.x, p.v, p.f))
+            .chain(f.bodies.iter().map(|b| (b.id, b.x, b.v, b.f)))
+            .collect();
         if self.frames == 0 {
-            self.first_x = f.particles.iter().map(|p| p.x).collect();
+            self.first_x = states.iter().map(|p| p.1).collect();
         }
         self.frames += 1;
         let mut residual: f64 = 0.0;
-        for (k, p) in f.particles.iter().enumerate() {
-            let m = self.mass_by_id.get(&p.id).copied().unwrap_or(f64::NAN);
+        for (k, &(id, x, v, force)) in states.iter().enumerate() {
+            let m = self.mass_by_id.get(&id).copied().unwrap_or(f64::NAN);
             // Contact acceleration: the force beyond gravity, per unit mass.
-            residual = residual.max(norm(sub(p.f, scale(self.case.gravity, m))) / m);
-            self.max_speed = self.max_speed.max(norm(p.v));
+            residual = residual.max(norm(sub(force, scale(self.case.gravity, m))) / m);
+            self.max_speed = self.max_speed.max(norm(v));
             if let Some(x0) = self.first_x.get(k) {
-                self.max_displacement = self.max_displacement.max(norm(sub(p.x, *x0)));
+                self.max_displacement = self.max_displacement.max(norm(sub(x, *x0)));
             }
         }
         self.max_residual = self.max_residual.max(residual);

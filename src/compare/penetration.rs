@@ -79,8 +79,13 @@ pub fn resolved_boundaries(case: &PenetrationCase, fdr: &Fdr) -> Result<RegimeBo
 
 /// Fit (regime C from `analysis.fit_h_min`) and regime boundaries of one FDR.
 pub fn observables(case: &PenetrationCase, fdr: &Fdr) -> Result<Observables> {
+    observables_in(case, fdr, f64::INFINITY)
+}
+
+/// [`observables`] with regime C ending at `h_max` (rule 3, [`fit_range`]).
+pub fn observables_in(case: &PenetrationCase, fdr: &Fdr, h_max: f64) -> Result<Observables> {
     let fdr = fdr.contact_only();
-    let fit = fdr::steady_state_fit(&fdr, case.fit_h_min, f64::INFINITY)?;
+    let fit = fdr::steady_state_fit(&fdr, case.fit_h_min, h_max)?;
     let (boundaries, boundaries_error) = match fdr::regime_boundaries(&fdr, &fit) {
         Ok(b) => (Some(b), None),
         Err(e) => (None, Some(format!("{e:#}"))),
@@ -120,22 +125,321 @@ pub fn shape_text(o: &Observables) -> String {
 /// fluctuations of single realisations are what the ensemble averages out), plus each
 /// member's own K_phi for the spread.
 pub fn ensemble(case: &PenetrationCase, members: &[&Fdr]) -> Result<Observables> {
+    ensemble_in(case, members, f64::INFINITY)
+}
+
+/// [`ensemble`] with regime C ending at `h_max`: the mean FDR and every member fitted on
+/// [fit_h_min, h_max] (rule 3, [`fit_range`]).
+pub fn ensemble_in(case: &PenetrationCase, members: &[&Fdr], h_max: f64) -> Result<Observables> {
     let mut per = Vec::with_capacity(members.len());
     for (k, m) in members.iter().enumerate() {
-        let fit = fdr::steady_state_fit(&m.contact_only(), case.fit_h_min, f64::INFINITY)
+        let fit = fdr::steady_state_fit(&m.contact_only(), case.fit_h_min, h_max)
             .with_context(|| format!("bed {k}"))?;
         per.push((fit.k_phi, fit.r2));
     }
     let mean = fdr::ensemble_mean(members, case.h_bin)?;
-    let mut obs = observables(case, &mean)?;
+    let mut obs = observables_in(case, &mean, h_max)?;
     obs.members = per;
     Ok(obs)
+}
+
+/// Rule 3 of docs/stress.md ("The K_phi fit range from geometry"): the floor clearance
+/// c of the stagnant cone's tip, in mean grain diameters (one basic-sphere diameter).
+pub const FLOOR_CLEARANCE_D: f64 = 3.0;
+/// Rule 3: at most this many fits per engine.
+pub const MAX_RANGE_FITS: usize = 10;
+/// Rule 3: a floor-free regime C spans at least this much (units of R), else K_phi is
+/// NOT COMPARED.
+pub const MIN_REGIME_C: f64 = 0.5;
+
+/// One engine's self-consistent end of regime C (rule 3).
+#[derive(Debug, Clone, Serialize)]
+pub struct EngineRange {
+    pub engine: String,
+    /// h_C,end after each fit, in order (the first from the fit on [h_C,start, h_final]).
+    pub ends: Vec<f64>,
+    /// K_phi of each fit.
+    pub k: Vec<f64>,
+    pub h_end: f64,
+    /// Whether h_C,end moved by less than one FDR bin (else the smallest end seen).
+    pub converged: bool,
+    /// phi(K_phi) of the last fit, deg.
+    pub phi_deg: f64,
+}
+
+/// The K_phi fit range of a comparison (rule 3): regime C from `analysis.fit_h_min` to
+/// the smaller of the engines' self-consistent ends.
+#[derive(Debug, Clone, Serialize)]
+pub struct FitRange {
+    pub h_start: f64,
+    /// The common end (the smaller engine end), capped at the final depth.
+    pub h_end: f64,
+    pub h_final: f64,
+    /// Smallest bed surface height above the floor among the beds (m).
+    pub bed_height: f64,
+    /// c = 3 d_g (m).
+    pub clearance: f64,
+    /// Each engine's iteration, or why it failed.
+    pub engines: Vec<(String, Result<EngineRange, String>)>,
+    /// Why K_phi cannot be compared on this range (None: it can).
+    pub not_compared: Option<String>,
+}
+
+impl FitRange {
+    /// The upper end of the K_phi fits: the common end, or (when rule 3 gives no usable
+    /// range) the whole FDR beyond fit_h_min, for reporting only.
+    pub fn fit_end(&self) -> f64 {
+        if self.h_end.is_finite() && self.h_end - self.h_start >= MIN_REGIME_C {
+            self.h_end
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    pub fn text(&self) -> String {
+        let per: Vec<String> = self
+            .engines
+            .iter()
+            .map(|(e, r)| match r {
+                Ok(r) => format!(
+                    "{e}: h_C,end {:.3} ({}, fits {}, ends [{}], phi(K) {:.2} deg)",
+                    r.h_end,
+                    if r.converged {
+                        "converged"
+                    } else {
+                        "not converged: smallest end"
+                    },
+                    r.ends.len(),
+                    r.ends
+                        .iter()
+                        .map(|x| format!("{x:.3}"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    r.phi_deg
+                ),
+                Err(why) => format!("{e}: {why}"),
+            })
+            .collect();
+        format!(
+            "rule 3 fit range: h in [{:.3}, {:.3}] (bed height {:.4e} m, c = 3 d = {:.2e} m, h_final {:.3}); {}{}",
+            self.h_start,
+            self.h_end,
+            self.bed_height,
+            self.clearance,
+            self.h_final,
+            per.join("; "),
+            self.not_compared
+                .as_ref()
+                .map(|w| format!("; K_phi NOT COMPARED: {w}"))
+                .unwrap_or_default()
+        )
+    }
+}
+
+/// h_C,end for a given phi: where the tip of the fully developed stagnant cone,
+/// tan(45 deg + phi / 2) R below the face (eq 11's H_ss), comes within c of the floor,
+/// capped at the final depth.
+pub fn regime_c_end(case: &PenetrationCase, bed_height: f64, phi: f64) -> f64 {
+    let c = FLOOR_CLEARANCE_D * case.diameter.mean();
+    let h_final = case.final_depth / case.intruder_radius;
+    ((bed_height - c) / case.intruder_radius - (std::f64::consts::FRAC_PI_4 + 0.5 * phi).tan())
+        .min(h_final)
+}
+
+/// One engine's self-consistent h_C,end on its (ensemble-mean) FDR: fit on
+/// [fit_h_min, h_final], phi(K_phi) (eq 10 inverted), h_C,end, refit on [fit_h_min,
+/// h_C,end], until h_C,end moves by less than one FDR bin; after [`MAX_RANGE_FITS`]
+/// fits the smallest end seen. A range too short to fit stops the iteration.
+pub fn engine_range(
+    case: &PenetrationCase,
+    fdr: &Fdr,
+    bed_height: f64,
+    engine: &str,
+) -> Result<EngineRange> {
+    let fdr = fdr.contact_only();
+    let h_final = case.final_depth / case.intruder_radius;
+    let mut end = h_final;
+    let mut out = EngineRange {
+        engine: engine.to_string(),
+        ends: Vec::new(),
+        k: Vec::new(),
+        h_end: f64::NAN,
+        converged: false,
+        phi_deg: f64::NAN,
+    };
+    for _ in 0..MAX_RANGE_FITS {
+        let fit = match fdr::steady_state_fit(&fdr, case.fit_h_min, end) {
+            Ok(f) => f,
+            Err(_) if !out.ends.is_empty() => {
+                // The range shrank below what can be fitted: it ends here.
+                out.h_end = end;
+                return Ok(out);
+            }
+            Err(e) => {
+                return Err(e.context(format!("{engine}: fit on [{}, {end}]", case.fit_h_min)));
+            }
+        };
+        let phi = crate::analysis::malt::phi_of_k(fit.k_phi)
+            .with_context(|| format!("{engine}: phi(K_phi = {:.3})", fit.k_phi))?;
+        let new = regime_c_end(case, bed_height, phi);
+        out.k.push(fit.k_phi);
+        out.ends.push(new);
+        out.phi_deg = phi.to_degrees();
+        if (new - end).abs() < case.h_bin {
+            out.h_end = new;
+            out.converged = true;
+            return Ok(out);
+        }
+        end = new;
+    }
+    out.h_end = out.ends.iter().copied().fold(f64::INFINITY, f64::min);
+    Ok(out)
+}
+
+/// Rule 3's common fit range of a comparison: each engine's [`engine_range`] on its mean
+/// FDR, the smaller end; NOT COMPARED when an engine has no end or the range is shorter
+/// than [`MIN_REGIME_C`].
+pub fn fit_range(case: &PenetrationCase, bed_height: f64, engines: &[(&str, &Fdr)]) -> FitRange {
+    let h_final = case.final_depth / case.intruder_radius;
+    let mut out = FitRange {
+        h_start: case.fit_h_min,
+        h_end: f64::NAN,
+        h_final,
+        bed_height,
+        clearance: FLOOR_CLEARANCE_D * case.diameter.mean(),
+        engines: Vec::new(),
+        not_compared: None,
+    };
+    let mut end = f64::INFINITY;
+    let mut why = Vec::new();
+    for (name, f) in engines {
+        match engine_range(case, f, bed_height, name) {
+            Ok(r) => {
+                end = end.min(r.h_end);
+                out.engines.push((name.to_string(), Ok(r)));
+            }
+            Err(e) => {
+                why.push(format!("{name}: {e:#}"));
+                out.engines.push((name.to_string(), Err(format!("{e:#}"))));
+            }
+        }
+    }
+    out.h_end = if end.is_finite() { end } else { f64::NAN };
+    if !why.is_empty() {
+        out.not_compared = Some(format!("no regime-C end: {}", why.join("; ")));
+    } else if out.h_end.is_nan() || out.h_end - out.h_start < MIN_REGIME_C {
+        out.not_compared = Some(format!(
+            "no floor-free regime C at this scale: h_C,end - h_C,start = {:.3} - {:.3} = {:.3} < {MIN_REGIME_C}",
+            out.h_end,
+            out.h_start,
+            out.h_end - out.h_start
+        ));
+    }
+    out
+}
+
+/// Bed by bed relative difference of K_phi, K_test,k / K_ref,k - 1: (mean, sample sd,
+/// standard error sd / sqrt(beds), beds); None with fewer than two beds.
+pub fn paired_k(test: &Observables, reference: &Observables) -> Option<(f64, f64, f64, usize)> {
+    let d: Vec<f64> = test
+        .members
+        .iter()
+        .zip(&reference.members)
+        .map(|(a, b)| a.0 / b.0 - 1.0)
+        .collect();
+    let n = d.len();
+    if n < 2 || test.members.len() != reference.members.len() {
+        return None;
+    }
+    let m = d.iter().sum::<f64>() / n as f64;
+    let sd = (d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+    Some((m, sd, sd / (n as f64).sqrt(), n))
+}
+
+/// The K_phi gate on rule 3's range: |K_test / K_ref - 1| of the mean FDRs against
+/// `k_phi_rel`, NOT COMPARED without a floor-free regime C, with one bed, or when twice
+/// the bed-by-bed standard error exceeds the tolerance (the beds cannot resolve it).
+pub fn k_phi_check(
+    case: &PenetrationCase,
+    range: &FitRange,
+    test: &Observables,
+    reference: &Observables,
+) -> Check {
+    let tol = case.tolerances.k_phi_rel;
+    let name = format!("{}: K_phi", case.name);
+    let paired = paired_k(test, reference);
+    let open = case.k_phi_range == crate::case::penetration::KPhiRange::Open;
+    let detail = format!(
+        "K_test = {:.3} +- {:.3} (regression SE; R^2 {:.4}; {}), K_ref = {:.3} +- {:.3} (R^2 {:.4}; {}), mean FDRs fitted on h in [{:.3}, {:.3}]; bed by bed K_test / K_ref - 1: {}; {}",
+        test.fit.k_phi,
+        test.fit.se_k,
+        test.fit.r2,
+        test.members_text(),
+        reference.fit.k_phi,
+        reference.fit.se_k,
+        reference.fit.r2,
+        reference.members_text(),
+        test.fit.h_lo,
+        test.fit.h_hi,
+        match paired {
+            Some((m, sd, se, n)) =>
+                format!("{m:+.4} +- {se:.4} (mean +- standard error over {n} beds, sd {sd:.4})"),
+            None => "one bed, no standard error".into(),
+        },
+        range.text()
+    );
+    if open {
+        // `analysis.k_phi_range = "open"`: the fit to the final depth, no standard-error
+        // rule; rule 3's range and the bed-by-bed error are reported in the detail.
+        return Check::at_most(
+            name,
+            crate::compare::Gate::KPhi,
+            "|K_test / K_ref - 1|",
+            (test.fit.k_phi / reference.fit.k_phi - 1.0).abs(),
+            tol,
+            format!("open fit range (rule 3 reported, not applied); {detail}"),
+        );
+    }
+    if let Some(why) = &range.not_compared {
+        return Check::not_compared(name, crate::compare::Gate::KPhi, format!("{why}; {detail}"));
+    }
+    match paired {
+        None => Check::not_compared(
+            name,
+            crate::compare::Gate::KPhi,
+            format!(
+                "one bed per engine: no bed-by-bed standard error, so the gate cannot resolve its tolerance {tol} (rule 3); {detail}"
+            ),
+        ),
+        Some((_, _, se, _)) if 2.0 * se > tol => Check::not_compared(
+            name,
+            crate::compare::Gate::KPhi,
+            format!(
+                "2 x standard error {:.4} > tolerance {tol}: too few beds to resolve it (rule 3); |K_test / K_ref - 1| = {:.4}; {detail}",
+                2.0 * se,
+                (test.fit.k_phi / reference.fit.k_phi - 1.0).abs()
+            ),
+        ),
+        Some(_) => Check::at_most(
+            name,
+            crate::compare::Gate::KPhi,
+            "|K_test / K_ref - 1|",
+            (test.fit.k_phi / reference.fit.k_phi - 1.0).abs(),
+            tol,
+            detail,
+        ),
+    }
 }
 
 /// Coverage of the steady-state fit of one engine's mean FDR: enough points in
 /// regime C for K_phi to mean anything ([`super::coverage::MIN_FIT_POINTS`]).
 pub fn fit_coverage(case: &PenetrationCase, o: &Observables, engine: &str) -> Vec<Check> {
-    let n = o.fdr.h.iter().filter(|&&h| h >= case.fit_h_min).count();
+    let n = o
+        .fdr
+        .h
+        .iter()
+        .filter(|&&h| h >= case.fit_h_min && h <= o.fit.h_hi)
+        .count();
     let name = format!("{}: coverage of the K_phi fit ({engine})", case.name);
     match super::coverage::fit_points(&name, "regime C (h >= fit_h_min) of the mean FDR", n) {
         Some(c) => vec![c],
@@ -145,7 +449,7 @@ pub fn fit_coverage(case: &PenetrationCase, o: &Observables, engine: &str) -> Ve
             "FDR points in regime C",
             n as f64,
             super::coverage::MIN_FIT_POINTS as f64,
-            format!("h >= {}", case.fit_h_min),
+            format!("h in [{}, {:.3}]", case.fit_h_min, o.fit.h_hi),
         )],
     }
 }
@@ -194,29 +498,17 @@ pub fn published(case: &PenetrationCase, obs: &Observables, engine: &str) -> Opt
     ))
 }
 
-/// Checks of `test` against `reference`, tolerances from the case file.
-pub fn compare(case: &PenetrationCase, test: &Observables, reference: &Observables) -> Vec<Check> {
+/// Checks of `test` against `reference` (both fitted on `range`, rule 3), tolerances
+/// from the case file.
+pub fn compare(
+    case: &PenetrationCase,
+    range: &FitRange,
+    test: &Observables,
+    reference: &Observables,
+) -> Vec<Check> {
     let tol = &case.tolerances;
     let name = |w: &str| format!("{}: {w}", case.name);
-    let mut checks = vec![Check::at_most(
-        name("K_phi"),
-        crate::compare::Gate::KPhi,
-        "|K_test / K_ref - 1|",
-        (test.fit.k_phi / reference.fit.k_phi - 1.0).abs(),
-        tol.k_phi_rel,
-        format!(
-            "K_test = {:.3} +- {:.3} (R^2 {:.4}; {}), K_ref = {:.3} +- {:.3} (R^2 {:.4}; {}), fitted on h >= {} of the mean FDR",
-            test.fit.k_phi,
-            test.fit.se_k,
-            test.fit.r2,
-            test.members_text(),
-            reference.fit.k_phi,
-            reference.fit.se_k,
-            reference.fit.r2,
-            reference.members_text(),
-            case.fit_h_min
-        ),
-    )];
+    let mut checks = vec![k_phi_check(case, range, test, reference)];
     let h_hi = test
         .fdr
         .h

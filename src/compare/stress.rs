@@ -147,8 +147,10 @@ pub fn mean_fdr(
     case: &PenetrationCase,
     fdrs: &[crate::analysis::fdr::Fdr],
     origin: &str,
+    h_max: f64,
 ) -> Result<FdrObservables> {
-    let o = crate::compare::penetration::ensemble(case, &fdrs.iter().collect::<Vec<_>>())?;
+    let o =
+        crate::compare::penetration::ensemble_in(case, &fdrs.iter().collect::<Vec<_>>(), h_max)?;
     let source = format!(
         "{origin} (single beds K_phi {:?})",
         o.members
@@ -180,13 +182,23 @@ pub fn paired_difference(test: &[f64], reference: &[f64]) -> Option<(f64, f64, u
 /// An engine's (phi, K_phi) point: phi pooled over the stress fields of its beds, K_phi
 /// and the unified fit (eqs 13-15, with that phi) from the given FDR.
 pub fn engine_point(beds: &[&EngineFields], fdr: &FdrObservables) -> EnginePoint {
+    engine_point_with(beds, fdr, None)
+}
+
+/// [`engine_point`] with phi (deg, its sd) given, e.g. estimator v2's, instead of the
+/// pooled window phi of v1; the per-window and per-bed v1 values stay for the report.
+pub fn engine_point_with(
+    beds: &[&EngineFields],
+    fdr: &FdrObservables,
+    phi: Option<(f64, f64)>,
+) -> EnginePoint {
     let phi_by_window: Vec<f64> = beds.iter().flat_map(|f| f.phi_by_window()).collect();
     let finite: Vec<f64> = phi_by_window
         .iter()
         .copied()
         .filter(|x| x.is_finite())
         .collect();
-    let (phi_deg, phi_std_deg) = mean_std(&finite);
+    let (phi_deg, phi_std_deg) = phi.unwrap_or_else(|| mean_std(&finite));
     let obs = &fdr.obs;
     let unified = if phi_deg.is_finite() {
         let c = obs.fdr.contact_only();
@@ -208,4 +220,95 @@ pub fn engine_point(beds: &[&EngineFields], fdr: &FdrObservables) -> EnginePoint
         unified_malt: obs.boundaries.as_ref().map(|b| (b.h_a, b.h_b, b.r2)),
         fdr_source: fdr.source.clone(),
     }
+}
+
+/// Estimator v2's gate (docs/stress.md rule 2): |phi_v2,test - phi_v2,ref| against
+/// `phi_abs_deg`, NOT COMPARED when twice the paired bootstrap sd of the difference
+/// exceeds the tolerance (the data cannot resolve it).
+pub fn phi_v2_check(
+    case: &str,
+    tol: &Tolerances,
+    test: &crate::analysis::stress_v2::PhiV2,
+    reference: &crate::analysis::stress_v2::PhiV2,
+) -> Check {
+    use crate::analysis::stress_v2::paired_sd;
+    let name = format!("{case}: phi v2 {} vs {}", test.engine, reference.engine);
+    let sd = paired_sd(test, reference);
+    let unpaired = test.sd_deg.hypot(reference.sd_deg);
+    let detail = format!(
+        "phi v2: {} {:.2} +- {:.2} deg, {} {:.2} +- {:.2} deg (bootstrap sd; {} beds, {} snapshots, h in [{:.3}, {:.3}]); paired sd of the difference {}, unpaired {:.2}; admitted cells {} / {} (band {}) and {} / {} (band {}); gamma_max at r/R {:.2}, depth {:.2} R and r/R {:.2}, depth {:.2} R",
+        test.engine,
+        test.phi_deg,
+        test.sd_deg,
+        reference.engine,
+        reference.phi_deg,
+        reference.sd_deg,
+        test.n_beds,
+        test.n_snapshots,
+        test.h_lo,
+        test.h_hi,
+        sd.map_or("undefined (different draws)".to_string(), |s| format!(
+            "{s:.2}"
+        )),
+        unpaired,
+        test.n_admitted,
+        test.n_masked,
+        test.n_top,
+        reference.n_admitted,
+        reference.n_masked,
+        reference.n_top,
+        test.gamma_max_r,
+        test.gamma_max_depth,
+        reference.gamma_max_r,
+        reference.gamma_max_depth,
+    );
+    match sd {
+        Some(sd) if sd.is_finite() && 2.0 * sd <= tol.phi_abs_deg => Check::at_most(
+            name,
+            crate::compare::Gate::Phi,
+            "|phi_v2,test - phi_v2,ref| (deg), estimator v2 (docs/stress.md rule 2)",
+            (test.phi_deg - reference.phi_deg).abs(),
+            tol.phi_abs_deg,
+            detail,
+        ),
+        _ => Check::not_compared(
+            name,
+            crate::compare::Gate::Phi,
+            format!(
+                "2 x paired bootstrap sd > tolerance {} deg: the data cannot resolve it (rule 2); |difference| = {:.2} deg; {detail}",
+                tol.phi_abs_deg,
+                (test.phi_deg - reference.phi_deg).abs()
+            ),
+        ),
+    }
+}
+
+/// A published phi (e.g. 9 +- 1 deg for frictionless grains, Feng et al. Sec. 4)
+/// against one engine's phi by one estimator.
+pub fn published_phi_check(
+    case: &PenetrationCase,
+    engine: &str,
+    estimator: &str,
+    phi_deg: f64,
+) -> Option<Check> {
+    let p = case.published_phi.as_ref()?;
+    Some(if phi_deg.is_finite() {
+        Check::at_most(
+            format!("{}: phi {estimator} vs published ({engine})", case.name),
+            crate::compare::Gate::Published,
+            "|phi - phi_published| (deg)",
+            (phi_deg - p.phi_deg).abs(),
+            p.abs_deg,
+            format!(
+                "phi {estimator} = {phi_deg:.2} deg vs {} deg ({})",
+                p.phi_deg, p.source
+            ),
+        )
+    } else {
+        Check::error_in(
+            format!("{}: phi {estimator} vs published ({engine})", case.name),
+            crate::compare::Gate::Published,
+            format!("phi {estimator} undefined"),
+        )
+    })
 }

@@ -16,6 +16,7 @@ use super::coverage::MicroCoverage;
 use super::{Check, Gate};
 use crate::case::Case;
 use crate::numerics::vec3::{norm, sub};
+use crate::physics::dem::rigid::rotation_angle;
 use crate::rundata::frames::Frame;
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -46,6 +47,8 @@ pub struct Trajectory<'a> {
     dx: Worst,
     dv: Worst,
     dw: Worst,
+    /// Clump cases: rotation angle between body orientations (rad).
+    dq: Worst,
     vmax_ref: f64,
     wmax_ref: f64,
     frames: usize,
@@ -60,6 +63,7 @@ impl<'a> Trajectory<'a> {
             dx: Worst::default(),
             dv: Worst::default(),
             dw: Worst::default(),
+            dq: Worst::default(),
             vmax_ref: 0.0,
             wmax_ref: 0.0,
             frames: 0,
@@ -74,7 +78,10 @@ impl<'a> Trajectory<'a> {
         if self.mismatch.is_some() {
             return;
         }
-        if a.step != b.step || a.particles.len() != b.particles.len() {
+        if a.step != b.step
+            || a.particles.len() != b.particles.len()
+            || a.bodies.len() != b.bodies.len()
+        {
             self.mismatch = Some(format!(
                 "frame mismatch: step {} ({} particles) vs step {} ({} particles)",
                 a.step,
@@ -96,6 +103,22 @@ impl<'a> Trajectory<'a> {
             self.dx.update(norm(sub(p.x, q.x)) / r_min, a.step, p.id);
             self.dv.update(norm(sub(p.v, q.v)), a.step, p.id);
             self.dw.update(norm(sub(p.omega, q.omega)), a.step, p.id);
+            self.vmax_ref = self.vmax_ref.max(norm(q.v));
+            self.wmax_ref = self.wmax_ref.max(norm(q.omega));
+        }
+        // Clumps: the same metrics on the body state, plus the orientation angle.
+        for (p, q) in a.bodies.iter().zip(&b.bodies) {
+            if p.id != q.id {
+                self.mismatch = Some(format!(
+                    "clump ids differ at step {}: {} vs {}",
+                    a.step, p.id, q.id
+                ));
+                return;
+            }
+            self.dx.update(norm(sub(p.x, q.x)) / r_min, a.step, p.id);
+            self.dv.update(norm(sub(p.v, q.v)), a.step, p.id);
+            self.dw.update(norm(sub(p.omega, q.omega)), a.step, p.id);
+            self.dq.update(rotation_angle(p.q, q.q), a.step, p.id);
             self.vmax_ref = self.vmax_ref.max(norm(q.v));
             self.wmax_ref = self.wmax_ref.max(norm(q.omega));
         }
@@ -157,7 +180,17 @@ impl<'a> Trajectory<'a> {
             vscale / self.case.min_radius()
         };
         let tol = &self.case.tolerances;
-        vec![
+        let orientation = (!self.case.clumps.is_empty()).then(|| {
+            Check::at_most(
+                name("orientation"),
+                Gate::Orientation,
+                "max rotation angle between body orientations (rad)",
+                self.dq.value,
+                tol.orientation_rad,
+                self.dq.detail(),
+            )
+        });
+        let mut checks = vec![
             coverage,
             Check::at_most(
                 name("position"),
@@ -183,7 +216,9 @@ impl<'a> Trajectory<'a> {
                 tol.velocity_rel,
                 self.dw.detail(),
             ),
-        ]
+        ];
+        checks.extend(orientation);
+        checks
     }
 }
 

@@ -8,7 +8,7 @@ use crate::physics::dem::{self, Simulation, packing::Bed};
 use crate::physics::dem2d::energy::EnergyModel;
 use crate::physics::dem2d::impact::Scene;
 use crate::rundata::force::ForceSample;
-use crate::rundata::frames::FrameWriter;
+use crate::rundata::frames::{FrameWriter, JsonlFrameWriter};
 use crate::rundata::impact::{EnergySample, IntruderSample};
 use crate::rundata::provenance::{EngineKind, Provenance, Sha256, now_utc};
 use anyhow::Result;
@@ -49,9 +49,17 @@ pub fn micro(
     on_step: impl FnMut(u64),
 ) -> Result<Provenance> {
     let start = Instant::now();
-    let mut w = FrameWriter::create(csv)?;
-    dem::run(case, *pert, on_step, |f| w.write(&f))?;
-    w.finish()?;
+    if case.clumps.is_empty() {
+        let mut w = FrameWriter::create(csv)?;
+        dem::run(case, *pert, on_step, |f| w.write(&f))?;
+        w.finish()?;
+    } else {
+        // Bodies do not fit particles.csv: the frames go to frames.jsonl next to it.
+        let path = csv.with_file_name(crate::rundata::frames::JSONL_FILE);
+        let mut w = JsonlFrameWriter::create(&path)?;
+        dem::run(case, *pert, on_step, |f| w.write(&f))?;
+        w.finish()?;
+    }
     Ok(provenance(
         case.canonical_hash(),
         &case.source,

@@ -8,7 +8,7 @@ use crate::case::{Case, NegativeControl};
 use crate::compare::Check;
 use crate::compare::trajectory::Trajectory;
 use crate::engines::liggghts::{self, DumpFrames, Liggghts};
-use crate::rundata::frames::{CsvFrames, Frame};
+use crate::rundata::frames::{CsvFrames, Frame, JSONL_FILE, JsonlFrames};
 use crate::rundata::provenance::{
     EngineKind, Provenance, Sha256, read_provenance, write_provenance,
 };
@@ -31,6 +31,10 @@ pub struct MicroRun {
 enum FrameFile {
     Csv(PathBuf),
     Dump(PathBuf),
+    /// Native clump run: `frames.jsonl`.
+    Jsonl(PathBuf),
+    /// LIGGGHTS clump run: the directory with the body dump (and the free-sphere dump).
+    ClumpDump(PathBuf),
 }
 
 impl Run for MicroRun {
@@ -44,6 +48,11 @@ impl MicroRun {
         Ok(match &self.frames {
             FrameFile::Csv(p) => Box::new(CsvFrames::open(p, case.dt)?),
             FrameFile::Dump(p) => Box::new(DumpFrames::open(p, case.dt)?),
+            FrameFile::Jsonl(p) => Box::new(JsonlFrames::open(p)?),
+            // Clump runs are short (a few bodies): read whole.
+            FrameFile::ClumpDump(d) => {
+                Box::new(liggghts::clumps::clump_frames(case, d)?.into_iter().map(Ok))
+            }
         })
     }
 }
@@ -86,6 +95,28 @@ pub fn compare_streams(
         }
     }
     t.finish()
+}
+
+/// The files a micro record keeps: inputs, dumps, log.
+fn record_files(case: &Case) -> Vec<&'static str> {
+    if case.clumps.is_empty() {
+        vec![
+            liggghts::DECK_FILE,
+            liggghts::DATA_FILE,
+            liggghts::DUMP_FILE,
+            liggghts::LOG_FILE,
+        ]
+    } else {
+        let mut v = vec![
+            liggghts::DECK_FILE,
+            liggghts::clumps::BODY_DUMP_FILE,
+            liggghts::LOG_FILE,
+        ];
+        if !case.particles.is_empty() {
+            v.push(liggghts::DUMP_FILE);
+        }
+        v
+    }
 }
 
 impl Experiment for Micro {
@@ -149,19 +180,20 @@ impl Experiment for Micro {
         bar.finish_and_clear();
         write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
         Ok(MicroRun {
-            frames: FrameFile::Csv(csv),
+            frames: if self.case.clumps.is_empty() {
+                FrameFile::Csv(csv)
+            } else {
+                FrameFile::Jsonl(dir.join(JSONL_FILE))
+            },
             provenance,
         })
     }
 
     fn write_deck(&self, _unit: &(), dir: &Path, _opts: &Options) -> Result<()> {
         std::fs::create_dir_all(dir)?;
-        let deck = liggghts::write_deck(&self.case, liggghts::DUMP_FILE, liggghts::DATA_FILE)?;
-        std::fs::write(dir.join(liggghts::DECK_FILE), deck)?;
-        std::fs::write(
-            dir.join(liggghts::DATA_FILE),
-            liggghts::write_data_file(&self.case)?,
-        )?;
+        for (name, text) in liggghts::micro_inputs(&self.case)? {
+            std::fs::write(dir.join(name), text)?;
+        }
         Ok(())
     }
 
@@ -173,19 +205,18 @@ impl Experiment for Micro {
         let provenance = liggghts::micro(&lig, &self.case, dir)?;
         write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
         Ok(MicroRun {
-            frames: FrameFile::Dump(dir.join(liggghts::DUMP_FILE)),
+            frames: if self.case.clumps.is_empty() {
+                FrameFile::Dump(dir.join(liggghts::DUMP_FILE))
+            } else {
+                FrameFile::ClumpDump(dir.to_path_buf())
+            },
             provenance,
         })
     }
 
     fn record(&self, _unit: &(), run: &MicroRun, run_dir: &Path, rec: &Path) -> Result<()> {
         std::fs::create_dir_all(rec)?;
-        for f in [
-            liggghts::DECK_FILE,
-            liggghts::DATA_FILE,
-            liggghts::DUMP_FILE,
-            liggghts::LOG_FILE,
-        ] {
+        for f in record_files(&self.case) {
             std::fs::copy(run_dir.join(f), rec.join(f))
                 .with_context(|| format!("copying {f} into {}", rec.display()))?;
         }
@@ -203,10 +234,17 @@ impl Experiment for Micro {
                 provenance.engine
             );
         }
-        Ok(MicroRun {
-            frames: FrameFile::Dump(seal.file(name, liggghts::DUMP_FILE)?),
-            provenance,
-        })
+        let frames = if self.case.clumps.is_empty() {
+            FrameFile::Dump(seal.file(name, liggghts::DUMP_FILE)?)
+        } else {
+            // Every recorded file is checked against the seal before the directory is used.
+            for f in record_files(&self.case) {
+                seal.file(name, f)?;
+            }
+            let body = seal.file(name, liggghts::clumps::BODY_DUMP_FILE)?;
+            FrameFile::ClumpDump(body.parent().map(Path::to_path_buf).unwrap_or_default())
+        };
+        Ok(MicroRun { frames, provenance })
     }
 
     fn drift(&self, previous: &MicroRun, now: &MicroRun) -> String {

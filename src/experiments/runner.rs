@@ -235,7 +235,14 @@ fn negative_control<E: Experiment>(
             of_gate.len(),
             of_gate
                 .iter()
-                .map(|k| format!("{} = {:.3e} vs {:.1e}", k.metric, k.value, k.tolerance))
+                .map(|k| match k.status {
+                    Status::NotCompared | Status::Error => format!(
+                        "{:?}: {}",
+                        k.status,
+                        k.detail.chars().take(400).collect::<String>()
+                    ),
+                    _ => format!("{} = {:.3e} vs {:.1e}", k.metric, k.value, k.tolerance),
+                })
                 .collect::<Vec<_>>()
                 .join("; ")
         ));

@@ -14,12 +14,28 @@ pub struct ParticleState {
     pub f: [f64; 3],
 }
 
-/// All particles at one output step, sorted by id.
+/// One rigid clump at one output step, SI units: centre of mass, orientation quaternion
+/// (w, x, y, z) of the template frame, velocity, angular velocity, and the total force
+/// (gravity included) gathered in the step, as LIGGGHTS' `compute multisphere` reports
+/// `xcm quat vcm omega fcm`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BodyState {
+    pub id: u64,
+    pub x: [f64; 3],
+    pub q: [f64; 4],
+    pub v: [f64; 3],
+    pub omega: [f64; 3],
+    pub f: [f64; 3],
+}
+
+/// All particles at one output step, sorted by id; clump cases add their bodies.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Frame {
     pub step: u64,
     pub t: f64,
     pub particles: Vec<ParticleState>,
+    #[serde(default)]
+    pub bodies: Vec<BodyState>,
 }
 
 /// Column order of `particles.csv`, fixed (documented in the README) so scripts can rely on it.
@@ -177,6 +193,7 @@ impl CsvFrames {
         }
         particles.sort_by_key(|p| p.id);
         Ok(Some(Frame {
+            bodies: Vec::new(),
             step: (t / self.dt).round() as u64,
             t,
             particles,
@@ -204,4 +221,76 @@ impl Iterator for CsvFrames {
 /// Reads a whole `particles.csv` (small runs and tests).
 pub fn read_particles_csv(path: &Path, dt: f64) -> Result<Vec<Frame>> {
     CsvFrames::open(path, dt)?.collect()
+}
+
+/// File name of a clump case's native frames.
+pub const JSONL_FILE: &str = "frames.jsonl";
+
+/// Frames of a clump case (`frames.jsonl`): one JSON [`Frame`] per line, bodies included.
+/// serde_json writes f64 in shortest round-trip form, so no precision is lost; a CSV row
+/// per particle cannot hold a frame that has bodies but no free sphere.
+pub struct JsonlFrameWriter {
+    w: std::io::BufWriter<std::fs::File>,
+    path: std::path::PathBuf,
+}
+
+impl JsonlFrameWriter {
+    pub fn create(path: &Path) -> Result<JsonlFrameWriter> {
+        let f = std::fs::File::create(path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
+        Ok(JsonlFrameWriter {
+            w: std::io::BufWriter::new(f),
+            path: path.to_path_buf(),
+        })
+    }
+
+    pub fn write(&mut self, fr: &Frame) -> Result<()> {
+        use std::io::Write;
+        serde_json::to_writer(&mut self.w, fr)
+            .and_then(|_| self.w.write_all(b"\n").map_err(serde_json::Error::io))
+            .with_context(|| format!("cannot write {}", self.path.display()))
+    }
+
+    pub fn finish(mut self) -> Result<()> {
+        use std::io::Write;
+        self.w
+            .flush()
+            .with_context(|| format!("cannot write {}", self.path.display()))
+    }
+}
+
+/// `frames.jsonl` read back one frame at a time.
+pub struct JsonlFrames {
+    path: std::path::PathBuf,
+    lines: std::io::Lines<std::io::BufReader<std::fs::File>>,
+    no: usize,
+}
+
+impl JsonlFrames {
+    pub fn open(path: &Path) -> Result<JsonlFrames> {
+        use std::io::BufRead;
+        let f =
+            std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+        Ok(JsonlFrames {
+            path: path.to_path_buf(),
+            lines: std::io::BufReader::new(f).lines(),
+            no: 0,
+        })
+    }
+}
+
+impl Iterator for JsonlFrames {
+    type Item = Result<Frame>;
+    fn next(&mut self) -> Option<Result<Frame>> {
+        let line = self.lines.next()?;
+        self.no += 1;
+        let (path, no) = (&self.path, self.no);
+        Some(
+            line.with_context(|| format!("{}: line {no}: read error", path.display()))
+                .and_then(|l| {
+                    serde_json::from_str(&l)
+                        .with_context(|| format!("{}: line {no}: not a frame", path.display()))
+                }),
+        )
+    }
 }

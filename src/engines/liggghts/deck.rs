@@ -192,7 +192,7 @@ pub(super) fn data_text(
 
 /// Keeps free text (case names) harmless inside a LIGGGHTS comment: no `$` variable
 /// expansion, no `&` continuation, no line breaks.
-fn comment_safe(s: &str) -> String {
+pub(super) fn comment_safe(s: &str) -> String {
     s.chars()
         .map(|c| {
             if c.is_alphanumeric() || " _-.:,/()[]+=".contains(c) {

@@ -203,6 +203,7 @@ impl DumpFrames {
                     );
                 }
                 return Ok(Some(Frame {
+                    bodies: Vec::new(),
                     step: st,
                     t: st as f64 * self.dt,
                     particles,

@@ -7,6 +7,7 @@
 //! A run directory is therefore self-describing and can be re-run by hand with the
 //! command recorded in the provenance.
 
+pub mod clumps;
 mod deck;
 mod dump;
 pub mod penetration;
@@ -87,12 +88,20 @@ pub fn installed_version(binary: &str) -> Option<String> {
 /// stay there) and checks that the dump holds every expected frame of every particle.
 /// The frames are read afterwards with [`micro_frames`], one at a time.
 pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
-    let deck = write_deck(case, DUMP_FILE, DATA_FILE)?;
-    let data = write_data_file(case)?;
+    let inputs = micro_inputs(case)?;
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create run directory {}", dir.display()))?;
-    process::remove_stale(dir, &[DUMP_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE])?;
-    for (name, text) in [(DECK_FILE, &deck), (DATA_FILE, &data)] {
+    process::remove_stale(
+        dir,
+        &[
+            DUMP_FILE,
+            clumps::BODY_DUMP_FILE,
+            LOG_FILE,
+            STDOUT_FILE,
+            STDERR_FILE,
+        ],
+    )?;
+    for (name, text) in &inputs {
         let p = dir.join(name);
         std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
     }
@@ -117,7 +126,11 @@ pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
     let what = format!("LIGGGHTS run of case {}", case.source.display());
     tr.check_exit(&fin, lig.timeout, &what, &command, dir)?;
     let fail = |reason: String| tr.failure(&what, &command, dir, &reason);
-    let dump_path = dir.join(DUMP_FILE);
+    let dump_path = dir.join(if case.clumps.is_empty() {
+        DUMP_FILE
+    } else {
+        clumps::BODY_DUMP_FILE
+    });
     match std::fs::metadata(&dump_path) {
         Err(_) => {
             return Err(fail(format!(
@@ -152,9 +165,24 @@ pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
 /// sha256 of what LIGGGHTS is given for a micro case (deck and data file): the
 /// fingerprint a recorded reference must match.
 pub fn micro_input_hash(case: &Case) -> Result<Sha256> {
-    let deck = write_deck(case, DUMP_FILE, DATA_FILE)?;
-    let data = write_data_file(case)?;
-    Ok(Sha256::of(format!("{deck}{data}").as_bytes()))
+    let text: String = micro_inputs(case)?.into_iter().map(|(_, t)| t).collect();
+    Ok(Sha256::of(text.as_bytes()))
+}
+
+/// The input files of a micro case: deck and data file, or the clump deck alone (bodies
+/// cannot be read from a data file; they are inserted).
+pub fn micro_inputs(case: &Case) -> Result<Vec<(&'static str, String)>> {
+    if case.clumps.is_empty() {
+        Ok(vec![
+            (DECK_FILE, write_deck(case, DUMP_FILE, DATA_FILE)?),
+            (DATA_FILE, write_data_file(case)?),
+        ])
+    } else {
+        Ok(vec![(
+            DECK_FILE,
+            clumps::write_clump_deck(case, DUMP_FILE)?,
+        )])
+    }
 }
 
 /// The frames of a finished micro run in `dir`, one at a time.
@@ -165,6 +193,31 @@ pub fn micro_frames(case: &Case, dir: &Path) -> Result<DumpFrames> {
 /// Every frame a complete run writes, at the expected steps, with every particle.
 fn check_dump(case: &Case, dump_path: &Path) -> Result<()> {
     let expected = expected_frames(case);
+    if !case.clumps.is_empty() {
+        let dir = dump_path.parent().unwrap_or(Path::new("."));
+        let frames = clumps::clump_frames(case, dir)?;
+        for (n, fr) in frames.iter().enumerate() {
+            let step = n as u64 * case.output_every;
+            if fr.step != step {
+                bail!(
+                    "frame {n} of {} is LIGGGHTS step {}, expected step {} (native step {step})",
+                    dump_path.display(),
+                    fr.step + 1,
+                    step + 1
+                );
+            }
+        }
+        if frames.len() != expected {
+            bail!(
+                "{} has {} frames, expected {expected} (n_steps {} / output_every {} + 1)",
+                dump_path.display(),
+                frames.len(),
+                case.n_steps,
+                case.output_every
+            );
+        }
+        return Ok(());
+    }
     let mut n = 0usize;
     for fr in DumpFrames::open(dump_path, case.dt)? {
         let fr = fr?;

@@ -566,6 +566,55 @@ impl Experiment for Penetration {
     }
 }
 
+/// Rule 3's K_phi fit range (docs/stress.md) of the runs of both engines: each engine's
+/// self-consistent end on its ensemble-mean FDR, the bed height the lowest of the beds'.
+pub fn fit_range_of(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: &[&EngineRun],
+    reference: &[&EngineRun],
+) -> cp::FitRange {
+    let bed_height = units
+        .iter()
+        .map(|u| u.bed.surface_z)
+        .fold(f64::INFINITY, f64::min);
+    let mut engines = Vec::new();
+    let mean = |r: &[&EngineRun]| {
+        crate::analysis::fdr::ensemble_mean(
+            &r.iter().map(|r| &r.fdr).collect::<Vec<_>>(),
+            case.h_bin,
+        )
+    };
+    let mut failed = Vec::new();
+    for (label, runs) in [("native", native), ("liggghts", reference)] {
+        if runs.is_empty() {
+            continue;
+        }
+        match mean(runs) {
+            Ok(m) => engines.push((label, m)),
+            Err(e) => failed.push(format!("{label}: {e:#}")),
+        }
+    }
+    let mut r = cp::fit_range(
+        case,
+        bed_height,
+        &engines.iter().map(|(l, m)| (*l, m)).collect::<Vec<_>>(),
+    );
+    if !failed.is_empty() {
+        r.not_compared = Some(format!("no mean FDR: {}", failed.join("; ")));
+    }
+    r
+}
+
+/// The upper end of every K_phi fit of `case`: rule 3's common end where the case asks
+/// for it (`analysis.k_phi_range = "rule3"`), else the end of the FDR.
+pub fn k_phi_fit_end(case: &PenetrationCase, range: &cp::FitRange) -> f64 {
+    match case.k_phi_range {
+        crate::case::penetration::KPhiRange::Rule3 => range.fit_end(),
+        crate::case::penetration::KPhiRange::Open => f64::INFINITY,
+    }
+}
+
 /// Every FDR check of the experiment from the runs of both engines, with the FDR CSVs
 /// and the overlay SVG written to `out`. Shared by `compare` and `analyze`, so both give
 /// the same report from the same runs.
@@ -590,9 +639,12 @@ pub fn fdr_checks(
         })
         .collect();
     let mut checks = Vec::new();
+    let range = fit_range_of(case, units, native, reference);
+    notes.push(range.text());
+    let h_max = k_phi_fit_end(case, &range);
     let obs = |r: &[&EngineRun]| {
         let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
-        cp::ensemble(case, &f)
+        cp::ensemble_in(case, &f, h_max)
     };
     let reference = (!reference.is_empty()).then(|| obs(reference));
     let native_o = (!native.is_empty()).then(|| obs(native));
@@ -641,7 +693,7 @@ pub fn fdr_checks(
         }
     }
     if let (Some(Ok(a)), Some(Ok(b))) = (&native_o, &reference) {
-        checks.extend(cp::compare(case, a, b));
+        checks.extend(cp::compare(case, &range, a, b));
         notes.extend(cp::boundaries_not_compared(a, b));
     }
     if let (Some(v2), Some(Ok(a)), false) =

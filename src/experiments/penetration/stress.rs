@@ -10,8 +10,13 @@ use crate::analysis::stress;
 use crate::analysis::stress_fields::{
     DEFAULT_WIDTH_OVER_D, EngineFields, Forces, SnapshotPlan, analyse_engine, snapshot_meta,
 };
-use crate::case::penetration::PenetrationCase;
-use crate::compare::stress::{EnginePoint, engine_point, malt_checks, mean_fdr, phi_check};
+use crate::analysis::stress_study::{self, BedStudy, NullVerdict};
+use crate::analysis::stress_v2::{self, BedSnapshots, PhiV2, snapshots_in_range};
+use crate::case::penetration::{KPhiRange, PenetrationCase, PhiEstimator};
+use crate::compare::stress::{
+    EnginePoint, FdrObservables, engine_point, engine_point_with, malt_checks, mean_fdr, phi_check,
+    phi_v2_check, published_phi_check,
+};
 use crate::compare::{Check, Gate, Status};
 use crate::engines::liggghts::penetration::PenetrationDeck;
 use crate::experiments::{Options, Verdict};
@@ -111,6 +116,14 @@ pub struct StressReport {
     /// The engines' points, phi pooled over all beds' windows.
     pub native_point: EnginePoint,
     pub liggghts_point: EnginePoint,
+    /// Estimator v2 (docs/stress.md rule 2) per engine and for the negative control.
+    pub native_v2: Option<PhiV2>,
+    pub liggghts_v2: Option<PhiV2>,
+    pub native_normal_only_v2: Option<PhiV2>,
+    /// Rule 3's K_phi fit range.
+    pub fit_range: crate::compare::penetration::FitRange,
+    /// Rule 1's null-window verdict per engine (when the study ran).
+    pub study: Vec<NullVerdict>,
     /// Negative control: native stress with tangential forces dropped, all beds.
     pub negative_control_check: Check,
     pub checks: Vec<Check>,
@@ -241,11 +254,26 @@ fn run_checks(
             b.liggghts.phi_kernel_deg,
         ));
     }
-    let origin = format!("mean FDR of the {} bed(s) of this run", beds.len());
+    // Rule 3 (docs/stress.md): the K_phi fit range both engines share; it also picks
+    // v2's regime-C snapshots.
+    let range = super::fit_range_of(
+        case,
+        units,
+        &native.iter().map(|r| &r.run).collect::<Vec<_>>(),
+        &reference.iter().map(|r| &r.run).collect::<Vec<_>>(),
+    );
+    let h_max = super::k_phi_fit_end(case, &range);
+    let origin = format!(
+        "mean FDR of the {} bed(s) of this run, fitted on h in [{:.3}, {:.3}] (rule 3)",
+        beds.len(),
+        range.h_start,
+        range.h_end
+    );
     let nfdr = mean_fdr(
         case,
         &native.iter().map(|r| r.run.fdr.clone()).collect::<Vec<_>>(),
         &origin,
+        h_max,
     )?;
     let lfdr = mean_fdr(
         case,
@@ -254,34 +282,168 @@ fn run_checks(
             .map(|r| r.run.fdr.clone())
             .collect::<Vec<_>>(),
         &origin,
+        h_max,
     )?;
     let pick = |f: fn(&BedStress) -> &EngineFields| beds.iter().map(f).collect::<Vec<_>>();
-    let np = engine_point(&pick(|b| &b.native), &nfdr);
-    let lp = engine_point(&pick(|b| &b.liggghts), &lfdr);
-    let mut checks = vec![phi_check(&case.name, &case.tolerances, &np, &lp)];
-    for c in malt_checks(&case.name, &case.tolerances, &np)
+    // The case gates one estimator (`analysis.phi_estimator`) and reports the other.
+    let v2_gated = case.phi_estimator == PhiEstimator::V2;
+    let mut checks = Vec::new();
+    let report = |notes: &mut Vec<String>, why: &str, c: &Check| {
+        notes.push(format!(
+            "REPORTED, not gated ({why}): {} = {:.4} against {} -> would {}; {}",
+            c.name,
+            c.value,
+            c.tolerance,
+            match c.status {
+                Status::Pass => "pass",
+                Status::Fail => "FAIL",
+                Status::NotCompared => "be NOT COMPARED",
+                Status::Error => "be an ERROR",
+            },
+            c.detail
+        ));
+    };
+    let np1 = engine_point(&pick(|b| &b.native), &nfdr);
+    let lp1 = engine_point(&pick(|b| &b.liggghts), &lfdr);
+    let v1 = phi_check(&case.name, &case.tolerances, &np1, &lp1);
+    for (engine, p) in [("native", &np1), ("liggghts", &lp1)] {
+        checks.extend(published_phi_check(case, engine, "v1", p.phi_deg));
+    }
+    // Estimator v2 on rule 3's regime-C snapshots of every bed.
+    let v2_beds = |dirs: &[&Path]| -> Result<Vec<BedSnapshots>> {
+        dirs.iter()
+            .map(|d| {
+                let (ks, _) = snapshots_in_range(d, range.h_start, range.h_end)?;
+                Ok(BedSnapshots {
+                    dir: d.to_path_buf(),
+                    ks,
+                })
+            })
+            .collect()
+    };
+    let ndirs: Vec<&Path> = native
+        .iter()
+        .filter_map(|r| r.snapshots.as_deref())
+        .collect();
+    let ldirs: Vec<&Path> = reference
+        .iter()
+        .filter_map(|r| r.snapshots.as_deref())
+        .collect();
+    let t = std::time::Instant::now();
+    let v2 = |engine: &str, dirs: &[&Path], forces: Forces| -> Result<PhiV2> {
+        anyhow::ensure!(
+            range.h_end.is_finite(),
+            "rule 3 gave no end of regime C: {}",
+            range.text()
+        );
+        stress_v2::estimate(engine, &v2_beds(dirs)?, forces, width)
+    };
+    let nv2 = v2("native", &ndirs, Forces::Full);
+    let lv2 = v2("liggghts", &ldirs, Forces::Full);
+    let negv2 = if v2_gated {
+        v2(
+            "native (tangential forces dropped)",
+            &ndirs,
+            Forces::NormalOnly,
+        )
+    } else {
+        Err(anyhow::anyhow!("not run: v1 is the gated estimator"))
+    };
+    notes.push(format!("estimator v2: {:.1} s", t.elapsed().as_secs_f64()));
+    let point = |b: fn(&BedStress) -> &EngineFields, f: &FdrObservables, v: &Result<PhiV2>| {
+        engine_point_with(
+            &pick(b),
+            f,
+            Some(
+                v.as_ref()
+                    .map_or((f64::NAN, f64::NAN), |v| (v.phi_deg, v.sd_deg)),
+            ),
+        )
+    };
+    let np2 = point(|b| &b.native, &nfdr, &nv2);
+    let lp2 = point(|b| &b.liggghts, &lfdr, &lv2);
+    let v2_check = |a: &Result<PhiV2>, b: &Result<PhiV2>, label: &str| match (a, b) {
+        (Ok(a), Ok(b)) => phi_v2_check(&case.name, &case.tolerances, a, b),
+        (a, b) => Check::error_in(
+            format!("{}: phi v2 {label}", case.name),
+            Gate::Phi,
+            [a.as_ref().err(), b.as_ref().err()]
+                .into_iter()
+                .flatten()
+                .map(|e| format!("{e:#}"))
+                .collect::<Vec<_>>()
+                .join("; "),
+        ),
+    };
+    let v2c = v2_check(&nv2, &lv2, "native vs liggghts");
+    let mut v2_published = Vec::new();
+    for (engine, v) in [("native", &nv2), ("liggghts", &lv2)] {
+        v2_published.extend(published_phi_check(
+            case,
+            engine,
+            "v2",
+            v.as_ref().map_or(f64::NAN, |v| v.phi_deg),
+        ));
+    }
+    let (np, lp) = if v2_gated {
+        report(&mut notes, "v1 beside the gated v2", &v1);
+        checks.push(v2c);
+        checks.extend(v2_published);
+        (&np2, &lp2)
+    } else {
+        checks.push(v1);
+        report(&mut notes, "v2 beside the gated v1", &v2c);
+        for c in &v2_published {
+            report(&mut notes, "v2 beside the gated v1", c);
+        }
+        (&np1, &lp1)
+    };
+    let (onp, olp) = if v2_gated { (&np1, &lp1) } else { (&np2, &lp2) };
+    for c in malt_checks(&case.name, &case.tolerances, onp)
         .into_iter()
-        .chain(malt_checks(&case.name, &case.tolerances, &lp))
+        .chain(malt_checks(&case.name, &case.tolerances, olp))
     {
-        if opts.gate_theory || !matches!(c.gate, Gate::MaltK | Gate::MaltPhi) {
-            checks.push(c);
-        } else {
+        report(&mut notes, "the other estimator's MALT distance", &c);
+    }
+    let rule3 = case.k_phi_range == KPhiRange::Rule3;
+    match (&range.not_compared, rule3) {
+        (Some(why), true) => {
             notes.push(format!(
-                "REPORTED, not gated in this suite (theory is gated in the release suite): {} = {:.4} against {} -> would {}; {}",
-                c.name,
-                c.value,
-                c.tolerance,
-                if c.passed { "pass" } else { "FAIL" },
-                c.detail
+                "MALT checks NOT COMPARED: K_phi has no floor-free regime C ({why})"
             ));
+            for p in [np, lp] {
+                checks.push(Check::not_compared(
+                    format!("{}: {} MALT distance in K", case.name, p.engine),
+                    Gate::MaltK,
+                    why.clone(),
+                ));
+            }
+        }
+        _ => {
+            for c in malt_checks(&case.name, &case.tolerances, np)
+                .into_iter()
+                .chain(malt_checks(&case.name, &case.tolerances, lp))
+            {
+                if opts.gate_theory || !matches!(c.gate, Gate::MaltK | Gate::MaltPhi) {
+                    checks.push(c);
+                } else {
+                    report(&mut notes, "theory is gated in the release suite", &c);
+                }
+            }
         }
     }
-    let negp = EnginePoint {
-        unified: Err("not fitted (negative control)".into()),
-        unified_malt: None,
-        ..engine_point(&pick(|b| &b.native_normal_only), &nfdr)
+    // Negative control: tangential forces dropped, through the gated estimator and its
+    // rule; it bites only by failing.
+    let neg = if v2_gated {
+        v2_check(&negv2, &lv2, "(tangential forces dropped)")
+    } else {
+        let negp = EnginePoint {
+            unified: Err("not fitted (negative control)".into()),
+            unified_malt: None,
+            ..engine_point(&pick(|b| &b.native_normal_only), &nfdr)
+        };
+        phi_check(&case.name, &case.tolerances, &negp, &lp1)
     };
-    let neg = phi_check(&case.name, &case.tolerances, &negp, &lp);
     let bit = neg.status == Status::Fail;
     checks.push(if bit {
         Check::at_most(
@@ -313,6 +475,10 @@ fn run_checks(
             ),
         )
     });
+    let (np, lp) = (np.clone(), lp.clone());
+    // The estimator study (rule 1), when its runs exist: reported only.
+    let study = run_study(case, units, native, reference, out, width, &np1, &lp1)?;
+    notes.extend(study.iter().map(|(_, t)| t.clone()));
     let curve: Vec<(f64, f64)> = malt::table(45.0, 0.5)?
         .into_iter()
         .filter(|(_, k)| *k <= 2e3)
@@ -353,6 +519,11 @@ fn run_checks(
         beds,
         native_point: np,
         liggghts_point: lp,
+        native_v2: nv2.ok(),
+        liggghts_v2: lv2.ok(),
+        native_normal_only_v2: negv2.ok(),
+        fit_range: range,
+        study: study.into_iter().map(|(v, _)| v).collect(),
         negative_control_check: neg,
         checks: checks.clone(),
         notes: notes.clone(),
@@ -432,4 +603,56 @@ fn write_phi_csv(path: &Path, beds: &[BedStress]) -> Result<()> {
     }
     w.flush()?;
     Ok(())
+}
+
+/// Rule 1's estimator study of every bed with a study run, both engines: study.json,
+/// study_convergence.csv, study_janssen.csv in `out`; per engine the null verdict and
+/// its report line. Empty without study runs.
+#[allow(clippy::too_many_arguments)]
+fn run_study(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: &[NativeRun],
+    reference: &[RefRun],
+    out: &Path,
+    width: f64,
+    np1: &EnginePoint,
+    lp1: &EnginePoint,
+) -> Result<Vec<(NullVerdict, String)>> {
+    let mut studies: Vec<BedStudy> = Vec::new();
+    for ((u, n), r) in units.iter().zip(native).zip(reference) {
+        for (engine, dir) in [
+            ("native", n.study_snapshots.as_deref()),
+            ("liggghts", r.study_snapshots.as_deref()),
+        ] {
+            if let Some(d) = dir {
+                studies.push(
+                    stress_study::study_bed(engine, u.k, d, case.gravity, width)
+                        .with_context(|| format!("estimator study, bed {}, {engine}", u.k))?,
+                );
+            }
+        }
+    }
+    if studies.is_empty() {
+        return Ok(vec![]);
+    }
+    stress_study::write_csvs(out, &studies)?;
+    let mut verdicts = Vec::new();
+    for (engine, p) in [("native", np1), ("liggghts", lp1)] {
+        let beds: Vec<&BedStudy> = studies.iter().filter(|s| s.engine == engine).collect();
+        if beds.is_empty() {
+            continue;
+        }
+        let v = stress_study::null_verdict(engine, &beds, p.phi_deg);
+        let t = stress_study::text(&v, &beds);
+        verdicts.push((v, t));
+    }
+    std::fs::write(
+        out.join("study.json"),
+        serde_json::to_string_pretty(&serde_json::json!({
+            "verdicts": verdicts.iter().map(|(v, _)| v).collect::<Vec<_>>(),
+            "beds": studies,
+        }))?,
+    )?;
+    Ok(verdicts)
 }

@@ -15,11 +15,12 @@ pub mod packing;
 mod pairs;
 mod par;
 pub mod penetration;
+pub mod rigid;
 pub mod walls;
 
 use crate::case::{Case, Perturbation, RollingModel, Wall};
 use crate::numerics::vec3::*;
-use crate::rundata::frames::{Frame, ParticleState};
+use crate::rundata::frames::{BodyState, Frame, ParticleState};
 use contact::{ContactGeom, PairCoeffs, evaluate};
 use neighbor::PairList;
 use pairs::RevForce;
@@ -47,6 +48,14 @@ pub struct Simulation {
     pub omega: Vec<V3>,
     pub f: Vec<V3>,
     pub torque: Vec<V3>,
+    /// Index into `bodies` of the clump each sphere belongs to, -1 for a free sphere.
+    /// Free spheres come first (case order), then the members of each body.
+    pub body: Vec<i32>,
+    /// Rigid multisphere clumps (fix multisphere), see [`rigid`].
+    pub bodies: Vec<rigid::RigidBody>,
+    /// Spheres `0..free` are free, `free..` clump members: the per-sphere kick, drift
+    /// and gravity sweeps run over `0..free` only, without a per-sphere branch.
+    free: usize,
     n_types: usize,
     coeffs: Vec<PairCoeffs>,
     rolling: RollingModel,
@@ -200,17 +209,64 @@ impl Simulation {
                 ));
             }
         }
-        let n = case.particles.len();
+        // Free spheres, then every clump's members (the LIGGGHTS atom order: spheres
+        // created at step 0, bodies inserted at step 1 in case order).
+        let mut id: Vec<u64> = case.particles.iter().map(|p| p.id).collect();
+        let mut type_: Vec<usize> = case.particles.iter().map(|p| p.type_).collect();
+        let mut radius: Vec<f64> = case.particles.iter().map(|p| p.radius).collect();
+        let mut mass: Vec<f64> = case.particles.iter().map(|p| p.mass()).collect();
+        let mut x: Vec<V3> = case.particles.iter().map(|p| p.x).collect();
+        let mut v: Vec<V3> = case.particles.iter().map(|p| p.v).collect();
+        let mut omega: Vec<V3> = case.particles.iter().map(|p| p.omega).collect();
+        let mut body = vec![-1i32; case.particles.len()];
+        let mut bodies = Vec::with_capacity(case.clumps.bodies.len());
+        for (b, c) in case.clumps.bodies.iter().enumerate() {
+            let t = case.clumps.template_of(c);
+            let first = id.len();
+            for (k, r) in t.radii.iter().enumerate() {
+                id.push(c.id);
+                type_.push(t.type_);
+                radius.push(*r);
+                // Every member carries the whole body's mass as its contact mass
+                // (particleToInsert_multisphere.cpp:203, `rmass = mass_ins`).
+                mass.push(if pert.member_sphere_mass {
+                    4.0 * std::f64::consts::PI / 3.0 * r * r * r * t.density
+                } else {
+                    t.mass
+                });
+                x.push(t.offsets[k]);
+                v.push([0.0; 3]);
+                omega.push([0.0; 3]);
+                body.push(b as i32);
+            }
+            let rb = rigid::RigidBody::new(
+                c.id,
+                t.mass,
+                t.inertia.map(|i| i * pert.inertia_factor),
+                t.offsets.clone(),
+                (first..id.len()).collect(),
+                c.x,
+                c.orientation,
+                c.v,
+                c.omega,
+            );
+            rb.set_xv(&mut x, &mut v, &mut omega);
+            bodies.push(rb);
+        }
+        let n = id.len();
         let stride = case.walls.len().max(1);
         let epsd2 = case.rolling == RollingModel::Epsd2;
         Simulation {
-            id: case.particles.iter().map(|p| p.id).collect(),
-            type_: case.particles.iter().map(|p| p.type_).collect(),
-            radius: case.particles.iter().map(|p| p.radius).collect(),
-            mass: case.particles.iter().map(|p| p.mass()).collect(),
-            x: case.particles.iter().map(|p| p.x).collect(),
-            v: case.particles.iter().map(|p| p.v).collect(),
-            omega: case.particles.iter().map(|p| p.omega).collect(),
+            id,
+            type_,
+            radius,
+            mass,
+            x,
+            v,
+            omega,
+            body,
+            bodies,
+            free: case.particles.len(),
             f: vec![[0.0; 3]; n],
             torque: vec![[0.0; 3]; n],
             n_types,
@@ -246,7 +302,17 @@ impl Simulation {
         self.check_initial_overlaps()?;
         self.refresh_kick();
         self.rebuild();
-        self.compute_forces(false, false);
+        if self.bodies.is_empty() {
+            self.compute_forces(false, false);
+        } else {
+            // LIGGGHTS inserts bodies in pre_exchange of step 1 (fix_insert.cpp:407,
+            // 652-660): the body sits at x0 and then gets that step's forces (history
+            // updated, an ordinary step) and only the final half kick
+            // (fix_multisphere.cpp:721-784). Native step 0 is that state, LIGGGHTS step 1;
+            // free spheres start at rest and force-free (case validation), so their step
+            // 0 -> 1 in LIGGGHTS is the same final half kick.
+            self.compute_forces(true, true);
+        }
         Ok(())
     }
 
@@ -266,10 +332,24 @@ impl Simulation {
     /// if needed, forces, half kick. The checks after the drift (finite state, domain,
     /// displacement since the last build) run in the drift's sweep, and the second half
     /// kick in the force gather's, so a step reads the particle arrays three times.
+    /// Clumps follow `fix multisphere`: their first half (kick, drift, rotation, member
+    /// positions) after the free spheres' sweep, their second after the gather.
     pub fn step(&mut self) -> anyhow::Result<()> {
         let t0 = Instant::now();
         self.refresh_kick();
-        let (non_finite, outside, moved) = self.kick_drift_check();
+        let (mut non_finite, mut outside, mut moved) = self.kick_drift_check();
+        if !self.bodies.is_empty() {
+            for b in &mut self.bodies {
+                b.initial_integrate(self.dt);
+                b.set_xv(&mut self.x, &mut self.v, &mut self.omega);
+            }
+            // The sweep saw the free spheres only; members (indices above every free
+            // one, so `min` keeps "first in array order") are checked where they are now.
+            let (nf, out, mv) = self.check_members();
+            non_finite = non_finite.min(nf);
+            outside = outside.min(out);
+            moved |= mv;
+        }
         self.step += 1;
         if let Some(it) = &mut self.intruder {
             it.body.translate(it.velocity[2] * self.dt);
@@ -289,18 +369,19 @@ impl Simulation {
         Ok(())
     }
 
-    /// First half kick and drift of `nve/sphere`, and in the same sweep the first
-    /// particle with a non-finite state, the first outside the box (`usize::MAX`: none)
-    /// and whether any moved more than skin/2 since the last neighbour build (LIGGGHTS
-    /// `neigh_modify delay 0 every 1 check yes`).
+    /// First half kick and drift of `nve/sphere` for the free spheres, and in the same
+    /// sweep the first of them with a non-finite state, the first outside the box
+    /// (`usize::MAX`: none) and whether any moved more than skin/2 since the last
+    /// neighbour build (LIGGGHTS `neigh_modify delay 0 every 1 check yes`).
     #[inline(never)]
     fn kick_drift_check(&mut self) -> (usize, usize, bool) {
         let dt = self.dt;
-        let n = self.x.len();
+        let built = self.pairs.x_at_build.len() == self.x.len();
+        // Clump members (`free..`) are moved by their bodies, not here.
+        let n = self.free;
         let (lo, hi) = (self.lo, self.hi);
         let lim = 0.25 * self.skin * self.skin;
         let x_at_build = &self.pairs.x_at_build;
-        let built = x_at_build.len() == n;
         let (f, torque, kick) = (&self.f, &self.torque, &self.kick);
         let (xs, vs, ws) = (
             Shared::new(&mut self.x),
@@ -370,6 +451,31 @@ impl Simulation {
         (non_finite, outside, moved)
     }
 
+    /// The checks of [`Simulation::kick_drift_check`] for the clump members, after their
+    /// bodies placed them: a serial loop, members being few.
+    fn check_members(&self) -> (usize, usize, bool) {
+        let (lo, hi) = (self.lo, self.hi);
+        let lim = 0.25 * self.skin * self.skin;
+        let xb = &self.pairs.x_at_build;
+        let built = xb.len() == self.x.len();
+        let (mut nf, mut out, mut mv) = (usize::MAX, usize::MAX, !built);
+        for k in (self.free..self.x.len()).rev() {
+            let (p, v, w) = (self.x[k], self.v[k], self.omega[k]);
+            if !p.iter().chain(&v).chain(&w).all(|c| c.is_finite()) {
+                nf = k;
+            }
+            if !(0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]) {
+                out = k;
+            }
+            if built {
+                let b = xb[k];
+                let d = [p[0] - b[0], p[1] - b[1], p[2] - b[2]];
+                mv |= d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > lim;
+            }
+        }
+        (nf, out, mv)
+    }
+
     /// Computes the kick factors for the current dt, masses and radii: at setup, and
     /// again when `dt` changed (masses and radii are fixed after setup; debug builds
     /// check that on every step).
@@ -411,8 +517,14 @@ impl Simulation {
     }
 
     fn rebuild(&mut self) {
-        self.pairs
-            .build(&self.x, &self.radius, self.skin, self.lo, self.hi);
+        self.pairs.build(
+            &self.x,
+            &self.radius,
+            &self.body,
+            self.skin,
+            self.lo,
+            self.hi,
+        );
         let (walls, skin, stride) = (&self.walls, self.skin, self.walls_stride);
         (
             &mut self.near_walls,
@@ -499,8 +611,42 @@ impl Simulation {
     /// error. Checked with a hash grid, so a case with 1e6 coincident grains fails fast
     /// in O(N) memory instead of building an N^2 neighbour list.
     fn check_initial_overlaps(&self) -> anyhow::Result<()> {
-        if let Some((i, j, overlap)) =
-            overlap::first_overlap(&self.x, &self.radius, MAX_INITIAL_OVERLAP)
+        if !self.bodies.is_empty() {
+            // Clump cases: LIGGGHTS' insertion (overlapcheck yes) refuses a body touching
+            // anything, so the start must be contact-free; members of one body overlap
+            // by design and never interact (fix_multisphere.cpp:178-186).
+            for i in 0..self.x.len() {
+                for j in i + 1..self.x.len() {
+                    if self.body[i] >= 0 && self.body[i] == self.body[j] {
+                        continue;
+                    }
+                    let d = norm(sub(self.x[i], self.x[j]));
+                    if d <= self.radius[i] + self.radius[j] {
+                        anyhow::bail!(
+                            "{} id {} and {} id {} touch at the start (gap {:.3e} m): a case with clumps must start without contacts (LIGGGHTS' insertion refuses overlapping bodies)",
+                            if self.body[i] >= 0 {
+                                "clump"
+                            } else {
+                                "particle"
+                            },
+                            self.id[i],
+                            if self.body[j] >= 0 {
+                                "clump"
+                            } else {
+                                "particle"
+                            },
+                            self.id[j],
+                            d - self.radius[i] - self.radius[j]
+                        );
+                    }
+                }
+            }
+        }
+        if let Some((i, j, overlap)) = self
+            .bodies
+            .is_empty()
+            .then(|| overlap::first_overlap(&self.x, &self.radius, MAX_INITIAL_OVERLAP))
+            .flatten()
         {
             anyhow::bail!(
                 "particles id {} and id {} overlap by {overlap:.3e} m ({:.1} % of the smaller radius {:.3e} m) at the start; more than {:.0} % is refused: move them apart",
@@ -569,12 +715,20 @@ impl Simulation {
     }
 
     /// Forces and torques on every particle; with `kick`, also the second half kick of
-    /// `nve/sphere` (in the gather's sweep: a particle's kick needs only its own force).
+    /// `nve/sphere` (in the gather's sweep: a particle's kick needs only its own force)
+    /// and then that of `fix multisphere` (force gathering, kick, member velocities).
     fn compute_forces(&mut self, update_history: bool, kick: bool) {
         let t0 = Instant::now();
         self.pair_pass(update_history);
         let t1 = Instant::now();
         self.gather_pass(update_history, kick);
+        if kick {
+            for b in &mut self.bodies {
+                b.gather(&self.x, &self.f, &self.torque, self.gravity);
+                b.final_integrate(self.dt);
+                b.set_v(&mut self.v, &mut self.omega);
+            }
+        }
         let t2 = Instant::now();
         let tm = &mut self.times;
         tm.pairs += (t1 - t0).as_secs_f64();
@@ -641,7 +795,8 @@ impl Simulation {
     /// Pass 2, per particle: the own-pair sums of pass 1 continued with the reverse pair
     /// results in pair order, then the primitive walls in wall order, gravity and the
     /// moving intruder (a wall with velocity, grain-intruder law); with `kick` the
-    /// second half kick.
+    /// second half kick. Clump members get neither gravity (fix_gravity.cpp:333: the
+    /// body gets m g once in its force gathering) nor a kick (their body moves them).
     #[inline(never)]
     fn gather_pass(&mut self, update_history: bool, kick: bool) {
         let dt = self.dt;
@@ -651,6 +806,7 @@ impl Simulation {
         let (rev_start, rev_out) = (&self.pairs.rev_start, &self.rev_out);
         let (walls, gravity, stride) = (&self.walls, self.gravity, self.walls_stride);
         let near_walls = &self.near_walls;
+        let free = self.free;
         let epsd2 = !self.wall_roll.is_empty();
         let (wshear, wroll, wout) = (
             Shared::new(&mut self.wall_shear),
@@ -689,6 +845,8 @@ impl Simulation {
             let kb: &[[f64; 2]] = if kick { &kicks[r.clone()] } else { &[] };
             let rev_start = &rev_start[r.start..r.end + 1];
             let len = r.len();
+            // The block's free spheres are its first `n_free` (members come last).
+            let n_free = free.saturating_sub(r.start).min(len);
             assert!(
                 x.len() == len && vb.len() == len && f.len() == len && rev_start.len() == len + 1
             );
@@ -778,7 +936,7 @@ impl Simulation {
                     }
                 }
             }
-            for l in 0..len {
+            for l in 0..n_free {
                 add_assign(&mut f[l], scale(gravity, mass[l]));
             }
             if let Some((body, vel, ity, cand, ishear, iroll, ion, iepsd2)) = &mut itb {
@@ -819,7 +977,7 @@ impl Simulation {
                 }
             }
             if kick {
-                for l in 0..len {
+                for l in 0..n_free {
                     let [dtfm, dtirotate] = kb[l];
                     add_assign(&mut vb[l], scale(f[l], dtfm));
                     add_assign(&mut wb[l], scale(t[l], dtirotate));
@@ -843,6 +1001,7 @@ impl Simulation {
             + b(&self.omega)
             + b(&self.f)
             + b(&self.torque)
+            + b(&self.body)
             + b(&self.near_walls);
         let walls = b(&self.wall_shear) + b(&self.wall_roll) + b(&self.wall_out);
         let pairs = b(&self.rev_out) + b(&self.pair_touch) + b(&self.touching);
@@ -863,6 +1022,7 @@ impl Simulation {
     /// Snapshot in output order (sorted by id).
     pub fn frame(&self) -> Frame {
         let mut particles: Vec<ParticleState> = (0..self.x.len())
+            .filter(|&k| self.body[k] < 0)
             .map(|k| ParticleState {
                 id: self.id[k],
                 x: self.x[k],
@@ -872,7 +1032,21 @@ impl Simulation {
             })
             .collect();
         particles.sort_by_key(|p| p.id);
+        let mut bodies: Vec<BodyState> = self
+            .bodies
+            .iter()
+            .map(|b| BodyState {
+                id: b.id,
+                x: b.xcm,
+                q: b.quat,
+                v: b.vcm,
+                omega: b.omega,
+                f: b.fcm,
+            })
+            .collect();
+        bodies.sort_by_key(|b| b.id);
         Frame {
+            bodies,
             step: self.step,
             t: self.step as f64 * self.dt,
             particles,
@@ -930,12 +1104,22 @@ mod tests {
     /// touch within the run), walls on five sides and the intruder driven into them:
     /// every state array, the intruder force and every contact must be bit-identical
     /// for 1, 2 and 3 threads, with CDT and with EPSD2 rolling friction (which carries
-    /// per-pair, per-wall and per-intruder rolling history).
+    /// per-pair, per-wall and per-intruder rolling history). Then again with 900 of the
+    /// spheres replaced by dimer clumps, so the free/member boundary (index 2100) falls
+    /// inside a block and the body state joins the comparison.
     #[test]
     fn any_thread_count_gives_identical_bits() {
-        for rolling in [RollingModel::Cdt, RollingModel::Epsd2] {
+        for (rolling, with_clumps) in [
+            (RollingModel::Cdt, false),
+            (RollingModel::Epsd2, false),
+            (RollingModel::Cdt, true),
+            (RollingModel::Epsd2, true),
+        ] {
             let mut case = crate::bench::lattice_case(3000, 11);
             case.rolling = rolling;
+            if with_clumps {
+                add_dimers(&mut case, 900);
+            }
             let mut s = 0x2545_F491_4F6C_DD1Du64;
             let mut rnd = move || {
                 s ^= s << 13;
@@ -947,10 +1131,16 @@ mod tests {
                 p.v = [3.0 * rnd(), 3.0 * rnd(), 3.0 * rnd()];
                 p.omega = [400.0 * rnd(), 400.0 * rnd(), 400.0 * rnd()];
             }
+            for c in &mut case.clumps.bodies {
+                c.v = [3.0 * rnd(), 3.0 * rnd(), 3.0 * rnd()];
+                c.omega = [400.0 * rnd(), 400.0 * rnd(), 400.0 * rnd()];
+                c.orientation = rigid::qnormalize([rnd(), rnd(), rnd(), rnd()]);
+            }
             let top = case
                 .particles
                 .iter()
                 .map(|p| p.x[2] + p.radius)
+                .chain(case.clumps.bodies.iter().map(|c| c.x[2] + 1e-3))
                 .fold(0.0, f64::max);
             let centre = 0.5 * case.domain_hi[0];
             case.domain_hi[2] = top + 0.03;
@@ -981,11 +1171,22 @@ mod tests {
                         .into_iter()
                         .map(|c| (c.i, c.other, c.point, c.force_on_i))
                         .collect();
+                    if with_clumps {
+                        let members = contacts.iter().filter(|c| sim.body[c.0] >= 0).count();
+                        // 62 member contacts at the last step when written (CDT).
+                        assert!(members > 20, "too few member contacts: {members}");
+                    }
+                    let bodies: Vec<_> = sim
+                        .bodies
+                        .iter()
+                        .map(|b| (b.xcm, b.vcm, b.quat, b.angmom, b.omega, b.fcm, b.torque))
+                        .collect();
                     (
                         (sim.x.clone(), sim.v.clone(), sim.omega.clone()),
                         (sim.f.clone(), sim.torque.clone()),
                         f_int,
                         contacts,
+                        bodies,
                     )
                 })
             };
@@ -993,9 +1194,44 @@ mod tests {
             for threads in [2, 3] {
                 assert!(
                     run(threads) == one,
-                    "{rolling:?}: {threads} threads differ from 1"
+                    "{rolling:?}, clumps {with_clumps}: {threads} threads differ from 1"
                 );
             }
         }
+    }
+
+    /// Replaces the last `n` spheres of a lattice case by dimers (two overlapping
+    /// spheres of 0.45 mm, centres 0.9 mm apart) centred where the spheres were: the
+    /// dimer fits inside the sphere it replaces, so the start stays contact-free.
+    fn add_dimers(case: &mut Case, n: usize) {
+        use crate::case::clumps::{Clump, ClumpTemplate, union_mass_properties};
+        let (a, r, rho) = (0.45e-3, 0.45e-3, 2500.0);
+        let (volume, mass, inertia, _) = union_mass_properties(&[-a, a], &[r, r], rho);
+        case.clumps.templates = vec![ClumpTemplate {
+            name: "dimer".into(),
+            type_: 0,
+            density: rho,
+            offsets: vec![[-a, 0.0, 0.0], [a, 0.0, 0.0]],
+            radii: vec![r, r],
+            volume,
+            mass,
+            inertia,
+            bounding_radius: a + r,
+        }];
+        let keep = case.particles.len() - n;
+        let next_id = case.particles.len() as u64 + 1;
+        case.clumps.bodies = case.particles[keep..]
+            .iter()
+            .enumerate()
+            .map(|(k, p)| Clump {
+                id: next_id + k as u64,
+                template: 0,
+                x: p.x,
+                orientation: [1.0, 0.0, 0.0, 0.0],
+                v: [0.0; 3],
+                omega: [0.0; 3],
+            })
+            .collect();
+        case.particles.truncate(keep);
     }
 }

@@ -107,8 +107,15 @@ impl PairList {
     /// pairs that persist. The candidate search and the history merge run in parallel
     /// over blocks of particles; the list itself does not depend on the thread count
     /// (each particle's pairs are sorted by j).
-    pub fn build(&mut self, x: &[V3], radius: &[f64], skin: f64, lo: V3, hi: V3) {
+    ///
+    /// `body[i]` is the clump of particle i (-1: free sphere; an empty slice: all free).
+    /// Two members of one clump are never listed: fix multisphere excludes them from
+    /// the neighbour list (`neigh_modify exclude molecule`, neighbor.cpp:2174), and a
+    /// pair that is not listed contributes nothing, exactly like a listed pair that
+    /// never touches (the force sums skip it, its history stays zero).
+    pub fn build(&mut self, x: &[V3], radius: &[f64], body: &[i32], skin: f64, lo: V3, hi: V3) {
         let n = x.len();
+        assert!(body.is_empty() || body.len() == n);
         let rmax = radius.iter().cloned().fold(0.0, f64::max);
         let grid = Grid::new(lo, hi, 2.0 * rmax + skin);
         // One layer of empty cells around the grid, so every particle's 27 neighbour
@@ -171,6 +178,7 @@ impl PairList {
                         let i = b * BUILD_BLOCK + l;
                         let seg = buf.len();
                         let (xi, ri) = (x[i], radius[i]);
+                        let bi = body.get(i).copied().unwrap_or(-1);
                         let ci = cell_of[i] as isize;
                         for off in stencil {
                             let c = (ci + off) as usize;
@@ -178,7 +186,7 @@ impl PairList {
                                 &cell_items[cell_start[c] as usize..cell_start[c + 1] as usize];
                             for &j in items {
                                 let ju = j as usize;
-                                if ju <= i {
+                                if ju <= i || (bi >= 0 && body[ju] == bi) {
                                     continue;
                                 }
                                 let xj = x[ju];
@@ -352,7 +360,7 @@ mod tests {
         }
         let radius = vec![5e-4; x.len()];
         let mut l = PairList::default();
-        l.build(&x, &radius, 2e-4, [0.0; 3], [0.02; 3]);
+        l.build(&x, &radius, &[], 2e-4, [0.0; 3], [0.02; 3]);
         let mut brute = 0;
         for i in 0..x.len() {
             for j in i + 1..x.len() {
@@ -374,11 +382,11 @@ mod tests {
         let x = vec![[0.0, 0.0, 0.0], [1.9e-3, 0.0, 0.0], [5e-3, 5e-3, 5e-3]];
         let radius = vec![1e-3; 3];
         let mut l = PairList::default();
-        l.build(&x, &radius, 5e-4, [-0.01; 3], [0.01; 3]);
+        l.build(&x, &radius, &[], 5e-4, [-0.01; 3], [0.01; 3]);
         assert_eq!(l.len(), 1);
         l.shear[0] = [1.0, 2.0, 3.0];
         let x2 = vec![[0.0, 0.0, 0.0], [1.9e-3, 1e-4, 0.0], [3.5e-3, 1.5e-3, 0.0]];
-        l.build(&x2, &radius, 5e-4, [-0.01; 3], [0.01; 3]);
+        l.build(&x2, &radius, &[], 5e-4, [-0.01; 3], [0.01; 3]);
         let k = (l.start[0]..l.start[1])
             .find(|&k| l.j[k] == 1)
             .expect("pair 0-1 kept");

@@ -99,7 +99,9 @@ pub fn container_case(case: &PenetrationCase, particles: Vec<Particle>, top: f64
         tolerances: Tolerances {
             velocity_rel: 1e-6,
             position_frac_radius: 1e-6,
+            orientation_rad: 1e-6,
         },
+        clumps: Default::default(),
         rayleigh_time: case.rayleigh_time,
         negative_controls: vec![],
     }
