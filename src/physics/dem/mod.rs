@@ -1115,7 +1115,7 @@ mod tests {
             (RollingModel::Cdt, true),
             (RollingModel::Epsd2, true),
         ] {
-            let mut case = crate::bench::lattice_case(3000, 11);
+            let mut case = packing::lattice_case(3000, 11);
             case.rolling = rolling;
             if with_clumps {
                 add_dimers(&mut case, 900);
