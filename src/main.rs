@@ -117,14 +117,24 @@ enum Cmd {
         #[command(subcommand)]
         cmd: RefCmd,
     },
-    /// Throughput of the native engine vs LIGGGHTS on the same dense settled packing.
+    /// Throughput of the native engine vs LIGGGHTS on the same dense settled packing
+    /// (native 1 thread vs LIGGGHTS 1 process, native 2 threads vs 1 thread), or with
+    /// `--penetration` on bed 0 of a penetration case (native 2 threads vs LIGGGHTS np 2).
+    /// Best of `--reps`, every repetition printed, memory per particle.
     Bench {
         /// Number of spheres in the packing.
         #[arg(long, default_value_t = 10_000)]
         n: usize,
-        /// Timed steps per engine.
-        #[arg(long, default_value_t = 2000)]
-        steps: u64,
+        /// Timed steps per engine (packing; with `--penetration` the default is 10 000).
+        #[arg(long)]
+        steps: Option<u64>,
+        /// Repetitions per engine, interleaved so load hits all alike; the best is reported.
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Time the penetration of bed 0 of CASE instead of the packing: same bed, same
+        /// intruder start and speed in both engines.
+        #[arg(long, num_args = 0..=1, default_missing_value = "cases/penetration/ci.toml")]
+        penetration: Option<PathBuf>,
     },
     /// Stress and velocity fields of a penetration case from both engines, every bed of
     /// its ensemble: phi per engine, (phi, K_phi) against MALT, CSV/VTK/SVG under OUT
@@ -528,8 +538,18 @@ fn real_main() -> Result<ExitCode> {
             }
             Ok(code)
         }
-        Cmd::Bench { n, steps } => {
-            granval::bench::run(n, steps)?;
+        Cmd::Bench {
+            n,
+            steps,
+            reps,
+            penetration,
+        } => {
+            match penetration {
+                Some(case) => {
+                    granval::bench::run_penetration(&case, steps.unwrap_or(10_000), reps)?;
+                }
+                None => granval::bench::run(n, steps.unwrap_or(2000), reps)?,
+            }
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Stress {

@@ -6,27 +6,136 @@
 //! Physics in Feng et al. terms (003_7b2069b9a928ac9b.txt): eq 2 (Hertz normal force
 //! with damping), eq 3 (tangential spring with Coulomb cap, damping only while sticking),
 //! eq 4 (CDT rolling torque), Table 1 (stiffness and damping from E, nu, e).
-//! One function serves particle-particle and particle-wall contacts, as in LIGGGHTS,
-//! so the two cannot drift apart.
+//! The law is split into LIGGGHTS' sub-models, each an `#[inline(always)]` function
+//! mirroring one header: [`surface_default`], [`normal_hertz`], [`tangential_history`],
+//! [`rolling_cdt`], [`rolling_epsd2`]; [`evaluate`] calls them in the order of
+//! contact_models.h, so every floating-point operation happens in the same order as in
+//! LIGGGHTS. One function serves particle-particle and particle-wall contacts, as in
+//! LIGGGHTS, so the two cannot drift apart.
+//!
+//! The functions are generic over [`Real`]: `f64` for one contact, or
+//! [`super::lanes::F4`] for four pair contacts at once in SIMD lanes. A lane performs
+//! exactly the IEEE operations of the scalar law in the same order (no fused
+//! multiply-add, no reassociation), and every branch of the law is evaluated on both
+//! sides and selected per lane, so both give the same bits (tested).
 
 use crate::case::RollingModel;
-use crate::numerics::vec3::*;
+use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// sqrt(5/6) as LIGGGHTS spells it; Table 1's damping prefactor 2 sqrt(5/6) beta.
 const SQRT_FIVE_OVER_SIX: f64 = 0.912_870_929_175_276_9;
 
+/// A number the contact law computes with: `f64`, or several `f64` lanes processed
+/// with the same IEEE operations.
+pub trait Real:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    /// Per-lane condition.
+    type Mask: Copy;
+    fn splat(v: f64) -> Self;
+    fn sqrt(self) -> Self;
+    fn abs(self) -> Self;
+    /// `self > o` (false if either is NaN).
+    fn gt(self, o: Self) -> Self::Mask;
+    /// `self != o` (true if either is NaN).
+    fn ne(self, o: Self) -> Self::Mask;
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    fn uniform(b: bool) -> Self::Mask;
+    /// Whether any lane is set (work only some lanes need can then be skipped for all).
+    fn any(m: Self::Mask) -> bool;
+    /// `a` where `m`, else `b`.
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+}
+
+impl Real for f64 {
+    type Mask = bool;
+    #[inline(always)]
+    fn splat(v: f64) -> f64 {
+        v
+    }
+    #[inline(always)]
+    fn sqrt(self) -> f64 {
+        f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn abs(self) -> f64 {
+        f64::abs(self)
+    }
+    #[inline(always)]
+    fn gt(self, o: f64) -> bool {
+        self > o
+    }
+    #[inline(always)]
+    fn ne(self, o: f64) -> bool {
+        self != o
+    }
+    #[inline(always)]
+    fn and(a: bool, b: bool) -> bool {
+        a && b
+    }
+    #[inline(always)]
+    fn uniform(b: bool) -> bool {
+        b
+    }
+    #[inline(always)]
+    fn any(m: bool) -> bool {
+        m
+    }
+    #[inline(always)]
+    fn select(m: bool, a: f64, b: f64) -> f64 {
+        if m { a } else { b }
+    }
+}
+
+/// A 3-vector of [`Real`]s; `V3<f64>` is [`crate::numerics::vec3::V3`].
+pub type V3<T = f64> = [T; 3];
+
+#[inline(always)]
+fn add<T: Real>(a: V3<T>, b: V3<T>) -> V3<T> {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+#[inline(always)]
+fn sub<T: Real>(a: V3<T>, b: V3<T>) -> V3<T> {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline(always)]
+fn scale<T: Real>(a: V3<T>, s: T) -> V3<T> {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+#[inline(always)]
+fn dot<T: Real>(a: V3<T>, b: V3<T>) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline(always)]
+fn norm<T: Real>(a: V3<T>) -> T {
+    dot(a, a).sqrt()
+}
+#[inline(always)]
+fn select3<T: Real>(m: T::Mask, a: V3<T>, b: V3<T>) -> V3<T> {
+    [
+        T::select(m, a[0], b[0]),
+        T::select(m, a[1], b[1]),
+        T::select(m, a[2], b[2]),
+    ]
+}
+
 /// Effective properties of a type pair, precomputed once per case
 /// (LIGGGHTS global_properties: createYeff, createGeff, createBetaEff).
 #[derive(Debug, Clone, Copy)]
-pub struct PairCoeffs {
+pub struct PairCoeffs<T = f64> {
     /// 1/Y* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j (Table 1).
-    pub yeff: f64,
+    pub yeff: T,
     /// 1/G* = 2(2-nu_i)(1+nu_i)/E_i + 2(2-nu_j)(1+nu_j)/E_j.
-    pub geff: f64,
+    pub geff: T,
     /// beta = ln e / sqrt(ln^2 e + pi^2) (Table 1).
-    pub betaeff: f64,
-    pub mu: f64,
-    pub mu_r: f64,
+    pub betaeff: T,
+    pub mu: T,
+    pub mu_r: T,
 }
 
 impl PairCoeffs {
@@ -57,18 +166,18 @@ impl PairCoeffs {
 /// Geometry and kinematics of one touching contact, seen from particle i.
 /// For walls `radj`, `omega_j` are unused and `vel_j` is the wall velocity.
 #[derive(Debug, Clone, Copy)]
-pub struct ContactGeom {
+pub struct ContactGeom<T = f64> {
     /// x_i - x_j (pair) or wall-to-particle vector (wall); |delta| = r.
-    pub delta: V3,
-    pub r: f64,
-    pub radi: f64,
-    pub radj: f64,
+    pub delta: V3<T>,
+    pub r: T,
+    pub radi: T,
+    pub radj: T,
     pub is_wall: bool,
-    pub meff: f64,
-    pub vel_i: V3,
-    pub vel_j: V3,
-    pub omega_i: V3,
-    pub omega_j: V3,
+    pub meff: T,
+    pub vel_i: V3<T>,
+    pub vel_j: V3<T>,
+    pub omega_i: V3<T>,
+    pub omega_j: V3<T>,
 }
 
 /// Per-contact state carried between steps (LIGGGHTS' contact history).
@@ -82,10 +191,305 @@ pub struct History {
 
 /// Force on i and torques on i and j (force on j is the negative; walls ignore torque_j).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct ContactForce {
-    pub f_i: V3,
-    pub torque_i: V3,
-    pub torque_j: V3,
+pub struct ContactForce<T = f64> {
+    pub f_i: V3<T>,
+    pub torque_i: V3<T>,
+    pub torque_j: V3<T>,
+}
+
+/// What the surface model hands to the normal, tangential and rolling models: the
+/// fields of LIGGGHTS' `SurfacesIntersectData` that surface_model_default.h sets
+/// (plus `en` and `rinv`, set by the caller there and here).
+#[derive(Debug, Clone, Copy)]
+pub struct Surface<T = f64> {
+    /// Unit normal `delta / r`, pointing to particle i.
+    pub en: V3<T>,
+    pub rinv: T,
+    /// Overlap `radsum - r` (radsum = r_i for a wall).
+    pub deltan: T,
+    /// Normal relative velocity `(v_i - v_j) . en`.
+    pub vn: T,
+    /// Contact rotation rate ("wr1..3"): `(c_i w_i + c_j w_j) / r`, `c = r - deltan / 2`.
+    pub wr: V3<T>,
+    /// Tangential relative velocity at the contact point ("vtr1..3").
+    pub vtr: V3<T>,
+    /// Lever arms `r_i - deltan / 2`, `r_j - deltan / 2` (0 for a wall).
+    pub cri: T,
+    pub crj: T,
+}
+
+/// Output of the normal model that the tangential and rolling models read
+/// (LIGGGHTS' `sidata.Fn`, `kn`, `kt`, `gammat`), and the effective radius R*.
+#[derive(Debug, Clone, Copy)]
+pub struct Normal<T = f64> {
+    /// Total normal force `k_n delta_n - gamma_n v_n` (signed, not clamped).
+    pub fn_total: T,
+    pub kn: T,
+    pub kt: T,
+    pub gammat: T,
+    pub reff: T,
+}
+
+/// Tangential force on i and the torques it exerts on i and j.
+#[derive(Debug, Clone, Copy)]
+pub struct Tangential<T = f64> {
+    pub ft: V3<T>,
+    pub torque_i: V3<T>,
+    pub torque_j: V3<T>,
+}
+
+/// Contact geometry and relative kinematics, LIGGGHTS surface_model_default.h
+/// (`SurfaceModel<SURFACE_DEFAULT>::surfacesIntersect`): normal, overlap, normal
+/// velocity, the contact rotation rate and the tangential velocity at the contact
+/// point that Feng et al. eq 3 integrates into the shear displacement.
+///
+/// Walls: `wr = w_i (c_i / r)` here, where the header has `(c_i w_i) / r`; the two can
+/// differ in the last bit. Kept as it was, so results stay identical to earlier runs.
+#[inline(always)]
+pub fn surface_default<T: Real>(g: &ContactGeom<T>) -> Surface<T> {
+    let rinv = T::splat(1.0) / g.r;
+    let en = scale(g.delta, rinv);
+    let radsum = if g.is_wall { g.radi } else { g.radi + g.radj };
+    let deltan = radsum - g.r;
+
+    // Relative velocities at the contact point.
+    let vr = sub(g.vel_i, g.vel_j);
+    let vn = dot(vr, en);
+    let vt = sub(vr, scale(en, vn));
+    let half = T::splat(0.5);
+    let (wr, cri, crj) = if g.is_wall {
+        let cr = g.radi - half * deltan;
+        (scale(g.omega_i, cr * rinv), cr, T::splat(0.0))
+    } else {
+        let cri = g.radi - half * deltan;
+        let crj = g.radj - half * deltan;
+        (
+            scale(add(scale(g.omega_i, cri), scale(g.omega_j, crj)), rinv),
+            cri,
+            crj,
+        )
+    };
+    let d = g.delta;
+    let vtr = [
+        vt[0] - (d[2] * wr[1] - d[1] * wr[2]),
+        vt[1] - (d[0] * wr[2] - d[2] * wr[0]),
+        vt[2] - (d[1] * wr[0] - d[0] * wr[1]),
+    ];
+    Surface {
+        en,
+        rinv,
+        deltan,
+        vn,
+        wr,
+        vtr,
+        cri,
+        crj,
+    }
+}
+
+/// Hertz normal force with viscous damping, Feng et al. eq 2 with Table 1's
+/// coefficients: `k_n = 4/3 Y* sqrt(R* d)`, `gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*)`,
+/// `S_n = 2 Y* sqrt(R* d)`; also the tangential stiffness `k_t = S_t = 8 G* sqrt(R* d)`
+/// and damping the tangential model uses. Mirrors LIGGGHTS normal_model_hertz.h
+/// (`NormalModel<HERTZ>::surfacesIntersect`, `tangential_damping on`, `limitForce off`).
+/// The force on i is `fn_total * en`.
+#[inline(always)]
+pub fn normal_hertz<T: Real>(g: &ContactGeom<T>, s: &Surface<T>, c: &PairCoeffs<T>) -> Normal<T> {
+    let reff = if g.is_wall {
+        g.radi
+    } else {
+        g.radi * g.radj / (g.radi + g.radj)
+    };
+    let sqrtval = (reff * s.deltan).sqrt();
+    let sn = T::splat(2.0) * c.yeff * sqrtval;
+    let st = T::splat(8.0) * c.geff * sqrtval;
+    let kn = T::splat(4.0 / 3.0) * c.yeff * sqrtval;
+    let kt = st;
+    let damp = T::splat(-2.0 * SQRT_FIVE_OVER_SIX) * c.betaeff;
+    let gamman = damp * (sn * g.meff).sqrt();
+    let gammat = damp * (st * g.meff).sqrt();
+    let fn_total = -gamman * s.vn + kn * s.deltan;
+    Normal {
+        fn_total,
+        kn,
+        kt,
+        gammat,
+        reff,
+    }
+}
+
+/// Tangential spring with history, Coulomb cap and damping only while sticking, Feng et
+/// al. eq 3. Mirrors LIGGGHTS tangential_model_history.h
+/// (`TangentialModel<TANGENTIAL_HISTORY>::surfacesIntersect`): the shear displacement is
+/// advanced by `vtr dt` and projected onto the tangent plane (only when
+/// `update_history`), `F_t = -k_t shear`, capped at `mu |F_n|` with the shear rescaled to
+/// the cap, else `- gamma_t vtr` is added; torques `-c_i en x F_t`, `-c_j en x F_t`.
+#[inline(always)]
+pub fn tangential_history<T: Real>(
+    s: &Surface<T>,
+    n: &Normal<T>,
+    c: &PairCoeffs<T>,
+    dt: f64,
+    shear: &mut V3<T>,
+    update_history: bool,
+) -> Tangential<T> {
+    let (en, vtr, kt) = (s.en, s.vtr, n.kt);
+    if update_history {
+        *shear = add(*shear, scale(vtr, T::splat(dt)));
+        let rsht = dot(*shear, en);
+        *shear = sub(*shear, scale(en, rsht));
+    }
+    let shrmag = norm(*shear);
+    let ft_ela = scale(*shear, -kt);
+    let ft_shear = kt * shrmag;
+    let ft_friction = c.mu * n.fn_total.abs();
+    // Sticking: the damping -gamma_t vtr added. Sliding: F_t rescaled onto the cap
+    // (zero if there is no shear to rescale) and the shear set to -F_t / k_t
+    // component-wise, the same division LIGGGHTS performs. Lanes compute both and keep
+    // one; the sliding side only when some lane slides.
+    let slide = ft_shear.gt(ft_friction);
+    let ft_stick = sub(ft_ela, scale(vtr, n.gammat));
+    let ft = if T::any(slide) {
+        let nonzero = shrmag.ne(T::splat(0.0));
+        let ft_cap = scale(ft_ela, ft_friction / ft_shear);
+        if update_history {
+            let rescaled = [-ft_cap[0] / kt, -ft_cap[1] / kt, -ft_cap[2] / kt];
+            *shear = select3(T::and(slide, nonzero), rescaled, *shear);
+        }
+        select3(
+            slide,
+            select3(nonzero, ft_cap, [T::splat(0.0); 3]),
+            ft_stick,
+        )
+    } else {
+        ft_stick
+    };
+    let tor = [
+        en[1] * ft[2] - en[2] * ft[1],
+        en[2] * ft[0] - en[0] * ft[2],
+        en[0] * ft[1] - en[1] * ft[0],
+    ];
+    Tangential {
+        ft,
+        torque_i: scale(tor, -s.cri),
+        torque_j: scale(tor, -s.crj),
+    }
+}
+
+/// Constant directional torque (CDT) rolling resistance, Feng et al. eq 4:
+/// magnitude `mu_r k_n delta_n R*` along the relative rotation, without its torsional
+/// (normal) part. Mirrors LIGGGHTS rolling_model_cdt.h
+/// (`RollingModel<ROLLING_CDT>::surfacesIntersect`, `torsionTorque off`): pairs use
+/// `w_i - w_j`, walls the contact rotation rate `wr` (same direction as `w_i`). Returns
+/// the torque subtracted from i and added to j, and where it applies (not where
+/// nothing rotates).
+#[inline(always)]
+pub fn rolling_cdt<T: Real>(
+    g: &ContactGeom<T>,
+    s: &Surface<T>,
+    n: &Normal<T>,
+    c: &PairCoeffs<T>,
+) -> (T::Mask, V3<T>) {
+    let w = if g.is_wall {
+        s.wr
+    } else {
+        sub(g.omega_i, g.omega_j)
+    };
+    let wmag = norm(w);
+    let (en, reff) = (s.en, n.reff);
+    let t = if g.is_wall {
+        let fnel = s.deltan * n.kn;
+        [
+            c.mu_r * fnel * w[0] / wmag * reff,
+            c.mu_r * fnel * w[1] / wmag * reff,
+            c.mu_r * fnel * w[2] / wmag * reff,
+        ]
+    } else {
+        scale(w, c.mu_r * n.kn * s.deltan * reff / wmag)
+    };
+    // No torsional component (torsionTorque off).
+    let tn = dot(t, en);
+    (wmag.gt(T::splat(0.0)), sub(t, scale(en, tn)))
+}
+
+/// Elastic-plastic spring-dashpot rolling resistance (EPSD2, no dashpot): a rolling
+/// spring `k_r = k_t R*^2` on the tangential part of the relative rotation, accumulated
+/// in `roll` and capped at `mu_r |F_n| R*` (the torque form of Feng et al. eq 4's
+/// limit). Mirrors LIGGGHTS rolling_model_epsd2.h (`calcRollTorque`, `torsionTorque
+/// off`); `roll` is its `r_torque_old` history, stored only when `update_history`.
+/// Returns the torque subtracted from i and added to j.
+#[inline(always)]
+pub fn rolling_epsd2<T: Real>(
+    g: &ContactGeom<T>,
+    s: &Surface<T>,
+    n: &Normal<T>,
+    c: &PairCoeffs<T>,
+    dt: f64,
+    roll: &mut V3<T>,
+    update_history: bool,
+) -> V3<T> {
+    let w = if g.is_wall {
+        s.wr
+    } else {
+        sub(g.omega_i, g.omega_j)
+    };
+    let en = s.en;
+    let wn = dot(w, en);
+    let w_t = sub(w, scale(en, wn));
+    let kr = n.kt * n.reff * n.reff;
+    let t = add(*roll, scale(w_t, T::splat(dt) * kr));
+    let tmag = norm(t);
+    let tmax = n.fn_total.abs() * n.reff * c.mu_r;
+    let capped = tmag.gt(tmax);
+    let t = if T::any(capped) {
+        select3(capped, scale(t, tmax / tmag), t)
+    } else {
+        t
+    };
+    if update_history {
+        *roll = t;
+    }
+    t
+}
+
+/// The whole contact law for a touching pair (overlap > 0), with the shear and rolling
+/// histories passed separately (`roll` is read and written only by EPSD2). The models
+/// run in LIGGGHTS' order (contact_models.h `ContactModel::surfacesIntersect`: surface,
+/// normal, cohesion (none), tangential, rolling) and accumulate into the force and
+/// torques in that order, so the floating-point result is LIGGGHTS'.
+#[inline(always)]
+pub fn evaluate<T: Real>(
+    g: &ContactGeom<T>,
+    c: &PairCoeffs<T>,
+    rolling: RollingModel,
+    dt: f64,
+    shear: &mut V3<T>,
+    roll: &mut V3<T>,
+    update_history: bool,
+) -> ContactForce<T> {
+    let s = surface_default(g);
+    let n = normal_hertz(g, &s, c);
+    let f_n = scale(s.en, n.fn_total);
+    let t = tangential_history(&s, &n, c, dt, shear, update_history);
+    let f_i = add(f_n, t.ft);
+    let (mut torque_i, mut torque_j) = (t.torque_i, t.torque_j);
+    let rolled = match rolling {
+        RollingModel::None => None,
+        RollingModel::Cdt => Some(rolling_cdt(g, &s, &n, c)),
+        RollingModel::Epsd2 => Some((
+            T::uniform(true),
+            rolling_epsd2(g, &s, &n, c, dt, roll, update_history),
+        )),
+    };
+    if let Some((applies, r_torque)) = rolled {
+        torque_i = select3(applies, sub(torque_i, r_torque), torque_i);
+        torque_j = select3(applies, add(torque_j, r_torque), torque_j);
+    }
+    ContactForce {
+        f_i,
+        torque_i,
+        torque_j,
+    }
 }
 
 /// Evaluates the contact law for a touching pair (overlap > 0). `update_history` is
@@ -99,146 +503,15 @@ pub fn hertz_history(
     hist: &mut History,
     update_history: bool,
 ) -> ContactForce {
-    let rinv = 1.0 / g.r;
-    let en = scale(g.delta, rinv);
-    let radsum = if g.is_wall { g.radi } else { g.radi + g.radj };
-    let deltan = radsum - g.r;
-
-    // Relative velocities at the contact point (surface_model_default.h).
-    let vr = sub(g.vel_i, g.vel_j);
-    let vn = dot(vr, en);
-    let vt = sub(vr, scale(en, vn));
-    let (wr, cri, crj) = if g.is_wall {
-        let cr = g.radi - 0.5 * deltan;
-        (scale(g.omega_i, cr * rinv), cr, 0.0)
-    } else {
-        let cri = g.radi - 0.5 * deltan;
-        let crj = g.radj - 0.5 * deltan;
-        (
-            scale(add(scale(g.omega_i, cri), scale(g.omega_j, crj)), rinv),
-            cri,
-            crj,
-        )
-    };
-    let d = g.delta;
-    let vtr = [
-        vt[0] - (d[2] * wr[1] - d[1] * wr[2]),
-        vt[1] - (d[0] * wr[2] - d[2] * wr[0]),
-        vt[2] - (d[1] * wr[0] - d[0] * wr[1]),
-    ];
-
-    // Normal force, eq 2 / Table 1 (normal_model_hertz.h).
-    let reff = if g.is_wall {
-        g.radi
-    } else {
-        g.radi * g.radj / (g.radi + g.radj)
-    };
-    let sqrtval = (reff * deltan).sqrt();
-    let sn = 2.0 * c.yeff * sqrtval;
-    let st = 8.0 * c.geff * sqrtval;
-    let kn = 4.0 / 3.0 * c.yeff * sqrtval;
-    let kt = st;
-    let gamman = -2.0 * SQRT_FIVE_OVER_SIX * c.betaeff * (sn * g.meff).sqrt();
-    let gammat = -2.0 * SQRT_FIVE_OVER_SIX * c.betaeff * (st * g.meff).sqrt();
-    let fn_total = -gamman * vn + kn * deltan;
-    let mut f_i = scale(en, fn_total);
-
-    // Tangential spring with history and Coulomb cap, eq 3 (tangential_model_history.h).
-    let shear = &mut hist.shear;
-    if update_history {
-        add_assign(shear, scale(vtr, dt));
-        let rsht = dot(*shear, en);
-        sub_assign(shear, scale(en, rsht));
-    }
-    let shrmag = norm(*shear);
-    let mut ft = scale(*shear, -kt);
-    let ft_shear = kt * shrmag;
-    let ft_friction = c.mu * fn_total.abs();
-    if ft_shear > ft_friction {
-        if shrmag != 0.0 {
-            ft = scale(ft, ft_friction / ft_shear);
-            if update_history {
-                // -Ft/kt component-wise, the same division LIGGGHTS performs.
-                shear[0] = -ft[0] / kt;
-                shear[1] = -ft[1] / kt;
-                shear[2] = -ft[2] / kt;
-            }
-        } else {
-            ft = [0.0; 3];
-        }
-    } else {
-        sub_assign(&mut ft, scale(vtr, gammat));
-    }
-    add_assign(&mut f_i, ft);
-    let tor = [
-        en[1] * ft[2] - en[2] * ft[1],
-        en[2] * ft[0] - en[0] * ft[2],
-        en[0] * ft[1] - en[1] * ft[0],
-    ];
-    let mut torque_i = scale(tor, -cri);
-    let mut torque_j = scale(tor, -crj);
-
-    // Rolling resistance (rolling_model_cdt.h / rolling_model_epsd2.h).
-    let r_torque = match rolling {
-        RollingModel::None => None,
-        RollingModel::Cdt => {
-            // Eq 4: constant magnitude mu_r k_n delta_n R*, along the relative rotation;
-            // walls use the contact-point rotation rate wr, whose direction is omega_i's.
-            let w = if g.is_wall {
-                wr
-            } else {
-                sub(g.omega_i, g.omega_j)
-            };
-            let wmag = norm(w);
-            if wmag > 0.0 {
-                let t = if g.is_wall {
-                    let fnel = deltan * kn;
-                    [
-                        c.mu_r * fnel * w[0] / wmag * reff,
-                        c.mu_r * fnel * w[1] / wmag * reff,
-                        c.mu_r * fnel * w[2] / wmag * reff,
-                    ]
-                } else {
-                    scale(w, c.mu_r * kn * deltan * reff / wmag)
-                };
-                // No torsional component (torsionTorque off).
-                let tn = dot(t, en);
-                Some(sub(t, scale(en, tn)))
-            } else {
-                None
-            }
-        }
-        RollingModel::Epsd2 => {
-            let w = if g.is_wall {
-                wr
-            } else {
-                sub(g.omega_i, g.omega_j)
-            };
-            let wn = dot(w, en);
-            let w_t = sub(w, scale(en, wn));
-            let kr = kt * reff * reff;
-            let mut t = add(hist.roll, scale(w_t, dt * kr));
-            let tmag = norm(t);
-            let tmax = fn_total.abs() * reff * c.mu_r;
-            if tmag > tmax {
-                t = scale(t, tmax / tmag);
-            }
-            if update_history {
-                hist.roll = t;
-            }
-            Some(t)
-        }
-    };
-    if let Some(t) = r_torque {
-        sub_assign(&mut torque_i, t);
-        add_assign(&mut torque_j, t);
-    }
-
-    ContactForce {
-        f_i,
-        torque_i,
-        torque_j,
-    }
+    evaluate(
+        g,
+        c,
+        rolling,
+        dt,
+        &mut hist.shear,
+        &mut hist.roll,
+        update_history,
+    )
 }
 
 #[cfg(test)]

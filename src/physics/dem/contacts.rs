@@ -56,7 +56,7 @@ impl Simulation {
     /// untouched, so the run continues bit for bit as without the snapshot.
     pub fn contacts_as_dumped(&self) -> Vec<ContactRecord> {
         let mut copy = self.clone();
-        copy.compute_forces(false);
+        copy.compute_forces(false, false);
         copy.contacts()
     }
 
@@ -75,7 +75,7 @@ impl Simulation {
                 i,
                 other: Touching::Grain(j),
                 point: add(self.x[i], scale(sub(self.x[j], self.x[i]), frac)),
-                force_on_i: self.pair_out[k].f_i,
+                force_on_i: self.rev_out[self.pairs.rev_pos[k] as usize].f_i,
             });
         }
         let stride = self.walls_stride;
@@ -113,6 +113,49 @@ impl Simulation {
             }
         }
         out
+    }
+}
+
+impl Simulation {
+    /// Builds a native snapshot with the contacts as LIGGGHTS would dump them at this
+    /// step ([`crate::physics::dem::Simulation::contacts_as_dumped`]), so both engines' stress
+    /// fields are measured the same way.
+    pub fn snapshot(&self, meta: SnapshotMeta) -> Snapshot {
+        let sim = self;
+        let grains = (0..sim.x.len())
+            .map(|k| Grain {
+                id: sim.id[k],
+                x: sim.x[k],
+                v: sim.v[k],
+                radius: sim.radius[k],
+            })
+            .collect();
+        let contacts = sim
+            .contacts_as_dumped()
+            .into_iter()
+            .map(|c| {
+                let xi = sim.x[c.i];
+                let (kind, j, branch) = match c.other {
+                    Touching::Grain(j) => (ContactKind::Pair, sim.id[j], sub(sim.x[j], xi)),
+                    Touching::Wall(_) => (ContactKind::Wall, 0, sub(c.point, xi)),
+                    Touching::Intruder => (ContactKind::Intruder, 0, sub(c.point, xi)),
+                };
+                Contact {
+                    kind,
+                    i: sim.id[c.i],
+                    j,
+                    xi,
+                    point: c.point,
+                    branch,
+                    force: c.force_on_i,
+                }
+            })
+            .collect();
+        Snapshot {
+            meta,
+            grains,
+            contacts,
+        }
     }
 }
 
@@ -190,48 +233,5 @@ mod tests {
             dumped_over > touching / 4,
             "the dumped force must show the LIGGGHTS effect"
         );
-    }
-}
-
-impl Simulation {
-    /// Builds a native snapshot with the contacts as LIGGGHTS would dump them at this
-    /// step ([`crate::physics::dem::Simulation::contacts_as_dumped`]), so both engines' stress
-    /// fields are measured the same way.
-    pub fn snapshot(&self, meta: SnapshotMeta) -> Snapshot {
-        let sim = self;
-        let grains = (0..sim.x.len())
-            .map(|k| Grain {
-                id: sim.id[k],
-                x: sim.x[k],
-                v: sim.v[k],
-                radius: sim.radius[k],
-            })
-            .collect();
-        let contacts = sim
-            .contacts_as_dumped()
-            .into_iter()
-            .map(|c| {
-                let xi = sim.x[c.i];
-                let (kind, j, branch) = match c.other {
-                    Touching::Grain(j) => (ContactKind::Pair, sim.id[j], sub(sim.x[j], xi)),
-                    Touching::Wall(_) => (ContactKind::Wall, 0, sub(c.point, xi)),
-                    Touching::Intruder => (ContactKind::Intruder, 0, sub(c.point, xi)),
-                };
-                Contact {
-                    kind,
-                    i: sim.id[c.i],
-                    j,
-                    xi,
-                    point: c.point,
-                    branch,
-                    force: c.force_on_i,
-                }
-            })
-            .collect();
-        Snapshot {
-            meta,
-            grains,
-            contacts,
-        }
     }
 }

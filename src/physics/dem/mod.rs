@@ -8,9 +8,12 @@
 pub mod contact;
 pub mod contacts;
 pub mod intruder;
+mod lanes;
 pub mod neighbor;
 mod overlap;
 pub mod packing;
+mod pairs;
+mod par;
 pub mod penetration;
 pub mod rigid;
 pub mod walls;
@@ -18,9 +21,12 @@ pub mod walls;
 use crate::case::{Case, Perturbation, RollingModel, Wall};
 use crate::numerics::vec3::*;
 use crate::rundata::frames::{BodyState, Frame, ParticleState};
-use contact::{ContactForce, ContactGeom, History, PairCoeffs, hertz_history};
+use contact::{ContactGeom, PairCoeffs, evaluate};
 use neighbor::PairList;
+use pairs::RevForce;
+use par::Shared;
 use rayon::prelude::*;
+use std::time::Instant;
 
 /// Moment-of-inertia factor of a solid sphere, LIGGGHTS' `INERTIA` in fix_nve_sphere.
 const INERTIA: f64 = 0.4;
@@ -47,25 +53,36 @@ pub struct Simulation {
     pub body: Vec<i32>,
     /// Rigid multisphere clumps (fix multisphere), see [`rigid`].
     pub bodies: Vec<rigid::RigidBody>,
+    /// Spheres `0..free` are free, `free..` clump members: the per-sphere kick, drift
+    /// and gravity sweeps run over `0..free` only, without a per-sphere branch.
+    free: usize,
     n_types: usize,
     coeffs: Vec<PairCoeffs>,
     rolling: RollingModel,
     walls: Vec<Wall>,
-    /// Wall contact history, `walls_stride` entries per particle.
-    wall_hist: Vec<History>,
+    /// Wall contact history, `walls_stride` entries per particle: shear, and the EPSD2
+    /// rolling torque only when the rolling model is EPSD2 (empty otherwise).
+    wall_shear: Vec<V3>,
+    wall_roll: Vec<V3>,
     walls_stride: usize,
     pairs: PairList,
-    pair_out: Vec<ContactForce>,
+    /// Per reverse slot (see [`PairList::rev_pos`]): the force on the pair's first
+    /// particle and the torque on its second, zero when the pair does not touch, so the
+    /// gather adds them without a branch (adding +0.0 to a sum that started at +0.0
+    /// changes no bit).
+    rev_out: Vec<RevForce>,
     /// Force each wall exerted on each particle in the last force pass (`walls_stride`
     /// per particle; zero when not touching), kept so [`Simulation::contacts`] reports
     /// exactly the forces that were integrated, not a re-evaluation.
     wall_out: Vec<V3>,
-    /// Whether each pair touched this step; the gather reads `pair_out` only where set,
-    /// so non-touching pairs cost one byte of memory traffic instead of a whole result.
+    /// Whether each pair touched in the last force pass.
     pair_touch: Vec<bool>,
+    /// Scratch of the pair pass: indices of the touching pairs, compacted within each
+    /// block's pair range.
+    touching: Vec<u32>,
     /// Bit k set: particle was within its radius + skin of wall k at the last rebuild,
     /// so it may touch it before the next one (the role of LIGGGHTS' primitive-wall
-    /// neighbour lists). Walls beyond 64 are always checked.
+    /// neighbour lists). Walls beyond 63 share bit 63.
     near_walls: Vec<u64>,
     intruder: Option<MovingIntruder>,
     gravity: V3,
@@ -74,6 +91,37 @@ pub struct Simulation {
     lo: V3,
     hi: V3,
     pub step: u64,
+    times: StepTimes,
+    /// Per particle `(dtf / m, dtf / INERTIA / (r^2 m))` of `nve/sphere` with
+    /// `dtf = dt / 2`, for the dt, masses and radii in `kick_for`: the same divisions
+    /// the kicks would do, done once.
+    kick: Vec<[f64; 2]>,
+    kick_for: (f64, u64),
+}
+
+/// Wall time (s) spent in each phase of [`Simulation::step`] since the simulation was
+/// made (or [`Simulation::reset_step_times`]), for profiling: a handful of clock reads per
+/// step, negligible against the step itself.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepTimes {
+    /// First half kick and drift, fused with the finite-state, domain and skin/2
+    /// displacement checks.
+    pub integrate: f64,
+    /// Neighbour-list builds (cells, pairs, history merge, wall masks, intruder
+    /// candidates).
+    pub neighbor: f64,
+    /// The pair pass: contact law of every neighbour pair, own-pair sums.
+    pub pairs: f64,
+    /// Per-particle gather of the reverse pair results, primitive walls, gravity, the
+    /// intruder and the second half kick.
+    pub gather: f64,
+    pub steps: u64,
+}
+
+impl StepTimes {
+    pub fn total(&self) -> f64 {
+        self.integrate + self.neighbor + self.pairs + self.gather
+    }
 }
 
 /// A rigid body driven at constant velocity through the grains (the penetration
@@ -85,21 +133,39 @@ pub struct MovingIntruder {
     pub body: intruder::FlatCylinder,
     pub velocity: V3,
     pub type_: usize,
-    hist: Vec<History>,
+    shear: Vec<V3>,
+    /// EPSD2 rolling history (empty for other rolling models).
+    roll: Vec<V3>,
     /// Force each grain receives from the intruder this step (zero if not touching).
     on_grain: Vec<V3>,
+    /// Grains that may touch the intruder before the candidates are listed again:
+    /// within `INTRUDER_MARGIN_SKINS` skins of its surface when listed.
+    candidate: Vec<bool>,
+    /// Bottom z when the candidates were listed; `None`: not listed yet.
+    listed_z: Option<f64>,
 }
+
+/// Candidate margin of the intruder, in skins. A grain moves at most skin/2 from its
+/// position at the last neighbour build, so at most one skin from where it was when the
+/// candidates were listed; the intruder moves at most skin/2 before they are listed
+/// again. The signed distance to a convex body is 1-Lipschitz in both, so a grain farther
+/// than r + 1.5 skin cannot touch before the next listing; 2 leaves room for round-off.
+const INTRUDER_MARGIN_SKINS: f64 = 2.0;
 
 impl Simulation {
     /// Adds the moving intruder; `type_` is its 0-based material type.
     pub fn set_intruder(&mut self, body: intruder::FlatCylinder, velocity: V3, type_: usize) {
         let n = self.x.len();
+        let epsd2 = self.rolling == RollingModel::Epsd2;
         self.intruder = Some(MovingIntruder {
             body,
             velocity,
             type_,
-            hist: vec![History::default(); n],
+            shear: vec![[0.0; 3]; n],
+            roll: vec![[0.0; 3]; if epsd2 { n } else { 0 }],
             on_grain: vec![[0.0; 3]; n],
+            candidate: vec![false; n],
+            listed_z: None,
         });
     }
 
@@ -189,6 +255,7 @@ impl Simulation {
         }
         let n = id.len();
         let stride = case.walls.len().max(1);
+        let epsd2 = case.rolling == RollingModel::Epsd2;
         Simulation {
             id,
             type_,
@@ -199,18 +266,21 @@ impl Simulation {
             omega,
             body,
             bodies,
+            free: case.particles.len(),
             f: vec![[0.0; 3]; n],
             torque: vec![[0.0; 3]; n],
             n_types,
             coeffs,
             rolling: case.rolling,
             walls: case.walls.clone(),
-            wall_hist: vec![History::default(); n * stride],
+            wall_shear: vec![[0.0; 3]; n * stride],
+            wall_roll: vec![[0.0; 3]; if epsd2 { n * stride } else { 0 }],
             walls_stride: stride,
-            pairs: PairList::default(),
-            pair_out: Vec::new(),
+            pairs: PairList::with_roll(epsd2),
+            rev_out: Vec::new(),
             wall_out: vec![[0.0; 3]; n * stride],
             pair_touch: Vec::new(),
+            touching: Vec::new(),
             near_walls: vec![u64::MAX; n],
             intruder: None,
             gravity: case.gravity,
@@ -219,6 +289,9 @@ impl Simulation {
             lo: case.domain_lo,
             hi: case.domain_hi,
             step: 0,
+            times: StepTimes::default(),
+            kick: Vec::new(),
+            kick_for: (f64::NAN, 0),
         }
     }
 
@@ -227,9 +300,10 @@ impl Simulation {
     pub fn setup(&mut self) -> anyhow::Result<()> {
         self.check_domain()?;
         self.check_initial_overlaps()?;
+        self.refresh_kick();
         self.rebuild();
         if self.bodies.is_empty() {
-            self.compute_forces(false);
+            self.compute_forces(false, false);
         } else {
             // LIGGGHTS inserts bodies in pre_exchange of step 1 (fix_insert.cpp:407,
             // 652-660): the body sits at x0 and then gets that step's forces (history
@@ -237,8 +311,7 @@ impl Simulation {
             // (fix_multisphere.cpp:721-784). Native step 0 is that state, LIGGGHTS step 1;
             // free spheres start at rest and force-free (case validation), so their step
             // 0 -> 1 in LIGGGHTS is the same final half kick.
-            self.compute_forces(true);
-            self.final_integrate();
+            self.compute_forces(true, true);
         }
         Ok(())
     }
@@ -249,86 +322,285 @@ impl Simulation {
     /// initial-overlap refusal is skipped; the domain and finiteness checks remain.
     pub fn setup_settled(&mut self) -> anyhow::Result<()> {
         self.check_domain()?;
+        self.refresh_kick();
         self.rebuild();
-        self.compute_forces(false);
+        self.compute_forces(false, false);
         Ok(())
     }
 
     /// One velocity-Verlet step in `nve/sphere` order: half kick + drift, re-neighbour
-    /// if needed, forces, half kick.
+    /// if needed, forces, half kick. The checks after the drift (finite state, domain,
+    /// displacement since the last build) run in the drift's sweep, and the second half
+    /// kick in the force gather's, so a step reads the particle arrays three times.
+    /// Clumps follow `fix multisphere`: their first half (kick, drift, rotation, member
+    /// positions) after the free spheres' sweep, their second after the gather.
     pub fn step(&mut self) -> anyhow::Result<()> {
-        let dt = self.dt;
-        let dtf = 0.5 * dt;
-        (&mut self.x, &mut self.v, &mut self.omega)
-            .into_par_iter()
-            .zip((&self.f, &self.torque, &self.mass, &self.radius, &self.body).into_par_iter())
-            .with_min_len(PAR_MIN_LEN)
-            .for_each(|((x, v, w), (f, t, m, r, b))| {
-                if *b >= 0 {
-                    return; // clump member: moved by its body below
-                }
-                let dtfm = dtf / m;
-                add_assign(v, scale(*f, dtfm));
-                add_assign(x, scale(*v, dt));
-                let dtirotate = dtf / INERTIA / (r * r * m);
-                add_assign(w, scale(*t, dtirotate));
-            });
-        for b in &mut self.bodies {
-            b.initial_integrate(dt);
-            b.set_xv(&mut self.x, &mut self.v, &mut self.omega);
+        let t0 = Instant::now();
+        self.refresh_kick();
+        let (mut non_finite, mut outside, mut moved) = self.kick_drift_check();
+        if !self.bodies.is_empty() {
+            for b in &mut self.bodies {
+                b.initial_integrate(self.dt);
+                b.set_xv(&mut self.x, &mut self.v, &mut self.omega);
+            }
+            // The sweep saw the free spheres only; members (indices above every free
+            // one, so `min` keeps "first in array order") are checked where they are now.
+            let (nf, out, mv) = self.check_members();
+            non_finite = non_finite.min(nf);
+            outside = outside.min(out);
+            moved |= mv;
         }
         self.step += 1;
         if let Some(it) = &mut self.intruder {
-            it.body.translate(it.velocity[2] * dt);
+            it.body.translate(it.velocity[2] * self.dt);
         }
-        self.check_domain()?;
-        if self.pairs.needs_rebuild(&self.x, self.skin) {
+        self.domain_error(non_finite, outside)?;
+        let t1 = Instant::now();
+        if moved {
             self.rebuild();
         }
-        self.compute_forces(true);
-        self.final_integrate();
+        self.list_intruder_candidates(false);
+        let t2 = Instant::now();
+        self.compute_forces(true, true);
+        let tm = &mut self.times;
+        tm.integrate += (t1 - t0).as_secs_f64();
+        tm.neighbor += (t2 - t1).as_secs_f64();
+        tm.steps += 1;
         Ok(())
     }
 
-    /// Second half kick: `nve/sphere` for free spheres, `fix multisphere` for bodies
-    /// (force gathering, kick, member velocities).
-    fn final_integrate(&mut self) {
-        let dtf = 0.5 * self.dt;
-        (&mut self.v, &mut self.omega)
-            .into_par_iter()
-            .zip((&self.f, &self.torque, &self.mass, &self.radius, &self.body).into_par_iter())
-            .with_min_len(PAR_MIN_LEN)
-            .for_each(|((v, w), (f, t, m, r, b))| {
-                if *b >= 0 {
-                    return;
+    /// First half kick and drift of `nve/sphere` for the free spheres, and in the same
+    /// sweep the first of them with a non-finite state, the first outside the box
+    /// (`usize::MAX`: none) and whether any moved more than skin/2 since the last
+    /// neighbour build (LIGGGHTS `neigh_modify delay 0 every 1 check yes`).
+    #[inline(never)]
+    fn kick_drift_check(&mut self) -> (usize, usize, bool) {
+        let dt = self.dt;
+        let built = self.pairs.x_at_build.len() == self.x.len();
+        // Clump members (`free..`) are moved by their bodies, not here.
+        let n = self.free;
+        let (lo, hi) = (self.lo, self.hi);
+        let lim = 0.25 * self.skin * self.skin;
+        let x_at_build = &self.pairs.x_at_build;
+        let (f, torque, kick) = (&self.f, &self.torque, &self.kick);
+        let (xs, vs, ws) = (
+            Shared::new(&mut self.x),
+            Shared::new(&mut self.v),
+            Shared::new(&mut self.omega),
+        );
+        let (non_finite, outside, moved) = par::map_reduce_blocks(
+            n,
+            (usize::MAX, usize::MAX, !built),
+            |r| {
+                // SAFETY: blocks are disjoint particle ranges.
+                let (x, v, w) = unsafe {
+                    (
+                        xs.slice(r.clone()),
+                        vs.slice(r.clone()),
+                        ws.slice(r.clone()),
+                    )
+                };
+                let (f, t) = (&f[r.clone()], &torque[r.clone()]);
+                let kick = &kick[r.clone()];
+                let xb = if built { &x_at_build[r.clone()] } else { &[] };
+                let len = r.len();
+                assert!(x.len() == len && f.len() == len && kick.len() == len);
+                // Simple loops the compiler vectorises: the sweep, then each check over
+                // the block (still in cache); the index of a failure is searched for only
+                // when there is one.
+                for l in 0..len {
+                    let [dtfm, dtirotate] = kick[l];
+                    add_assign(&mut v[l], scale(f[l], dtfm));
+                    add_assign(&mut x[l], scale(v[l], dt));
+                    add_assign(&mut w[l], scale(t[l], dtirotate));
                 }
-                let dtfm = dtf / m;
-                add_assign(v, scale(*f, dtfm));
-                let dtirotate = dtf / INERTIA / (r * r * m);
-                add_assign(w, scale(*t, dtirotate));
-            });
-        for b in &mut self.bodies {
-            b.gather(&self.x, &self.f, &self.torque, self.gravity);
-            b.final_integrate(self.dt);
-            b.set_v(&mut self.v, &mut self.omega);
+                let all_finite = |a: &[V3]| {
+                    a.as_flattened()
+                        .iter()
+                        .fold(true, |ok, c| ok & c.is_finite())
+                };
+                let finite =
+                    |l: usize| x[l].iter().chain(&v[l]).chain(&w[l]).all(|c| c.is_finite());
+                let inside = |p: &V3| {
+                    (p[0] >= lo[0])
+                        & (p[0] <= hi[0])
+                        & (p[1] >= lo[1])
+                        & (p[1] <= hi[1])
+                        & (p[2] >= lo[2])
+                        & (p[2] <= hi[2])
+                };
+                let nf = if all_finite(x) & all_finite(v) & all_finite(w) {
+                    usize::MAX
+                } else {
+                    r.start + (0..len).find(|&l| !finite(l)).unwrap_or(0)
+                };
+                let out = if x.iter().fold(true, |ok, p| ok & inside(p)) {
+                    usize::MAX
+                } else {
+                    r.start + x.iter().position(|p| !inside(p)).unwrap_or(0)
+                };
+                let mv = built
+                    && x.iter().zip(xb).fold(false, |mv, (p, b)| {
+                        let d = [p[0] - b[0], p[1] - b[1], p[2] - b[2]];
+                        mv | (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > lim)
+                    });
+                (nf, out, mv)
+            },
+            |a, b| (a.0.min(b.0), a.1.min(b.1), a.2 || b.2),
+        );
+        (non_finite, outside, moved)
+    }
+
+    /// The checks of [`Simulation::kick_drift_check`] for the clump members, after their
+    /// bodies placed them: a serial loop, members being few.
+    fn check_members(&self) -> (usize, usize, bool) {
+        let (lo, hi) = (self.lo, self.hi);
+        let lim = 0.25 * self.skin * self.skin;
+        let xb = &self.pairs.x_at_build;
+        let built = xb.len() == self.x.len();
+        let (mut nf, mut out, mut mv) = (usize::MAX, usize::MAX, !built);
+        for k in (self.free..self.x.len()).rev() {
+            let (p, v, w) = (self.x[k], self.v[k], self.omega[k]);
+            if !p.iter().chain(&v).chain(&w).all(|c| c.is_finite()) {
+                nf = k;
+            }
+            if !(0..3).all(|c| p[c] >= lo[c] && p[c] <= hi[c]) {
+                out = k;
+            }
+            if built {
+                let b = xb[k];
+                let d = [p[0] - b[0], p[1] - b[1], p[2] - b[2]];
+                mv |= d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > lim;
+            }
         }
+        (nf, out, mv)
+    }
+
+    /// Computes the kick factors for the current dt, masses and radii: at setup, and
+    /// again when `dt` changed (masses and radii are fixed after setup; debug builds
+    /// check that on every step).
+    fn refresh_kick(&mut self) {
+        debug_assert!(
+            self.kick.len() != self.x.len() || self.kick_for.1 == self.mass_radius_print(),
+            "masses or radii changed after setup"
+        );
+        if self.kick_for.0 == self.dt && self.kick.len() == self.x.len() {
+            return;
+        }
+        let dtf = 0.5 * self.dt;
+        self.kick.clear();
+        self.kick.extend(
+            self.mass
+                .iter()
+                .zip(&self.radius)
+                .map(|(&m, &r)| [dtf / m, dtf / INERTIA / (r * r * m)]),
+        );
+        self.kick_for = (self.dt, self.mass_radius_print());
+    }
+
+    fn mass_radius_print(&self) -> u64 {
+        self.mass
+            .iter()
+            .chain(&self.radius)
+            .fold(0xcbf2_9ce4_8422_2325u64, |h, v| {
+                (h ^ v.to_bits()).wrapping_mul(0x0100_0000_01b3)
+            })
+    }
+
+    /// Wall time per phase of [`Simulation::step`] so far (see [`StepTimes`]).
+    pub fn step_times(&self) -> StepTimes {
+        self.times
+    }
+
+    pub fn reset_step_times(&mut self) {
+        self.times = StepTimes::default();
     }
 
     fn rebuild(&mut self) {
-        self.pairs
-            .build(&self.x, &self.radius, self.skin, self.lo, self.hi);
-        let (walls, skin) = (&self.walls, self.skin);
-        (&mut self.near_walls, &self.x, &self.radius)
+        self.pairs.build(
+            &self.x,
+            &self.radius,
+            &self.body,
+            self.skin,
+            self.lo,
+            self.hi,
+        );
+        let (walls, skin, stride) = (&self.walls, self.skin, self.walls_stride);
+        (
+            &mut self.near_walls,
+            self.wall_out.par_chunks_mut(stride),
+            &self.x,
+            &self.radius,
+        )
             .into_par_iter()
             .with_min_len(PAR_MIN_LEN)
-            .for_each(|(mask, x, r)| {
+            .for_each(|(mask, wout, x, r)| {
                 *mask = 0;
                 for (k, w) in walls.iter().enumerate() {
                     if k >= 64 || walls::wall_contact(w, *x, r + skin).is_some() {
                         *mask |= 1u64 << k.min(63);
                     }
                 }
+                // Walls the particle cannot reach before the next build are not evaluated:
+                // their last force is zero from now on (it was not touching them).
+                for (k, o) in wout.iter_mut().enumerate() {
+                    if *mask & (1u64 << k.min(63)) == 0 {
+                        *o = [0.0; 3];
+                    }
+                }
             });
+        self.list_intruder_candidates(true);
+    }
+
+    /// Lists the grains that may touch the intruder (see [`INTRUDER_MARGIN_SKINS`]):
+    /// always when `force`, else when never listed or the intruder moved more than skin/2
+    /// since. A grain leaving the list is not touching: its history and force are
+    /// cleared exactly as evaluating it would.
+    fn list_intruder_candidates(&mut self, force: bool) {
+        let skin = self.skin;
+        let Some(it) = &mut self.intruder else {
+            return;
+        };
+        let z = it.body.bottom_z();
+        if !force && it.listed_z.is_some_and(|z0| (z - z0).abs() <= 0.5 * skin) {
+            return;
+        }
+        it.listed_z = Some(z);
+        let margin = INTRUDER_MARGIN_SKINS * skin;
+        let (body, epsd2) = (&it.body, !it.roll.is_empty());
+        let (shear, roll, on) = (
+            Shared::new(&mut it.shear),
+            Shared::new(&mut it.roll),
+            Shared::new(&mut it.on_grain),
+        );
+        let (x, radius) = (&self.x, &self.radius);
+        let cand = Shared::new(&mut it.candidate);
+        par::for_blocks(x.len(), |r| {
+            // SAFETY: blocks are disjoint particle ranges.
+            let (cand, shear, on) = unsafe {
+                (
+                    cand.slice(r.clone()),
+                    shear.slice(r.clone()),
+                    on.slice(r.clone()),
+                )
+            };
+            let roll: &mut [V3] = if epsd2 {
+                unsafe { roll.slice(r.clone()) }
+            } else {
+                &mut []
+            };
+            for (l, k) in r.enumerate() {
+                let near = body.query(x[k]).distance <= radius[k] + margin;
+                if cand[l] && !near {
+                    shear[l] = [0.0; 3];
+                    on[l] = [0.0; 3];
+                    if epsd2 {
+                        roll[l] = [0.0; 3];
+                    }
+                }
+                cand[l] = near;
+            }
+        });
     }
 
     /// LIGGGHTS runs with `boundary f f f`: an atom leaving the box is lost and the run
@@ -404,9 +676,24 @@ impl Simulation {
     }
 
     fn check_domain(&self) -> anyhow::Result<()> {
-        if let Some(k) = (0..self.x.len()).find(|&k| {
-            !(self.x[k].iter().chain(&self.v[k]).chain(&self.omega[k])).all(|c| c.is_finite())
-        }) {
+        let non_finite = (0..self.x.len())
+            .find(|&k| {
+                !(self.x[k].iter().chain(&self.v[k]).chain(&self.omega[k])).all(|c| c.is_finite())
+            })
+            .unwrap_or(usize::MAX);
+        let outside = self
+            .x
+            .iter()
+            .position(|p| (0..3).any(|c| !(p[c] >= self.lo[c] && p[c] <= self.hi[c])))
+            .unwrap_or(usize::MAX);
+        self.domain_error(non_finite, outside)
+    }
+
+    /// The error for the first particle with a non-finite state, else the first outside
+    /// the box (`usize::MAX`: none).
+    fn domain_error(&self, non_finite: usize, outside: usize) -> anyhow::Result<()> {
+        if non_finite != usize::MAX {
+            let k = non_finite;
             anyhow::bail!(
                 "particle id {} has a non-finite state at step {} (x = {:?}, v = {:?}): the integration blew up; likely causes are a time step too large for the contact stiffness or grains started deep inside each other",
                 self.id[k],
@@ -415,11 +702,8 @@ impl Simulation {
                 self.v[k]
             );
         }
-        if let Some(k) = self
-            .x
-            .iter()
-            .position(|p| (0..3).any(|c| !(p[c] >= self.lo[c] && p[c] <= self.hi[c])))
-        {
+        if outside != usize::MAX {
+            let k = outside;
             anyhow::bail!(
                 "particle id {} left the domain box at step {} (x = {:?})",
                 self.id[k],
@@ -430,176 +714,301 @@ impl Simulation {
         Ok(())
     }
 
-    fn compute_forces(&mut self, update_history: bool) {
-        let dt = self.dt;
-        let (x, v, omega, radius, mass, type_, body) = (
-            &self.x,
-            &self.v,
-            &self.omega,
-            &self.radius,
-            &self.mass,
-            &self.type_,
-            &self.body,
-        );
-        let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
+    /// Forces and torques on every particle; with `kick`, also the second half kick of
+    /// `nve/sphere` (in the gather's sweep: a particle's kick needs only its own force)
+    /// and then that of `fix multisphere` (force gathering, kick, member velocities).
+    fn compute_forces(&mut self, update_history: bool, kick: bool) {
+        let t0 = Instant::now();
+        self.pair_pass(update_history);
+        let t1 = Instant::now();
+        self.gather_pass(update_history, kick);
+        if kick {
+            for b in &mut self.bodies {
+                b.gather(&self.x, &self.f, &self.torque, self.gravity);
+                b.final_integrate(self.dt);
+                b.set_v(&mut self.v, &mut self.omega);
+            }
+        }
+        let t2 = Instant::now();
+        let tm = &mut self.times;
+        tm.pairs += (t1 - t0).as_secs_f64();
+        tm.gather += (t2 - t1).as_secs_f64();
+    }
 
-        // Pass 1: every neighbour pair independently.
+    /// Pass 1, per block of particles over their own pairs: see [`pairs`].
+    #[inline(never)]
+    fn pair_pass(&mut self, update_history: bool) {
         let np = self.pairs.len();
-        self.pair_out.resize(np, ContactForce::default());
+        self.rev_out.resize(np, RevForce::default());
         self.pair_touch.resize(np, false);
-        (
-            &self.pairs.i,
-            &self.pairs.j,
-            &mut self.pairs.hist,
-            &mut self.pair_out,
-            &mut self.pair_touch,
-        )
-            .into_par_iter()
-            .with_min_len(PAR_MIN_LEN)
-            .for_each(|(&i, &j, hist, out, touch)| {
-                let (i, j) = (i as usize, j as usize);
-                let delta = sub(x[i], x[j]);
-                let rsq = dot(delta, delta);
-                let radsum = radius[i] + radius[j];
-                // Members of one clump never interact: fix multisphere excludes them from
-                // the neighbour list (`neigh_modify exclude molecule`, neighbor.cpp:2174).
-                let same_body = body[i] >= 0 && body[i] == body[j];
-                if rsq < radsum * radsum && !same_body {
-                    let (mi, mj) = (mass[i], mass[j]);
-                    let g = ContactGeom {
-                        delta,
-                        r: rsq.sqrt(),
-                        radi: radius[i],
-                        radj: radius[j],
-                        is_wall: false,
-                        meff: mi * mj / (mi + mj),
-                        vel_i: v[i],
-                        vel_j: v[j],
-                        omega_i: omega[i],
-                        omega_j: omega[j],
-                    };
-                    let c = &coeffs[type_[i] * n_types + type_[j]];
-                    *out = hertz_history(&g, c, rolling, dt, hist, update_history);
-                    *touch = true;
-                } else {
-                    // History is NOT cleared here: LIGGGHTS 3.8 keeps a separated pair's
-                    // shear until the next neighbour rebuild (see neighbor.rs).
-                    *touch = false;
+        self.touching.resize(np, 0);
+        let pl = &mut self.pairs;
+        let mut ctx = pairs::PairCtx {
+            x: &self.x,
+            v: &self.v,
+            omega: &self.omega,
+            radius: &self.radius,
+            mass: &self.mass,
+            type_: &self.type_,
+            coeffs: &self.coeffs,
+            n_types: self.n_types,
+            rolling: self.rolling,
+            dt: self.dt,
+            update_history,
+            start: &pl.start,
+            pi: &pl.i,
+            pj: &pl.j,
+            rev_pos: &pl.rev_pos,
+            one_coeff: None,
+        };
+        ctx.check(pl.x_at_build.len(), self.rev_out.len());
+        let track_roll = pl.track_roll;
+        let (shear, roll) = (Shared::new(&mut pl.shear), Shared::new(&mut pl.roll));
+        let touch = Shared::new(&mut self.pair_touch);
+        let list = Shared::new(&mut self.touching);
+        let rev = Shared::new(&mut self.rev_out);
+        let (fs, ts) = (Shared::new(&mut self.f), Shared::new(&mut self.torque));
+        par::for_blocks(self.x.len(), |r| {
+            let kr = ctx.start[r.start]..ctx.start[r.end];
+            // SAFETY: blocks are disjoint particle ranges, hence disjoint pair ranges.
+            let out = unsafe {
+                pairs::BlockOut {
+                    k0: kr.start,
+                    i0: r.start,
+                    shear: shear.slice(kr.clone()),
+                    roll: if track_roll {
+                        roll.slice(kr.clone())
+                    } else {
+                        &mut []
+                    },
+                    touch: touch.slice(kr.clone()),
+                    list: list.slice(kr.clone()),
+                    f: fs.slice(r.clone()),
+                    t: ts.slice(r.clone()),
+                    rev,
                 }
-            });
+            };
+            pairs::block(&ctx, r, out);
+        });
+    }
 
-        // Pass 2: per particle, gather pair results in a fixed order, then walls, gravity.
-        let pairs = &self.pairs;
-        let (pair_out, pair_touch) = (&self.pair_out, &self.pair_touch);
-        let (walls, gravity) = (&self.walls, self.gravity);
-        (
-            &mut self.f,
-            &mut self.torque,
-            self.wall_hist.par_chunks_mut(self.walls_stride),
-            self.wall_out.par_chunks_mut(self.walls_stride),
-            &self.near_walls,
-        )
-            .into_par_iter()
-            .enumerate()
-            .with_min_len(PAR_MIN_LEN)
-            .for_each(|(i, (f, t, whist, wout, &near))| {
-                let mut fi = [0.0; 3];
-                let mut ti = [0.0; 3];
-                for k in pairs.start[i]..pairs.start[i + 1] {
-                    if pair_touch[k] {
-                        add_assign(&mut fi, pair_out[k].f_i);
-                        add_assign(&mut ti, pair_out[k].torque_i);
-                    }
-                }
-                for &k in &pairs.rev_pair[pairs.rev_start[i]..pairs.rev_start[i + 1]] {
-                    if pair_touch[k as usize] {
-                        let o = &pair_out[k as usize];
-                        sub_assign(&mut fi, o.f_i);
-                        add_assign(&mut ti, o.torque_j);
-                    }
-                }
-                for (k, ((w, hist), wo)) in walls
-                    .iter()
-                    .zip(whist.iter_mut())
-                    .zip(wout.iter_mut())
-                    .enumerate()
-                {
-                    *wo = [0.0; 3];
-                    if near & (1u64 << k.min(63)) == 0 {
-                        continue;
-                    }
-                    match walls::wall_contact(w, x[i], radius[i]) {
-                        Some((delta, r)) => {
-                            let g = ContactGeom {
-                                delta,
-                                r,
-                                radi: radius[i],
-                                radj: 0.0,
-                                is_wall: true,
-                                meff: mass[i],
-                                vel_i: v[i],
-                                vel_j: [0.0; 3],
-                                omega_i: omega[i],
-                                omega_j: [0.0; 3],
-                            };
-                            let c = &coeffs[type_[i] * n_types + w.type_()];
-                            let o = hertz_history(&g, c, rolling, dt, hist, update_history);
-                            add_assign(&mut fi, o.f_i);
-                            add_assign(&mut ti, o.torque_i);
-                            *wo = o.f_i;
-                        }
-                        None => *hist = History::default(),
-                    }
-                }
-                // fix gravity skips clump members (fix_gravity.cpp:333); the body gets
-                // m g once in its force gathering.
-                if body[i] < 0 {
-                    add_assign(&mut fi, scale(gravity, mass[i]));
-                }
-                *f = fi;
-                *t = ti;
-            });
-
-        // Pass 3: the moving intruder, a wall with velocity (grain-intruder law).
-        if let Some(it) = &mut self.intruder {
-            let (body, vel, ity) = (&it.body, it.velocity, it.type_);
+    /// Pass 2, per particle: the own-pair sums of pass 1 continued with the reverse pair
+    /// results in pair order, then the primitive walls in wall order, gravity and the
+    /// moving intruder (a wall with velocity, grain-intruder law); with `kick` the
+    /// second half kick. Clump members get neither gravity (fix_gravity.cpp:333: the
+    /// body gets m g once in its force gathering) nor a kick (their body moves them).
+    #[inline(never)]
+    fn gather_pass(&mut self, update_history: bool, kick: bool) {
+        let dt = self.dt;
+        let (x, radius, mass, type_) = (&self.x, &self.radius, &self.mass, &self.type_);
+        let kicks = &self.kick;
+        let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
+        let (rev_start, rev_out) = (&self.pairs.rev_start, &self.rev_out);
+        let (walls, gravity, stride) = (&self.walls, self.gravity, self.walls_stride);
+        let near_walls = &self.near_walls;
+        let free = self.free;
+        let epsd2 = !self.wall_roll.is_empty();
+        let (wshear, wroll, wout) = (
+            Shared::new(&mut self.wall_shear),
+            Shared::new(&mut self.wall_roll),
+            Shared::new(&mut self.wall_out),
+        );
+        let it = self.intruder.as_mut().map(|it| {
             (
-                &mut self.f,
-                &mut self.torque,
-                &mut it.hist,
-                &mut it.on_grain,
+                &it.body,
+                it.velocity,
+                it.type_,
+                &it.candidate,
+                Shared::new(&mut it.shear),
+                Shared::new(&mut it.roll),
+                Shared::new(&mut it.on_grain),
+                !it.roll.is_empty(),
             )
-                .into_par_iter()
-                .enumerate()
-                .with_min_len(PAR_MIN_LEN)
-                .for_each(|(i, (f, t, hist, on))| {
-                    match body.closest_contact(x[i], radius[i]) {
+        });
+        let (fs, ts) = (Shared::new(&mut self.f), Shared::new(&mut self.torque));
+        // Velocities are read by the wall and intruder laws and written by the kick, of
+        // the block's own particles only.
+        let (vs, ws) = (Shared::new(&mut self.v), Shared::new(&mut self.omega));
+        par::for_blocks(x.len(), |r| {
+            // SAFETY: blocks are disjoint particle ranges.
+            let (f, t) = unsafe { (fs.slice(r.clone()), ts.slice(r.clone())) };
+            let (vb, wb) = unsafe { (vs.slice(r.clone()), ws.slice(r.clone())) };
+            let wr = r.start * stride..r.end * stride;
+            let (wshear, wout) = unsafe { (wshear.slice(wr.clone()), wout.slice(wr.clone())) };
+            let wroll: &mut [V3] = if epsd2 {
+                unsafe { wroll.slice(wr.clone()) }
+            } else {
+                &mut []
+            };
+            let (x, radius, mass) = (&x[r.clone()], &radius[r.clone()], &mass[r.clone()]);
+            let (type_, near_walls) = (&type_[r.clone()], &near_walls[r.clone()]);
+            let kb: &[[f64; 2]] = if kick { &kicks[r.clone()] } else { &[] };
+            let rev_start = &rev_start[r.start..r.end + 1];
+            let len = r.len();
+            // The block's free spheres are its first `n_free` (members come last).
+            let n_free = free.saturating_sub(r.start).min(len);
+            assert!(
+                x.len() == len && vb.len() == len && f.len() == len && rev_start.len() == len + 1
+            );
+            let mut no_roll = [0.0; 3];
+            let mut itb = it.map(|(body, vel, ity, cand, sh, rl, on, iepsd2)| {
+                // SAFETY: the block's own particles.
+                let rl: &mut [V3] = if iepsd2 {
+                    unsafe { rl.slice(r.clone()) }
+                } else {
+                    &mut []
+                };
+                (
+                    body,
+                    vel,
+                    ity,
+                    &cand[r.clone()],
+                    unsafe { sh.slice(r.clone()) },
+                    rl,
+                    unsafe { on.slice(r.clone()) },
+                    iepsd2,
+                )
+            });
+            // Per particle in this order (the order of the sums): the reverse pair
+            // results, the near walls, gravity, the intruder, then the kick. Each stage
+            // is its own loop over the block (still in cache), so the common ones stay
+            // simple and the sparse ones (walls, intruder) skip what they need not touch.
+            for l in 0..len {
+                let (mut fi, mut ti) = (f[l], t[l]);
+                for o in &rev_out[rev_start[l]..rev_start[l + 1]] {
+                    sub_assign(&mut fi, o.f_i);
+                    add_assign(&mut ti, o.torque_j);
+                }
+                f[l] = fi;
+                t[l] = ti;
+            }
+            for l in 0..len {
+                // Near walls in ascending order: bits 0..62, then every wall from 63 on
+                // when bit 63 is set.
+                let near = near_walls[l];
+                if near == 0 {
+                    continue;
+                }
+                let mut bits = near & !(1u64 << 63);
+                let mut high = if near >> 63 != 0 { 63 } else { walls.len() };
+                loop {
+                    let k = if bits != 0 {
+                        let k = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        k
+                    } else if high < walls.len() {
+                        high += 1;
+                        high - 1
+                    } else {
+                        break;
+                    };
+                    let w = &walls[k];
+                    let h = l * stride + k;
+                    match walls::wall_contact(w, x[l], radius[l]) {
                         Some((delta, r)) => {
                             let g = ContactGeom {
                                 delta,
                                 r,
-                                radi: radius[i],
+                                radi: radius[l],
                                 radj: 0.0,
                                 is_wall: true,
-                                meff: mass[i],
-                                vel_i: v[i],
-                                vel_j: vel,
-                                omega_i: omega[i],
+                                meff: mass[l],
+                                vel_i: vb[l],
+                                vel_j: [0.0; 3],
+                                omega_i: wb[l],
                                 omega_j: [0.0; 3],
                             };
-                            let c = &coeffs[type_[i] * n_types + ity];
-                            let o = hertz_history(&g, c, rolling, dt, hist, update_history);
-                            add_assign(f, o.f_i);
-                            add_assign(t, o.torque_i);
-                            *on = o.f_i;
+                            let c = &coeffs[type_[l] * n_types + w.type_()];
+                            let rl = if epsd2 { &mut wroll[h] } else { &mut no_roll };
+                            let o =
+                                evaluate(&g, c, rolling, dt, &mut wshear[h], rl, update_history);
+                            add_assign(&mut f[l], o.f_i);
+                            add_assign(&mut t[l], o.torque_i);
+                            wout[h] = o.f_i;
                         }
                         None => {
-                            *hist = History::default();
-                            *on = [0.0; 3];
+                            wshear[h] = [0.0; 3];
+                            if epsd2 {
+                                wroll[h] = [0.0; 3];
+                            }
+                            wout[h] = [0.0; 3];
                         }
                     }
-                });
+                }
+            }
+            for l in 0..n_free {
+                add_assign(&mut f[l], scale(gravity, mass[l]));
+            }
+            if let Some((body, vel, ity, cand, ishear, iroll, ion, iepsd2)) = &mut itb {
+                for l in 0..len {
+                    if !cand[l] {
+                        continue;
+                    }
+                    match body.closest_contact(x[l], radius[l]) {
+                        Some((delta, r)) => {
+                            let g = ContactGeom {
+                                delta,
+                                r,
+                                radi: radius[l],
+                                radj: 0.0,
+                                is_wall: true,
+                                meff: mass[l],
+                                vel_i: vb[l],
+                                vel_j: *vel,
+                                omega_i: wb[l],
+                                omega_j: [0.0; 3],
+                            };
+                            let c = &coeffs[type_[l] * n_types + *ity];
+                            let rl = if *iepsd2 { &mut iroll[l] } else { &mut no_roll };
+                            let o =
+                                evaluate(&g, c, rolling, dt, &mut ishear[l], rl, update_history);
+                            add_assign(&mut f[l], o.f_i);
+                            add_assign(&mut t[l], o.torque_i);
+                            ion[l] = o.f_i;
+                        }
+                        None => {
+                            ishear[l] = [0.0; 3];
+                            if *iepsd2 {
+                                iroll[l] = [0.0; 3];
+                            }
+                            ion[l] = [0.0; 3];
+                        }
+                    }
+                }
+            }
+            if kick {
+                for l in 0..n_free {
+                    let [dtfm, dtirotate] = kb[l];
+                    add_assign(&mut vb[l], scale(f[l], dtfm));
+                    add_assign(&mut wb[l], scale(t[l], dtirotate));
+                }
+            }
+        });
+    }
+
+    /// Bytes the engine's state occupies (every per-particle, per-pair and per-wall
+    /// array at its allocated capacity, scratch included), for memory per particle.
+    pub fn memory_bytes(&self) -> usize {
+        fn b<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
         }
+        let particles = b(&self.id)
+            + b(&self.type_)
+            + b(&self.radius)
+            + b(&self.mass)
+            + b(&self.x)
+            + b(&self.v)
+            + b(&self.omega)
+            + b(&self.f)
+            + b(&self.torque)
+            + b(&self.body)
+            + b(&self.near_walls);
+        let walls = b(&self.wall_shear) + b(&self.wall_roll) + b(&self.wall_out);
+        let pairs = b(&self.rev_out) + b(&self.pair_touch) + b(&self.touching);
+        let intruder = self.intruder.as_ref().map_or(0, |it| {
+            b(&it.shear) + b(&it.roll) + b(&it.on_grain) + b(&it.candidate)
+        });
+        particles + walls + pairs + intruder + self.pairs.memory_bytes()
     }
 
     pub fn n_pairs(&self) -> usize {
@@ -685,4 +1094,144 @@ pub fn run(
         on_step(sim.step);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 3000 spheres thrown at each other (random velocities and spins, so most pairs
+    /// touch within the run), walls on five sides and the intruder driven into them:
+    /// every state array, the intruder force and every contact must be bit-identical
+    /// for 1, 2 and 3 threads, with CDT and with EPSD2 rolling friction (which carries
+    /// per-pair, per-wall and per-intruder rolling history). Then again with 900 of the
+    /// spheres replaced by dimer clumps, so the free/member boundary (index 2100) falls
+    /// inside a block and the body state joins the comparison.
+    #[test]
+    fn any_thread_count_gives_identical_bits() {
+        for (rolling, with_clumps) in [
+            (RollingModel::Cdt, false),
+            (RollingModel::Epsd2, false),
+            (RollingModel::Cdt, true),
+            (RollingModel::Epsd2, true),
+        ] {
+            let mut case = packing::lattice_case(3000, 11);
+            case.rolling = rolling;
+            if with_clumps {
+                add_dimers(&mut case, 900);
+            }
+            let mut s = 0x2545_F491_4F6C_DD1Du64;
+            let mut rnd = move || {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            };
+            for p in &mut case.particles {
+                p.v = [3.0 * rnd(), 3.0 * rnd(), 3.0 * rnd()];
+                p.omega = [400.0 * rnd(), 400.0 * rnd(), 400.0 * rnd()];
+            }
+            for c in &mut case.clumps.bodies {
+                c.v = [3.0 * rnd(), 3.0 * rnd(), 3.0 * rnd()];
+                c.omega = [400.0 * rnd(), 400.0 * rnd(), 400.0 * rnd()];
+                c.orientation = rigid::qnormalize([rnd(), rnd(), rnd(), rnd()]);
+            }
+            let top = case
+                .particles
+                .iter()
+                .map(|p| p.x[2] + p.radius)
+                .chain(case.clumps.bodies.iter().map(|c| c.x[2] + 1e-3))
+                .fold(0.0, f64::max);
+            let centre = 0.5 * case.domain_hi[0];
+            case.domain_hi[2] = top + 0.03;
+            let run = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    let mut sim = Simulation::from_case(&case);
+                    sim.set_intruder(
+                        intruder::FlatCylinder::new(4e-3, 0.02, [centre, centre, top + 2e-4]),
+                        [0.0, 0.0, -1.0],
+                        0,
+                    );
+                    sim.setup().unwrap();
+                    let mut touching = 0;
+                    let mut f_int = Vec::new();
+                    for _ in 0..300 {
+                        sim.step().unwrap();
+                        touching = touching.max(sim.pair_touch.iter().filter(|&&t| t).count());
+                        f_int.push(sim.intruder_force());
+                    }
+                    assert!(touching > 1000, "too few contacts: {touching}");
+                    assert!(f_int.iter().any(|f| f[2] != 0.0), "intruder never touched");
+                    let contacts: Vec<_> = sim
+                        .contacts()
+                        .into_iter()
+                        .map(|c| (c.i, c.other, c.point, c.force_on_i))
+                        .collect();
+                    if with_clumps {
+                        let members = contacts.iter().filter(|c| sim.body[c.0] >= 0).count();
+                        // 62 member contacts at the last step when written (CDT).
+                        assert!(members > 20, "too few member contacts: {members}");
+                    }
+                    let bodies: Vec<_> = sim
+                        .bodies
+                        .iter()
+                        .map(|b| (b.xcm, b.vcm, b.quat, b.angmom, b.omega, b.fcm, b.torque))
+                        .collect();
+                    (
+                        (sim.x.clone(), sim.v.clone(), sim.omega.clone()),
+                        (sim.f.clone(), sim.torque.clone()),
+                        f_int,
+                        contacts,
+                        bodies,
+                    )
+                })
+            };
+            let one = run(1);
+            for threads in [2, 3] {
+                assert!(
+                    run(threads) == one,
+                    "{rolling:?}, clumps {with_clumps}: {threads} threads differ from 1"
+                );
+            }
+        }
+    }
+
+    /// Replaces the last `n` spheres of a lattice case by dimers (two overlapping
+    /// spheres of 0.45 mm, centres 0.9 mm apart) centred where the spheres were: the
+    /// dimer fits inside the sphere it replaces, so the start stays contact-free.
+    fn add_dimers(case: &mut Case, n: usize) {
+        use crate::case::clumps::{Clump, ClumpTemplate, union_mass_properties};
+        let (a, r, rho) = (0.45e-3, 0.45e-3, 2500.0);
+        let (volume, mass, inertia, _) = union_mass_properties(&[-a, a], &[r, r], rho);
+        case.clumps.templates = vec![ClumpTemplate {
+            name: "dimer".into(),
+            type_: 0,
+            density: rho,
+            offsets: vec![[-a, 0.0, 0.0], [a, 0.0, 0.0]],
+            radii: vec![r, r],
+            volume,
+            mass,
+            inertia,
+            bounding_radius: a + r,
+        }];
+        let keep = case.particles.len() - n;
+        let next_id = case.particles.len() as u64 + 1;
+        case.clumps.bodies = case.particles[keep..]
+            .iter()
+            .enumerate()
+            .map(|(k, p)| Clump {
+                id: next_id + k as u64,
+                template: 0,
+                x: p.x,
+                orientation: [1.0, 0.0, 0.0, 0.0],
+                v: [0.0; 3],
+                omega: [0.0; 3],
+            })
+            .collect();
+        case.particles.truncate(keep);
+    }
 }

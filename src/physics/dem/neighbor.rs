@@ -3,8 +3,12 @@
 //! ascending) so the force pass is a parallel loop over independent pairs and the
 //! history transfer after a rebuild is a linear merge.
 
-use super::contact::History;
+use super::par::Shared;
 use crate::numerics::vec3::V3;
+use rayon::prelude::*;
+
+/// Particles per block of the parallel candidate search.
+const BUILD_BLOCK: usize = 256;
 
 #[derive(Debug, Default, Clone)]
 pub struct PairList {
@@ -12,10 +16,17 @@ pub struct PairList {
     pub start: Vec<usize>,
     pub i: Vec<u32>,
     pub j: Vec<u32>,
-    pub hist: Vec<History>,
-    /// For each particle, the pairs in which it is the second member (CSR again).
+    /// Tangential contact history of each pair (LIGGGHTS "shearx/y/z").
+    pub shear: Vec<V3>,
+    /// EPSD2 rolling history of each pair ("r_torquex_old"...); kept only when
+    /// `track_roll` is set (empty otherwise: CDT and no rolling carry none).
+    pub roll: Vec<V3>,
+    pub track_roll: bool,
+    /// For each particle, the slots of the pairs in which it is the second member (CSR
+    /// again): `rev_start[p]..rev_start[p+1]`, slots in ascending pair order.
     pub rev_start: Vec<usize>,
-    pub rev_pair: Vec<u32>,
+    /// Slot of pair k in that reverse CSR.
+    pub rev_pos: Vec<u32>,
     /// Positions at the last build, for the skin/2 displacement trigger.
     pub x_at_build: Vec<V3>,
     pub builds: u64,
@@ -25,9 +36,12 @@ pub struct PairList {
     new_start: Vec<usize>,
     new_i: Vec<u32>,
     new_j: Vec<u32>,
-    new_hist: Vec<History>,
+    new_shear: Vec<V3>,
+    new_roll: Vec<V3>,
     cell_of: Vec<u32>,
     fill: Vec<usize>,
+    /// Candidate pairs of each block of `BUILD_BLOCK` particles.
+    block_pairs: Vec<Vec<u32>>,
 }
 
 /// A uniform grid over the domain box; cell edge >= the largest interaction cutoff.
@@ -65,13 +79,17 @@ impl Grid {
         }
         c
     }
-    #[inline]
-    fn index(&self, c: [usize; 3]) -> usize {
-        (c[2] * self.n[1] + c[1]) * self.n[0] + c[0]
-    }
 }
 
 impl PairList {
+    /// An empty list; `track_roll` keeps the EPSD2 rolling history per pair.
+    pub fn with_roll(track_roll: bool) -> PairList {
+        PairList {
+            track_roll,
+            ..PairList::default()
+        }
+    }
+
     /// True if any particle moved more than half the skin since the last build
     /// (LIGGGHTS `neigh_modify delay 0 every 1 check yes`).
     pub fn needs_rebuild(&self, x: &[V3], skin: f64) -> bool {
@@ -86,19 +104,34 @@ impl PairList {
     }
 
     /// Rebuilds the list for cutoff r_i + r_j + skin, carrying over the history of
-    /// pairs that persist.
-    pub fn build(&mut self, x: &[V3], radius: &[f64], skin: f64, lo: V3, hi: V3) {
+    /// pairs that persist. The candidate search and the history merge run in parallel
+    /// over blocks of particles; the list itself does not depend on the thread count
+    /// (each particle's pairs are sorted by j).
+    ///
+    /// `body[i]` is the clump of particle i (-1: free sphere; an empty slice: all free).
+    /// Two members of one clump are never listed: fix multisphere excludes them from
+    /// the neighbour list (`neigh_modify exclude molecule`, neighbor.cpp:2174), and a
+    /// pair that is not listed contributes nothing, exactly like a listed pair that
+    /// never touches (the force sums skip it, its history stays zero).
+    pub fn build(&mut self, x: &[V3], radius: &[f64], body: &[i32], skin: f64, lo: V3, hi: V3) {
         let n = x.len();
+        assert!(body.is_empty() || body.len() == n);
         let rmax = radius.iter().cloned().fold(0.0, f64::max);
         let grid = Grid::new(lo, hi, 2.0 * rmax + skin);
-        let ncell = grid.n[0] * grid.n[1] * grid.n[2];
+        // One layer of empty cells around the grid, so every particle's 27 neighbour
+        // cells exist and the stencil needs no bounds checks.
+        let m = [grid.n[0] + 2, grid.n[1] + 2, grid.n[2] + 2];
+        let ncell = m[0] * m[1] * m[2];
+        let cell = |p: V3| {
+            let c = grid.coord(p);
+            ((c[2] + 1) * m[1] + c[1] + 1) * m[0] + c[0] + 1
+        };
 
         // Counting sort of particles into cells.
         self.cell_start.clear();
         self.cell_start.resize(ncell + 1, 0);
         self.cell_of.clear();
-        self.cell_of
-            .extend(x.iter().map(|p| grid.index(grid.coord(*p)) as u32));
+        self.cell_of.extend(x.iter().map(|p| cell(*p) as u32));
         for &c in &self.cell_of {
             self.cell_start[c as usize + 1] += 1;
         }
@@ -114,75 +147,140 @@ impl PairList {
             self.cell_items[self.fill[c as usize]] = p as u32;
             self.fill[c as usize] += 1;
         }
-
-        self.new_start.clear();
-        self.new_i.clear();
-        self.new_j.clear();
-        self.new_start.push(0);
-        for i in 0..n {
-            let seg = self.new_j.len();
-            let ci = grid.coord(x[i]);
-            for dz in -1i64..=1 {
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let c = [ci[0] as i64 + dx, ci[1] as i64 + dy, ci[2] as i64 + dz];
-                        if (0..3).any(|k| c[k] < 0 || c[k] >= grid.n[k] as i64) {
-                            continue;
-                        }
-                        let cell = grid.index([c[0] as usize, c[1] as usize, c[2] as usize]);
-                        for &j in &self.cell_items
-                            [self.cell_start[cell] as usize..self.cell_start[cell + 1] as usize]
-                        {
-                            let j = j as usize;
-                            if j <= i {
-                                continue;
-                            }
-                            let d = [x[i][0] - x[j][0], x[i][1] - x[j][1], x[i][2] - x[j][2]];
-                            let cut = radius[i] + radius[j] + skin;
-                            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= cut * cut {
-                                self.new_i.push(i as u32);
-                                self.new_j.push(j as u32);
-                            }
-                        }
-                    }
-                }
-            }
-            self.new_j[seg..].sort_unstable();
-            self.new_start.push(self.new_j.len());
+        let (mx, my) = (m[0] as isize, m[1] as isize);
+        let mut stencil = [0isize; 27];
+        for (s, off) in stencil.iter_mut().enumerate() {
+            let (dx, dy, dz) = (
+                s as isize % 3 - 1,
+                s as isize / 3 % 3 - 1,
+                s as isize / 9 - 1,
+            );
+            *off = (dz * my + dy) * mx + dx;
         }
 
-        // Carry history over by merging the sorted old and new neighbour segments, for
-        // pairs that touch now. LIGGGHTS 3.8 (neigh_gran.cpp) does exactly this: a pair
-        // that separated keeps its stale shear until the next rebuild, then loses it.
-        self.new_hist.clear();
-        self.new_hist.resize(self.new_j.len(), History::default());
-        if self.start.len() == n + 1 {
-            for i in 0..n {
-                let (mut a, a_end) = (self.start[i], self.start[i + 1]);
-                for k in self.new_start[i]..self.new_start[i + 1] {
-                    let j = self.new_j[k];
-                    while a < a_end && self.j[a] < j {
-                        a += 1;
+        // Candidates: per block of particles, each particle's j > i within the cutoff,
+        // sorted, into the block's own buffer; `new_count[i]` pairs for particle i.
+        let nb = n.div_ceil(BUILD_BLOCK);
+        self.block_pairs.resize_with(nb, Vec::new);
+        self.new_start.clear();
+        self.new_start.resize(n + 1, 0);
+        {
+            let (cell_of, cell_start, cell_items) =
+                (&self.cell_of, &self.cell_start, &self.cell_items);
+            let counts = &mut self.new_start[1..];
+            self.block_pairs
+                .par_iter_mut()
+                .zip(counts.par_chunks_mut(BUILD_BLOCK))
+                .enumerate()
+                .for_each(|(b, (buf, counts))| {
+                    buf.clear();
+                    for (l, count) in counts.iter_mut().enumerate() {
+                        let i = b * BUILD_BLOCK + l;
+                        let seg = buf.len();
+                        let (xi, ri) = (x[i], radius[i]);
+                        let bi = body.get(i).copied().unwrap_or(-1);
+                        let ci = cell_of[i] as isize;
+                        for off in stencil {
+                            let c = (ci + off) as usize;
+                            let items =
+                                &cell_items[cell_start[c] as usize..cell_start[c + 1] as usize];
+                            for &j in items {
+                                let ju = j as usize;
+                                if ju <= i || (bi >= 0 && body[ju] == bi) {
+                                    continue;
+                                }
+                                let xj = x[ju];
+                                let d = [xi[0] - xj[0], xi[1] - xj[1], xi[2] - xj[2]];
+                                let cut = ri + radius[ju] + skin;
+                                if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= cut * cut {
+                                    buf.push(j);
+                                }
+                            }
+                        }
+                        buf[seg..].sort_unstable();
+                        *count = buf.len() - seg;
                     }
-                    if a < a_end && self.j[a] == j {
-                        let (i2, j2) = (i, j as usize);
-                        let d = [
-                            x[i2][0] - x[j2][0],
-                            x[i2][1] - x[j2][1],
-                            x[i2][2] - x[j2][2],
-                        ];
-                        let radsum = radius[i2] + radius[j2];
-                        if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < radsum * radsum {
-                            self.new_hist[k] = self.hist[a];
+                });
+        }
+        for i in 0..n {
+            self.new_start[i + 1] += self.new_start[i];
+        }
+        let np = self.new_start[n];
+        self.new_i.clear();
+        self.new_i.resize(np, 0);
+        self.new_j.clear();
+        self.new_j.resize(np, 0);
+        self.new_shear.clear();
+        self.new_shear.resize(np, [0.0; 3]);
+        self.new_roll.clear();
+        if self.track_roll {
+            self.new_roll.resize(np, [0.0; 3]);
+        }
+
+        // Per block: the pairs in place, and the history of pairs that touch now carried
+        // over by merging the sorted old and new segments. LIGGGHTS 3.8 (neigh_gran.cpp)
+        // does exactly this: a pair that separated keeps its stale shear until the next
+        // rebuild, then loses it.
+        let carry = self.start.len() == n + 1;
+        let carry_roll = self.track_roll && self.roll.len() == self.shear.len();
+        {
+            let (new_start, block_pairs) = (&self.new_start, &self.block_pairs);
+            let (old_start, old_j, old_shear, old_roll) =
+                (&self.start, &self.j, &self.shear, &self.roll);
+            let ni = Shared::new(&mut self.new_i);
+            let nj = Shared::new(&mut self.new_j);
+            let ns = Shared::new(&mut self.new_shear);
+            let nr = Shared::new(&mut self.new_roll);
+            (0..nb).into_par_iter().for_each(|b| {
+                let r = b * BUILD_BLOCK..((b + 1) * BUILD_BLOCK).min(n);
+                let kr = new_start[r.start]..new_start[r.end];
+                let k0 = kr.start;
+                // SAFETY: blocks own disjoint ranges of the new pair arrays.
+                let (ni, nj, ns) = unsafe {
+                    (
+                        ni.slice(kr.clone()),
+                        nj.slice(kr.clone()),
+                        ns.slice(kr.clone()),
+                    )
+                };
+                let nr: &mut [V3] = if carry_roll {
+                    unsafe { nr.slice(kr.clone()) }
+                } else {
+                    &mut []
+                };
+                nj.copy_from_slice(&block_pairs[b]);
+                for i in r {
+                    let seg = new_start[i] - k0..new_start[i + 1] - k0;
+                    ni[seg.clone()].fill(i as u32);
+                    if !carry {
+                        continue;
+                    }
+                    let (mut a, a_end) = (old_start[i], old_start[i + 1]);
+                    for k in seg {
+                        let j = nj[k];
+                        while a < a_end && old_j[a] < j {
+                            a += 1;
+                        }
+                        if a < a_end && old_j[a] == j {
+                            let ju = j as usize;
+                            let d = [x[i][0] - x[ju][0], x[i][1] - x[ju][1], x[i][2] - x[ju][2]];
+                            let radsum = radius[i] + radius[ju];
+                            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < radsum * radsum {
+                                ns[k] = old_shear[a];
+                                if carry_roll {
+                                    nr[k] = old_roll[a];
+                                }
+                            }
                         }
                     }
                 }
-            }
+            });
         }
         std::mem::swap(&mut self.start, &mut self.new_start);
         std::mem::swap(&mut self.i, &mut self.new_i);
         std::mem::swap(&mut self.j, &mut self.new_j);
-        std::mem::swap(&mut self.hist, &mut self.new_hist);
+        std::mem::swap(&mut self.shear, &mut self.new_shear);
+        std::mem::swap(&mut self.roll, &mut self.new_roll);
 
         // Reverse index: pairs in which a particle is the second member.
         self.rev_start.clear();
@@ -193,12 +291,12 @@ impl PairList {
         for p in 0..n {
             self.rev_start[p + 1] += self.rev_start[p];
         }
-        self.rev_pair.clear();
-        self.rev_pair.resize(self.j.len(), 0);
+        self.rev_pos.clear();
+        self.rev_pos.resize(self.j.len(), 0);
         self.fill.clear();
         self.fill.extend_from_slice(&self.rev_start);
         for (k, &j) in self.j.iter().enumerate() {
-            self.rev_pair[self.fill[j as usize]] = k as u32;
+            self.rev_pos[k] = self.fill[j as usize] as u32;
             self.fill[j as usize] += 1;
         }
 
@@ -209,6 +307,32 @@ impl PairList {
 
     pub fn len(&self) -> usize {
         self.j.len()
+    }
+
+    /// Bytes of every array of the list at its allocated capacity, scratch included.
+    pub fn memory_bytes(&self) -> usize {
+        fn b<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        b(&self.start)
+            + b(&self.i)
+            + b(&self.j)
+            + b(&self.shear)
+            + b(&self.roll)
+            + b(&self.rev_start)
+            + b(&self.rev_pos)
+            + b(&self.x_at_build)
+            + b(&self.cell_start)
+            + b(&self.cell_items)
+            + b(&self.new_start)
+            + b(&self.new_i)
+            + b(&self.new_j)
+            + b(&self.new_shear)
+            + b(&self.new_roll)
+            + b(&self.cell_of)
+            + b(&self.fill)
+            + b(&self.block_pairs)
+            + self.block_pairs.iter().map(b).sum::<usize>()
     }
 
     pub fn is_empty(&self) -> bool {
@@ -236,7 +360,7 @@ mod tests {
         }
         let radius = vec![5e-4; x.len()];
         let mut l = PairList::default();
-        l.build(&x, &radius, 2e-4, [0.0; 3], [0.02; 3]);
+        l.build(&x, &radius, &[], 2e-4, [0.0; 3], [0.02; 3]);
         let mut brute = 0;
         for i in 0..x.len() {
             for j in i + 1..x.len() {
@@ -258,15 +382,15 @@ mod tests {
         let x = vec![[0.0, 0.0, 0.0], [1.9e-3, 0.0, 0.0], [5e-3, 5e-3, 5e-3]];
         let radius = vec![1e-3; 3];
         let mut l = PairList::default();
-        l.build(&x, &radius, 5e-4, [-0.01; 3], [0.01; 3]);
+        l.build(&x, &radius, &[], 5e-4, [-0.01; 3], [0.01; 3]);
         assert_eq!(l.len(), 1);
-        l.hist[0].shear = [1.0, 2.0, 3.0];
+        l.shear[0] = [1.0, 2.0, 3.0];
         let x2 = vec![[0.0, 0.0, 0.0], [1.9e-3, 1e-4, 0.0], [3.5e-3, 1.5e-3, 0.0]];
-        l.build(&x2, &radius, 5e-4, [-0.01; 3], [0.01; 3]);
+        l.build(&x2, &radius, &[], 5e-4, [-0.01; 3], [0.01; 3]);
         let k = (l.start[0]..l.start[1])
             .find(|&k| l.j[k] == 1)
             .expect("pair 0-1 kept");
-        assert_eq!(l.hist[k].shear, [1.0, 2.0, 3.0]);
-        assert!(l.hist.iter().filter(|h| h.shear != [0.0; 3]).count() == 1);
+        assert_eq!(l.shear[k], [1.0, 2.0, 3.0]);
+        assert!(l.shear.iter().filter(|h| **h != [0.0; 3]).count() == 1);
     }
 }

@@ -32,6 +32,22 @@ pub fn box_top(case: &PenetrationCase, bed: &Bed) -> f64 {
     start_z(case, bed) + case.intruder_length + case.diameter.max()
 }
 
+/// The penetration of `bed` set up and ready to step: grains in the container, the
+/// intruder at its start height moving down at the case's speed, forces evaluated.
+pub fn simulation(case: &PenetrationCase, bed: &Bed, pert: Perturbation) -> Result<Simulation> {
+    let sim_case = container_case(case, bed.particles.clone(), box_top(case, bed));
+    let mut sim = Simulation::from_case_perturbed(&sim_case, pert);
+    let body = FlatCylinder::new(
+        case.intruder_radius,
+        case.intruder_length,
+        [0.0, 0.0, start_z(case, bed)],
+    );
+    sim.set_intruder(body, [0.0, 0.0, -case.speed], case.intruder_type);
+    // The bed was settled by the DEM: its overlaps are physical, not input errors.
+    sim.setup_settled()?;
+    Ok(sim)
+}
+
 pub fn run(
     case: &PenetrationCase,
     bed: &Bed,
@@ -51,16 +67,7 @@ pub fn run_with_snapshots(
     mut on_snapshot: impl FnMut(&Simulation) -> Result<()>,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<Vec<ForceSample>> {
-    let sim_case = container_case(case, bed.particles.clone(), box_top(case, bed));
-    let mut sim = Simulation::from_case_perturbed(&sim_case, pert);
-    let body = FlatCylinder::new(
-        case.intruder_radius,
-        case.intruder_length,
-        [0.0, 0.0, start_z(case, bed)],
-    );
-    sim.set_intruder(body, [0.0, 0.0, -case.speed], case.intruder_type);
-    // The bed was settled by the DEM: its overlaps are physical, not input errors.
-    sim.setup_settled()?;
+    let mut sim = simulation(case, bed, pert)?;
     let total = n_steps(case, bed);
     let sample = |sim: &Simulation| ForceSample {
         t: sim.step as f64 * case.dt,
