@@ -113,17 +113,37 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
     let every = case.output_every;
     let seeds = primes(2 * cl.templates.len() + cl.bodies.len());
     let mut s = String::new();
-    writeln!(
-        s,
-        "# LIGGGHTS 3.8 input written by granval for clump case {}",
-        super::deck::comment_safe(&case.name)
-    )?;
-    writeln!(
-        s,
-        "# {} free spheres, {} clumps; native step k is LIGGGHTS step k + 1 (bodies are inserted at step 1)",
-        case.particles.len(),
-        cl.bodies.len()
-    )?;
+    crate::engines::deck_text::write_header(
+        &mut s,
+        &crate::engines::deck_text::Header {
+            title: format!(
+                "granval micro case `{}` with rigid clumps: LIGGGHTS 3.8 input deck",
+                crate::engines::deck_text::safe(&case.name)
+            ),
+            paragraphs: vec![
+                crate::engines::deck_text::safe(&case.description),
+                format!(
+                    "What the run measures: {} rigid multisphere bodies (fix multisphere) and {} free \
+                     sphere(s); every {every} steps the bodies' centre of mass, orientation quaternion, \
+                     velocity, angular velocity and force go to {BODY_DUMP_FILE} (dump local, 17 \
+                     digits) and the free spheres to {dump_file}. granval runs the same case natively \
+                     and compares body by body. Units: SI (m, kg, s, N, Pa).",
+                    cl.bodies.len(),
+                    case.particles.len()
+                ),
+                "Steps: LIGGGHTS inserts the bodies at step 1 (fix insert/pack), so its step k + 1 \
+                 is native step k; the dumps start at step 1. Run it on ONE process (processors 1 1 \
+                 1): the members' force sums are then summed in the same order as natively."
+                    .to_string(),
+            ],
+        },
+    );
+    crate::engines::deck_text::block(
+        &mut s,
+        "Granular atoms in SI units in a closed box. fix multisphere needs the atom map; \
+         `sort 0 0.0` keeps atoms in creation order, so member forces are summed in a fixed \
+         order. newton off and ghost velocities as every granular LIGGGHTS run.",
+    );
     writeln!(s, "units si")?;
     writeln!(s, "atom_style granular")?;
     // fix multisphere needs the atom map; no sorting keeps the member summation order.
@@ -184,6 +204,14 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
             w.type_() + 1
         )?;
     }
+    crate::engines::deck_text::block(
+        &mut s,
+        "Clump templates (fix particletemplate/multisphere): member spheres in the body frame, \
+         with the mass and principal moments of the union of the spheres computed exactly by \
+         granval and given explicitly (`mass ... inertia_tensor ... use_density`), so LIGGGHTS \
+         uses these numbers instead of its Monte-Carlo estimate and both engines integrate the \
+         same doubles.",
+    );
     for (k, t) in cl.templates.iter().enumerate() {
         let spheres: Vec<String> = t
             .offsets
@@ -249,6 +277,12 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
         writeln!(s, "group free id {}", ids.join(" "))?;
         writeln!(s, "fix integr free nve/sphere")?;
     }
+    crate::engines::deck_text::block(
+        &mut s,
+        "Bodies: each inserted once by fix insert/pack into a box one floating-point step wide \
+         around its centre of mass (the random position LIGGGHTS draws inside it is then the \
+         exact centre), with its velocity, angular velocity and orientation.",
+    );
     let tseed = 2 * cl.templates.len();
     for (k, b) in cl.bodies.iter().enumerate() {
         let seed = seeds[tseed + k];
@@ -282,6 +316,11 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
             k + 1
         )?;
     }
+    crate::engines::deck_text::block(
+        &mut s,
+        "Output at LIGGGHTS steps 1, 1 + N, 1 + 2N, ... (native steps 0, N, 2N, ...), the body \
+         state from compute multisphere at full precision.",
+    );
     // Output at steps 1, 1 + N, 1 + 2N, ...: next(step) = floor((step-1)/N) N + N + 1.
     writeln!(
         s,
