@@ -244,9 +244,15 @@ fn liggghts_run(
 ) -> Result<RefRun> {
     let deck = liggghts_deck(&u.case, &u.bed)?;
     std::fs::create_dir_all(dir)?;
+    // A run counts as done only when its snapshots were converted (the plan file is
+    // written last): a run killed midway leaves a partial force file and is run again.
     if opts.reuse
-        && dir.join(lp::FORCE_FILE).exists()
         && let Some(plan) = plan
+        && dir.join(lp::FORCE_FILE).exists()
+        && dir
+            .join(SNAPSHOT_DIR)
+            .join(crate::analysis::stress_fields::PLAN_FILE)
+            .exists()
     {
         check_reused_plan(plan, &dir.join(SNAPSHOT_DIR)).with_context(|| format!("bed {}", u.k))?;
         let on_disk = std::fs::read_to_string(dir.join(lp::DECK_FILE)).unwrap_or_default();
