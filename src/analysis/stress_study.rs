@@ -414,8 +414,11 @@ pub fn text(v: &NullVerdict, beds: &[&BedStudy]) -> String {
                 .filter(|c| c.label == l && c.spacing_over_w == 1.0)
                 .filter_map(|c| c.phi_deg)
                 .collect();
-            let m = phis.iter().sum::<f64>() / phis.len().max(1) as f64;
-            format!("{n}: {m:.1}")
+            if phis.is_empty() {
+                format!("{n}: undefined")
+            } else {
+                format!("{n}: {:.1}", phis.iter().sum::<f64>() / phis.len() as f64)
+            }
         })
         .collect();
     format!(
