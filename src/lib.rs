@@ -16,3 +16,14 @@ pub mod numerics;
 pub mod physics;
 pub mod report;
 pub mod rundata;
+
+// The interface a program built on granval needs, in one place: load a case, run the
+// experiment of its kind in both engines, read the verdict. The modules above stay
+// public for the integration tests and the bench, which reach into each layer.
+pub use case::impact2d::Impact2dCase;
+pub use case::penetration::PenetrationCase;
+pub use case::{AnyCase, Case, CaseError};
+pub use compare::{Check, Gate, Status};
+pub use experiments::runner::{CaseOutcome, analyze, compare};
+pub use experiments::{Experiment, Options, RefMode};
+pub use report::Report;

@@ -1265,11 +1265,10 @@ fn stress_reuse_reanalyses_the_snapshots_of_a_run() {
         }
     }
     // --reuse refuses snapshots taken with other windows.
+    let mut windows3 = run.case.clone();
+    windows3.snapshot_window = 3;
     let other = Penetration {
-        case: PenetrationCase {
-            snapshot_window: 3,
-            ..run.case.clone()
-        },
+        case: windows3,
         stress: true,
     };
     let refused = granval::experiments::runner::compare(&other, &opts, &out);

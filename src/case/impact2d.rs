@@ -301,8 +301,11 @@ pub struct Variant {
     pub speed: f64,
 }
 
-/// A validated impact2d case, SI unless stated.
+/// A validated impact2d case, SI unless stated. Outside this crate it can only come
+/// from [`Impact2dCase::load`] / `from_toml_str` (`non_exhaustive`), so every value a
+/// run sees went through validation; the fields are public for reading.
 #[derive(Debug, Clone, serde::Serialize)]
+#[non_exhaustive]
 pub struct Impact2dCase {
     pub name: String,
     pub description: String,

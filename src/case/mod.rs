@@ -182,8 +182,12 @@ pub struct Tolerances {
     pub orientation_rad: f64,
 }
 
-/// A validated case. Constructed only through [`Case::load`] / [`Case::from_toml_str`].
+/// A validated case. Outside this crate it can only come from [`Case::load`] /
+/// [`Case::from_toml_str`] (`non_exhaustive`); inside it, besides the validator, only the
+/// generated packings of `physics::dem::packing` (a penetration bed's container, the
+/// bench lattice) build one. The fields are public for reading.
 #[derive(Debug, Clone, serde::Serialize)]
+#[non_exhaustive]
 pub struct Case {
     pub name: String,
     pub kind: String,

@@ -365,8 +365,11 @@ impl Default for Tolerances {
     }
 }
 
-/// A validated penetration case.
+/// A validated penetration case. Outside this crate it can only come from
+/// [`PenetrationCase::load`] / `from_toml_str` (`non_exhaustive`), so every value a run
+/// sees went through validation; the fields are public for reading.
 #[derive(Debug, Clone, serde::Serialize)]
+#[non_exhaustive]
 pub struct PenetrationCase {
     pub name: String,
     pub description: String,

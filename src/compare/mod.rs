@@ -31,12 +31,22 @@ pub struct Check {
     pub name: String,
     pub gate: Gate,
     pub metric: String,
+    /// NaN (a check that could not be evaluated) is written as JSON `null`, since JSON
+    /// has no NaN, and read back as NaN.
+    #[serde(deserialize_with = "nan_from_null")]
     pub value: f64,
+    #[serde(deserialize_with = "nan_from_null")]
     pub tolerance: f64,
     pub status: Status,
     pub passed: bool,
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub detail: String,
+}
+
+/// serde_json writes a non-finite f64 as `null`; read `null` back as NaN so that every
+/// report.json granval writes can be read again.
+fn nan_from_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
 impl Check {

@@ -194,3 +194,29 @@ impl Report {
         s
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::compare::Gate;
+
+    /// A report with an error and a not-compared check (NaN values, written as JSON
+    /// null) reads back with the same verdicts and NaN values.
+    #[test]
+    fn report_json_with_nan_round_trips() {
+        let checks = vec![
+            Check::error("engine", "LIGGGHTS exited with status 1"),
+            Check::not_compared("k", Gate::KPhi, "one bed"),
+            Check::at_most("d", Gate::KPhi, "|x|", 0.5, 1.0, ""),
+        ];
+        let r = Report::new(checks, Vec::new(), vec!["n".into()]);
+        let text = serde_json::to_string_pretty(&r).unwrap();
+        assert!(text.contains("\"value\": null"));
+        let back: Report = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.exit_code(), 2);
+        assert!(back.checks[0].value.is_nan() && back.checks[1].value.is_nan());
+        assert_eq!(back.checks[1].status, Status::NotCompared);
+        assert_eq!(back.checks[2].value, 0.5);
+        assert_eq!(serde_json::to_string_pretty(&back).unwrap(), text);
+    }
+}
