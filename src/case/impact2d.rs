@@ -396,10 +396,7 @@ impl Impact2dCase {
     }
 
     pub fn load(path: &Path) -> Result<Impact2dCase, CaseError> {
-        let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
-            file: path.to_path_buf(),
-            error,
-        })?;
+        let text = super::read_case_file(path)?;
         Self::from_toml_str(&text, path)
     }
 
@@ -850,3 +847,5 @@ impl Coeffs {
 pub fn gamma_n_from_restitution(e_n: f64, tau_c: f64) -> f64 {
     -2.0 * e_n.ln() / tau_c
 }
+
+super::validated_case!(Impact2dCase);

@@ -17,6 +17,47 @@ pub use control::{Gate, NegativeControl, Perturbation};
 
 use std::path::{Path, PathBuf};
 
+/// What the runner needs of every validated case kind: its name and file (for reports
+/// and errors), the hash its reference record is sealed to, and its negative controls.
+pub trait ValidatedCase {
+    fn name(&self) -> &str;
+    fn source(&self) -> &Path;
+    fn canonical_hash(&self) -> crate::rundata::provenance::Sha256;
+    fn negative_controls(&self) -> &[NegativeControl];
+}
+
+/// Implements [`ValidatedCase`] for a case type with `name`, `source` and
+/// `negative_controls` fields and an inherent `canonical_hash`.
+macro_rules! validated_case {
+    ($t:ty) => {
+        impl $crate::case::ValidatedCase for $t {
+            fn name(&self) -> &str {
+                &self.name
+            }
+            fn source(&self) -> &std::path::Path {
+                &self.source
+            }
+            fn canonical_hash(&self) -> $crate::rundata::provenance::Sha256 {
+                <$t>::canonical_hash(self)
+            }
+            fn negative_controls(&self) -> &[$crate::case::NegativeControl] {
+                &self.negative_controls
+            }
+        }
+    };
+}
+pub(crate) use validated_case;
+
+validated_case!(Case);
+
+/// The text of a case file, or the error naming it.
+pub(crate) fn read_case_file(path: &Path) -> Result<String, CaseError> {
+    std::fs::read_to_string(path).map_err(|error| CaseError::Io {
+        file: path.to_path_buf(),
+        error,
+    })
+}
+
 /// A case file of any kind, its `[case] kind` read in this one place.
 #[derive(Debug, Clone)]
 pub enum AnyCase {
@@ -27,10 +68,7 @@ pub enum AnyCase {
 
 impl AnyCase {
     pub fn load(path: &Path) -> Result<AnyCase, CaseError> {
-        let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
-            file: path.to_path_buf(),
-            error,
-        })?;
+        let text = read_case_file(path)?;
         AnyCase::from_toml_str(&text, path)
     }
 
@@ -216,10 +254,7 @@ pub struct Case {
 
 impl Case {
     pub fn load(path: &Path) -> Result<Case, CaseError> {
-        let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
-            file: path.to_path_buf(),
-            error,
-        })?;
+        let text = read_case_file(path)?;
         Case::from_toml_str(&text, path)
     }
 

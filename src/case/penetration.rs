@@ -474,10 +474,7 @@ impl PenetrationCase {
     }
 
     pub fn load(path: &Path) -> Result<PenetrationCase, CaseError> {
-        let text = std::fs::read_to_string(path).map_err(|error| CaseError::Io {
-            file: path.to_path_buf(),
-            error,
-        })?;
+        let text = super::read_case_file(path)?;
         Self::from_toml_str(&text, path)
     }
 
@@ -868,3 +865,5 @@ impl PenetrationCase {
         })
     }
 }
+
+super::validated_case!(PenetrationCase);

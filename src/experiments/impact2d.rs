@@ -6,7 +6,6 @@
 use super::reference::Verified;
 use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
 use crate::analysis::impact as obs;
-use crate::case::NegativeControl;
 use crate::case::impact2d::IntruderShape;
 use crate::case::impact2d::{Impact2dCase, Packing, Variant};
 use crate::compare::Check;
@@ -71,24 +70,16 @@ impl Experiment for Impact2d {
     type Unit = Unit;
     type NativeRun = ImpactRun;
     type RefRun = ImpactRun;
+    type Case = Impact2dCase;
 
-    fn name(&self) -> &str {
-        &self.case.name
+    fn case(&self) -> &Impact2dCase {
+        &self.case
     }
     fn kind(&self) -> &'static str {
         "impact2d"
     }
-    fn source(&self) -> &Path {
-        &self.case.source
-    }
     fn reference_engine(&self) -> EngineKind {
         EngineKind::Lammps
-    }
-    fn canonical_hash(&self) -> Sha256 {
-        self.case.canonical_hash()
-    }
-    fn negative_controls(&self) -> &[NegativeControl] {
-        &self.case.negative_controls
     }
 
     fn estimate(&self) -> Estimate {

@@ -4,7 +4,7 @@
 
 use super::reference::Verified;
 use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
-use crate::case::{Case, NegativeControl};
+use crate::case::Case;
 use crate::compare::Check;
 use crate::compare::trajectory::Trajectory;
 use crate::engines::liggghts::{self, DumpFrames, Liggghts};
@@ -123,24 +123,16 @@ impl Experiment for Micro {
     type Unit = ();
     type NativeRun = MicroRun;
     type RefRun = MicroRun;
+    type Case = Case;
 
-    fn name(&self) -> &str {
-        &self.case.name
+    fn case(&self) -> &Case {
+        &self.case
     }
     fn kind(&self) -> &'static str {
         "micro"
     }
-    fn source(&self) -> &Path {
-        &self.case.source
-    }
     fn reference_engine(&self) -> EngineKind {
         EngineKind::Liggghts
-    }
-    fn canonical_hash(&self) -> Sha256 {
-        self.case.canonical_hash()
-    }
-    fn negative_controls(&self) -> &[NegativeControl] {
-        &self.case.negative_controls
     }
 
     fn estimate(&self) -> Estimate {

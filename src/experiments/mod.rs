@@ -15,7 +15,7 @@ pub mod reference;
 pub mod runner;
 pub mod suite;
 
-use crate::case::{NegativeControl, Perturbation};
+use crate::case::{NegativeControl, Perturbation, ValidatedCase};
 use crate::compare::Check;
 use crate::rundata::provenance::{EngineKind, Provenance, Sha256};
 use anyhow::Result;
@@ -231,15 +231,26 @@ pub trait Experiment {
     type Unit;
     type NativeRun: Run;
     type RefRun: Run;
+    type Case: ValidatedCase;
 
-    fn name(&self) -> &str;
+    /// The validated case the experiment runs.
+    fn case(&self) -> &Self::Case;
+    fn name(&self) -> &str {
+        self.case().name()
+    }
     /// `micro`, `penetration`, `impact2d`: the directory under `reference/`.
     fn kind(&self) -> &'static str;
-    fn source(&self) -> &Path;
+    fn source(&self) -> &Path {
+        self.case().source()
+    }
     fn reference_engine(&self) -> EngineKind;
     /// sha256 of the case's run-relevant content; a record is sealed to it.
-    fn canonical_hash(&self) -> Sha256;
-    fn negative_controls(&self) -> &[NegativeControl];
+    fn canonical_hash(&self) -> Sha256 {
+        self.case().canonical_hash()
+    }
+    fn negative_controls(&self) -> &[NegativeControl] {
+        self.case().negative_controls()
+    }
     fn estimate(&self) -> Estimate;
 
     /// Quantities derived from the case, for `granval validate` (what a person

@@ -201,22 +201,32 @@ impl CsvFrames {
     }
 }
 
-impl Iterator for CsvFrames {
-    type Item = Result<Frame>;
-    fn next(&mut self) -> Option<Result<Frame>> {
-        if self.done {
-            return None;
-        }
-        match self.next_frame() {
-            Ok(Some(f)) => Some(Ok(f)),
-            Ok(None) => None,
-            Err(e) => {
-                self.done = true;
-                Some(Err(e))
+/// `Iterator<Item = Result<Frame>>` for a streaming frame reader with a `done` field and
+/// a `next_frame() -> Result<Option<Frame>>`: it stops for good after the first error, so
+/// a truncated file is reported once, not on every later call.
+macro_rules! frame_iterator {
+    ($t:ty) => {
+        impl Iterator for $t {
+            type Item = anyhow::Result<$crate::rundata::frames::Frame>;
+            fn next(&mut self) -> Option<Self::Item> {
+                if self.done {
+                    return None;
+                }
+                match self.next_frame() {
+                    Ok(Some(f)) => Some(Ok(f)),
+                    Ok(None) => None,
+                    Err(e) => {
+                        self.done = true;
+                        Some(Err(e))
+                    }
+                }
             }
         }
-    }
+    };
 }
+pub(crate) use frame_iterator;
+
+frame_iterator!(CsvFrames);
 
 /// Reads a whole `particles.csv` (small runs and tests).
 pub fn read_particles_csv(path: &Path, dt: f64) -> Result<Vec<Frame>> {

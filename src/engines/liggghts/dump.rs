@@ -234,22 +234,7 @@ impl DumpFrames {
     }
 }
 
-impl Iterator for DumpFrames {
-    type Item = Result<Frame>;
-    fn next(&mut self) -> Option<Result<Frame>> {
-        if self.done {
-            return None;
-        }
-        match self.next_frame() {
-            Ok(Some(f)) => Some(Ok(f)),
-            Ok(None) => None,
-            Err(e) => {
-                self.done = true;
-                Some(Err(e))
-            }
-        }
-    }
-}
+crate::rundata::frames::frame_iterator!(DumpFrames);
 
 /// Parses a whole dump file into frames (small runs and tests).
 pub fn parse_dump(path: &Path, dt: f64) -> Result<Vec<Frame>> {

@@ -20,7 +20,6 @@ pub mod stress;
 use super::reference::Verified;
 use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
 use crate::analysis::stress_fields::SnapshotPlan;
-use crate::case::NegativeControl;
 use crate::case::penetration::PenetrationCase;
 use crate::compare::{Check, penetration as cp};
 use crate::engines::liggghts::penetration as lp;
@@ -349,24 +348,16 @@ impl Experiment for Penetration {
     type Unit = Unit;
     type NativeRun = NativeRun;
     type RefRun = RefRun;
+    type Case = PenetrationCase;
 
-    fn name(&self) -> &str {
-        &self.case.name
+    fn case(&self) -> &PenetrationCase {
+        &self.case
     }
     fn kind(&self) -> &'static str {
         "penetration"
     }
-    fn source(&self) -> &Path {
-        &self.case.source
-    }
     fn reference_engine(&self) -> EngineKind {
         EngineKind::Liggghts
-    }
-    fn canonical_hash(&self) -> Sha256 {
-        self.case.canonical_hash()
-    }
-    fn negative_controls(&self) -> &[NegativeControl] {
-        &self.case.negative_controls
     }
 
     fn estimate(&self) -> Estimate {
