@@ -357,8 +357,9 @@ pub fn paired_k(test: &Observables, reference: &Observables) -> Option<(f64, f64
 }
 
 /// The K_phi gate on rule 3's range: |K_test / K_ref - 1| of the mean FDRs against
-/// `k_phi_rel`, NOT COMPARED without a floor-free regime C, with one bed, or when twice
-/// the bed-by-bed standard error exceeds the tolerance (the beds cannot resolve it).
+/// `k_phi_rel`, NOT COMPARED without a floor-free regime C or with one bed; otherwise
+/// with the bed-by-bed standard error ([`Check::at_most_resolved`]: NOT COMPARED when the
+/// beds resolve neither a pass nor a failure).
 pub fn k_phi_check(
     case: &PenetrationCase,
     range: &FitRange,
@@ -411,23 +412,23 @@ pub fn k_phi_check(
                 "one bed per engine: no bed-by-bed standard error, so the gate cannot resolve its tolerance {tol} (rule 3); {detail}"
             ),
         ),
-        Some((_, _, se, _)) if 2.0 * se > tol => Check::not_compared(
-            name,
-            crate::compare::Gate::KPhi,
-            format!(
-                "2 x standard error {:.4} > tolerance {tol}: too few beds to resolve it (rule 3); |K_test / K_ref - 1| = {:.4}; {detail}",
-                2.0 * se,
-                (test.fit.k_phi / reference.fit.k_phi - 1.0).abs()
-            ),
-        ),
-        Some(_) => Check::at_most(
-            name,
-            crate::compare::Gate::KPhi,
-            "|K_test / K_ref - 1|",
-            (test.fit.k_phi / reference.fit.k_phi - 1.0).abs(),
-            tol,
-            detail,
-        ),
+        Some((_, _, se, _)) => {
+            let value = (test.fit.k_phi / reference.fit.k_phi - 1.0).abs();
+            Check::at_most_resolved(
+                name,
+                crate::compare::Gate::KPhi,
+                "|K_test / K_ref - 1|",
+                value,
+                se,
+                tol,
+                detail,
+                format!(
+                    "2 x standard error {:.4} > tolerance {tol} and |K_test / K_ref - 1| - 2 x standard error = {:.4} <= tolerance: too few beds to resolve it (rule 3, amendment A); |K_test / K_ref - 1| = {value:.4}",
+                    2.0 * se,
+                    value - 2.0 * se
+                ),
+            )
+        }
     }
 }
 

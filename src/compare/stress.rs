@@ -223,8 +223,9 @@ pub fn engine_point_with(
 }
 
 /// Estimator v2's gate (docs/stress.md rule 2): |phi_v2,test - phi_v2,ref| against
-/// `phi_abs_deg`, NOT COMPARED when twice the paired bootstrap sd of the difference
-/// exceeds the tolerance (the data cannot resolve it).
+/// `phi_abs_deg`, with the paired bootstrap sd of the difference as its standard error
+/// ([`Check::at_most_resolved`]: NOT COMPARED when the data resolve neither a pass nor a
+/// failure).
 pub fn phi_v2_check(
     case: &str,
     tol: &Tolerances,
@@ -262,25 +263,20 @@ pub fn phi_v2_check(
         reference.gamma_max_r,
         reference.gamma_max_depth,
     );
-    match sd {
-        Some(sd) if sd.is_finite() && 2.0 * sd <= tol.phi_abs_deg => Check::at_most(
-            name,
-            crate::compare::Gate::Phi,
-            "|phi_v2,test - phi_v2,ref| (deg), estimator v2 (docs/stress.md rule 2)",
-            (test.phi_deg - reference.phi_deg).abs(),
-            tol.phi_abs_deg,
-            detail,
+    let diff = (test.phi_deg - reference.phi_deg).abs();
+    Check::at_most_resolved(
+        name,
+        crate::compare::Gate::Phi,
+        "|phi_v2,test - phi_v2,ref| (deg), estimator v2 (docs/stress.md rule 2)",
+        diff,
+        sd.unwrap_or(f64::NAN),
+        tol.phi_abs_deg,
+        detail,
+        format!(
+            "2 x paired bootstrap sd > tolerance {} deg and |difference| - 2 sd <= tolerance: the data cannot resolve it (rule 2, amendment A); |difference| = {diff:.2} deg",
+            tol.phi_abs_deg
         ),
-        _ => Check::not_compared(
-            name,
-            crate::compare::Gate::Phi,
-            format!(
-                "2 x paired bootstrap sd > tolerance {} deg: the data cannot resolve it (rule 2); |difference| = {:.2} deg; {detail}",
-                tol.phi_abs_deg,
-                (test.phi_deg - reference.phi_deg).abs()
-            ),
-        ),
-    }
+    )
 }
 
 /// A published phi (e.g. 9 +- 1 deg for frictionless grains, Feng et al. Sec. 4)
