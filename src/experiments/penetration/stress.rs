@@ -484,33 +484,38 @@ fn run_checks(
         .filter(|(_, k)| *k <= 2e3)
         .collect();
     use crate::report::field_svg::{KPhiPoint, k_phi_plane};
-    k_phi_plane(
-        &out.join("k_phi.svg"),
-        &curve,
-        &[
-            KPhiPoint {
-                label: "native",
-                phi_deg: np.phi_deg,
-                phi_err: np.phi_std_deg,
-                k: np.k_phi,
-                k_err: np.k_phi_se,
-            },
-            KPhiPoint {
-                label: "LIGGGHTS",
-                phi_deg: lp.phi_deg,
-                phi_err: lp.phi_std_deg,
-                k: lp.k_phi,
-                k_err: lp.k_phi_se,
-            },
-            KPhiPoint {
-                label: "Feng et al. Table 3",
-                phi_deg: malt::phi_of_k(23.00)?.to_degrees(),
-                phi_err: 0.0,
-                k: 23.00,
-                k_err: 0.15,
-            },
-        ],
-    )?;
+    // Both estimators for both engines (docs/stress.md rule 6: v1 beside v2), the gated
+    // one named so; K_phi is the same FDR fit for both.
+    let (gated, other) = if v2_gated { ("v2", "v1") } else { ("v1", "v2") };
+    let labels = [
+        format!("native, phi {gated} (gated)"),
+        format!("LIGGGHTS, phi {gated} (gated)"),
+        format!("native, phi {other} (reported)"),
+        format!("LIGGGHTS, phi {other} (reported)"),
+    ];
+    fn kp<'a>(label: &'a str, p: &EnginePoint) -> KPhiPoint<'a> {
+        KPhiPoint {
+            label,
+            phi_deg: p.phi_deg,
+            phi_err: p.phi_std_deg,
+            k: p.k_phi,
+            k_err: p.k_phi_se,
+        }
+    }
+    let mut points = vec![
+        kp(&labels[0], &np),
+        kp(&labels[1], &lp),
+        kp(&labels[2], onp),
+        kp(&labels[3], olp),
+    ];
+    points.push(KPhiPoint {
+        label: "Feng et al. Table 3",
+        phi_deg: malt::phi_of_k(23.00)?.to_degrees(),
+        phi_err: 0.0,
+        k: 23.00,
+        k_err: 0.15,
+    });
+    k_phi_plane(&out.join("k_phi.svg"), &curve, &points)?;
     write_phi_csv(&out.join("phi_snapshots.csv"), &beds)?;
     let analysis_wall_s: f64 = beds.iter().map(|b| b.analysis_wall_s).sum();
     notes.push(format!("wall time: field analysis {analysis_wall_s:.1} s"));
