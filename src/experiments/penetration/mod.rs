@@ -183,7 +183,11 @@ fn reuse_native(
     let mut provenance = read_provenance(&prov)?;
     let bed_note = packing::bed_note(case, bed);
     ensure!(
-        provenance.input_hash == case.canonical_hash() && provenance.notes.contains(&bed_note),
+        provenance.input_hash == case.canonical_hash()
+            && provenance
+                .notes
+                .iter()
+                .any(|n| packing::same_bed_note(n, &bed_note)),
         "{}: --reuse found a run of another case or bed; run without --reuse",
         dir.display()
     );

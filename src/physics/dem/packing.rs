@@ -267,6 +267,20 @@ pub fn bed_note(case: &PenetrationCase, bed: &Bed) -> String {
     )
 }
 
+/// Whether two [`bed_note`]s describe the same bed: the same text except the case file's
+/// path, which names the same file however it was typed (relative, absolute).
+pub fn same_bed_note(a: &str, b: &str) -> bool {
+    let key = |n: &str| -> Option<(String, String)> {
+        let (head, rest) = n.split_once(" prepared natively from ")?;
+        let (_, tail) = rest.split_once(" (seed ")?;
+        Some((head.to_string(), tail.to_string()))
+    };
+    match (key(a), key(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => a == b,
+    }
+}
+
 /// A loose jittered lattice of `n` spheres (d = 2 mm +-5%) in a walled box, with the
 /// material of Feng's Table 2 scaled to a LIGGGHTS-legal modulus (E = 1e7 Pa).
 pub fn lattice_case(n: usize, seed: u64) -> Case {
@@ -377,5 +391,20 @@ pub fn lattice_case(n: usize, seed: u64) -> Case {
         clumps: Default::default(),
         rayleigh_time: rayleigh,
         negative_controls: vec![],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::same_bed_note;
+
+    /// `--reuse` finds a run whatever way the case path was typed, and only that bed.
+    #[test]
+    fn bed_notes_compare_without_the_path() {
+        let a = "bed of 10 grains prepared natively from cases/x.toml (seed 7): settled after 0.300 s, KE ratio 1.00e-7, surface z = 4.0e-2 m, psi = 0.5940";
+        let b = a.replace("cases/x.toml", "/work/main/cases/x.toml");
+        assert!(same_bed_note(a, &b));
+        assert!(!same_bed_note(a, &a.replace("seed 7", "seed 8")));
+        assert!(!same_bed_note(a, &a.replace("0.5940", "0.5941")));
     }
 }
