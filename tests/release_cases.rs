@@ -79,8 +79,8 @@ fn ci_copy_differs_from_the_ci_case_only_in_seed_and_name() {
 }
 
 /// Frictionless: mu = 0 for every pair, no rolling model, the CI geometry; phi = 9 +- 2
-/// deg published; the control puts Table 2's friction back and must fail K_phi and the
-/// published phi.
+/// deg published; the control puts Table 2's friction back and must fail K_phi, the
+/// published phi and (the built-in tangential control having nothing to drop) phi.
 #[test]
 fn frictionless_case_is_the_ci_geometry_without_friction() {
     let ci = penetration("cases/penetration/ci.toml");
@@ -106,6 +106,7 @@ fn frictionless_case_is_the_ci_geometry_without_friction() {
     assert_eq!((p.phi_deg, p.abs_deg), (9.0, 2.0));
     let c = &f.negative_controls[0];
     assert!(c.must_fail.contains(&Gate::KPhi) && c.must_fail.contains(&Gate::Published));
+    assert!(c.must_fail.contains(&Gate::Phi));
 }
 
 /// Mid scale: the paper's R / d = 7.5, container radius >= 4 R, one bed.
