@@ -246,37 +246,11 @@ fn main() -> Result<()> {
         "ci-prep" => {
             let case = PenetrationCase::load(Path::new(arg(2)?))?;
             // packing::prepare, step for step, with the phase times kept.
-            let particles = packing::lattice(&case)?;
-            let top = particles
-                .iter()
-                .map(|p| p.x[2] + p.radius)
-                .fold(0.0, f64::max);
-            let sim_case = packing::container_case(&case, particles, top);
+            let sim_case = packing::pour_case(&case)?;
             let mut sim = Simulation::from_case(&sim_case);
             let t = Instant::now();
             sim.setup()?;
-            let n = sim.x.len() as f64;
-            let max_steps = (case.max_settle_time / case.dt).ceil() as u64;
-            let (mut ke_peak, mut ratio, mut poured) = (0.0f64, f64::INFINITY, false);
-            while sim.step < max_steps {
-                sim.step()?;
-                if !sim.step.is_multiple_of(50) {
-                    continue;
-                }
-                let ke = sim.translational_kinetic_energy() / n;
-                if !poured {
-                    if ke >= ke_peak {
-                        ke_peak = ke;
-                    } else if ke < 0.5 * ke_peak {
-                        poured = true;
-                    }
-                } else {
-                    ratio = ke / ke_peak;
-                    if ratio < case.settle_ke_ratio {
-                        break;
-                    }
-                }
-            }
+            let (ratio, _) = packing::settle(&mut sim, &case, |_, _| {})?;
             println!(
                 "prepared in {:.1} s wall ({} steps, KE ratio {ratio:.2e}, {} pairs at the end, {} builds)",
                 t.elapsed().as_secs_f64(),
@@ -331,12 +305,7 @@ fn main() -> Result<()> {
             let steps: u64 = arg(3)?.parse()?;
             let threads: usize = arg(4)?.parse()?;
             pool(threads)?.install(|| -> Result<()> {
-                let particles = packing::lattice(&case)?;
-                let top = particles
-                    .iter()
-                    .map(|p| p.x[2] + p.radius)
-                    .fold(0.0, f64::max);
-                let sim_case = packing::container_case(&case, particles, top);
+                let sim_case = packing::pour_case(&case)?;
                 let mut sim = Simulation::from_case(&sim_case);
                 sim.setup()?;
                 let (t, c) = (Instant::now(), thread_cpu());

@@ -152,16 +152,27 @@ pub fn lattice(case: &PenetrationCase) -> Result<Vec<Particle>> {
     Ok(particles)
 }
 
-/// Pours and settles the bed with the native engine.
-pub fn prepare(case: &PenetrationCase, mut progress: impl FnMut(f64, f64)) -> Result<Bed> {
+/// The case the native engine pours: the loose lattice in the container, the domain up
+/// to the lattice's top.
+pub fn pour_case(case: &PenetrationCase) -> Result<Case> {
     let particles = lattice(case)?;
     let top = particles
         .iter()
         .map(|p| p.x[2] + p.radius)
         .fold(0.0, f64::max);
-    let sim_case = container_case(case, particles, top);
-    let mut sim = Simulation::from_case(&sim_case);
-    sim.setup()?;
+    Ok(container_case(case, particles, top))
+}
+
+/// Steps `sim` until the bed has poured (mean KE past its peak and below half of it) and
+/// settled (mean KE / KE at the end of pouring < `settle_ke_ratio`), or until
+/// `max_settle_time`; checked every 50 steps. Returns (last KE ratio, mean KE at the end
+/// of pouring); the ratio is infinite if the pour never ended. `progress(t, ratio)` after
+/// each check once poured.
+pub fn settle(
+    sim: &mut Simulation,
+    case: &PenetrationCase,
+    mut progress: impl FnMut(f64, f64),
+) -> Result<(f64, f64)> {
     let n = sim.x.len() as f64;
     let check_every = 50u64;
     let max_steps = (case.max_settle_time / case.dt).ceil() as u64;
@@ -187,6 +198,15 @@ pub fn prepare(case: &PenetrationCase, mut progress: impl FnMut(f64, f64)) -> Re
             }
         }
     }
+    Ok((ratio, ke_peak))
+}
+
+/// Pours and settles the bed with the native engine.
+pub fn prepare(case: &PenetrationCase, progress: impl FnMut(f64, f64)) -> Result<Bed> {
+    let sim_case = pour_case(case)?;
+    let mut sim = Simulation::from_case(&sim_case);
+    sim.setup()?;
+    let (ratio, ke_peak) = settle(&mut sim, case, progress)?;
     if ratio >= case.settle_ke_ratio {
         bail!(
             "{}: bed not settled after max_settle_time = {} s (mean KE / KE at end of pouring = {ratio:.2e}, target {:.1e})",
