@@ -70,9 +70,14 @@ enum Cmd {
         report: PathBuf,
         #[arg(long, default_value = "cases")]
         cases: PathBuf,
-        /// Only this case file of the suite.
+        /// Only these case files of the suite (repeatable).
         #[arg(long)]
-        only: Option<PathBuf>,
+        only: Vec<PathBuf>,
+        /// Earlier output directories (`check --report`, `compare --report`, `stress
+        /// --out`) whose case summaries the suite's claims across cases may use
+        /// (repeatable); this run's own outputs come first.
+        #[arg(long)]
+        runs: Vec<PathBuf>,
         #[command(flatten)]
         common: Common,
     },
@@ -205,7 +210,8 @@ struct Common {
 #[derive(Subcommand)]
 enum RefCmd {
     /// Re-run cases in the live reference engine, record and seal them under
-    /// reference/<kind>/<case>/, and print the drift against the previous record.
+    /// reference/<kind>/<case>/ (reference/release/<kind>/<case>/ for the release
+    /// suite), and print the drift against the previous record.
     Refresh {
         #[arg(long, default_value = "micro")]
         suite: String,
@@ -213,7 +219,7 @@ enum RefCmd {
         cases: PathBuf,
         #[arg(long, default_value = "reference")]
         reference: PathBuf,
-        /// Only this case file (any case file; the suite is then ignored).
+        /// Only this case file (any case file; it is recorded where `--suite` records).
         #[arg(long)]
         only: Option<PathBuf>,
     },
@@ -345,18 +351,22 @@ fn real_main() -> Result<ExitCode> {
             report,
             cases,
             only,
+            runs,
             common,
         } => {
             let s = suite::load(&cases, &suite)?;
             let mut entries = s.cases.clone();
-            if let Some(o) = &only {
-                entries.retain(|e| &e.path == o);
-                if entries.is_empty() {
-                    bail!("--only {}: not a case of suite {suite}", o.display());
+            if !only.is_empty() {
+                for o in &only {
+                    if !entries.iter().any(|e| &e.path == o) {
+                        bail!("--only {}: not a case of suite {suite}", o.display());
+                    }
                 }
+                entries.retain(|e| only.contains(&e.path));
             }
             fresh_dir(&report, common.force)?;
-            let opts = options(&common);
+            let mut opts = options(&common);
+            opts.reference_root = s.reference_root(&opts.reference_root);
             let started = std::time::Instant::now();
             let mut outcomes = Vec::new();
             for e in &entries {
@@ -372,6 +382,14 @@ fn real_main() -> Result<ExitCode> {
                     t.elapsed().as_secs_f64()
                 );
             }
+            let mut dirs = vec![report.clone()];
+            dirs.extend(runs);
+            let (claim_checks, claim_notes) = suite::evaluate_claims(&s, &dirs, !only.is_empty());
+            outcomes.push(CaseOutcome {
+                checks: claim_checks,
+                run: None,
+                notes: claim_notes,
+            });
             let mut r = report_of(outcomes);
             r.notes.push(format!(
                 "suite {suite}: {} ({} case(s), {:.0} s)",
@@ -390,13 +408,11 @@ fn real_main() -> Result<ExitCode> {
                     only,
                 },
         } => {
+            let s = suite::load(&cases, &suite)?;
+            let reference = s.reference_root(&reference);
             let paths: Vec<PathBuf> = match only {
                 Some(p) => vec![p],
-                None => suite::load(&cases, &suite)?
-                    .cases
-                    .into_iter()
-                    .map(|e| e.path)
-                    .collect(),
+                None => s.cases.into_iter().map(|e| e.path).collect(),
             };
             // One process, as `compare` runs the reference by default (penetration runs
             // use at least two either way).

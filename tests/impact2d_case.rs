@@ -116,6 +116,18 @@ fn bad_inputs_name_file_field_value_and_reason() {
     assert!(e.contains("bad.toml") && e.contains("window"), "{e}");
     let e = err(&(t.clone() + "\n[claim]\nkind = \"increasing\"\n"));
     assert!(e.contains("claim") && e.contains("sweep"), "{e}");
+    // A control that ignores a sweep the case does not have perturbs nothing.
+    let e = err(&(t.clone()
+        + "\n[[negative_control]]\nname = \"n\"\nmust_fail = [\"claim\"]\nperturbation = { sweep_ignored = true }\n"));
+    assert!(e.contains("sweep_ignored") && e.contains("[sweep]"), "{e}");
+    // energy_lost is read at a time, which must lie inside the run.
+    let sweep = "\n[sweep]\nparameter = \"mu\"\nvalues = [0.0, 0.5]\n";
+    let e = err(&(t.clone() + sweep + "[claim]\nkind = \"increasing\"\nof = \"energy_lost\"\n"));
+    assert!(e.contains("claim.at") && e.contains("missing"), "{e}");
+    let e = err(&(t.clone()
+        + sweep
+        + "[claim]\nkind = \"increasing\"\nof = \"energy_lost\"\nat = 1e9\n"));
+    assert!(e.contains("claim.at") && e.contains("after the end"), "{e}");
 }
 
 /// The CLI turns bad impact2d input into exit code 2 with file, field and reason,
@@ -165,8 +177,8 @@ fn fig2_speed_case_sweeps_six_speeds_with_the_linearity_claim() {
     let path = common::root().join("cases/impact2d/fig2-speed.toml");
     let c = Impact2dCase::load(&path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(c.variants.len(), 6, "one final-depth cross-check per speed");
-    let Some(granval::case::impact2d::Claim::Linear { from, r2_min }) = c.claim else {
-        panic!("fig2-speed.toml must claim linearity: {:?}", c.claim)
+    let [granval::case::impact2d::Claim::Linear { from, r2_min }] = c.claims[..] else {
+        panic!("fig2-speed.toml must claim linearity: {:?}", c.claims)
     };
     assert_eq!(from, 0.4);
     assert!(r2_min >= 0.9, "{r2_min}");

@@ -117,3 +117,74 @@ fn mid_scale_case_has_the_papers_size_ratio() {
     assert!(m.container_radius >= 4.0 * m.intruder_radius);
     assert_eq!(m.ensemble_beds, 1);
 }
+
+/// The release suite records under `reference/release/`, the other tiers at the root.
+#[test]
+fn release_suite_records_under_reference_release() {
+    let cases = common::root().join("cases");
+    let base = std::path::Path::new("reference");
+    let r = granval::experiments::suite::load(&cases, "release").unwrap();
+    assert_eq!(r.reference_root(base), base.join("release"));
+    let ci = granval::experiments::suite::load(&cases, "ci").unwrap();
+    assert_eq!(ci.reference_root(base), base);
+}
+
+/// Kondic et al. Fig 9 as registered: the five bodies in order of falling g on the Fig 2
+/// bed at v = 1.0, with both claims (depth and time of the maximum), each with its
+/// effect size.
+#[test]
+fn kondic_fig9_case_sweeps_five_gravities_with_two_claims() {
+    use granval::case::impact2d::{Claim, ClaimQuantity};
+    let c = match AnyCase::load(&common::root().join("cases/release/kondic-fig9-gravity.toml"))
+        .unwrap_or_else(|e| panic!("{e}"))
+    {
+        AnyCase::Impact2d(c) => c,
+        _ => panic!("not an impact2d case"),
+    };
+    let g: Vec<f64> = c.variants.iter().map(|v| v.x).collect();
+    assert_eq!(g.len(), 5);
+    assert!(g.windows(2).all(|w| w[0] > w[1]), "{g:?}");
+    assert!((g[0] * 980.0 - 2479.0).abs() < 0.01 && (g[4] * 980.0 - 62.0).abs() < 0.01);
+    assert!(c.variants.iter().all(|v| v.speed == c.variants[0].speed));
+    let steps: Vec<(ClaimQuantity, f64)> = c
+        .claims
+        .iter()
+        .map(|k| match k {
+            Claim::Increasing { min_step, of, .. } => (*of, *min_step),
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    assert_eq!(
+        steps,
+        vec![
+            (ClaimQuantity::FinalDepth, 1.0),
+            (ClaimQuantity::TimeOfMaxDepth, 5.0)
+        ]
+    );
+}
+
+/// Feng et al. Fig 3(b) as registered: four points differing only in mu_gg, on the
+/// frictionless case's seeds, and three claims over them.
+#[test]
+fn fig3b_sweep_differs_only_in_mu_gg_and_carries_its_claims() {
+    let cases = common::root().join("cases");
+    let s = granval::experiments::suite::load(&cases, "release").unwrap();
+    let names: Vec<&str> = s.claims.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names.len(), 3, "{names:?}");
+    let pts: Vec<PenetrationCase> = ["0", "0.5", "1.1", "1.5"]
+        .iter()
+        .map(|m| penetration(&format!("cases/release/feng-fig3b-mugg-{m}.toml")))
+        .collect();
+    let base = &pts[1];
+    for (c, mu) in pts.iter().zip([0.0, 0.5, 1.1, 1.5]) {
+        assert_eq!(c.seed, 20261300);
+        let t = &c.pairs;
+        assert_eq!(t.friction[t.idx(0, 0)], mu);
+        assert_eq!(t.friction[t.idx(0, 1)], 0.3);
+        assert_eq!(t.rolling_friction[t.idx(0, 0)], 0.01);
+        assert_eq!(c.intruder_radius, base.intruder_radius);
+        assert_eq!(c.speed, base.speed);
+        assert!(!c.negative_controls.is_empty());
+    }
+    assert_eq!(s.claims[0].cases.len(), 4);
+}

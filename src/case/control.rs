@@ -71,6 +71,9 @@ pub struct Perturbation {
     pub pair_friction: Option<(usize, usize, f64)>,
     /// 2D: static <-> kinetic friction model (k_t = 0.8 k_n <-> 0) in every contact.
     pub swap_friction_model: bool,
+    /// 2D sweeps: every variant runs with the base case's parameters, i.e. the swept
+    /// parameter is not applied; a claim over the sweep must then fail.
+    pub sweep_ignored: bool,
     /// Clumps: every principal moment of inertia multiplied by this.
     pub inertia_factor: f64,
     /// Clumps: members use their own sphere mass as contact mass instead of the body
@@ -86,6 +89,7 @@ impl Default for Perturbation {
             poisson_shift: 0.0,
             pair_friction: None,
             swap_friction_model: false,
+            sweep_ignored: false,
             inertia_factor: 1.0,
             member_sphere_mass: false,
         }
@@ -123,6 +127,8 @@ struct RawPerturbation {
     pair_friction: Option<RawPairFriction>,
     #[serde(default)]
     swap_friction_model: bool,
+    #[serde(default)]
+    sweep_ignored: bool,
     inertia_factor: Option<f64>,
     #[serde(default)]
     member_sphere_mass: bool,
@@ -210,6 +216,14 @@ pub(crate) fn controls(
             pert.pair_friction = Some((a - 1, b - 1, v));
         }
         pert.swap_friction_model = p.swap_friction_model;
+        if p.sweep_ignored && !gates.contains(&Gate::Claim) {
+            return Err(ctx.bad(
+                f("perturbation.sweep_ignored"),
+                true,
+                "only impact2d cases have a sweep to ignore",
+            ));
+        }
+        pert.sweep_ignored = p.sweep_ignored;
         if let Some(v) = p.inertia_factor {
             let v = finite("inertia_factor", v)?;
             if v <= 0.0 {

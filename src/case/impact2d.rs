@@ -42,8 +42,9 @@ struct File {
     analysis: AnalysisIn,
     #[serde(default)]
     sweep: Option<SweepIn>,
+    /// `[claim]` (one) or `[[claim]]` (several).
     #[serde(default)]
-    claim: Option<Claim>,
+    claim: Option<OneOrMany<Claim>>,
     #[serde(default)]
     compare: Option<Tolerances>,
     #[serde(default)]
@@ -187,18 +188,60 @@ struct SweepIn {
     values: Vec<toml::Value>,
 }
 
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+enum OneOrMany<T> {
+    One(T),
+    Many(Vec<T>),
+}
+
 #[derive(Debug, Clone, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, tag = "kind", rename_all = "snake_case")]
 pub enum Claim {
-    /// Final depth strictly increases along the sweep, each step by at least
-    /// `min_step` d (K: static < kinetic friction, hexagonal < random, grows with e_n).
+    /// `of` strictly increases along the sweep, each step by at least `min_step` (d, or
+    /// tau_c for a time) (K: static < kinetic friction, hexagonal < random, grows with
+    /// e_n; Fig 9: deeper and later for smaller g).
     Increasing {
         #[serde(default)]
         min_step: f64,
+        #[serde(default)]
+        of: ClaimQuantity,
+        /// The time (tau_c after release) `energy_lost` is read at.
+        #[serde(default)]
+        at: Option<f64>,
     },
+    /// In every variant the total energy (kinetic + potential + normal elastic, K Fig 28)
+    /// never rises between two samples by more than `max_rise` of the intruder's impact
+    /// energy M v^2 / 2 (K Sec. V: "The total energy ... shows a monotonous decrease").
+    EnergyNonIncreasing { max_rise: f64 },
     /// Final depth vs sweep value is linear for values >= `from`: R^2 of the
     /// least-squares line must be >= `r2_min` (K Fig 8b: linear in v for v >= 0.4).
     Linear { from: f64, r2_min: f64 },
+}
+
+/// What an `increasing` claim follows along the sweep.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClaimQuantity {
+    /// The final depth (d): mean over the final window.
+    #[default]
+    FinalDepth,
+    /// When the maximum depth is reached (tau_c after release; K Fig 9: "the maximum
+    /// penetration depth is reached at much later times as gravity is decreased").
+    TimeOfMaxDepth,
+    /// Total energy lost by the time `at` (m g d; K Fig 28: "faster loss of energy for
+    /// the systems with friction").
+    EnergyLost,
+}
+
+impl ClaimQuantity {
+    pub fn describe(self) -> (&'static str, &'static str) {
+        match self {
+            ClaimQuantity::FinalDepth => ("final depth", "d"),
+            ClaimQuantity::TimeOfMaxDepth => ("time of the maximum depth", "tau_c"),
+            ClaimQuantity::EnergyLost => ("total energy lost", "m g d"),
+        }
+    }
 }
 
 /// Cross-check tolerances (native vs LAMMPS), in d.
@@ -335,7 +378,8 @@ pub struct Impact2dCase {
     /// The case without its sweep: beds are prepared with these materials.
     pub base: Variant,
     pub variants: Vec<Variant>,
-    pub claim: Option<Claim>,
+    /// K's claims over the sweep, each evaluated in each engine.
+    pub claims: Vec<Claim>,
     pub tolerances: Tolerances,
     pub negative_controls: Vec<super::NegativeControl>,
 }
@@ -739,29 +783,67 @@ impl Impact2dCase {
         } else {
             variants.push(base.clone());
         }
-        let claim = raw.claim.clone();
-        match (&claim, &raw.sweep) {
-            (Some(_), None) => {
-                return Err(ctx.bad(
-                    "claim",
-                    "given",
-                    "a claim compares the variants of a [sweep]; add one",
-                ));
-            }
-            (Some(Claim::Increasing { min_step }), _) => {
-                non_negative(&ctx, "claim.min_step", *min_step)?;
-            }
-            (Some(Claim::Linear { from, r2_min }), _) => {
-                finite(&ctx, "claim.from", *from)?;
-                if !(0.0..=1.0).contains(r2_min) {
-                    return Err(ctx.bad("claim.r2_min", r2_min, "must lie in [0, 1]"));
+        let claims: Vec<Claim> = match raw.claim.clone() {
+            None => vec![],
+            Some(OneOrMany::One(c)) => vec![c],
+            Some(OneOrMany::Many(v)) => v,
+        };
+        if !claims.is_empty() && raw.sweep.is_none() {
+            return Err(ctx.bad(
+                "claim",
+                "given",
+                "a claim compares the variants of a [sweep]; add one",
+            ));
+        }
+        for (k, claim) in claims.iter().enumerate() {
+            let at = |f: &str| {
+                if claims.len() == 1 {
+                    format!("claim.{f}")
+                } else {
+                    format!("claim[{k}].{f}")
                 }
-                let n = variants.iter().filter(|v| v.x >= *from).count();
-                if n < 3 {
-                    return Err(ctx.bad("claim.from", from, format!("only {n} sweep values are >= it; a line through fewer than 3 points always fits")));
+            };
+            match claim {
+                Claim::Increasing {
+                    min_step,
+                    of,
+                    at: t,
+                } => {
+                    non_negative(&ctx, &at("min_step"), *min_step)?;
+                    match (of, t) {
+                        (ClaimQuantity::EnergyLost, None) => {
+                            return Err(ctx.bad(
+                                at("at"),
+                                "missing",
+                                "energy_lost is read at a time: give `at` (tau_c after release)",
+                            ));
+                        }
+                        (ClaimQuantity::EnergyLost, Some(t)) => {
+                            positive(&ctx, &at("at"), *t)?;
+                            if *t > raw.simulation.duration {
+                                return Err(ctx.bad(at("at"), t, "after the end of the run"));
+                            }
+                        }
+                        (_, Some(t)) => {
+                            return Err(ctx.bad(at("at"), t, "only energy_lost is read at a time"));
+                        }
+                        (_, None) => {}
+                    }
+                }
+                Claim::EnergyNonIncreasing { max_rise } => {
+                    non_negative(&ctx, &at("max_rise"), *max_rise)?;
+                }
+                Claim::Linear { from, r2_min } => {
+                    finite(&ctx, &at("from"), *from)?;
+                    if !(0.0..=1.0).contains(r2_min) {
+                        return Err(ctx.bad(at("r2_min"), r2_min, "must lie in [0, 1]"));
+                    }
+                    let n = variants.iter().filter(|v| v.x >= *from).count();
+                    if n < 3 {
+                        return Err(ctx.bad(at("from"), from, format!("only {n} sweep values are >= it; a line through fewer than 3 points always fits")));
+                    }
                 }
             }
-            (None, _) => {}
         }
         if variants.iter().any(|v| v.packing == Packing::Hexagonal) {
             let n = length / d;
@@ -780,6 +862,17 @@ impl Impact2dCase {
         // Wall disks are type 2, the intruder type 3 (a pair_friction control names them).
         let negative_controls =
             super::control::controls(&ctx, &raw.negative_control, 3, IMPACT2D_GATES)?;
+        if raw.sweep.is_none()
+            && let Some(k) = negative_controls
+                .iter()
+                .position(|c| c.perturbation.sweep_ignored)
+        {
+            return Err(ctx.bad(
+                format!("negative_control[{k}].perturbation.sweep_ignored"),
+                true,
+                "ignores a [sweep] the case does not have",
+            ));
+        }
         Ok(Impact2dCase {
             negative_controls,
             name: raw.case.name,
@@ -808,7 +901,7 @@ impl Impact2dCase {
             sweep_parameter,
             base,
             variants,
-            claim,
+            claims,
             tolerances,
         })
     }

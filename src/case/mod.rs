@@ -170,7 +170,7 @@ impl PairTable {
     }
 }
 
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Particle {
     pub id: u64,
     /// 0-based type (the file's type minus one).

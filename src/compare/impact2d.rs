@@ -2,7 +2,7 @@
 //! distance), and K's claims over a sweep, evaluated separately in each engine.
 
 use super::Check;
-use crate::case::impact2d::{Claim, Impact2dCase};
+use crate::case::impact2d::{Claim, ClaimQuantity, Impact2dCase};
 
 /// What one run of one variant reduces to (lengths in d).
 #[derive(Debug, Clone, serde::Serialize)]
@@ -11,6 +11,13 @@ pub struct VariantObs {
     pub x: f64,
     pub final_depth: f64,
     pub max_depth: f64,
+    /// When the maximum depth was reached (tau_c after release).
+    pub t_max_depth: f64,
+    /// Total energy (kinetic + potential relative to the first sample + normal elastic)
+    /// at each energy sample: (t in tau_c after release, E in m g d).
+    pub energy: Vec<(f64, f64)>,
+    /// The intruder's impact energy M v^2 / 2 (m g d).
+    pub impact_energy: f64,
     /// Largest |v| of the intruder in the final window (d / tau_c): is it at rest?
     pub final_speed: f64,
     /// Samples the final depth was averaged over.
@@ -72,52 +79,111 @@ pub fn cross_check(
     out
 }
 
-/// K's claim of the case over its variants (in sweep order), for one engine.
-pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Option<Check> {
-    let claim = case.claim.as_ref()?;
-    let param = case.sweep_parameter.clone().unwrap_or_default();
-    let listing = obs
+/// K's claims of the case over its variants (in sweep order), for one engine.
+pub fn claim_checks(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Vec<Check> {
+    case.claims
         .iter()
-        .map(|o| format!("{}: {:.3}", o.label, o.final_depth))
-        .collect::<Vec<_>>()
-        .join(", ");
-    Some(match claim {
-        Claim::Increasing { min_step } => {
+        .map(|c| claim_check(case, c, engine, obs))
+        .collect()
+}
+
+fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantObs]) -> Check {
+    let param = case.sweep_parameter.clone().unwrap_or_default();
+    let listing = |f: &dyn Fn(&VariantObs) -> f64| {
+        obs.iter()
+            .map(|o| format!("{}: {:.3}", o.label, f(o)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match claim {
+        Claim::Increasing { min_step, of, at } => {
+            let (what, unit) = of.describe();
             if obs.len() < 2 {
-                return Some(Check::not_compared(
-                    format!("{}: claim ({engine})", case.name),
+                return Check::not_compared(
+                    format!("{}: claim ({engine}): {what}", case.name),
                     crate::compare::Gate::Claim,
                     "a trend needs at least 2 variants",
-                ));
+                );
             }
-            // Largest D_k + min_step - D_{k+1}: <= 0 iff every step rises by min_step.
+            let value = |o: &VariantObs| match of {
+                ClaimQuantity::FinalDepth => o.final_depth,
+                ClaimQuantity::TimeOfMaxDepth => o.t_max_depth,
+                ClaimQuantity::EnergyLost => energy_lost(o, at.unwrap_or(f64::NAN)),
+            };
+            if let Some(o) = obs.iter().find(|o| !value(o).is_finite()) {
+                return Check::error_in(
+                    format!("{}: claim ({engine}): {what}", case.name),
+                    crate::compare::Gate::Claim,
+                    format!(
+                        "variant {}: no {what} (no energy sample at or after the time read)",
+                        o.label
+                    ),
+                );
+            }
+            // Largest y_k + min_step - y_{k+1}: <= 0 iff every step rises by min_step.
             let worst = obs
                 .windows(2)
-                .map(|w| w[0].final_depth + min_step - w[1].final_depth)
+                .map(|w| value(&w[0]) + min_step - value(&w[1]))
                 .fold(f64::NEG_INFINITY, f64::max);
             Check::at_most(
                 format!(
-                    "{}: claim ({engine}): final depth increases along {param}",
+                    "{}: claim ({engine}): {what} increases along {param}",
                     case.name
                 ),
                 crate::compare::Gate::Claim,
-                "max_k (D_k + min_step - D_k+1) / d",
+                format!("max_k (y_k + min_step - y_k+1) / {unit}"),
                 worst,
                 0.0,
-                format!("min_step {min_step} d; final depths (d): {listing}"),
+                format!(
+                    "min_step {min_step} {unit}; {what} ({unit}): {}",
+                    listing(&value)
+                ),
+            )
+        }
+        Claim::EnergyNonIncreasing { max_rise } => {
+            // Largest rise of E between consecutive samples, over the impact energy.
+            let rise = |o: &VariantObs| {
+                o.energy
+                    .windows(2)
+                    .map(|w| (w[1].1 - w[0].1) / o.impact_energy)
+                    .fold(f64::NEG_INFINITY, f64::max)
+            };
+            let worst = obs.iter().map(rise).fold(f64::NEG_INFINITY, f64::max);
+            let per: Vec<String> = obs
+                .iter()
+                .map(|o| format!("{}: {:.2e}", o.label, rise(o)))
+                .collect();
+            if obs.iter().any(|o| o.energy.len() < 2) {
+                return Check::error_in(
+                    format!("{}: claim ({engine}): total energy never rises", case.name),
+                    crate::compare::Gate::Claim,
+                    "a variant has fewer than 2 energy samples",
+                );
+            }
+            Check::at_most(
+                format!("{}: claim ({engine}): total energy never rises", case.name),
+                crate::compare::Gate::Claim,
+                "max over samples of (E_k+1 - E_k) / (M v^2 / 2)",
+                worst,
+                *max_rise,
+                format!(
+                    "largest rise per variant: {}; M v^2 / 2 = {:.4e} m g d",
+                    per.join(", "),
+                    obs.first().map_or(f64::NAN, |o| o.impact_energy)
+                ),
             )
         }
         Claim::Linear { from, r2_min } => {
             let pts: Vec<&VariantObs> = obs.iter().filter(|o| o.x >= *from).collect();
             if pts.len() < 3 {
-                return Some(Check::not_compared(
+                return Check::not_compared(
                     format!("{}: claim ({engine})", case.name),
                     crate::compare::Gate::Claim,
                     format!(
                         "a line through {} point(s) tests nothing: at least 3 variants with {param} >= {from} are needed",
                         pts.len()
                     ),
-                ));
+                );
             }
             let x: Vec<f64> = pts.iter().map(|o| o.x).collect();
             let y: Vec<f64> = pts.iter().map(|o| o.final_depth).collect();
@@ -133,7 +199,8 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
                     if b > 0.0 { 1.0 - r2 } else { f64::INFINITY },
                     1.0 - r2_min,
                     format!(
-                        "D = {a:.3} + {b:.3} x (R^2 {r2:.4}; the slope must be > 0); final depths (d): {listing}"
+                        "D = {a:.3} + {b:.3} x (R^2 {r2:.4}; the slope must be > 0); final depths (d): {}",
+                        listing(&|o| o.final_depth)
                     ),
                 ),
                 Err(e) => {
@@ -141,7 +208,18 @@ pub fn claim_check(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Opt
                 }
             }
         }
-    })
+    }
+}
+
+/// E(0) - E(t) at the first energy sample at or after `t` (tau_c); NaN if none.
+fn energy_lost(o: &VariantObs, t: f64) -> f64 {
+    let Some(first) = o.energy.first() else {
+        return f64::NAN;
+    };
+    o.energy
+        .iter()
+        .find(|(s, _)| *s >= t)
+        .map_or(f64::NAN, |(_, e)| first.1 - e)
 }
 
 #[cfg(test)]
@@ -167,10 +245,19 @@ mod tests {
                 x,
                 final_depth: d,
                 max_depth: d,
+                t_max_depth: d,
+                energy: vec![],
+                impact_energy: 1.0,
                 final_speed: 0.0,
                 final_samples: 100,
             })
             .collect()
+    }
+
+    fn one(c: &Impact2dCase, obs: &[VariantObs]) -> Option<Check> {
+        let mut v = claim_checks(c, "x", obs);
+        assert!(v.len() <= 1);
+        v.pop()
     }
 
     #[test]
@@ -180,19 +267,62 @@ mod tests {
             "[sweep]\nparameter = \"e_n\"\nvalues = [0.1, 0.5, 0.9]",
         );
         assert!(
-            claim_check(&c, "x", &obs(&[0.1, 0.5, 0.9], &[1.0, 2.0, 3.0]))
+            one(&c, &obs(&[0.1, 0.5, 0.9], &[1.0, 2.0, 3.0]))
                 .unwrap()
                 .passed
         );
         assert!(
-            !claim_check(&c, "x", &obs(&[0.1, 0.5, 0.9], &[3.0, 2.0, 1.0]))
+            !one(&c, &obs(&[0.1, 0.5, 0.9], &[3.0, 2.0, 1.0]))
                 .unwrap()
                 .passed
         );
         assert!(
-            !claim_check(&c, "x", &obs(&[0.1, 0.5, 0.9], &[1.0, 1.3, 3.0]))
+            !one(&c, &obs(&[0.1, 0.5, 0.9], &[1.0, 1.3, 3.0]))
                 .unwrap()
                 .passed
+        );
+    }
+
+    /// Two claims give two checks; the time claim reads t_max_depth, not the depth.
+    #[test]
+    fn time_of_max_claim_follows_its_own_quantity() {
+        let c = case(
+            "[[claim]]\nkind = \"increasing\"\nmin_step = 1.0\n[[claim]]\nkind = \"increasing\"\nof = \"time_of_max_depth\"\nmin_step = 5.0",
+            "[sweep]\nparameter = \"gravity\"\nvalues = [2.0, 1.0, 0.5]",
+        );
+        let mut o = obs(&[2.0, 1.0, 0.5], &[5.0, 7.0, 9.0]);
+        for (k, t) in [40.0, 60.0, 62.0].into_iter().enumerate() {
+            o[k].t_max_depth = t;
+        }
+        let v = claim_checks(&c, "x", &o);
+        assert_eq!(v.len(), 2);
+        assert!(v[0].passed, "depths rise by 2 d per step");
+        assert!(!v[1].passed, "the last delay is 2 tau_c < 5");
+        assert!((v[1].value - 3.0).abs() < 1e-12, "{}", v[1].value);
+        o[2].t_max_depth = 70.0;
+        assert!(claim_checks(&c, "x", &o).iter().all(|k| k.passed));
+    }
+
+    /// Energy claims: the loss at a time rises with friction; a rise of E fails.
+    #[test]
+    fn energy_claims_read_the_total_energy_series() {
+        let c = case(
+            "[[claim]]\nkind = \"increasing\"\nof = \"energy_lost\"\nat = 100.0\n[[claim]]\nkind = \"energy_non_increasing\"\nmax_rise = 0.01",
+            "[sweep]\nparameter = \"mu\"\nvalues = [0.0, 0.5]",
+        );
+        let mut o = obs(&[0.0, 0.5], &[5.0, 4.0]);
+        o[0].energy = vec![(0.0, 10.0), (50.0, 8.0), (100.0, 7.0)];
+        o[1].energy = vec![(0.0, 10.0), (50.0, 5.0), (100.0, 4.0)];
+        let v = claim_checks(&c, "x", &o);
+        assert!(v[0].passed && v[1].passed, "{v:?}");
+        // E rises from 5 to 7.5 (2.5 impact energies); the loss by t = 100 drops to 2.5.
+        o[1].energy[2].1 = 7.5;
+        let v = claim_checks(&c, "x", &o);
+        assert!(!v[0].passed, "loss 2.5 < 3 with friction");
+        assert!(
+            !v[1].passed && (v[1].value - 2.5).abs() < 1e-12,
+            "{:?}",
+            v[1]
         );
     }
 
@@ -203,21 +333,9 @@ mod tests {
             "[sweep]\nparameter = \"speed\"\nvalues = [0.1, 0.4, 0.7, 1.0]",
         );
         let x = [0.1, 0.4, 0.7, 1.0];
-        assert!(
-            claim_check(&c, "x", &obs(&x, &[0.0, 2.0, 3.5, 5.0]))
-                .unwrap()
-                .passed
-        );
-        assert!(
-            !claim_check(&c, "x", &obs(&x, &[0.0, 1.0, 1.0, 9.0]))
-                .unwrap()
-                .passed
-        );
-        assert!(
-            !claim_check(&c, "x", &obs(&x, &[0.0, 5.0, 3.5, 2.0]))
-                .unwrap()
-                .passed
-        );
+        assert!(one(&c, &obs(&x, &[0.0, 2.0, 3.5, 5.0])).unwrap().passed);
+        assert!(!one(&c, &obs(&x, &[0.0, 1.0, 1.0, 9.0])).unwrap().passed);
+        assert!(!one(&c, &obs(&x, &[0.0, 5.0, 3.5, 2.0])).unwrap().passed);
     }
 
     #[test]

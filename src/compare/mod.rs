@@ -5,6 +5,7 @@ pub mod coverage;
 pub mod impact2d;
 pub mod penetration;
 pub mod stress;
+pub mod sweep;
 pub mod trajectory;
 
 use serde::{Deserialize, Serialize};

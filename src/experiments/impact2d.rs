@@ -23,7 +23,7 @@ use crate::rundata::provenance::{
     EngineKind, Provenance, Sha256, now_utc, read_provenance, write_provenance,
 };
 use anyhow::{Context, Result};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 pub struct Impact2d {
     pub case: Impact2dCase,
@@ -33,6 +33,8 @@ pub struct Impact2d {
 pub struct Unit {
     pub variant: Variant,
     pub scene: Scene,
+    /// The base case on the same bed, for a `sweep_ignored` negative control.
+    pub base_scene: Option<Scene>,
     /// How its bed was prepared (for the report).
     pub bed_note: String,
 }
@@ -133,13 +135,32 @@ impl Experiment for Impact2d {
 
     fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
         let beds = prepare_beds(&self.case, opts.progress)?;
+        let wants_base = self
+            .case
+            .negative_controls
+            .iter()
+            .any(|c| c.perturbation.sweep_ignored);
         self.case
             .variants
             .iter()
             .map(|v| {
+                let base = self.case.base.clone();
                 Ok(Unit {
                     variant: v.clone(),
                     scene: scene_mod::build(&self.case, v, beds.get(v.packing))?,
+                    // On this variant's bed (a packing sweep's base keeps its own bed).
+                    base_scene: if wants_base {
+                        Some(scene_mod::build(
+                            &self.case,
+                            &Variant {
+                                packing: v.packing,
+                                ..base
+                            },
+                            beds.get(v.packing),
+                        )?)
+                    } else {
+                        None
+                    },
                     bed_note: bed_note(&self.case, v.packing, beds.get(v.packing)),
                 })
             })
@@ -156,14 +177,22 @@ impl Experiment for Impact2d {
 
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<ImpactRun> {
         let c = &self.case;
+        let pert = role.perturbation();
+        let scene = if pert.sweep_ignored {
+            u.base_scene
+                .as_ref()
+                .context("a sweep_ignored control needs the base scene")?
+        } else {
+            &u.scene
+        };
         let bar = crate::report::progress::bar(opts.progress, c.n_steps, "native");
         let (samples, energy, provenance) = crate::engines::native::impact2d(
-            &u.scene,
+            scene,
             c.n_steps,
             c.output_every,
             c.energy_every,
-            &energy_model(&u.scene),
-            scene_hash(&u.scene),
+            &energy_model(scene),
+            scene_hash(scene),
             &c.source,
             &role.perturbation(),
             |s| bar.set_position(s),
@@ -308,8 +337,8 @@ impl Experiment for Impact2d {
             }
         }
         if complete {
-            checks.extend(cmp::claim_check(case, "native", &native_obs));
-            checks.extend(cmp::claim_check(case, "lammps", &ref_obs));
+            checks.extend(cmp::claim_checks(case, "native", &native_obs));
+            checks.extend(cmp::claim_checks(case, "lammps", &ref_obs));
             let refs: Vec<(&str, &[(f64, f64)])> = series_svg
                 .iter()
                 .map(|(l, s)| (l.as_str(), s.as_slice()))
@@ -510,19 +539,6 @@ static BED_MEMO: std::sync::Mutex<std::collections::BTreeMap<String, BedSlot>> =
 /// minutes): only when `GRANVAL_BED_CACHE=DIR` is set, one JSON file per bed
 /// specification (sha256 of the spec and the crate version). Preparation is
 /// deterministic, so a hit is the bed that would be prepared; tests never set it.
-fn cache_file(spec: &bed::BedSpec) -> Option<PathBuf> {
-    let dir = std::env::var_os("GRANVAL_BED_CACHE")?;
-    let key = Sha256::of(
-        format!(
-            "{} {}",
-            env!("CARGO_PKG_VERSION"),
-            serde_json::to_string(spec).ok()?
-        )
-        .as_bytes(),
-    );
-    Some(PathBuf::from(dir).join(format!("impact2d-bed-{key}.json")))
-}
-
 pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
     let mut beds: Vec<(Packing, Bed)> = Vec::new();
     for v in &case.variants {
@@ -542,11 +558,8 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
             beds.push((v.packing, b.clone()));
             continue;
         }
-        let cache = cache_file(&spec);
-        let cached = cache
-            .as_ref()
-            .and_then(|p| std::fs::read(p).ok())
-            .and_then(|t| serde_json::from_slice::<Bed>(&t).ok());
+        let cache = super::bed_cache::file("impact2d", &spec);
+        let cached = super::bed_cache::load::<Bed>(cache.as_deref());
         let b = match cached {
             Some(b) => b,
             None => {
@@ -568,10 +581,7 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
                     )
                 })?;
                 bar.finish_and_clear();
-                if let Some(path) = &cache {
-                    let _ = std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")));
-                    let _ = std::fs::write(path, serde_json::to_vec(&b).unwrap_or_default());
-                }
+                super::bed_cache::store(cache.as_deref(), &b);
                 b
             }
         };
@@ -622,7 +632,12 @@ pub fn observe(
     let d = case.scales.d;
     let series = obs::depth(&run.samples, scene.surface, scene.bottom_offset);
     let fin = obs::final_depth(&series, case.final_window)?;
-    let max = series.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    // The first sample at the maximum depth (time since release).
+    let (t_max, max) = series
+        .iter()
+        .fold((0.0, f64::NEG_INFINITY), |(tm, m), &(t, z)| {
+            if z > m { (t, z) } else { (tm, m) }
+        });
     let t_end = run.samples.last().map(|s| s.t).unwrap_or(0.0);
     let final_speed = run
         .samples
@@ -637,6 +652,23 @@ pub fn observe(
             x: v.x,
             final_depth: fin / d,
             max_depth: max / d,
+            t_max_depth: t_max / case.scales.tau_c,
+            energy: {
+                let e_unit = case.scales.m * case.scales.g0 * d;
+                let rel = obs::relative_potential(&run.energy);
+                run.energy
+                    .iter()
+                    .zip(rel)
+                    .map(|(s, p)| {
+                        (
+                            s.t / case.scales.tau_c,
+                            (s.kinetic + p + s.elastic) / e_unit,
+                        )
+                    })
+                    .collect()
+            },
+            impact_energy: 0.5 * case.intruder_mass * v.speed.powi(2)
+                / (case.scales.m * case.scales.g0 * d),
             final_speed,
             final_samples: obs::final_window_samples(&series, case.final_window),
         },

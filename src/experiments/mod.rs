@@ -8,6 +8,7 @@
 //! state; each unit has a *fingerprint*, the sha256 of the reference engine's input,
 //! which a recorded reference must match.
 
+pub mod bed_cache;
 pub mod impact2d;
 pub mod micro;
 pub mod penetration;

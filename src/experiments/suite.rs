@@ -2,12 +2,21 @@
 //!
 //! ```toml
 //! description = "what the suite verifies"
+//! reference = "release"        # optional: its recorded runs live under reference/release/
 //! [[case]]
 //! path = "micro/*.toml"        # relative to cases/; `dir/*.toml` takes every case there
 //! [[case]]
 //! path = "penetration/ci.toml"
 //! stress = true                # also the stress fields, phi and MALT (penetration)
 //! theory = false               # report the MALT comparison without gating it
+//!
+//! [[claim]]                    # a paper's claim over several of its cases, per engine
+//! name = "K_phi rises with mu_gg"
+//! source = "Feng et al. Sec. 3 (b): ..."
+//! cases = ["release/a.toml", "release/b.toml"]   # in order along the claim
+//! kind = "increasing"          # or ratio_at_least (compare::sweep::SweepClaim)
+//! quantity = "k_phi"
+//! min_step_se = 2.0
 //! ```
 
 use anyhow::{Context, Result, bail, ensure};
@@ -18,8 +27,34 @@ use std::path::{Path, PathBuf};
 #[serde(deny_unknown_fields)]
 struct File {
     description: String,
+    /// Sub-directory of the reference root holding this suite's recorded runs, so a
+    /// tier's records stay together (the release suite: `reference/release/`).
+    #[serde(default)]
+    reference: Option<String>,
     #[serde(rename = "case")]
     cases: Vec<Entry>,
+    #[serde(default, rename = "claim")]
+    claims: Vec<ClaimEntry>,
+}
+
+#[derive(Debug, Deserialize)]
+struct ClaimEntry {
+    name: String,
+    /// Paper, figure/table and the sentence the claim stands for.
+    source: String,
+    cases: Vec<String>,
+    #[serde(flatten)]
+    claim: crate::compare::sweep::SweepClaim,
+}
+
+/// A claim over several cases of the suite, evaluated from their summaries.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SuiteClaim {
+    pub name: String,
+    pub source: String,
+    /// Case files, in the claim's order; every one is a case of the suite.
+    pub cases: Vec<PathBuf>,
+    pub claim: crate::compare::sweep::SweepClaim,
 }
 
 #[derive(Debug, Deserialize)]
@@ -51,6 +86,18 @@ pub struct Suite {
     pub name: String,
     pub description: String,
     pub cases: Vec<SuiteCase>,
+    pub claims: Vec<SuiteClaim>,
+    reference: Option<PathBuf>,
+}
+
+impl Suite {
+    /// Where this suite's recorded reference runs live under `reference_root`.
+    pub fn reference_root(&self, reference_root: &Path) -> PathBuf {
+        match &self.reference {
+            Some(d) => reference_root.join(d),
+            None => reference_root.to_path_buf(),
+        }
+    }
 }
 
 pub fn manifest(cases_root: &Path, name: &str) -> PathBuf {
@@ -84,6 +131,20 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         )
     })?;
     let f: File = toml::from_str(&text).with_context(|| format!("{}", path.display()))?;
+    let reference = match &f.reference {
+        None => None,
+        Some(d) => {
+            let p = PathBuf::from(d);
+            ensure!(
+                !d.is_empty()
+                    && p.components()
+                        .all(|c| matches!(c, std::path::Component::Normal(_))),
+                "{}: reference = {d:?}: must be a plain relative directory (no `..`, no root)",
+                path.display()
+            );
+            Some(p)
+        }
+    };
     let mut cases = Vec::new();
     for (k, e) in f.cases.iter().enumerate() {
         let expanded = if let Some(dir) = e.path.strip_suffix("/*.toml") {
@@ -132,9 +193,179 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         "{}: the suite has no cases",
         path.display()
     );
+    let mut claims = Vec::new();
+    for (k, c) in f.claims.into_iter().enumerate() {
+        ensure!(
+            c.cases.len() >= 2,
+            "{}: claim[{k}] ({:?}).cases: a claim across cases needs at least 2, got {}",
+            path.display(),
+            c.name,
+            c.cases.len()
+        );
+        let mut files = Vec::new();
+        for rel in &c.cases {
+            let p = cases_root.join(rel);
+            ensure!(
+                cases.iter().any(|e| e.path == p),
+                "{}: claim[{k}] ({:?}).cases: {rel:?} is not a case of this suite (add a [[case]] for it)",
+                path.display(),
+                c.name
+            );
+            files.push(p);
+        }
+        claims.push(SuiteClaim {
+            name: c.name,
+            source: c.source,
+            cases: files,
+            claim: c.claim,
+        });
+    }
     Ok(Suite {
         name: name.to_string(),
         description: f.description,
         cases,
+        claims,
+        reference,
     })
+}
+
+/// Finds the summary of the case `name` in one of `dirs` (`DIR/<name>/summary.json`, as
+/// `check` writes, or `DIR/summary.json`, as `compare` / `stress --out DIR` write).
+fn find_summary(dirs: &[PathBuf], name: &str) -> Option<PathBuf> {
+    use crate::compare::sweep::SUMMARY_FILE;
+    dirs.iter().find_map(|d| {
+        [d.join(name), d.to_path_buf()].into_iter().find(|c| {
+            c.join(SUMMARY_FILE).is_file()
+                && crate::compare::sweep::CaseSummary::read(c).is_ok_and(|s| s.case == name)
+        })
+    })
+}
+
+/// The suite's claims, one check per claim and engine, from the case summaries found in
+/// `dirs`. A summary must come from the case as it is now (its canonical hash), else the
+/// claim is an error. `partial`: a claim none of whose cases has a summary is left out
+/// (with a note) instead of NOT COMPARED, for runs of a subset (`check --only`).
+pub fn evaluate_claims(
+    suite: &Suite,
+    dirs: &[PathBuf],
+    partial: bool,
+) -> (Vec<crate::compare::Check>, Vec<String>) {
+    use crate::case::AnyCase;
+    use crate::compare::{Check, Gate, sweep};
+    let (mut checks, mut notes) = (Vec::new(), Vec::new());
+    'claims: for c in &suite.claims {
+        let mut found = Vec::new();
+        let mut missing = Vec::new();
+        for p in &c.cases {
+            let case = match AnyCase::load(p) {
+                Ok(x) => x,
+                Err(e) => {
+                    checks.push(Check::error_in(&c.name, Gate::Claim, e.to_string()));
+                    continue 'claims;
+                }
+            };
+            let hash = match &case {
+                AnyCase::Penetration(x) => {
+                    crate::case::ValidatedCase::canonical_hash(x).to_string()
+                }
+                _ => {
+                    checks.push(Check::error_in(
+                        &c.name,
+                        Gate::Claim,
+                        format!(
+                            "{}: claims across cases take penetration cases",
+                            p.display()
+                        ),
+                    ));
+                    continue 'claims;
+                }
+            };
+            let name = case.name().to_string();
+            match find_summary(dirs, &name) {
+                None => missing.push(name),
+                Some(d) => match sweep::CaseSummary::read(&d) {
+                    Ok(s) if s.canonical_hash == hash => found.push((name, s)),
+                    Ok(_) => {
+                        checks.push(Check::error_in(
+                            &c.name,
+                            Gate::Claim,
+                            format!(
+                                "{}: the summary is of another version of case {name} (canonical hash differs): re-run it",
+                                d.display()
+                            ),
+                        ));
+                        continue 'claims;
+                    }
+                    Err(e) => {
+                        checks.push(Check::error_in(&c.name, Gate::Claim, format!("{e:#}")));
+                        continue 'claims;
+                    }
+                },
+            }
+        }
+        if !missing.is_empty() {
+            if partial && found.is_empty() {
+                notes.push(format!(
+                    "claim {:?}: none of its cases ran here; not evaluated",
+                    c.name
+                ));
+            } else {
+                checks.push(Check::not_compared(
+                    &c.name,
+                    Gate::Claim,
+                    format!(
+                        "no summary of case(s) {} (run them, or pass their output with --runs)",
+                        missing.join(", ")
+                    ),
+                ));
+            }
+            continue;
+        }
+        notes.push(format!("claim {:?}: {}", c.name, c.source));
+        for engine in ["native", "liggghts"] {
+            checks.push(sweep::evaluate(&c.name, &c.claim, &found, engine));
+        }
+    }
+    (checks, notes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, suite: &str) {
+        std::fs::create_dir_all(dir.join("suites")).unwrap();
+        std::fs::create_dir_all(dir.join("release")).unwrap();
+        for n in ["a", "b"] {
+            std::fs::write(dir.join(format!("release/{n}.toml")), "").unwrap();
+        }
+        std::fs::write(dir.join("suites/s.toml"), suite).unwrap();
+    }
+
+    const HEAD: &str = "description = \"d\"\nreference = \"release\"\n[[case]]\npath = \"release/a.toml\"\n[[case]]\npath = \"release/b.toml\"\n";
+
+    #[test]
+    fn claims_parse_and_name_their_mistakes() {
+        let d = tempfile::tempdir().unwrap();
+        let ok = format!(
+            "{HEAD}[[claim]]\nname = \"n\"\nsource = \"s\"\ncases = [\"release/a.toml\", \"release/b.toml\"]\nkind = \"increasing\"\nquantity = \"k_phi\"\nmin_step_se = 2.0\n"
+        );
+        write(d.path(), &ok);
+        let s = load(d.path(), "s").unwrap();
+        assert_eq!(s.claims.len(), 1);
+        assert_eq!(s.reference_root(Path::new("r")), Path::new("r/release"));
+        // A misspelt field is an error, not a silently defaulted one.
+        write(d.path(), &ok.replace("min_step_se", "min_step_sd"));
+        assert!(load(d.path(), "s").is_err());
+        // A claim over a case the suite does not run cannot be evaluated: refused.
+        write(
+            d.path(),
+            &ok.replace("release/b.toml\"]", "release/c.toml\"]"),
+        );
+        let e = format!("{:#}", load(d.path(), "s").unwrap_err());
+        assert!(e.contains("not a case of this suite"), "{e}");
+        write(d.path(), &HEAD.replace("\"release\"", "\"../x\""));
+        let e = format!("{:#}", load(d.path(), "s").unwrap_err());
+        assert!(e.contains("plain relative directory"), "{e}");
+    }
 }

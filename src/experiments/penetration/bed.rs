@@ -34,11 +34,20 @@ pub fn binner(case: &PenetrationCase, bed: &Bed) -> Result<FdrBinner> {
 
 /// Prepares the bed natively (pour + settle to the case's KE criterion).
 pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
+    // The whole case (with this bed's seed) is the key: safe, if more than the bed needs.
+    let cache = crate::experiments::bed_cache::file(
+        "penetration",
+        &crate::case::ValidatedCase::canonical_hash(case).to_string(),
+    );
+    if let Some(b) = crate::experiments::bed_cache::load::<Bed>(cache.as_deref()) {
+        return Ok(b);
+    }
     let bar = crate::report::progress::bar(progress, 1, "settle");
     let bed = packing::prepare(case, |t, ratio| {
         bar.set_message(format!("t = {t:.3} s, KE ratio {ratio:.1e}"))
     })?;
     bar.finish_and_clear();
+    crate::experiments::bed_cache::store(cache.as_deref(), &bed);
     Ok(bed)
 }
 

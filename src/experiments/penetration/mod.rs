@@ -768,6 +768,12 @@ pub fn fdr_checks(
             None => {}
         }
     }
+    if let Err(e) = summary(case, units, &native_o, &reference).write(out) {
+        notes.push(format!(
+            "{} not written: {e:#}",
+            crate::compare::sweep::SUMMARY_FILE
+        ));
+    }
     if let (Some(Ok(a)), Some(Ok(b))) = (&native_o, &reference) {
         checks.extend(cp::compare(case, &range, a, b));
         notes.extend(cp::boundaries_not_compared(a, b));
@@ -794,4 +800,36 @@ pub fn fdr_checks(
         notes.push(format!("SVG not written: {e:#}"));
     }
     Verdict { checks, notes }
+}
+
+/// What claims spanning several cases read from this case (`summary.json`).
+fn summary(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: &Option<Result<cp::Observables>>,
+    reference: &Option<Result<cp::Observables>>,
+) -> crate::compare::sweep::CaseSummary {
+    use crate::compare::sweep::{CaseSummary, EngineSummary};
+    let psi = units.iter().map(|u| u.bed.psi).sum::<f64>() / units.len().max(1) as f64;
+    let mut engines = std::collections::BTreeMap::new();
+    for (label, o) in [("native", native), ("liggghts", reference)] {
+        if let Some(Ok(o)) = o {
+            engines.insert(
+                label.to_string(),
+                EngineSummary {
+                    k_phi: o.fit.k_phi,
+                    k_phi_se_regression: o.fit.se_k,
+                    k_phi_beds: o.members.iter().map(|m| m.0).collect(),
+                    h: o.fdr.h.clone(),
+                    p: o.fdr.p.clone(),
+                    psi,
+                },
+            );
+        }
+    }
+    CaseSummary {
+        case: case.name.clone(),
+        canonical_hash: case.canonical_hash().to_string(),
+        engines,
+    }
 }

@@ -14,7 +14,7 @@ use rand_distr::{Distribution, Normal};
 use std::path::PathBuf;
 
 /// A settled bed, ready for penetration by either engine.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Bed {
     pub particles: Vec<Particle>,
     /// Bed surface height (m): mean over a 2 d_mean grid of the highest grain top

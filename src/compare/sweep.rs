@@ -1,0 +1,325 @@
+//! Claims that span several penetration cases (Feng et al. Sec. 3 / Fig 3: "Varying
+//! mu_gg gradually from 0.0 to 1.5 increases the normalised force consistently by more
+//! than an order of magnitude ... and consequently the gradient K_phi"). Each case is an
+//! ordinary ensemble with its own beds; what a claim needs from it is the per-engine
+//! [`CaseSummary`] the penetration experiment writes as `summary.json`. A claim is
+//! evaluated in each engine separately, like K's claims over an impact2d sweep.
+
+use super::{Check, Gate};
+use anyhow::{Context, Result, ensure};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// File name of a penetration case's summary inside its output directory.
+pub const SUMMARY_FILE: &str = "summary.json";
+
+/// What one engine's ensemble of one case reduces to for cross-case claims.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct EngineSummary {
+    /// K_phi of the ensemble-mean FDR on the case's fit range.
+    pub k_phi: f64,
+    /// Its regression standard error (understates: FDR residuals are correlated).
+    pub k_phi_se_regression: f64,
+    /// K_phi of each bed alone.
+    pub k_phi_beds: Vec<f64>,
+    /// The ensemble-mean FDR (eq 5: h = depth / R, p = F / (rho_g psi g S R)).
+    pub h: Vec<f64>,
+    pub p: Vec<f64>,
+    /// Mean initial packing fraction of the beds (the psi of eq 5).
+    pub psi: f64,
+}
+
+impl EngineSummary {
+    /// The uncertainty of `k_phi` a claim uses: the larger of the regression standard
+    /// error and the bed-to-bed one (sd / sqrt(n)), fixed before any sweep was run.
+    pub fn k_phi_se(&self) -> f64 {
+        let n = self.k_phi_beds.len();
+        let beds = if n >= 2 {
+            let m = self.k_phi_beds.iter().sum::<f64>() / n as f64;
+            let var = self.k_phi_beds.iter().map(|k| (k - m).powi(2)).sum::<f64>() / (n - 1) as f64;
+            (var / n as f64).sqrt()
+        } else {
+            0.0
+        };
+        self.k_phi_se_regression.max(beds)
+    }
+
+    /// Mean p of the ensemble FDR over `h_at +- half`, and its standard error over those
+    /// points (NaN-free: an empty window is an error).
+    pub fn p_at(&self, h_at: f64, half: f64) -> Result<f64> {
+        let v: Vec<f64> = self
+            .h
+            .iter()
+            .zip(&self.p)
+            .filter(|(h, _)| (**h - h_at).abs() <= half)
+            .map(|(_, p)| *p)
+            .collect();
+        ensure!(
+            !v.is_empty(),
+            "the FDR has no point within {half} of h = {h_at} (it spans h {:.3}..{:.3})",
+            self.h.first().copied().unwrap_or(f64::NAN),
+            self.h.last().copied().unwrap_or(f64::NAN)
+        );
+        Ok(v.iter().sum::<f64>() / v.len() as f64)
+    }
+}
+
+/// A penetration case's `summary.json`: which case (by canonical hash) and each engine.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct CaseSummary {
+    pub case: String,
+    pub canonical_hash: String,
+    pub engines: BTreeMap<String, EngineSummary>,
+}
+
+impl CaseSummary {
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        let p = dir.join(SUMMARY_FILE);
+        std::fs::write(&p, serde_json::to_string_pretty(self)?)
+            .with_context(|| format!("writing {}", p.display()))
+    }
+
+    pub fn read(dir: &Path) -> Result<CaseSummary> {
+        let p = dir.join(SUMMARY_FILE);
+        let text =
+            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?;
+        serde_json::from_str(&text).with_context(|| format!("{}: not a case summary", p.display()))
+    }
+}
+
+/// The quantity a claim follows from case to case.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Quantity {
+    /// K_phi of the ensemble-mean FDR, with [`EngineSummary::k_phi_se`].
+    KPhi,
+    /// The normalised force p of eq 5 at depth `at_h` (mean over `at_h +- 0.1`).
+    P,
+}
+
+/// A claim over an ordered list of cases (`[[claim]]` of a suite file).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "snake_case")]
+pub enum SweepClaim {
+    /// The quantity rises at every step. For K_phi each rise must exceed `min_step_se`
+    /// times the combined standard error of the two cases (a resolved rise).
+    Increasing {
+        quantity: Quantity,
+        #[serde(default)]
+        min_step_se: f64,
+        #[serde(default)]
+        at_h: Option<f64>,
+    },
+    /// last / first >= `ratio` ("more than an order of magnitude": 10).
+    RatioAtLeast {
+        quantity: Quantity,
+        ratio: f64,
+        #[serde(default)]
+        at_h: Option<f64>,
+    },
+}
+
+/// Half-width of the depth window of [`Quantity::P`], in R.
+pub const P_WINDOW_HALF: f64 = 0.1;
+
+fn value(q: Quantity, at_h: Option<f64>, s: &EngineSummary) -> Result<(f64, f64)> {
+    match q {
+        Quantity::KPhi => Ok((s.k_phi, s.k_phi_se())),
+        Quantity::P => {
+            let h = at_h.context("quantity p needs `at_h`")?;
+            Ok((s.p_at(h, P_WINDOW_HALF)?, 0.0))
+        }
+    }
+}
+
+fn label(q: Quantity, at_h: Option<f64>) -> String {
+    match (q, at_h) {
+        (Quantity::KPhi, _) => "K_phi".into(),
+        (Quantity::P, Some(h)) => format!("p(h = {h})"),
+        (Quantity::P, None) => "p".into(),
+    }
+}
+
+/// One check per engine: the claim `name` over `cases` (labels and summaries, in order).
+pub fn evaluate(
+    name: &str,
+    claim: &SweepClaim,
+    cases: &[(String, CaseSummary)],
+    engine: &str,
+) -> Check {
+    let title = format!("{name} ({engine})");
+    let mut pts = Vec::new();
+    for (l, s) in cases {
+        let Some(e) = s.engines.get(engine) else {
+            return Check::not_compared(
+                title,
+                Gate::Claim,
+                format!("case {l} has no {engine} run in its summary"),
+            );
+        };
+        let (q, at_h) = match claim {
+            SweepClaim::Increasing { quantity, at_h, .. }
+            | SweepClaim::RatioAtLeast { quantity, at_h, .. } => (*quantity, *at_h),
+        };
+        match value(q, at_h, e) {
+            Ok(v) => pts.push((l.clone(), v)),
+            Err(err) => return Check::error_in(title, Gate::Claim, format!("{l}: {err:#}")),
+        }
+    }
+    let listing = |q: Quantity| {
+        pts.iter()
+            .map(|(l, (v, se))| {
+                if q == Quantity::KPhi {
+                    format!("{l}: {v:.3} +- {se:.3}")
+                } else {
+                    format!("{l}: {v:.3}")
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match claim {
+        SweepClaim::Increasing {
+            quantity,
+            min_step_se,
+            at_h,
+        } => {
+            if pts.len() < 2 {
+                return Check::not_compared(title, Gate::Claim, "a trend needs at least 2 cases");
+            }
+            // Largest shortfall of a step below its required rise: <= 0 iff every step
+            // rises by at least min_step_se combined standard errors.
+            let worst = pts
+                .windows(2)
+                .map(|w| {
+                    let ((a, sa), (b, sb)) = (w[0].1, w[1].1);
+                    min_step_se * sa.hypot(sb) - (b - a)
+                })
+                .fold(f64::NEG_INFINITY, f64::max);
+            Check::at_most(
+                title,
+                Gate::Claim,
+                format!(
+                    "max_k ({min_step_se} x SE_k,k+1 - ({q}_k+1 - {q}_k))",
+                    q = label(*quantity, *at_h)
+                ),
+                worst,
+                0.0,
+                format!(
+                    "{} along the cases: {}",
+                    label(*quantity, *at_h),
+                    listing(*quantity)
+                ),
+            )
+        }
+        SweepClaim::RatioAtLeast {
+            quantity,
+            ratio,
+            at_h,
+        } => {
+            let (first, last) = (pts[0].1.0, pts[pts.len() - 1].1.0);
+            Check::at_least(
+                title,
+                Gate::Claim,
+                format!("{q}_last / {q}_first", q = label(*quantity, *at_h)),
+                last / first,
+                *ratio,
+                format!(
+                    "{} along the cases: {}",
+                    label(*quantity, *at_h),
+                    listing(*quantity)
+                ),
+            )
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn summary(k: f64, beds: &[f64], p_level: f64) -> CaseSummary {
+        let h: Vec<f64> = (0..300).map(|i| i as f64 * 0.01).collect();
+        let p = h.iter().map(|x| p_level * x).collect();
+        let e = EngineSummary {
+            k_phi: k,
+            k_phi_se_regression: 0.1,
+            k_phi_beds: beds.to_vec(),
+            h,
+            p,
+            psi: 0.6,
+        };
+        CaseSummary {
+            case: "c".into(),
+            canonical_hash: "x".into(),
+            engines: [("native".to_string(), e)].into(),
+        }
+    }
+
+    fn cases(v: Vec<CaseSummary>) -> Vec<(String, CaseSummary)> {
+        v.into_iter()
+            .enumerate()
+            .map(|(i, s)| (format!("c{i}"), s))
+            .collect()
+    }
+
+    #[test]
+    fn bed_scatter_sets_the_standard_error_when_it_exceeds_the_regression() {
+        let s = summary(10.0, &[8.0, 10.0, 12.0], 1.0);
+        let e = &s.engines["native"];
+        assert!((e.k_phi_se() - 2.0 / 3f64.sqrt()).abs() < 1e-12);
+    }
+
+    /// A rise smaller than 2 combined SE fails; a resolved one passes; a fall fails.
+    #[test]
+    fn increasing_needs_resolved_rises() {
+        let claim = SweepClaim::Increasing {
+            quantity: Quantity::KPhi,
+            min_step_se: 2.0,
+            at_h: None,
+        };
+        let ok = cases(vec![
+            summary(3.0, &[2.9, 3.0, 3.1], 1.0),
+            summary(30.0, &[28.0, 30.0, 32.0], 10.0),
+            summary(40.0, &[39.0, 40.0, 41.0], 12.0),
+        ]);
+        assert!(evaluate("k", &claim, &ok, "native").passed);
+        let small = cases(vec![
+            summary(30.0, &[28.0, 30.0, 32.0], 1.0),
+            summary(32.0, &[30.0, 32.0, 34.0], 1.0),
+        ]);
+        assert!(!evaluate("k", &claim, &small, "native").passed);
+        let falling = cases(vec![
+            summary(30.0, &[30.0; 3], 1.0),
+            summary(20.0, &[20.0; 3], 1.0),
+        ]);
+        assert!(!evaluate("k", &claim, &falling, "native").passed);
+        let missing = evaluate("k", &claim, &ok, "liggghts");
+        assert_eq!(missing.status, crate::compare::Status::NotCompared);
+    }
+
+    #[test]
+    fn ratio_reads_p_at_the_registered_depth() {
+        let claim = SweepClaim::RatioAtLeast {
+            quantity: Quantity::P,
+            ratio: 10.0,
+            at_h: Some(2.0),
+        };
+        let c = cases(vec![
+            summary(3.0, &[3.0], 1.0),
+            summary(40.0, &[40.0], 11.0),
+        ]);
+        let k = evaluate("f", &claim, &c, "native");
+        assert!(k.passed && (k.value - 11.0).abs() < 1e-9, "{k:?}");
+        let c = cases(vec![summary(3.0, &[3.0], 1.0), summary(40.0, &[40.0], 9.0)]);
+        assert!(!evaluate("f", &claim, &c, "native").passed);
+        let far = SweepClaim::RatioAtLeast {
+            quantity: Quantity::P,
+            ratio: 10.0,
+            at_h: Some(9.0),
+        };
+        let e = evaluate("f", &far, &c, "native");
+        assert_eq!(e.status, crate::compare::Status::Error);
+    }
+}
