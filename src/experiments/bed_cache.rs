@@ -35,3 +35,56 @@ pub fn store<T: Serialize>(file: Option<&Path>, bed: &T) {
         let _ = std::fs::write(path, serde_json::to_vec(bed).unwrap_or_default());
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::case::Particle;
+    use crate::physics::dem::packing::Bed;
+
+    /// A cached bed must be the bed, bit for bit: its fingerprint goes into every seal.
+    #[test]
+    fn a_stored_bed_reads_back_bit_identical() {
+        let d = tempfile::tempdir().unwrap();
+        let f = d.path().join("x/b.json");
+        let awkward: [f64; 5] = [
+            0.1 + 0.2,
+            1.0 / 3.0,
+            -2.2250738585072014e-308,
+            1e-300,
+            5e-324,
+        ];
+        let bed = Bed {
+            particles: (0..5)
+                .map(|i| Particle {
+                    id: i as u64 + 1,
+                    type_: 0,
+                    radius: awkward[i].abs() + 1e-3,
+                    density: 2500.0,
+                    x: [awkward[i], awkward[(i + 1) % 5], awkward[(i + 2) % 5]],
+                    v: [awkward[(i + 3) % 5], 0.0, -0.0],
+                    omega: [1.0 / 7.0, 0.0, awkward[(i + 4) % 5]],
+                })
+                .collect(),
+            surface_z: 0.042496630000000004,
+            psi: 0.5941,
+            ke_ratio: 8.01e-8,
+            settle_time: 0.342,
+            ke_at_end_of_pour: 1.0 / 3.0,
+        };
+        store(Some(&f), &bed);
+        let back: Bed = load(Some(&f)).expect("cached bed");
+        let bits = |b: &Bed| {
+            let mut v: Vec<u64> =
+                vec![b.surface_z.to_bits(), b.psi.to_bits(), b.ke_ratio.to_bits()];
+            for p in &b.particles {
+                v.extend(p.x.iter().chain(&p.v).chain(&p.omega).map(|x| x.to_bits()));
+                v.push(p.radius.to_bits());
+            }
+            v
+        };
+        assert_eq!(bits(&bed), bits(&back));
+        assert!(load::<Bed>(Some(&d.path().join("missing.json"))).is_none());
+        assert!(load::<Bed>(None).is_none());
+    }
+}
