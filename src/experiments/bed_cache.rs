@@ -66,7 +66,7 @@ mod tests {
                     omega: [1.0 / 7.0, 0.0, awkward[(i + 4) % 5]],
                 })
                 .collect(),
-            surface_z: 0.042496630000000004,
+            surface_z: (0.1f64 + 0.2) / 7.0,
             psi: 0.5941,
             ke_ratio: 8.01e-8,
             settle_time: 0.342,
