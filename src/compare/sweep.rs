@@ -218,7 +218,10 @@ pub fn evaluate(
             ratio,
             at_h,
         } => {
-            let (first, last) = (pts[0].1.0, pts[pts.len() - 1].1.0);
+            let (Some(first), Some(last)) = (pts.first(), pts.last()) else {
+                return Check::not_compared(title, Gate::Claim, "a ratio needs cases");
+            };
+            let (first, last) = (first.1.0, last.1.0);
             Check::at_least(
                 title,
                 Gate::Claim,

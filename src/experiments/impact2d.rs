@@ -144,7 +144,6 @@ impl Experiment for Impact2d {
             .variants
             .iter()
             .map(|v| {
-                let base = self.case.base.clone();
                 Ok(Unit {
                     variant: v.clone(),
                     scene: scene_mod::build(&self.case, v, beds.get(v.packing))?,
@@ -154,7 +153,7 @@ impl Experiment for Impact2d {
                             &self.case,
                             &Variant {
                                 packing: v.packing,
-                                ..base
+                                ..self.case.base.clone()
                             },
                             beds.get(v.packing),
                         )?)
@@ -194,7 +193,7 @@ impl Experiment for Impact2d {
             &energy_model(scene),
             scene_hash(scene),
             &c.source,
-            &role.perturbation(),
+            &pert,
             |s| bar.set_position(s),
         )?;
         bar.finish_and_clear();

@@ -229,16 +229,56 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
     })
 }
 
-/// Finds the summary of the case `name` in one of `dirs` (`DIR/<name>/summary.json`, as
-/// `check` writes, or `DIR/summary.json`, as `compare` / `stress --out DIR` write).
-fn find_summary(dirs: &[PathBuf], name: &str) -> Option<PathBuf> {
-    use crate::compare::sweep::SUMMARY_FILE;
+/// The summary of the case `name` in one of `dirs` (`DIR/<name>/summary.json`, as
+/// `check` writes, or `DIR/summary.json`, as `compare` / `stress --out DIR` write), with
+/// the directory it came from.
+fn find_summary(
+    dirs: &[PathBuf],
+    name: &str,
+) -> Option<(PathBuf, crate::compare::sweep::CaseSummary)> {
     dirs.iter().find_map(|d| {
-        [d.join(name), d.to_path_buf()].into_iter().find(|c| {
-            c.join(SUMMARY_FILE).is_file()
-                && crate::compare::sweep::CaseSummary::read(c).is_ok_and(|s| s.case == name)
+        [d.join(name), d.to_path_buf()].into_iter().find_map(|c| {
+            crate::compare::sweep::CaseSummary::read(&c)
+                .ok()
+                .filter(|s| s.case == name)
+                .map(|s| (c, s))
         })
     })
+}
+
+/// The summaries of a claim's cases found in `dirs` (in the claim's order) and the names
+/// of the cases without one; `Err` when a case cannot take part or its summary is of
+/// another version of the case (canonical hash).
+type Gathered = (
+    Vec<(String, crate::compare::sweep::CaseSummary)>,
+    Vec<String>,
+);
+
+fn gather(claim: &SuiteClaim, dirs: &[PathBuf]) -> Result<Gathered, String> {
+    use crate::case::AnyCase;
+    let (mut found, mut missing) = (Vec::new(), Vec::new());
+    for p in &claim.cases {
+        let case = AnyCase::load(p).map_err(|e| e.to_string())?;
+        let AnyCase::Penetration(pc) = &case else {
+            return Err(format!(
+                "{}: claims across cases take penetration cases",
+                p.display()
+            ));
+        };
+        let hash = crate::case::ValidatedCase::canonical_hash(pc).to_string();
+        let name = case.name().to_string();
+        match find_summary(dirs, &name) {
+            None => missing.push(name),
+            Some((_, s)) if s.canonical_hash == hash => found.push((name, s)),
+            Some((d, _)) => {
+                return Err(format!(
+                    "{}: the summary is of another version of case {name} (canonical hash differs): re-run it",
+                    d.display()
+                ));
+            }
+        }
+    }
+    Ok((found, missing))
 }
 
 /// The suite's claims, one check per claim and engine, from the case summaries found in
@@ -250,80 +290,29 @@ pub fn evaluate_claims(
     dirs: &[PathBuf],
     partial: bool,
 ) -> (Vec<crate::compare::Check>, Vec<String>) {
-    use crate::case::AnyCase;
     use crate::compare::{Check, Gate, sweep};
     let (mut checks, mut notes) = (Vec::new(), Vec::new());
-    'claims: for c in &suite.claims {
-        let mut found = Vec::new();
-        let mut missing = Vec::new();
-        for p in &c.cases {
-            let case = match AnyCase::load(p) {
-                Ok(x) => x,
-                Err(e) => {
-                    checks.push(Check::error_in(&c.name, Gate::Claim, e.to_string()));
-                    continue 'claims;
+    for c in &suite.claims {
+        match gather(c, dirs) {
+            Err(e) => checks.push(Check::error_in(&c.name, Gate::Claim, e)),
+            Ok((found, missing)) if missing.is_empty() => {
+                notes.push(format!("claim {:?}: {}", c.name, c.source));
+                for engine in ["native", "liggghts"] {
+                    checks.push(sweep::evaluate(&c.name, &c.claim, &found, engine));
                 }
-            };
-            let hash = match &case {
-                AnyCase::Penetration(x) => {
-                    crate::case::ValidatedCase::canonical_hash(x).to_string()
-                }
-                _ => {
-                    checks.push(Check::error_in(
-                        &c.name,
-                        Gate::Claim,
-                        format!(
-                            "{}: claims across cases take penetration cases",
-                            p.display()
-                        ),
-                    ));
-                    continue 'claims;
-                }
-            };
-            let name = case.name().to_string();
-            match find_summary(dirs, &name) {
-                None => missing.push(name),
-                Some(d) => match sweep::CaseSummary::read(&d) {
-                    Ok(s) if s.canonical_hash == hash => found.push((name, s)),
-                    Ok(_) => {
-                        checks.push(Check::error_in(
-                            &c.name,
-                            Gate::Claim,
-                            format!(
-                                "{}: the summary is of another version of case {name} (canonical hash differs): re-run it",
-                                d.display()
-                            ),
-                        ));
-                        continue 'claims;
-                    }
-                    Err(e) => {
-                        checks.push(Check::error_in(&c.name, Gate::Claim, format!("{e:#}")));
-                        continue 'claims;
-                    }
-                },
             }
-        }
-        if !missing.is_empty() {
-            if partial && found.is_empty() {
-                notes.push(format!(
-                    "claim {:?}: none of its cases ran here; not evaluated",
-                    c.name
-                ));
-            } else {
-                checks.push(Check::not_compared(
-                    &c.name,
-                    Gate::Claim,
-                    format!(
-                        "no summary of case(s) {} (run them, or pass their output with --runs)",
-                        missing.join(", ")
-                    ),
-                ));
-            }
-            continue;
-        }
-        notes.push(format!("claim {:?}: {}", c.name, c.source));
-        for engine in ["native", "liggghts"] {
-            checks.push(sweep::evaluate(&c.name, &c.claim, &found, engine));
+            Ok((found, _)) if partial && found.is_empty() => notes.push(format!(
+                "claim {:?}: none of its cases ran here; not evaluated",
+                c.name
+            )),
+            Ok((_, missing)) => checks.push(Check::not_compared(
+                &c.name,
+                Gate::Claim,
+                format!(
+                    "no summary of case(s) {} (run them, or pass their output with --runs)",
+                    missing.join(", ")
+                ),
+            )),
         }
     }
     (checks, notes)
@@ -367,5 +356,70 @@ mod tests {
         write(d.path(), &HEAD.replace("\"release\"", "\"../x\""));
         let e = format!("{:#}", load(d.path(), "s").unwrap_err());
         assert!(e.contains("plain relative directory"), "{e}");
+    }
+
+    /// Claims read the cases' summaries: all present gives one check per engine; a
+    /// stale summary (another canonical hash) is an error; a missing one NOT COMPARED,
+    /// or only a note when a subset ran and none of the claim's cases was in it.
+    #[test]
+    fn claims_are_evaluated_from_current_summaries_only() {
+        use crate::case::AnyCase;
+        use crate::compare::Status;
+        use crate::compare::sweep::{CaseSummary, EngineSummary};
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+        let suite = load(&root, "release").unwrap();
+        let claim = suite
+            .claims
+            .iter()
+            .find(|c| c.name.contains("x10"))
+            .expect("the registered force-ratio claim");
+        let one = Suite {
+            claims: vec![claim.clone()],
+            ..suite.clone()
+        };
+        let d = tempfile::tempdir().unwrap();
+        let write = |p: &Path, hash: Option<&str>, p_level: f64| {
+            let AnyCase::Penetration(c) = AnyCase::load(p).unwrap() else {
+                panic!()
+            };
+            let h: Vec<f64> = (0..300).map(|i| i as f64 * 0.01).collect();
+            let e = EngineSummary {
+                k_phi: p_level,
+                k_phi_se_regression: 0.1,
+                k_phi_beds: vec![p_level; 3],
+                p: h.iter().map(|x| p_level * x).collect(),
+                h,
+                psi: 0.6,
+            };
+            let s = CaseSummary {
+                case: c.name.clone(),
+                canonical_hash: hash.map_or(c.canonical_hash().to_string(), str::to_string),
+                engines: [
+                    ("native".to_string(), e.clone()),
+                    ("liggghts".to_string(), e),
+                ]
+                .into(),
+            };
+            let dir = d.path().join(&c.name);
+            std::fs::create_dir_all(&dir).unwrap();
+            s.write(&dir).unwrap();
+        };
+        let dirs = vec![d.path().to_path_buf()];
+        let (checks, notes) = evaluate_claims(&one, &dirs, true);
+        assert!(
+            checks.is_empty() && notes.len() == 1,
+            "{checks:?} {notes:?}"
+        );
+        write(&claim.cases[0], None, 1.0);
+        let (checks, _) = evaluate_claims(&one, &dirs, true);
+        assert_eq!(checks.len(), 1);
+        assert_eq!(checks[0].status, Status::NotCompared);
+        write(&claim.cases[1], None, 12.0);
+        let (checks, _) = evaluate_claims(&one, &dirs, false);
+        assert_eq!(checks.len(), 2, "native and liggghts");
+        assert!(checks.iter().all(|c| c.passed), "{checks:?}");
+        write(&claim.cases[1], Some("stale"), 12.0);
+        let (checks, _) = evaluate_claims(&one, &dirs, false);
+        assert_eq!(checks[0].status, Status::Error, "{checks:?}");
     }
 }
