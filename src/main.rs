@@ -78,6 +78,11 @@ enum Cmd {
         /// (repeatable); this run's own outputs come first.
         #[arg(long)]
         runs: Vec<PathBuf>,
+        /// Run no case: evaluate the suite's claims across cases from the summaries in
+        /// `--runs` (cases run separately, or on a cluster and brought back with
+        /// `analyze`). A claim none of whose cases is there is left out with a note.
+        #[arg(long, requires = "runs", conflicts_with = "only")]
+        claims_only: bool,
         #[command(flatten)]
         common: Common,
     },
@@ -352,11 +357,14 @@ fn real_main() -> Result<ExitCode> {
             cases,
             only,
             runs,
+            claims_only,
             common,
         } => {
             let s = suite::load(&cases, &suite)?;
             let mut entries = s.cases.clone();
-            if !only.is_empty() {
+            if claims_only {
+                entries.clear();
+            } else if !only.is_empty() {
                 for o in &only {
                     if !entries.iter().any(|e| &e.path == o) {
                         bail!("--only {}: not a case of suite {suite}", o.display());
@@ -384,7 +392,8 @@ fn real_main() -> Result<ExitCode> {
             }
             let mut dirs = vec![report.clone()];
             dirs.extend(runs);
-            let (claim_checks, claim_notes) = suite::evaluate_claims(&s, &dirs, !only.is_empty());
+            let (claim_checks, claim_notes) =
+                suite::evaluate_claims(&s, &dirs, claims_only || !only.is_empty());
             outcomes.push(CaseOutcome {
                 checks: claim_checks,
                 run: None,

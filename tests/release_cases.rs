@@ -169,7 +169,12 @@ fn kondic_fig9_case_sweeps_five_gravities_with_two_claims() {
 fn fig3b_sweep_differs_only_in_mu_gg_and_carries_its_claims() {
     let cases = common::root().join("cases");
     let s = granval::experiments::suite::load(&cases, "release").unwrap();
-    let names: Vec<&str> = s.claims.iter().map(|c| c.name.as_str()).collect();
+    let names: Vec<&str> = s
+        .claims
+        .iter()
+        .map(|c| c.name.as_str())
+        .filter(|n| n.starts_with("Feng Fig 3(b)"))
+        .collect();
     assert_eq!(names.len(), 3, "{names:?}");
     let pts: Vec<PenetrationCase> = ["0", "0.5", "1.1", "1.5"]
         .iter()
@@ -187,4 +192,72 @@ fn fig3b_sweep_differs_only_in_mu_gg_and_carries_its_claims() {
         assert!(!c.negative_controls.is_empty());
     }
     assert_eq!(s.claims[0].cases.len(), 4);
+}
+
+/// `[[penetration_interactions]]`: the bed is prepared with `[[interactions]]` (the
+/// settling case is the case without the override, down to its canonical hash, so both
+/// penetrate the very same beds), the penetration uses the override, and a bad override
+/// names its own field.
+#[test]
+fn penetration_interactions_change_the_intrusion_not_the_bed() {
+    let base =
+        std::fs::read_to_string(common::root().join("cases/release/feng-fig3b-mugg-0.5.toml"))
+            .unwrap();
+    let over = |e: &str| {
+        format!(
+            "{base}\n[[penetration_interactions]]\ntypes = [1, 1]\nrestitution = {e}\nfriction = 0.5\nrolling_friction = 0.01\n"
+        )
+    };
+    let p = std::path::Path::new("x.toml");
+    let plain = PenetrationCase::from_toml_str(&base, p).unwrap();
+    let c = PenetrationCase::from_toml_str(&over("0.5"), p).unwrap();
+    let ix = c.pairs.idx(0, 0);
+    assert_eq!(c.pairs.restitution[ix], 0.5);
+    assert_eq!(plain.pairs.restitution[ix], 0.8);
+    assert_eq!(
+        c.pairs.restitution[c.pairs.idx(0, 1)],
+        0.8,
+        "other pairs kept"
+    );
+    assert_ne!(c.canonical_hash(), plain.canonical_hash());
+    assert_eq!(c.settling_case().canonical_hash(), plain.canonical_hash());
+    let e = PenetrationCase::from_toml_str(&over("1.5"), p).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("penetration_interactions[0].restitution"),
+        "{e}"
+    );
+    let twice = format!(
+        "{}\n[[penetration_interactions]]\ntypes = [1, 1]\nrestitution = 0.6\nfriction = 0.5\nrolling_friction = 0.01\n",
+        over("0.5")
+    );
+    let e = PenetrationCase::from_toml_str(&twice, p).unwrap_err();
+    assert!(e.to_string().contains("defined twice"), "{e}");
+    // One LIGGGHTS deck cannot settle with one table and penetrate with another.
+    assert!(granval::experiments::penetration::bed::liggghts_settle_deck(&c).is_err());
+}
+
+/// Feng et al. Table 3 as registered: the two slower points are the 2 cm/s point
+/// (feng-fig3b-mugg-0.5) with only the speed changed, so all three penetrate the same
+/// beds; the claim of no effect carries its tolerance and a control.
+#[test]
+fn table3_speed_points_differ_only_in_speed() {
+    use granval::compare::sweep::SweepClaim;
+    let at2 = penetration("cases/release/feng-fig3b-mugg-0.5.toml");
+    for (v, speed) in [("0.5", 0.005), ("1", 0.01)] {
+        let c = penetration(&format!("cases/release/feng-table3-speed-{v}.toml"));
+        assert_eq!(c.speed, speed);
+        let mut same = c.clone();
+        same.speed = at2.speed;
+        assert_eq!(same.canonical_hash(), at2.canonical_hash(), "{v} cm/s");
+    }
+    let s = granval::experiments::suite::load(&common::root().join("cases"), "release").unwrap();
+    let claim = s
+        .claims
+        .iter()
+        .find(|c| c.name.starts_with("Feng Table 3"))
+        .expect("the speed claim");
+    assert!(matches!(claim.claim, SweepClaim::Independent { max_rel, .. } if max_rel == 0.10));
+    assert_eq!(claim.cases.len(), 3);
+    assert_eq!(claim.controls.len(), 1);
 }

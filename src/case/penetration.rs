@@ -3,7 +3,7 @@
 //! Fig 1). Parsed and validated once; all SI.
 
 use super::error::{CaseError, Ctx};
-use super::validate::{finite, physics, positive};
+use super::validate::{finite, override_pairs, physics, positive};
 use super::{Gate, Material, NegativeControl, PairTable, RollingModel, schema};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -16,6 +16,11 @@ struct File {
     models: schema::Models,
     materials: Vec<schema::Material>,
     interactions: Vec<schema::Interaction>,
+    /// Pair values the intruder penetrates with, where they differ from those the bed
+    /// was poured and settled with (Feng et al. Sec. 3 sweep one parameter at a fixed
+    /// packing; here the packing is the very same bed).
+    #[serde(default)]
+    penetration_interactions: Vec<schema::Interaction>,
     container: Container,
     bed: Bed,
     preparation: Preparation,
@@ -379,7 +384,11 @@ pub struct PenetrationCase {
     pub neighbor_skin: f64,
     pub rolling: RollingModel,
     pub materials: Vec<Material>,
+    /// The pairs of the penetration (both engines).
     pub pairs: PairTable,
+    /// The pairs the bed is prepared with, when `[[penetration_interactions]]` makes the
+    /// penetration's differ; `None`: the same as `pairs`.
+    pub settle_pairs: Option<PairTable>,
     pub container_radius: f64,
     pub container_height: f64,
     /// 0-based material types.
@@ -448,7 +457,7 @@ impl PenetrationCase {
     /// intruder protocol, not the name, description, analysis ranges, tolerances,
     /// published values or controls. A recorded reference is sealed to its sha256.
     pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
-        let view = serde_json::json!({
+        let mut view = serde_json::json!({
             "kind": "penetration",
             "dt": self.dt,
             "gravity": self.gravity,
@@ -462,7 +471,24 @@ impl PenetrationCase {
             "intruder": [self.intruder_type, self.intruder_radius, self.intruder_length, self.speed, self.start_gap, self.final_depth, self.force_every as f64, self.stl_rim_error],
             "beds": self.ensemble_beds,
         });
+        // Only when present, so the hashes (and seals) of cases without it are unchanged.
+        if let (Some(p), Some(o)) = (&self.settle_pairs, view.as_object_mut()) {
+            o.insert("settle_pairs".into(), serde_json::json!(p));
+        }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
+    }
+
+    /// The case the bed is prepared with: the pairs of `[[interactions]]`, without the
+    /// penetration's own.
+    pub fn settling_case(&self) -> PenetrationCase {
+        match &self.settle_pairs {
+            Some(p) => PenetrationCase {
+                pairs: p.clone(),
+                settle_pairs: None,
+                ..self.clone()
+            },
+            None => self.clone(),
+        }
     }
 
     /// Bed `k` of the ensemble: the same case with seed `seed + k`.
@@ -494,9 +520,20 @@ impl PenetrationCase {
             ));
         }
         super::validate::case_name(&ctx, &raw.case.name)?;
-        let (rolling, materials, pairs) =
+        let (rolling, materials, bed_pairs) =
             physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
         let n_types = materials.len();
+        let (pairs, settle_pairs) = if raw.penetration_interactions.is_empty() {
+            (bed_pairs, None)
+        } else {
+            let p = override_pairs(
+                &ctx,
+                &bed_pairs,
+                &raw.penetration_interactions,
+                "penetration_interactions",
+            )?;
+            (p, Some(bed_pairs))
+        };
         let ty = |field: &str, t: usize| -> Result<usize, CaseError> {
             if t < 1 || t > n_types {
                 Err(ctx.bad(
@@ -831,6 +868,7 @@ impl PenetrationCase {
             rolling,
             materials,
             pairs,
+            settle_pairs,
             container_radius,
             container_height,
             wall_type,

@@ -155,37 +155,13 @@ pub(super) fn physics(
         rolling_friction: vec![f64::NAN; nn],
     };
     for (k, it) in raw.interactions.iter().enumerate() {
-        let f = |name: &str| format!("interactions[{k}].{name}");
-        let [a, b] = it.types;
-        if a < 1 || a > n_types || b < 1 || b > n_types {
-            return Err(ctx.bad(
-                f("types"),
-                it.types,
-                format!("types must be in 1..={n_types}"),
-            ));
-        }
-        let (a, b) = (a - 1, b - 1);
-        if !pairs.restitution[pairs.idx(a, b)].is_nan() {
-            return Err(ctx.bad(f("types"), it.types, "pair defined twice"));
-        }
-        let e = finite(ctx, &f("restitution"), it.restitution)?;
-        if !(e > 0.0 && e <= 1.0) {
-            return Err(ctx.bad(f("restitution"), e, "must lie in (0, 1]"));
-        }
-        let mu = finite(ctx, &f("friction"), it.friction)?;
-        if mu < 0.0 {
-            return Err(ctx.bad(f("friction"), mu, "must be >= 0"));
-        }
-        let mur = finite(ctx, &f("rolling_friction"), it.rolling_friction)?;
-        if mur < 0.0 {
-            return Err(ctx.bad(f("rolling_friction"), mur, "must be >= 0"));
-        }
-        for (i, j) in [(a, b), (b, a)] {
-            let ix = pairs.idx(i, j);
-            pairs.restitution[ix] = e;
-            pairs.friction[ix] = mu;
-            pairs.rolling_friction[ix] = mur;
-        }
+        set_pair(
+            ctx,
+            &format!("interactions[{k}]"),
+            it,
+            &mut pairs,
+            |p, a, b| !p.restitution[p.idx(a, b)].is_nan(),
+        )?;
     }
     for a in 0..n_types {
         for b in a..n_types {
@@ -200,6 +176,71 @@ pub(super) fn physics(
     }
 
     Ok((rolling, materials, pairs))
+}
+
+/// Validates one `[[interactions]]`-shaped entry (`field` names it in errors) and writes
+/// it into `pairs` for both orders; `taken(pairs, a, b)` says whether the pair was
+/// already given in this list.
+fn set_pair(
+    ctx: &Ctx,
+    field: &str,
+    it: &schema::Interaction,
+    pairs: &mut PairTable,
+    taken: impl Fn(&PairTable, usize, usize) -> bool,
+) -> Result<(), CaseError> {
+    let n_types = pairs.n_types;
+    let f = |name: &str| format!("{field}.{name}");
+    let [a, b] = it.types;
+    if a < 1 || a > n_types || b < 1 || b > n_types {
+        return Err(ctx.bad(
+            f("types"),
+            it.types,
+            format!("types must be in 1..={n_types}"),
+        ));
+    }
+    let (a, b) = (a - 1, b - 1);
+    if taken(pairs, a, b) {
+        return Err(ctx.bad(f("types"), it.types, "pair defined twice"));
+    }
+    let e = finite(ctx, &f("restitution"), it.restitution)?;
+    if !(e > 0.0 && e <= 1.0) {
+        return Err(ctx.bad(f("restitution"), e, "must lie in (0, 1]"));
+    }
+    let mu = finite(ctx, &f("friction"), it.friction)?;
+    if mu < 0.0 {
+        return Err(ctx.bad(f("friction"), mu, "must be >= 0"));
+    }
+    let mur = finite(ctx, &f("rolling_friction"), it.rolling_friction)?;
+    if mur < 0.0 {
+        return Err(ctx.bad(f("rolling_friction"), mur, "must be >= 0"));
+    }
+    for (i, j) in [(a, b), (b, a)] {
+        let ix = pairs.idx(i, j);
+        pairs.restitution[ix] = e;
+        pairs.friction[ix] = mu;
+        pairs.rolling_friction[ix] = mur;
+    }
+    Ok(())
+}
+
+/// `base` with the pairs of `overrides` (entries `field[k]`, each a complete
+/// `[[interactions]]` entry) replaced; each pair at most once.
+pub(super) fn override_pairs(
+    ctx: &Ctx,
+    base: &PairTable,
+    overrides: &[schema::Interaction],
+    field: &str,
+) -> Result<PairTable, CaseError> {
+    let mut pairs = base.clone();
+    let mut given = Vec::new();
+    for (k, it) in overrides.iter().enumerate() {
+        set_pair(ctx, &format!("{field}[{k}]"), it, &mut pairs, |p, a, b| {
+            given.contains(&p.idx(a.min(b), a.max(b)))
+        })?;
+        let [a, b] = it.types;
+        given.push(pairs.idx((a.min(b)) - 1, a.max(b) - 1));
+    }
+    Ok(pairs)
 }
 
 /// Borrowed view so the shared validation reads like the original field accesses.

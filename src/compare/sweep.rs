@@ -70,6 +70,11 @@ impl EngineSummary {
 pub struct CaseSummary {
     pub case: String,
     pub canonical_hash: String,
+    /// sha256 of each bed, in bed order: cases whose lists are equal penetrated the same
+    /// beds, and a claim may pair their per-bed K_phi (empty in summaries written before
+    /// beds were recorded here).
+    #[serde(default)]
+    pub bed_hashes: Vec<String>,
     pub engines: BTreeMap<String, EngineSummary>,
 }
 
@@ -118,6 +123,73 @@ pub enum SweepClaim {
         #[serde(default)]
         at_h: Option<f64>,
     },
+    /// No effect ("K_phi = 23.00 +- 0.15 for all three cases"): the largest ratio
+    /// between two cases, K_max / K_min - 1, is at most `max_rel`. Decided as
+    /// [`Check::at_most_resolved`] with the standard error of that ratio (paired over
+    /// the beds when both cases penetrated the same ones), so data too noisy to see an
+    /// effect of `max_rel` give NOT COMPARED, never a pass. K_phi only: the summaries
+    /// carry no per-bed force.
+    Independent { quantity: Quantity, max_rel: f64 },
+}
+
+impl SweepClaim {
+    /// What a claim needs beyond its shape, checked when the suite is read.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        let positive = |what: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("{what} = {v}: must be a positive number"))
+            }
+        };
+        match self {
+            SweepClaim::Increasing {
+                quantity,
+                min_step_se,
+                at_h,
+            } => {
+                if !(min_step_se.is_finite() && *min_step_se >= 0.0) {
+                    return Err(format!("min_step_se = {min_step_se}: must be >= 0"));
+                }
+                needs_depth(*quantity, *at_h)
+            }
+            SweepClaim::RatioAtLeast {
+                quantity,
+                ratio,
+                at_h,
+            } => {
+                positive("ratio", *ratio)?;
+                needs_depth(*quantity, *at_h)
+            }
+            SweepClaim::Independent { quantity, max_rel } => {
+                positive("max_rel", *max_rel)?;
+                if *quantity != Quantity::KPhi {
+                    return Err(format!(
+                        "kind = \"independent\" takes quantity = \"k_phi\" (its standard error needs per-bed values), not {quantity:?}"
+                    ));
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn quantity(&self) -> (Quantity, Option<f64>) {
+        match self {
+            SweepClaim::Increasing { quantity, at_h, .. }
+            | SweepClaim::RatioAtLeast { quantity, at_h, .. } => (*quantity, *at_h),
+            SweepClaim::Independent { quantity, .. } => (*quantity, None),
+        }
+    }
+}
+
+fn needs_depth(q: Quantity, at_h: Option<f64>) -> std::result::Result<(), String> {
+    match (q, at_h) {
+        (Quantity::P, None) => Err("quantity = \"p\" needs `at_h` (the depth, in R)".into()),
+        (Quantity::P, Some(h)) if !(h.is_finite() && h > 0.0) => {
+            Err(format!("at_h = {h}: must be a positive depth in R"))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Half-width of the depth window of [`Quantity::P`], in R.
@@ -158,18 +230,15 @@ pub fn evaluate(
                 format!("case {l} has no {engine} run in its summary"),
             );
         };
-        let (q, at_h) = match claim {
-            SweepClaim::Increasing { quantity, at_h, .. }
-            | SweepClaim::RatioAtLeast { quantity, at_h, .. } => (*quantity, *at_h),
-        };
+        let (q, at_h) = claim.quantity();
         match value(q, at_h, e) {
-            Ok(v) => pts.push((l.clone(), v)),
+            Ok(v) => pts.push((l.clone(), v, e, &s.bed_hashes)),
             Err(err) => return Check::error_in(title, Gate::Claim, format!("{l}: {err:#}")),
         }
     }
     let listing = |q: Quantity| {
         pts.iter()
-            .map(|(l, (v, se))| {
+            .map(|(l, (v, se), ..)| {
                 if q == Quantity::KPhi {
                     format!("{l}: {v:.3} +- {se:.3}")
                 } else {
@@ -188,30 +257,32 @@ pub fn evaluate(
             if pts.len() < 2 {
                 return Check::not_compared(title, Gate::Claim, "a trend needs at least 2 cases");
             }
-            // Largest shortfall of a step below its required rise: <= 0 iff every step
-            // rises by at least min_step_se combined standard errors.
-            let worst = pts
+            // Smallest margin of a step over its required rise: > 0 iff every step
+            // rises, and by more than min_step_se combined standard errors ("rises" is
+            // strict: equal values are no rise).
+            let margin = pts
                 .windows(2)
                 .map(|w| {
                     let ((a, sa), (b, sb)) = (w[0].1, w[1].1);
-                    min_step_se * sa.hypot(sb) - (b - a)
+                    (b - a) - min_step_se * sa.hypot(sb)
                 })
-                .fold(f64::NEG_INFINITY, f64::max);
-            Check::at_most(
-                title,
-                Gate::Claim,
-                format!(
-                    "max_k ({min_step_se} x SE_k,k+1 - ({q}_k+1 - {q}_k))",
-                    q = label(*quantity, *at_h)
-                ),
-                worst,
-                0.0,
-                format!(
-                    "{} along the cases: {}",
-                    label(*quantity, *at_h),
-                    listing(*quantity)
-                ),
-            )
+                .fold(f64::INFINITY, f64::min);
+            let detail = format!(
+                "{} along the cases: {}",
+                label(*quantity, *at_h),
+                listing(*quantity)
+            );
+            let q = label(*quantity, *at_h);
+            let metric = if *min_step_se > 0.0 {
+                format!("min_k (({q}_k+1 - {q}_k) - {min_step_se} x SE_k,k+1), must be > 0")
+            } else {
+                format!("min_k ({q}_k+1 - {q}_k), must be > 0")
+            };
+            if margin > 0.0 {
+                Check::at_least(title, Gate::Claim, metric, margin, 0.0, detail)
+            } else {
+                Check::failed(title, Gate::Claim, metric, margin, detail)
+            }
         }
         SweepClaim::RatioAtLeast {
             quantity,
@@ -235,6 +306,121 @@ pub fn evaluate(
                 ),
             )
         }
+        SweepClaim::Independent { quantity, max_rel } => {
+            let by = |f: fn(f64, f64) -> bool| {
+                pts.iter()
+                    .reduce(|a, b| if f(b.1.0, a.1.0) { b } else { a })
+            };
+            let (Some(hi), Some(lo)) = (by(|b, a| b > a), by(|b, a| b < a)) else {
+                return Check::not_compared(title, Gate::Claim, "no cases");
+            };
+            let spread = hi.1.0 / lo.1.0 - 1.0;
+            let (se, how) = ratio_se(hi, lo);
+            Check::at_most_resolved(
+                title,
+                Gate::Claim,
+                format!("{q}_max / {q}_min - 1", q = label(*quantity, None)),
+                spread,
+                se,
+                *max_rel,
+                format!(
+                    "largest ratio {} / {} = {:.4} (standard error {se:.4}, {how}); {} along the cases: {}",
+                    hi.0,
+                    lo.0,
+                    hi.1.0 / lo.1.0,
+                    label(*quantity, None),
+                    listing(*quantity)
+                ),
+                format!(
+                    "the ratio's standard error {se:.4} exceeds half the tolerance {max_rel}: these beds cannot resolve an effect of that size"
+                ),
+            )
+        }
+    }
+}
+
+/// A claim's negative control (`[[claim.negative_control]]` of a suite): the claim
+/// evaluated on the native runs with wrong physics must fail.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "snake_case")]
+pub enum ClaimControl {
+    /// Every case replaced by the first: what the native engine gives when the swept
+    /// parameter is ignored. Equal to running every case with the first case's
+    /// parameters, because the cases share their seeds and bed count (checked when the
+    /// suite is read) and the native engine is deterministic. For claims of an effect.
+    SweepIgnored { name: String },
+    /// `case` replaced by its own negative control `control` (the native engine with
+    /// wrong physics on the same beds). For claims of no effect.
+    CaseControl {
+        name: String,
+        case: String,
+        control: String,
+    },
+}
+
+impl ClaimControl {
+    pub fn name(&self) -> &str {
+        match self {
+            ClaimControl::SweepIgnored { name } | ClaimControl::CaseControl { name, .. } => name,
+        }
+    }
+}
+
+/// The check of one claim control from the claim's evaluation on the substituted native
+/// runs: it bites only when that evaluation fails (an error or NOT COMPARED is not a
+/// bite).
+pub fn control_check(claim: &str, control: &ClaimControl, substituted: &Check) -> Check {
+    let label = format!("{claim}: negative control \"{}\"", control.name());
+    let detail = format!(
+        "{control:?}; the claim on the substituted native runs: {:?}, {} = {:.4} ({})",
+        substituted.status, substituted.metric, substituted.value, substituted.detail
+    );
+    if substituted.status == super::Status::Fail {
+        Check::at_most(
+            label,
+            Gate::NegativeControl,
+            "claims that did not fail",
+            0.0,
+            0.0,
+            detail,
+        )
+    } else {
+        Check::failed(
+            label,
+            Gate::NegativeControl,
+            "the claim did not fail on wrong physics",
+            1.0,
+            format!("the control did not bite: {detail}"),
+        )
+    }
+}
+
+/// One case's point of a claim: label, (value, standard error), its engine summary and
+/// the case's bed hashes.
+type Point<'a> = (String, (f64, f64), &'a EngineSummary, &'a Vec<String>);
+
+/// Standard error of K_hi / K_lo and how it was obtained: from the per-bed ratios when
+/// both cases penetrated the same beds (the bed-to-bed scatter cancels in the pair),
+/// else propagated from each case's own standard error.
+fn ratio_se(hi: &Point, lo: &Point) -> (f64, &'static str) {
+    let (a, b) = (hi.2, lo.2);
+    let n = a.k_phi_beds.len();
+    if n >= 2 && !hi.3.is_empty() && hi.3 == lo.3 && b.k_phi_beds.len() == n {
+        let r: Vec<f64> = a
+            .k_phi_beds
+            .iter()
+            .zip(&b.k_phi_beds)
+            .map(|(x, y)| x / y)
+            .collect();
+        let m = r.iter().sum::<f64>() / n as f64;
+        let var = r.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64;
+        ((var / n as f64).sqrt(), "paired over the shared beds")
+    } else {
+        let (ka, kb) = (hi.1.0, lo.1.0);
+        (
+            ka / kb * (hi.1.1 / ka).hypot(lo.1.1 / kb),
+            "the cases' standard errors combined (beds not shared)",
+        )
     }
 }
 
@@ -256,6 +442,7 @@ mod tests {
         CaseSummary {
             case: "c".into(),
             canonical_hash: "x".into(),
+            bed_hashes: vec!["b0".into(), "b1".into(), "b2".into()],
             engines: [("native".to_string(), e)].into(),
         }
     }
@@ -298,8 +485,62 @@ mod tests {
             summary(20.0, &[20.0; 3], 1.0),
         ]);
         assert!(!evaluate("k", &claim, &falling, "native").passed);
+        // "Rises" is strict: equal points are no rise, even without a required step.
+        let flat = SweepClaim::Increasing {
+            quantity: Quantity::P,
+            min_step_se: 0.0,
+            at_h: Some(2.0),
+        };
+        let same = cases(vec![summary(3.0, &[3.0], 5.0), summary(3.0, &[3.0], 5.0)]);
+        assert!(!evaluate("p", &flat, &same, "native").passed);
         let missing = evaluate("k", &claim, &ok, "liggghts");
         assert_eq!(missing.status, crate::compare::Status::NotCompared);
+    }
+
+    /// No effect: decided when the paired ratio is resolved, a resolved effect fails,
+    /// and scatter too large to see the tolerance is NOT COMPARED, never a pass.
+    #[test]
+    fn independent_pairs_shared_beds_and_never_passes_unresolved() {
+        use crate::compare::Status;
+        let claim = SweepClaim::Independent {
+            quantity: Quantity::KPhi,
+            max_rel: 0.10,
+        };
+        // Large bed-to-bed scatter, but each bed moves by the same 4 %: paired, resolved.
+        let a = summary(30.0, &[25.0, 30.0, 35.0], 1.0);
+        let b = summary(31.2, &[26.0, 31.2, 36.4], 1.0);
+        let k = evaluate("v", &claim, &cases(vec![a.clone(), b.clone()]), "native");
+        assert_eq!(k.status, Status::Pass, "{k:?}");
+        assert!((k.value - 0.04).abs() < 1e-12);
+        // The same numbers on different beds: the scatter cannot resolve 10 %.
+        let mut other = b.clone();
+        other.bed_hashes = vec!["c0".into(), "c1".into(), "c2".into()];
+        let k = evaluate("v", &claim, &cases(vec![a.clone(), other]), "native");
+        assert_eq!(k.status, Status::NotCompared, "{k:?}");
+        // A 30 % effect on the same beds fails.
+        let c = summary(39.0, &[32.5, 39.0, 45.5], 1.0);
+        let k = evaluate("v", &claim, &cases(vec![a, b, c]), "native");
+        assert_eq!(k.status, Status::Fail, "{k:?}");
+        assert!(
+            SweepClaim::Independent {
+                quantity: Quantity::P,
+                max_rel: 0.1
+            }
+            .validate()
+            .is_err()
+        );
+    }
+
+    /// A claim control bites only when the substituted claim fails.
+    #[test]
+    fn a_claim_control_bites_only_on_a_failure() {
+        let c = ClaimControl::SweepIgnored { name: "x".into() };
+        let fail = Check::failed("k", Gate::Claim, "m", -1.0, "");
+        assert!(control_check("k", &c, &fail).passed);
+        let pass = Check::at_most("k", Gate::Claim, "m", 0.0, 1.0, "");
+        assert!(!control_check("k", &c, &pass).passed);
+        let nc = Check::not_compared("k", Gate::Claim, "why");
+        assert!(!control_check("k", &c, &nc).passed);
     }
 
     #[test]

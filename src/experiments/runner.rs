@@ -396,7 +396,7 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         engine,
         &fingerprints,
     );
-    let fresh = root.with_extension("recording");
+    let fresh = recording_dir(&root);
     if fresh.exists() {
         std::fs::remove_dir_all(&fresh)
             .with_context(|| format!("cannot clear {}", fresh.display()))?;
@@ -447,6 +447,15 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         root.join(reference::SEAL_FILE).display()
     ));
     Ok(lines)
+}
+
+/// Where a record is written before it replaces `root`: beside it, the whole name kept
+/// (`Path::with_extension` would cut "feng-fig3b-mugg-1.1" and "-1.5" to the same
+/// "feng-fig3b-mugg-1.recording").
+fn recording_dir(root: &Path) -> PathBuf {
+    let mut name = root.file_name().unwrap_or_default().to_os_string();
+    name.push(".recording");
+    root.with_file_name(name)
 }
 
 fn first_line(s: &str) -> &str {
@@ -537,4 +546,18 @@ fn deck_readme<E: Experiment>(exp: &E, units: &[String], np: usize) -> String {
          aside: edit the case, not the deck), runs granval's native engine on the same \
          input and writes the same report as `granval compare case.toml --report OUT`.\n";
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Cases whose names differ after a dot record into different directories.
+    #[test]
+    fn recording_dirs_keep_the_whole_case_name() {
+        let a = recording_dir(Path::new("r/penetration/feng-fig3b-mugg-1.1"));
+        let b = recording_dir(Path::new("r/penetration/feng-fig3b-mugg-1.5"));
+        assert_eq!(a, Path::new("r/penetration/feng-fig3b-mugg-1.1.recording"));
+        assert_ne!(a, b);
+    }
 }

@@ -14,9 +14,12 @@
 //! name = "K_phi rises with mu_gg"
 //! source = "Feng et al. Sec. 3 (b): ..."
 //! cases = ["release/a.toml", "release/b.toml"]   # in order along the claim
-//! kind = "increasing"          # or ratio_at_least (compare::sweep::SweepClaim)
+//! kind = "increasing"          # or ratio_at_least, independent (compare::sweep::SweepClaim)
 //! quantity = "k_phi"
 //! min_step_se = 2.0
+//! [[claim.negative_control]]   # the claim on wrong native physics must fail
+//! name = "mu_gg ignored"
+//! kind = "sweep_ignored"       # or case_control (compare::sweep::ClaimControl)
 //! ```
 
 use anyhow::{Context, Result, bail, ensure};
@@ -43,6 +46,8 @@ struct ClaimEntry {
     /// Paper, figure/table and the sentence the claim stands for.
     source: String,
     cases: Vec<String>,
+    #[serde(default, rename = "negative_control")]
+    controls: Vec<crate::compare::sweep::ClaimControl>,
     #[serde(flatten)]
     claim: crate::compare::sweep::SweepClaim,
 }
@@ -55,6 +60,22 @@ pub struct SuiteClaim {
     /// Case files, in the claim's order; every one is a case of the suite.
     pub cases: Vec<PathBuf>,
     pub claim: crate::compare::sweep::SweepClaim,
+    pub controls: Vec<ClaimControl>,
+}
+
+/// A claim's negative control with what it substitutes, resolved when the suite is read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClaimControl {
+    pub control: crate::compare::sweep::ClaimControl,
+    substitute: Substitute,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Substitute {
+    /// Every case's summary by the first case's.
+    First,
+    /// Case `case`'s summary by its control run's, `<case output>/<dir>/summary.json`.
+    Control { case: usize, dir: String },
 }
 
 #[derive(Debug, Deserialize)]
@@ -213,11 +234,23 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
             );
             files.push(p);
         }
+        let at = |what: String| format!("{}: claim[{k}] ({:?}): {what}", path.display(), c.name);
+        c.claim.validate().map_err(|e| anyhow::anyhow!(at(e)))?;
+        let mut controls = Vec::new();
+        for (j, control) in c.controls.iter().enumerate() {
+            let substitute = resolve_control(control, &c.cases, &files)
+                .map_err(|e| anyhow::anyhow!(at(format!("negative_control[{j}]: {e}"))))?;
+            controls.push(ClaimControl {
+                control: control.clone(),
+                substitute,
+            });
+        }
         claims.push(SuiteClaim {
             name: c.name,
             source: c.source,
             cases: files,
             claim: c.claim,
+            controls,
         });
     }
     Ok(Suite {
@@ -227,6 +260,62 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         claims,
         reference,
     })
+}
+
+fn penetration_case(p: &Path) -> Result<crate::case::penetration::PenetrationCase, String> {
+    match crate::case::AnyCase::load(p).map_err(|e| format!("{e:#}"))? {
+        crate::case::AnyCase::Penetration(c) => Ok(c),
+        _ => Err(format!(
+            "{}: claims across cases take penetration cases",
+            p.display()
+        )),
+    }
+}
+
+/// What a claim control substitutes, checked against the claim's case files: a sweep
+/// may be ignored only among cases on the same seeds and bed count; a case control
+/// names a case of the claim and one of that case's own negative controls.
+fn resolve_control(
+    control: &crate::compare::sweep::ClaimControl,
+    rels: &[String],
+    files: &[PathBuf],
+) -> Result<Substitute, String> {
+    use crate::compare::sweep::ClaimControl as C;
+    match control {
+        C::SweepIgnored { .. } => {
+            let first = penetration_case(&files[0])?;
+            for (rel, f) in rels.iter().zip(files).skip(1) {
+                let c = penetration_case(f)?;
+                if (c.seed, c.ensemble_beds) != (first.seed, first.ensemble_beds) {
+                    return Err(format!(
+                        "kind = \"sweep_ignored\" stands for re-running every case with the first one's parameters, which needs the same beds: {rel} has seed {} and {} bed(s), {} has seed {} and {}",
+                        c.seed, c.ensemble_beds, rels[0], first.seed, first.ensemble_beds
+                    ));
+                }
+            }
+            Ok(Substitute::First)
+        }
+        C::CaseControl { case, control, .. } => {
+            let i = rels.iter().position(|r| r == case).ok_or_else(|| {
+                format!("case = {case:?} is not one of the claim's cases {rels:?}")
+            })?;
+            let c = penetration_case(&files[i])?;
+            let k = c
+                .negative_controls
+                .iter()
+                .position(|n| n.name == *control)
+                .ok_or_else(|| {
+                    format!(
+                        "control = {control:?}: {case} has no negative control of that name (it has {:?})",
+                        c.negative_controls.iter().map(|n| &n.name).collect::<Vec<_>>()
+                    )
+                })?;
+            Ok(Substitute::Control {
+                case: i,
+                dir: format!("control-{k}"),
+            })
+        }
+    }
 }
 
 /// The summary of the case `name` in one of `dirs` (`DIR/<name>/summary.json`, as
@@ -246,30 +335,23 @@ fn find_summary(
     })
 }
 
-/// The summaries of a claim's cases found in `dirs` (in the claim's order) and the names
-/// of the cases without one; `Err` when a case cannot take part or its summary is of
-/// another version of the case (canonical hash).
+/// The summaries of a claim's cases found in `dirs` (in the claim's order, with the
+/// directory each came from) and the names of the cases without one; `Err` when a case
+/// cannot take part or its summary is of another version of the case (canonical hash).
 type Gathered = (
-    Vec<(String, crate::compare::sweep::CaseSummary)>,
+    Vec<(String, PathBuf, crate::compare::sweep::CaseSummary)>,
     Vec<String>,
 );
 
 fn gather(claim: &SuiteClaim, dirs: &[PathBuf]) -> Result<Gathered, String> {
-    use crate::case::AnyCase;
     let (mut found, mut missing) = (Vec::new(), Vec::new());
     for p in &claim.cases {
-        let case = AnyCase::load(p).map_err(|e| e.to_string())?;
-        let AnyCase::Penetration(pc) = &case else {
-            return Err(format!(
-                "{}: claims across cases take penetration cases",
-                p.display()
-            ));
-        };
-        let hash = crate::case::ValidatedCase::canonical_hash(pc).to_string();
-        let name = case.name().to_string();
+        let pc = penetration_case(p)?;
+        let hash = crate::case::ValidatedCase::canonical_hash(&pc).to_string();
+        let name = pc.name.clone();
         match find_summary(dirs, &name) {
             None => missing.push(name),
-            Some((_, s)) if s.canonical_hash == hash => found.push((name, s)),
+            Some((d, s)) if s.canonical_hash == hash => found.push((name, d, s)),
             Some((d, _)) => {
                 return Err(format!(
                     "{}: the summary is of another version of case {name} (canonical hash differs): re-run it",
@@ -279,6 +361,62 @@ fn gather(claim: &SuiteClaim, dirs: &[PathBuf]) -> Result<Gathered, String> {
         }
     }
     Ok((found, missing))
+}
+
+/// One claim control's check: the claim on the native summaries with the control's
+/// substitution.
+fn control_check(
+    c: &SuiteClaim,
+    control: &ClaimControl,
+    found: &[(String, PathBuf, crate::compare::sweep::CaseSummary)],
+) -> crate::compare::Check {
+    use crate::compare::{Check, Gate, sweep};
+    let mut cases: Vec<(String, sweep::CaseSummary)> = found
+        .iter()
+        .map(|(l, _, s)| (l.clone(), s.clone()))
+        .collect();
+    match &control.substitute {
+        Substitute::First => {
+            for x in cases.iter_mut().skip(1) {
+                x.1 = found[0].2.clone();
+            }
+        }
+        Substitute::Control { case, dir } => {
+            let (l, d, s) = &found[*case];
+            match sweep::CaseSummary::read(&d.join(dir)) {
+                Ok(w) if w.case == s.case && w.canonical_hash == s.canonical_hash => {
+                    cases[*case] = (format!("{l} ({})", control.control.name()), w);
+                }
+                Ok(_) => {
+                    return Check::error_in(
+                        format!(
+                            "{}: negative control \"{}\"",
+                            c.name,
+                            control.control.name()
+                        ),
+                        Gate::NegativeControl,
+                        format!(
+                            "{}: the control's summary is of another case or version",
+                            d.join(dir).display()
+                        ),
+                    );
+                }
+                Err(e) => {
+                    return Check::error_in(
+                        format!(
+                            "{}: negative control \"{}\"",
+                            c.name,
+                            control.control.name()
+                        ),
+                        Gate::NegativeControl,
+                        format!("{e:#}"),
+                    );
+                }
+            }
+        }
+    }
+    let substituted = sweep::evaluate(&c.name, &c.claim, &cases, "native");
+    sweep::control_check(&c.name, &control.control, &substituted)
 }
 
 /// The suite's claims, one check per claim and engine, from the case summaries found in
@@ -297,8 +435,15 @@ pub fn evaluate_claims(
             Err(e) => checks.push(Check::error_in(&c.name, Gate::Claim, e)),
             Ok((found, missing)) if missing.is_empty() => {
                 notes.push(format!("claim {:?}: {}", c.name, c.source));
+                let summaries: Vec<_> = found
+                    .iter()
+                    .map(|(l, _, s)| (l.clone(), s.clone()))
+                    .collect();
                 for engine in ["native", "liggghts"] {
-                    checks.push(sweep::evaluate(&c.name, &c.claim, &found, engine));
+                    checks.push(sweep::evaluate(&c.name, &c.claim, &summaries, engine));
+                }
+                for control in &c.controls {
+                    checks.push(control_check(c, control, &found));
                 }
             }
             Ok((found, _)) if partial && found.is_empty() => notes.push(format!(
@@ -394,6 +539,7 @@ mod tests {
             let s = CaseSummary {
                 case: c.name.clone(),
                 canonical_hash: hash.map_or(c.canonical_hash().to_string(), str::to_string),
+                bed_hashes: Vec::new(),
                 engines: [
                     ("native".to_string(), e.clone()),
                     ("liggghts".to_string(), e),
@@ -416,10 +562,100 @@ mod tests {
         assert_eq!(checks[0].status, Status::NotCompared);
         write(&claim.cases[1], None, 12.0);
         let (checks, _) = evaluate_claims(&one, &dirs, false);
-        assert_eq!(checks.len(), 2, "native and liggghts");
+        assert_eq!(
+            checks.len(),
+            3,
+            "native, liggghts and the sweep-ignored control"
+        );
         assert!(checks.iter().all(|c| c.passed), "{checks:?}");
         write(&claim.cases[1], Some("stale"), 12.0);
         let (checks, _) = evaluate_claims(&one, &dirs, false);
         assert_eq!(checks[0].status, Status::Error, "{checks:?}");
+    }
+
+    /// Claim controls are checked against the case files when the suite is read, and a
+    /// case control reads the case's own control run: it bites when the claim then
+    /// fails, and is an error when that run is missing.
+    #[test]
+    fn claim_controls_name_real_runs() {
+        use crate::compare::Status;
+        use crate::compare::sweep::{CaseSummary, EngineSummary};
+        let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/release");
+        let d = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(d.path().join("suites")).unwrap();
+        std::fs::create_dir_all(d.path().join("release")).unwrap();
+        for n in [
+            "feng-table3-speed-1",
+            "feng-fig3b-mugg-0.5",
+            "ci-seeds-20261200",
+        ] {
+            std::fs::copy(
+                real.join(format!("{n}.toml")),
+                d.path().join(format!("release/{n}.toml")),
+            )
+            .unwrap();
+        }
+        let suite = |a: &str, b: &str, control: &str| {
+            let text = format!(
+                "description = \"d\"\n[[case]]\npath = \"release/{a}.toml\"\n[[case]]\npath = \"release/{b}.toml\"\n[[claim]]\nname = \"n\"\nsource = \"s\"\ncases = [\"release/{a}.toml\", \"release/{b}.toml\"]\nkind = \"independent\"\nquantity = \"k_phi\"\nmax_rel = 0.1\n[[claim.negative_control]]\nname = \"c\"\n{control}\n"
+            );
+            std::fs::write(d.path().join("suites/s.toml"), text).unwrap();
+            load(d.path(), "s")
+        };
+        let case_control = |c: &str| {
+            format!(
+                "kind = \"case_control\"\ncase = \"release/feng-table3-speed-1.toml\"\ncontrol = \"{c}\""
+            )
+        };
+        let (a, b) = ("feng-table3-speed-1", "feng-fig3b-mugg-0.5");
+        let e = format!("{:#}", suite(a, b, &case_control("no such")).unwrap_err());
+        assert!(e.contains("no negative control of that name"), "{e}");
+        let e = format!(
+            "{:#}",
+            suite(a, "ci-seeds-20261200", "kind = \"sweep_ignored\"").unwrap_err()
+        );
+        assert!(e.contains("needs the same beds"), "{e}");
+        assert!(suite(a, b, "kind = \"sweep_ignored\"").is_ok());
+        let s = suite(a, b, &case_control("mu_gg = 0.3 instead of 0.5")).unwrap();
+
+        let out = tempfile::tempdir().unwrap();
+        let write = |case: &Path, sub: &str, k: f64| {
+            let AnyCase::Penetration(c) = AnyCase::load(case).unwrap() else {
+                panic!()
+            };
+            let e = EngineSummary {
+                k_phi: k,
+                k_phi_se_regression: 0.1,
+                k_phi_beds: vec![k - 3.0, k, k + 3.0],
+                h: vec![1.0, 2.0],
+                p: vec![k, 2.0 * k],
+                psi: 0.6,
+            };
+            let dir = out.path().join(&c.name).join(sub);
+            std::fs::create_dir_all(&dir).unwrap();
+            CaseSummary {
+                case: c.name.clone(),
+                canonical_hash: c.canonical_hash().to_string(),
+                bed_hashes: vec!["b0".into(), "b1".into(), "b2".into()],
+                engines: [("native".to_string(), e.clone()), ("liggghts".into(), e)].into(),
+            }
+            .write(&dir)
+            .unwrap();
+        };
+        use crate::case::AnyCase;
+        write(&s.cases[0].path, "", 30.0);
+        write(&s.cases[1].path, "", 31.0);
+        let dirs = vec![out.path().to_path_buf()];
+        let (checks, _) = evaluate_claims(&s, &dirs, false);
+        assert_eq!(checks.len(), 3, "{checks:?}");
+        assert!(checks[..2].iter().all(|c| c.passed), "{checks:?}");
+        assert_eq!(
+            checks[2].status,
+            Status::Error,
+            "no control run: {checks:?}"
+        );
+        write(&s.cases[0].path, "control-0", 22.0);
+        let (checks, _) = evaluate_claims(&s, &dirs, false);
+        assert!(checks[2].passed, "the control bites: {checks:?}");
     }
 }

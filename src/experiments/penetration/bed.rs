@@ -34,6 +34,8 @@ pub fn binner(case: &PenetrationCase, bed: &Bed) -> Result<FdrBinner> {
 
 /// Prepares the bed natively (pour + settle to the case's KE criterion).
 pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
+    // With the pairs of [[interactions]]: the penetration's own act on the settled bed.
+    let case = &case.settling_case();
     // The whole case (with this bed's seed) is the key: safe, if more than the bed needs.
     let cache = crate::experiments::bed_cache::file(
         "penetration",
@@ -119,6 +121,11 @@ pub fn bed_hash(bed: &Bed) -> Sha256 {
 /// native pour, settled with the same criterion, then penetrated.
 pub fn liggghts_settle_deck(case: &PenetrationCase) -> Result<PenetrationDeck> {
     use crate::engines::liggghts::penetration::Settle;
+    anyhow::ensure!(
+        case.settle_pairs.is_none(),
+        "{}: [[penetration_interactions]]: the bed and the penetration use different pair values, which one LIGGGHTS deck that settles and penetrates cannot switch; prepare the beds natively (`--bed native`)",
+        case.source.display()
+    );
     let lattice = packing::lattice(case)?;
     let lattice_top = lattice
         .iter()

@@ -830,6 +830,7 @@ fn summary(
     CaseSummary {
         case: case.name.clone(),
         canonical_hash: case.canonical_hash().to_string(),
+        bed_hashes: units.iter().map(|u| u.bed_hash.to_string()).collect(),
         engines,
     }
 }
