@@ -73,6 +73,59 @@ pub fn rms_distance(a: &[(f64, f64)], b: &[(f64, f64)]) -> Result<f64> {
     Ok((s / n as f64).sqrt())
 }
 
+/// The intruder's first passage through the depth bin `[y - half, y + half]` (K
+/// Appendix, Fig 29: "we find a(u) for fixed y"), in the units of the series given.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Passage {
+    /// Bin centre (depth).
+    pub y: f64,
+    /// Mean speed through the bin: 2 half / (t_out - t_in).
+    pub u: f64,
+    /// Mean deceleration there: (w_in - w_out) / (t_out - t_in), w the downward speed;
+    /// gravity included (the net acceleration of F = Mg + F_d + F_v, eq A1, sign-flipped).
+    pub decel: f64,
+}
+
+/// First passages through bins centred at `centres` (half-width `half`) of the series
+/// `(t, depth, downward speed)`: the first time the depth reaches each edge, by linear
+/// interpolation between samples. A bin the run never leaves at the bottom gives none.
+pub fn passages(series: &[(f64, f64, f64)], centres: &[f64], half: f64) -> Vec<Passage> {
+    let reach = |level: f64| {
+        series.windows(2).find_map(|w| {
+            let ((t0, d0, w0), (t1, d1, w1)) = (w[0], w[1]);
+            (d0 < level && d1 >= level).then(|| {
+                let f = (level - d0) / (d1 - d0);
+                (t0 + f * (t1 - t0), w0 + f * (w1 - w0))
+            })
+        })
+    };
+    centres
+        .iter()
+        .filter_map(|&y| {
+            let (t_in, w_in) = reach(y - half)?;
+            let (t_out, w_out) = reach(y + half)?;
+            let dt = t_out - t_in;
+            (dt > 0.0).then(|| Passage {
+                y,
+                u: 2.0 * half / dt,
+                decel: (w_in - w_out) / dt,
+            })
+        })
+        .collect()
+}
+
+/// Fit `decel = c u^k` by least squares of ln(decel) on ln(u) over the passages with
+/// decel > 0: (k, c, R^2, points used).
+pub fn power_law(p: &[Passage]) -> Result<(f64, f64, f64, usize)> {
+    let (x, y): (Vec<f64>, Vec<f64>) = p
+        .iter()
+        .filter(|q| q.decel > 0.0 && q.u > 0.0)
+        .map(|q| (q.u.ln(), q.decel.ln()))
+        .unzip();
+    let (ln_c, k, r2) = linear_r2(&x, &y)?;
+    Ok((k, ln_c.exp(), r2, x.len()))
+}
+
 /// Least-squares line `y = a + b x` and its R^2.
 pub fn linear_r2(x: &[f64], y: &[f64]) -> Result<(f64, f64, f64)> {
     let n = x.len();
@@ -100,6 +153,34 @@ pub fn linear_r2(x: &[f64], y: &[f64]) -> Result<(f64, f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A trajectory with known deceleration decel = c u^k: the passages and the fit
+    /// return k and c (to the discretisation of a fine series).
+    #[test]
+    fn passages_of_a_known_force_law_fit_its_exponent() {
+        let (c, k) = (0.3, 1.4);
+        let mut runs = Vec::new();
+        for v0 in [0.2, 0.4, 0.7, 1.0] {
+            let (mut t, mut d, mut w) = (0.0, -1.0, v0);
+            let dt = 1e-4;
+            let mut s = vec![(t, d, w)];
+            while w > 0.01 && t < 100.0 {
+                let a = if d > 0.0 { -c * f64::powf(w, k) } else { 0.0 };
+                w += a * dt;
+                d += w * dt;
+                t += dt;
+                s.push((t, d, w));
+            }
+            runs.extend(passages(&s, &[1.0, 2.0, 3.0], 0.5));
+        }
+        let (kf, cf, r2, n) = power_law(&runs).unwrap();
+        assert!(n >= 6, "{n} passages");
+        assert!(
+            (kf - k).abs() < 0.05 && (cf / c - 1.0).abs() < 0.05,
+            "k {kf} c {cf}"
+        );
+        assert!(r2 > 0.99);
+    }
 
     #[test]
     fn csv_round_trip_is_exact_and_errors_name_the_file() {

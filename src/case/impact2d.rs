@@ -217,6 +217,18 @@ pub enum Claim {
     /// Final depth vs sweep value is linear for values >= `from`: R^2 of the
     /// least-squares line must be >= `r2_min` (K Fig 8b: linear in v for v >= 0.4).
     Linear { from: f64, r2_min: f64 },
+    /// K Appendix, Fig 29: at fixed depth the intruder's deceleration follows a power of
+    /// its speed, a ~ u^k ("for the kinetic friction case we find k ~ 1"). k is fitted
+    /// (ln a on ln u) over the first passages of every variant through the depth bins
+    /// `depths +- half_width` (d); it must lie in [`min`, `max`] in each engine, and the
+    /// two engines' k may differ by at most `engine_tol`. The sweep must be of the speed.
+    VelocityExponent {
+        depths: Vec<f64>,
+        half_width: f64,
+        min: f64,
+        max: f64,
+        engine_tol: f64,
+    },
 }
 
 /// What an `increasing` claim follows along the sweep.
@@ -832,6 +844,39 @@ impl Impact2dCase {
                 }
                 Claim::EnergyNonIncreasing { max_rise } => {
                     non_negative(&ctx, &at("max_rise"), *max_rise)?;
+                }
+                Claim::VelocityExponent {
+                    depths,
+                    half_width,
+                    min,
+                    max,
+                    engine_tol,
+                } => {
+                    positive(&ctx, &at("half_width"), *half_width)?;
+                    positive(&ctx, &at("engine_tol"), *engine_tol)?;
+                    if depths.is_empty() {
+                        return Err(ctx.bad(at("depths"), "[]", "at least one depth bin"));
+                    }
+                    for (j, y) in depths.iter().enumerate() {
+                        if !(y.is_finite() && *y > *half_width) {
+                            return Err(ctx.bad(
+                                format!("{}[{j}]", at("depths")),
+                                y,
+                                "a bin must lie inside the bed: centre > half_width",
+                            ));
+                        }
+                    }
+                    if !(min.is_finite() && max.is_finite() && min < max) {
+                        return Err(ctx.bad(at("max"), max, format!("must exceed min = {min}")));
+                    }
+                    let param = raw.sweep.as_ref().map(|w| w.parameter.as_str());
+                    if param != Some("speed") || variants.len() < 3 {
+                        return Err(ctx.bad(
+                            at("kind"),
+                            "velocity_exponent",
+                            "a(u) needs a [sweep] of the speed with at least 3 values",
+                        ));
+                    }
                 }
                 Claim::Linear { from, r2_min } => {
                     finite(&ctx, &at("from"), *from)?;

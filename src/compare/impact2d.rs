@@ -22,6 +22,10 @@ pub struct VariantObs {
     pub final_speed: f64,
     /// Samples the final depth was averaged over.
     pub final_samples: usize,
+    /// (t in tau_c, D in d, downward speed in d / tau_c) at every intruder sample, for
+    /// claims on the force law (K Fig 29).
+    #[serde(skip)]
+    pub trajectory: Vec<(f64, f64, f64)>,
 }
 
 /// Native vs reference for one variant. `rms` is the D(t) RMS distance in d, or the
@@ -173,6 +177,36 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
                 ),
             )
         }
+        Claim::VelocityExponent {
+            depths,
+            half_width,
+            min,
+            max,
+            ..
+        } => {
+            let name = format!(
+                "{}: claim ({engine}): deceleration ~ u^k at depths {depths:?} +- {half_width} d",
+                case.name
+            );
+            match velocity_exponent(obs, depths, *half_width) {
+                Ok((k, detail)) if (*min..=*max).contains(&k) => Check::at_least(
+                    name,
+                    crate::compare::Gate::Claim,
+                    format!("k, must lie in [{min}, {max}]"),
+                    k,
+                    *min,
+                    detail,
+                ),
+                Ok((k, detail)) => Check::failed(
+                    name,
+                    crate::compare::Gate::Claim,
+                    format!("k, must lie in [{min}, {max}]"),
+                    k,
+                    detail,
+                ),
+                Err(e) => Check::not_compared(name, crate::compare::Gate::Claim, e),
+            }
+        }
         Claim::Linear { from, r2_min } => {
             let pts: Vec<&VariantObs> = obs.iter().filter(|o| o.x >= *from).collect();
             if pts.len() < 3 {
@@ -209,6 +243,89 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
             }
         }
     }
+}
+
+/// k of a ~ u^k (K Fig 29) over the passages of every variant through the bins, with
+/// the fit's description; an error when fewer than 4 passages with a > 0 from at least 3
+/// variants remain (a power through fewer tests nothing).
+pub fn velocity_exponent(
+    obs: &[VariantObs],
+    depths: &[f64],
+    half_width: f64,
+) -> Result<(f64, String), String> {
+    use crate::analysis::impact::{passages, power_law};
+    let mut all = Vec::new();
+    let mut variants = 0;
+    let mut dropped = 0;
+    for o in obs {
+        let p = passages(&o.trajectory, depths, half_width);
+        let positive = p.iter().filter(|q| q.decel > 0.0).count();
+        dropped += p.len() - positive;
+        if positive > 0 {
+            variants += 1;
+        }
+        all.extend(p);
+    }
+    let used = all.iter().filter(|q| q.decel > 0.0).count();
+    if used < 4 || variants < 3 {
+        return Err(format!(
+            "{used} passage(s) with a > 0 from {variants} variant(s): a power law needs at least 4 from 3 variants"
+        ));
+    }
+    let (k, c, r2, n) = power_law(&all).map_err(|e| format!("{e:#}"))?;
+    let pts = all
+        .iter()
+        .map(|q| format!("(y {:.1}: u {:.3}, a {:.4})", q.y, q.u, q.decel))
+        .collect::<Vec<_>>()
+        .join(" ");
+    Ok((
+        k,
+        format!(
+            "a = {c:.4} u^{k:.3} (R^2 {r2:.3}) over {n} passages ({dropped} with a <= 0 left out); d, tau_c units: {pts}"
+        ),
+    ))
+}
+
+/// Native vs reference k of every velocity-exponent claim of the case.
+pub fn exponent_cross_checks(
+    case: &Impact2dCase,
+    native: &[VariantObs],
+    reference: &[VariantObs],
+    engine: &str,
+) -> Vec<Check> {
+    case.claims
+        .iter()
+        .filter_map(|c| match c {
+            Claim::VelocityExponent {
+                depths,
+                half_width,
+                engine_tol,
+                ..
+            } => Some((depths, *half_width, *engine_tol)),
+            _ => None,
+        })
+        .map(|(depths, half, tol)| {
+            let name = format!("{}: velocity exponent k native vs {engine}", case.name);
+            match (
+                velocity_exponent(native, depths, half),
+                velocity_exponent(reference, depths, half),
+            ) {
+                (Ok((a, da)), Ok((b, db))) => Check::at_most(
+                    name,
+                    crate::compare::Gate::Claim,
+                    "|k_native - k_ref|",
+                    (a - b).abs(),
+                    tol,
+                    format!("native {da}; {engine} {db}"),
+                ),
+                (a, b) => Check::not_compared(
+                    name,
+                    crate::compare::Gate::Claim,
+                    format!("native: {:?}; {engine}: {:?}", a.err(), b.err()),
+                ),
+            }
+        })
+        .collect()
 }
 
 /// E(0) - E(t) at the first energy sample at or after `t` (tau_c); NaN if none.
@@ -250,8 +367,51 @@ mod tests {
                 impact_energy: 1.0,
                 final_speed: 0.0,
                 final_samples: 100,
+                trajectory: Vec::new(),
             })
             .collect()
+    }
+
+    /// An intruder hitting at speed v0 (at D = 0) and slowed by a = c u^k inside the bed.
+    fn law(v0: f64, c: f64, k: f64) -> Vec<(f64, f64, f64)> {
+        let (mut t, mut d, mut w, dt) = (0.0, -1.0, v0, 0.01);
+        let mut s = vec![(t, d, w)];
+        while w > 0.005 && t < 2000.0 {
+            w -= if d > 0.0 { c * w.powf(k) * dt } else { 0.0 };
+            d += w * dt;
+            t += dt;
+            s.push((t, d, w));
+        }
+        s
+    }
+
+    /// The velocity exponent claim reads k off the passages of every variant: in range
+    /// it passes, out of range it fails, and native vs reference compares the two k.
+    #[test]
+    fn velocity_exponent_claim_fits_the_force_law() {
+        let c = case(
+            "[claim]\nkind = \"velocity_exponent\"\ndepths = [1.0, 2.0, 3.0]\nhalf_width = 0.5\nmin = 0.7\nmax = 1.3\nengine_tol = 0.2",
+            "[sweep]\nparameter = \"speed\"\nvalues = [0.2, 0.4, 0.7, 1.0]",
+        );
+        let speeds = [0.2, 0.4, 0.7, 1.0];
+        let with = |k: f64| {
+            let mut o = obs(&speeds, &[1.0; 4]);
+            for (x, v) in o.iter_mut().zip(speeds) {
+                x.trajectory = law(v, 0.02, k);
+            }
+            o
+        };
+        let k = one(&c, &with(1.0)).unwrap();
+        assert!(k.passed && (k.value - 1.0).abs() < 0.05, "{k:?}");
+        assert!(!one(&c, &with(1.8)).unwrap().passed);
+        let x = exponent_cross_checks(&c, &with(1.0), &with(1.1), "lammps");
+        assert!(x.len() == 1 && x[0].passed, "{x:?}");
+        let x = exponent_cross_checks(&c, &with(1.0), &with(1.5), "lammps");
+        assert!(!x[0].passed, "{x:?}");
+        // Two variants cannot pin a power law down.
+        let few = with(1.0)[..2].to_vec();
+        let k = one(&c, &few).unwrap();
+        assert_eq!(k.status, crate::compare::Status::NotCompared, "{k:?}");
     }
 
     fn one(c: &Impact2dCase, obs: &[VariantObs]) -> Option<Check> {

@@ -338,6 +338,12 @@ impl Experiment for Impact2d {
         if complete {
             checks.extend(cmp::claim_checks(case, "native", &native_obs));
             checks.extend(cmp::claim_checks(case, "lammps", &ref_obs));
+            checks.extend(cmp::exponent_cross_checks(
+                case,
+                &native_obs,
+                &ref_obs,
+                "lammps",
+            ));
             let refs: Vec<(&str, &[(f64, f64)])> = series_svg
                 .iter()
                 .map(|(l, s)| (l.as_str(), s.as_slice()))
@@ -670,6 +676,14 @@ pub fn observe(
                 / (case.scales.m * case.scales.g0 * d),
             final_speed,
             final_samples: obs::final_window_samples(&series, case.final_window),
+            trajectory: {
+                let (tau, vel) = (case.scales.tau_c, case.scales.velocity());
+                series
+                    .iter()
+                    .zip(&run.samples)
+                    .map(|(&(t, z), s)| (t / tau, z / d, -s.v[1] / vel))
+                    .collect()
+            },
         },
         series,
     ))
