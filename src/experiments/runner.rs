@@ -223,9 +223,25 @@ fn run_units<E: Experiment>(
     let verdict = exp.checks(units, &natives, &refs, out, opts);
     let mut checks = verdict.checks;
     notes.extend(verdict.notes);
+    let failed_here: Vec<String> = checks
+        .iter()
+        .filter(|k| k.status == Status::Fail)
+        .map(|k| k.name.clone())
+        .collect();
     for (k, c) in exp.negative_controls().iter().enumerate() {
         let dir = out.join(format!("control-{k}"));
-        checks.push(negative_control(exp, c, units, names, &refs, &dir, opts));
+        checks.push(negative_control(
+            exp,
+            c,
+            Inputs {
+                units,
+                names,
+                refs: &refs,
+            },
+            &failed_here,
+            &dir,
+            opts,
+        ));
     }
     let wall = |rs: &mut dyn Iterator<Item = f64>| rs.sum::<f64>();
     let run = CaseRun {
@@ -256,18 +272,28 @@ fn unit_label(unit: &str, what: &str) -> String {
     }
 }
 
+/// The units of a case, their names and the reference runs a control reuses.
+struct Inputs<'a, E: Experiment> {
+    units: &'a [E::Unit],
+    names: &'a [String],
+    refs: &'a [E::RefRun],
+}
+
 /// One negative control: the native engine with wrong physics against the same
 /// reference runs. It passes only when every gate it names has at least one check with
-/// status `fail` (an error or a not-compared check is not the control biting).
+/// status `fail` that did not fail with the right physics (`failed_here`: the names of
+/// the case's own failed checks). A check that fails either way (a claim the reference
+/// engine alone fails, a finding) shows nothing about the wrong physics; an error or a
+/// not-compared check is not the control biting either.
 fn negative_control<E: Experiment>(
     exp: &E,
     c: &NegativeControl,
-    units: &[E::Unit],
-    names: &[String],
-    refs: &[E::RefRun],
+    inputs: Inputs<E>,
+    failed_here: &[String],
     dir: &Path,
     opts: &Options,
 ) -> Check {
+    let Inputs { units, names, refs } = inputs;
     let label = format!("{}: negative control \"{}\"", exp.name(), c.name);
     let mut natives = Vec::with_capacity(units.len());
     for (u, n) in units.iter().zip(names) {
@@ -282,32 +308,7 @@ fn negative_control<E: Experiment>(
         }
     }
     let verdict = exp.checks(units, &natives, refs, dir, opts);
-    let mut missing = Vec::new();
-    let mut summary = Vec::new();
-    for g in &c.must_fail {
-        let of_gate: Vec<&Check> = verdict.checks.iter().filter(|k| k.gate == *g).collect();
-        let failed = of_gate.iter().filter(|k| k.status == Status::Fail).count();
-        summary.push(format!(
-            "{}: {failed} of {} check(s) failed ({})",
-            g.key(),
-            of_gate.len(),
-            of_gate
-                .iter()
-                .map(|k| match k.status {
-                    Status::NotCompared | Status::Error => format!(
-                        "{:?}: {}",
-                        k.status,
-                        k.detail.chars().take(400).collect::<String>()
-                    ),
-                    _ => format!("{} = {:.3e} vs {:.1e}", k.metric, k.value, k.tolerance),
-                })
-                .collect::<Vec<_>>()
-                .join("; ")
-        ));
-        if failed == 0 {
-            missing.push(g.key());
-        }
-    }
+    let (missing, summary) = unbitten(&c.must_fail, &verdict.checks, failed_here);
     let detail = format!("perturbation {:?}; {}", c.perturbation, summary.join(" | "));
     if missing.is_empty() {
         Check::at_most(
@@ -327,6 +328,51 @@ fn negative_control<E: Experiment>(
             format!("the control did not bite: {detail}"),
         )
     }
+}
+
+/// The gates of `must_fail` that the control's `checks` do not bite, and a summary per
+/// gate. A gate is bitten by a check of it that fails here and did not fail with the right
+/// physics (`failed_here`).
+fn unbitten(
+    must_fail: &[Gate],
+    checks: &[Check],
+    failed_here: &[String],
+) -> (Vec<String>, Vec<String>) {
+    let mut missing = Vec::new();
+    let mut summary = Vec::new();
+    for g in must_fail {
+        let of_gate: Vec<&Check> = checks.iter().filter(|k| k.gate == *g).collect();
+        let anyway = |k: &Check| failed_here.contains(&k.name);
+        let failed = of_gate
+            .iter()
+            .filter(|k| k.status == Status::Fail && !anyway(k))
+            .count();
+        let failed_anyway = of_gate
+            .iter()
+            .filter(|k| k.status == Status::Fail && anyway(k))
+            .count();
+        summary.push(format!(
+            "{}: {failed} of {} check(s) failed where the right physics did not ({failed_anyway} failed with both: not counted) ({})",
+            g.key(),
+            of_gate.len(),
+            of_gate
+                .iter()
+                .map(|k| match k.status {
+                    Status::NotCompared | Status::Error => format!(
+                        "{:?}: {}",
+                        k.status,
+                        k.detail.chars().take(400).collect::<String>()
+                    ),
+                    _ => format!("{} = {:.3e} vs {:.1e}", k.metric, k.value, k.tolerance),
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        ));
+        if failed == 0 {
+            missing.push(g.key());
+        }
+    }
+    (missing, summary)
 }
 
 /// `granval run --engine native|<reference>`: one engine, every unit, into `out`.
@@ -551,6 +597,20 @@ fn deck_readme<E: Experiment>(exp: &E, units: &[String], np: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A control bites only on a check that fails with the wrong physics and did not
+    /// with the right physics: a claim the reference engine fails either way is no bite.
+    #[test]
+    fn a_control_bites_only_where_the_right_physics_did_not_fail() {
+        let fail = |n: &str| Check::failed(n, Gate::Claim, "m", 1.0, "");
+        let pass = |n: &str| Check::at_most(n, Gate::Claim, "m", 0.0, 1.0, "");
+        let control = vec![fail("claim (lammps)"), pass("claim (native)")];
+        let (missing, _) = unbitten(&[Gate::Claim], &control, &["claim (lammps)".into()]);
+        assert_eq!(missing, vec!["claim".to_string()]);
+        let control = vec![fail("claim (lammps)"), fail("claim (native)")];
+        let (missing, _) = unbitten(&[Gate::Claim], &control, &["claim (lammps)".into()]);
+        assert!(missing.is_empty());
+    }
 
     /// Cases whose names differ after a dot record into different directories.
     #[test]
