@@ -126,6 +126,21 @@ pub fn power_law(p: &[Passage]) -> Result<(f64, f64, f64, usize)> {
     Ok((k, ln_c.exp(), r2, x.len()))
 }
 
+/// Test trajectory `(t, depth, downward speed)` of an intruder hitting at speed `v0`
+/// (from depth -1) and slowed by a = c u^k inside the bed, explicit Euler with step `dt`.
+#[cfg(test)]
+pub(crate) fn power_law_trajectory(v0: f64, c: f64, k: f64, dt: f64) -> Vec<(f64, f64, f64)> {
+    let (mut t, mut d, mut w) = (0.0, -1.0, v0);
+    let mut s = vec![(t, d, w)];
+    while w > 0.005 && t < 2000.0 {
+        w -= if d > 0.0 { c * w.powf(k) * dt } else { 0.0 };
+        d += w * dt;
+        t += dt;
+        s.push((t, d, w));
+    }
+    s
+}
+
 /// Least-squares line `y = a + b x` and its R^2.
 pub fn linear_r2(x: &[f64], y: &[f64]) -> Result<(f64, f64, f64)> {
     let n = x.len();
@@ -161,16 +176,7 @@ mod tests {
         let (c, k) = (0.3, 1.4);
         let mut runs = Vec::new();
         for v0 in [0.2, 0.4, 0.7, 1.0] {
-            let (mut t, mut d, mut w) = (0.0, -1.0, v0);
-            let dt = 1e-4;
-            let mut s = vec![(t, d, w)];
-            while w > 0.01 && t < 100.0 {
-                let a = if d > 0.0 { -c * f64::powf(w, k) } else { 0.0 };
-                w += a * dt;
-                d += w * dt;
-                t += dt;
-                s.push((t, d, w));
-            }
+            let s = power_law_trajectory(v0, c, k, 1e-4);
             runs.extend(passages(&s, &[1.0, 2.0, 3.0], 0.5));
         }
         let (kf, cf, r2, n) = power_law(&runs).unwrap();

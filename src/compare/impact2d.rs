@@ -372,19 +372,6 @@ mod tests {
             .collect()
     }
 
-    /// An intruder hitting at speed v0 (at D = 0) and slowed by a = c u^k inside the bed.
-    fn law(v0: f64, c: f64, k: f64) -> Vec<(f64, f64, f64)> {
-        let (mut t, mut d, mut w, dt) = (0.0, -1.0, v0, 0.01);
-        let mut s = vec![(t, d, w)];
-        while w > 0.005 && t < 2000.0 {
-            w -= if d > 0.0 { c * w.powf(k) * dt } else { 0.0 };
-            d += w * dt;
-            t += dt;
-            s.push((t, d, w));
-        }
-        s
-    }
-
     /// The velocity exponent claim reads k off the passages of every variant: in range
     /// it passes, out of range it fails, and native vs reference compares the two k.
     #[test]
@@ -397,7 +384,7 @@ mod tests {
         let with = |k: f64| {
             let mut o = obs(&speeds, &[1.0; 4]);
             for (x, v) in o.iter_mut().zip(speeds) {
-                x.trajectory = law(v, 0.02, k);
+                x.trajectory = crate::analysis::impact::power_law_trajectory(v, 0.02, k, 0.01);
             }
             o
         };

@@ -117,6 +117,29 @@ impl Check {
         Check::with_status(name, gate, metric, value, 0.0, Status::Fail, detail)
     }
 
+    /// The verdict of a negative control: it passes when nothing in `unbitten` (the
+    /// gates or claims the wrong physics did not fail) is left.
+    pub fn control(label: impl Into<String>, unbitten: &[String], detail: String) -> Check {
+        if unbitten.is_empty() {
+            Check::at_most(
+                label,
+                Gate::NegativeControl,
+                "gates that did not fail",
+                0.0,
+                0.0,
+                detail,
+            )
+        } else {
+            Check::failed(
+                label,
+                Gate::NegativeControl,
+                format!("the wrong physics passed {}", unbitten.join(", ")),
+                unbitten.len() as f64,
+                format!("the control did not bite: {detail}"),
+            )
+        }
+    }
+
     /// A stage that produced nothing to compare: never a pass.
     pub fn error(name: impl Into<String>, message: impl Into<String>) -> Check {
         Check::error_in(name, Gate::Run, message)

@@ -310,24 +310,7 @@ fn negative_control<E: Experiment>(
     let verdict = exp.checks(units, &natives, refs, dir, opts);
     let (missing, summary) = unbitten(&c.must_fail, &verdict.checks, failed_here);
     let detail = format!("perturbation {:?}; {}", c.perturbation, summary.join(" | "));
-    if missing.is_empty() {
-        Check::at_most(
-            label,
-            Gate::NegativeControl,
-            "gates that did not fail",
-            0.0,
-            0.0,
-            detail,
-        )
-    } else {
-        Check::failed(
-            label,
-            Gate::NegativeControl,
-            format!("the wrong physics passed {}", missing.join(", ")),
-            missing.len() as f64,
-            format!("the control did not bite: {detail}"),
-        )
-    }
+    Check::control(label, &missing, detail)
 }
 
 /// The gates of `must_fail` that the control's `checks` do not bite, and a summary per

@@ -383,24 +383,18 @@ fn control_check(
         }
         Substitute::Control { case, dir } => {
             let (l, d, s) = &found[*case];
-            match sweep::CaseSummary::read(&d.join(dir)) {
-                Ok(w) if w.case == s.case && w.canonical_hash == s.canonical_hash => {
-                    cases[*case] = (format!("{l} ({})", control.control.name()), w);
-                }
-                Ok(_) => {
-                    return Check::error_in(
-                        format!(
-                            "{}: negative control \"{}\"",
-                            c.name,
-                            control.control.name()
-                        ),
-                        Gate::NegativeControl,
+            let read = sweep::CaseSummary::read(&d.join(dir)).map_err(|e| format!("{e:#}"));
+            match read.and_then(|w| {
+                (w.case == s.case && w.canonical_hash == s.canonical_hash)
+                    .then_some(w)
+                    .ok_or_else(|| {
                         format!(
                             "{}: the control's summary is of another case or version",
                             d.join(dir).display()
-                        ),
-                    );
-                }
+                        )
+                    })
+            }) {
+                Ok(w) => cases[*case] = (format!("{l} ({})", control.control.name()), w),
                 Err(e) => {
                     return Check::error_in(
                         format!(
@@ -409,7 +403,7 @@ fn control_check(
                             control.control.name()
                         ),
                         Gate::NegativeControl,
-                        format!("{e:#}"),
+                        e,
                     );
                 }
             }
