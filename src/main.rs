@@ -394,12 +394,17 @@ fn real_main() -> Result<ExitCode> {
             dirs.extend(runs);
             let (claim_checks, claim_notes) =
                 suite::evaluate_claims(&s, &dirs, claims_only || !only.is_empty());
+            let (malt_notes, malt_section) = suite::malt_verdict(&s, &dirs, &report);
             outcomes.push(CaseOutcome {
                 checks: claim_checks,
                 run: None,
-                notes: claim_notes,
+                notes: claim_notes.into_iter().chain(malt_notes).collect(),
             });
+            let (figure_notes, claim_sections) = suite::claim_sections(&s, &dirs, &report);
             let mut r = report_of(outcomes);
+            r.notes.extend(figure_notes);
+            r.sections.extend(claim_sections);
+            r.sections.extend(malt_section);
             r.notes.push(format!(
                 "suite {suite}: {} ({} case(s), {:.0} s)",
                 s.description,

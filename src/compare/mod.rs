@@ -3,6 +3,7 @@
 
 pub mod coverage;
 pub mod impact2d;
+pub mod malt_points;
 pub mod penetration;
 pub mod stress;
 pub mod sweep;

@@ -48,6 +48,16 @@ struct ClaimEntry {
     cases: Vec<String>,
     #[serde(default, rename = "negative_control")]
     controls: Vec<crate::compare::sweep::ClaimControl>,
+    /// The swept parameter's value at each case and its name, for the claim's figure
+    /// (default: the case index).
+    #[serde(default)]
+    x: Vec<f64>,
+    #[serde(default)]
+    x_label: Option<String>,
+    /// The paper's K_phi at each case where it prints one (`nan` where it does not), drawn
+    /// beside the engines' (Feng et al. Table 3).
+    #[serde(default)]
+    paper_k_phi: Vec<f64>,
     #[serde(flatten)]
     claim: crate::compare::sweep::SweepClaim,
 }
@@ -61,6 +71,11 @@ pub struct SuiteClaim {
     pub cases: Vec<PathBuf>,
     pub claim: crate::compare::sweep::SweepClaim,
     pub controls: Vec<ClaimControl>,
+    /// Figure axis: the parameter per case and its name (empty: case index).
+    pub x: Vec<f64>,
+    pub x_label: String,
+    /// Published K_phi per case (empty: none; NaN where the paper gives none).
+    pub paper_k_phi: Vec<f64>,
 }
 
 /// A claim's negative control with what it substitutes, resolved when the suite is read.
@@ -245,12 +260,31 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
                 substitute,
             });
         }
+        for (field, v) in [("x", &c.x), ("paper_k_phi", &c.paper_k_phi)] {
+            ensure!(
+                v.is_empty() || v.len() == files.len(),
+                "{}",
+                at(format!(
+                    "{field} has {} values for {} cases (one per case, or leave it out)",
+                    v.len(),
+                    files.len()
+                ))
+            );
+        }
+        ensure!(
+            c.x.iter().all(|v| v.is_finite()),
+            "{}",
+            at(format!("x = {:?}: every value must be finite", c.x))
+        );
         claims.push(SuiteClaim {
             name: c.name,
             source: c.source,
             cases: files,
             claim: c.claim,
             controls,
+            x: c.x,
+            x_label: c.x_label.unwrap_or_else(|| "case".into()),
+            paper_k_phi: c.paper_k_phi,
         });
     }
     Ok(Suite {
@@ -457,6 +491,208 @@ pub fn evaluate_claims(
     (checks, notes)
 }
 
+/// A report section per claim whose cases all have summaries in `dirs`: the cases'
+/// ensemble-mean FDRs overlaid (both engines) and K_phi along the sweep with its
+/// standard errors, single beds and the paper's values, written under `out/claims/`.
+pub fn claim_sections(
+    suite: &Suite,
+    dirs: &[PathBuf],
+    out: &Path,
+) -> (Vec<String>, Vec<crate::report::Section>) {
+    let (mut notes, mut sections) = (Vec::new(), Vec::new());
+    for c in &suite.claims {
+        let Ok((found, missing)) = gather(c, dirs) else {
+            continue;
+        };
+        if !missing.is_empty() {
+            continue;
+        }
+        match claim_figures(c, &found, out) {
+            Ok(figures) => sections.push(crate::report::Section {
+                title: format!("Claim: {}", c.name),
+                body: format!(
+                    "{}\n\ncases: {}",
+                    c.source,
+                    found
+                        .iter()
+                        .map(|f| f.0.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                figures,
+            }),
+            Err(e) => notes.push(format!("claim {:?}: figures not written: {e:#}", c.name)),
+        }
+    }
+    (notes, sections)
+}
+
+/// The two figures of one claim; paths relative to `out`.
+fn claim_figures(
+    c: &SuiteClaim,
+    found: &[(String, PathBuf, crate::compare::sweep::CaseSummary)],
+    out: &Path,
+) -> Result<Vec<String>> {
+    use crate::report::svg::{SweepSeries, fdr_overlay, k_phi_sweep};
+    let slug: String = c
+        .name
+        .chars()
+        .map(|ch| {
+            if ch.is_ascii_alphanumeric() {
+                ch.to_ascii_lowercase()
+            } else {
+                '-'
+            }
+        })
+        .collect::<String>()
+        .split('-')
+        .filter(|w| !w.is_empty())
+        .collect::<Vec<_>>()
+        .join("-");
+    std::fs::create_dir_all(out.join("claims"))?;
+    let fdr_rel = format!("claims/{slug}-fdr.svg");
+    let k_rel = format!("claims/{slug}-k_phi.svg");
+    let engines = ["native", "liggghts"];
+    let labels: Vec<String> = found
+        .iter()
+        .flat_map(|(name, _, _)| engines.map(|e| format!("{name} {e}")))
+        .collect();
+    let mut series = Vec::new();
+    for (i, (_, _, s)) in found.iter().enumerate() {
+        for (j, e) in engines.iter().enumerate() {
+            if let Some(es) = s.engines.get(*e) {
+                series.push((labels[2 * i + j].as_str(), &es.h[..], &es.p[..], None));
+            }
+        }
+    }
+    fdr_overlay(
+        &out.join(&fdr_rel),
+        &series,
+        &format!("{}: ensemble-mean FDRs", c.name),
+    )?;
+    let x: Vec<f64> = if c.x.is_empty() {
+        (0..found.len()).map(|i| i as f64).collect()
+    } else {
+        c.x.clone()
+    };
+    let per_engine: Vec<(&str, Vec<f64>, Vec<f64>, Vec<Vec<f64>>)> = engines
+        .iter()
+        .filter_map(|e| {
+            let v: Option<Vec<_>> = found.iter().map(|(_, _, s)| s.engines.get(*e)).collect();
+            v.map(|v| {
+                (
+                    *e,
+                    v.iter().map(|s| s.k_phi).collect(),
+                    v.iter().map(|s| s.k_phi_se()).collect(),
+                    v.iter().map(|s| s.k_phi_beds.clone()).collect(),
+                )
+            })
+        })
+        .collect();
+    let sweep: Vec<SweepSeries> = per_engine
+        .iter()
+        .map(|(l, k, se, beds)| SweepSeries {
+            label: l,
+            k,
+            se,
+            beds,
+        })
+        .collect();
+    k_phi_sweep(
+        &out.join(&k_rel),
+        &format!("{}: K_phi", c.name),
+        &c.x_label,
+        &x,
+        &sweep,
+        (!c.paper_k_phi.is_empty()).then_some(&c.paper_k_phi[..]),
+    )?;
+    Ok(vec![fdr_rel, k_rel])
+}
+
+/// The cross-scale MALT verdict (docs/stress.md rule 6) of the suite's stress cases whose
+/// `malt_points.json` is found in `dirs`: a report section with the table and, when any
+/// point exists, the figure `malt_verdict.svg` written into `out`. A run of another
+/// version of a case (canonical hash) is named in a note and left out. Reporting only:
+/// every gate stays in its case.
+pub fn malt_verdict(
+    suite: &Suite,
+    dirs: &[PathBuf],
+    out: &Path,
+) -> (Vec<String>, Option<crate::report::Section>) {
+    use crate::compare::malt_points::{MaltPoints, table};
+    let mut notes = Vec::new();
+    let mut points = Vec::new();
+    for e in suite.cases.iter().filter(|e| e.stress) {
+        let Ok(pc) = penetration_case(&e.path) else {
+            continue;
+        };
+        let hash = crate::case::ValidatedCase::canonical_hash(&pc).to_string();
+        let found = dirs.iter().find_map(|d| {
+            [d.join(&pc.name), d.to_path_buf()]
+                .into_iter()
+                .find_map(|c| MaltPoints::read(&c).ok().filter(|m| m.case == pc.name))
+        });
+        match found {
+            Some(m) if m.canonical_hash == hash => points.push(m),
+            Some(_) => notes.push(format!(
+                "MALT verdict: the points of {} are of another version of the case (canonical hash); left out",
+                pc.name
+            )),
+            None => {}
+        }
+    }
+    if points.is_empty() {
+        return (notes, None);
+    }
+    let mut section = crate::report::Section {
+        title: "MALT across scales (docs/stress.md rule 6)".into(),
+        body: format!(
+            "Reported, not gated: each case keeps its own engine and MALT gates. phi(K_phi) is eq 10 inverted at the measured K_phi; 'v2 - phi(K)' is how far the stress-field angle sits from the MALT curve in phi.\n\n{}",
+            table(&points, &[])
+        ),
+        figures: Vec::new(),
+    };
+    const FIGURE: &str = "malt_verdict.svg";
+    match draw_malt_verdict(&out.join(FIGURE), &points) {
+        Ok(()) => section.figures.push(FIGURE.into()),
+        Err(e) => notes.push(format!("MALT verdict figure not written: {e:#}")),
+    }
+    (notes, Some(section))
+}
+
+fn draw_malt_verdict(
+    path: &Path,
+    points: &[crate::compare::malt_points::MaltPoints],
+) -> Result<()> {
+    use crate::report::field_svg::{KPhiPoint, k_phi_plane};
+    let curve: Vec<(f64, f64)> = crate::analysis::malt::table(45.0, 0.5)?
+        .into_iter()
+        .filter(|(_, k)| *k <= 2e3)
+        .collect();
+    let labels: Vec<(String, &crate::compare::malt_points::MaltPoint)> = points
+        .iter()
+        .flat_map(|m| {
+            m.engines.iter().map(move |(engine, e)| {
+                (
+                    format!("{} {engine}, phi v2 (R/d {:.1})", m.case, m.scale.r_over_d),
+                    e,
+                )
+            })
+        })
+        .collect();
+    let kp: Vec<KPhiPoint> = labels
+        .iter()
+        .map(|(l, e)| KPhiPoint {
+            label: l,
+            phi_deg: e.phi_v2_deg,
+            phi_err: e.phi_v2_sd_deg,
+            k: e.k_phi,
+            k_err: e.k_phi_se,
+        })
+        .collect();
+    k_phi_plane(path, &curve, &kp, &[])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -562,7 +798,20 @@ mod tests {
             "native, liggghts and the sweep-ignored control"
         );
         assert!(checks.iter().all(|c| c.passed), "{checks:?}");
+        // Both summaries present: the claim gets its section and two figures.
+        let (fig_notes, sections) = claim_sections(&one, &dirs, d.path());
+        assert!(fig_notes.is_empty(), "{fig_notes:?}");
+        assert_eq!(sections.len(), 1);
+        assert_eq!(sections[0].figures.len(), 2, "{:?}", sections[0]);
+        for f in &sections[0].figures {
+            let svg = std::fs::read_to_string(d.path().join(f)).unwrap();
+            assert!(svg.contains("<svg"), "{f}");
+        }
         write(&claim.cases[1], Some("stale"), 12.0);
+        assert!(
+            claim_sections(&one, &dirs, d.path()).1.is_empty(),
+            "a stale case has no figures"
+        );
         let (checks, _) = evaluate_claims(&one, &dirs, false);
         assert_eq!(checks[0].status, Status::Error, "{checks:?}");
     }

@@ -194,9 +194,22 @@ pub struct KPhiPoint<'a> {
     pub k_err: f64,
 }
 
-/// The phi - K_phi plane with the MALT curve `(phi_deg, K)` on a log K axis and points
-/// with error bars (Fig. 7).
-pub fn k_phi_plane(path: &Path, curve: &[(f64, f64)], points: &[KPhiPoint<'_>]) -> Result<()> {
+/// An angle measured independently of K_phi (rule 5's triaxial test): a vertical band
+/// `phi_deg +- half_width_deg` across the whole K axis.
+pub struct PhiBand<'a> {
+    pub label: &'a str,
+    pub phi_deg: f64,
+    pub half_width_deg: f64,
+}
+
+/// The phi - K_phi plane with the MALT curve `(phi_deg, K)` on a log K axis, points
+/// with error bars (Fig. 7) and vertical bands of independently measured angles.
+pub fn k_phi_plane(
+    path: &Path,
+    curve: &[(f64, f64)],
+    points: &[KPhiPoint<'_>],
+    bands: &[PhiBand<'_>],
+) -> Result<()> {
     ensure!(!curve.is_empty(), "k_phi_plane: empty MALT curve");
     let pts: Vec<&KPhiPoint> = points
         .iter()
@@ -205,6 +218,7 @@ pub fn k_phi_plane(path: &Path, curve: &[(f64, f64)], points: &[KPhiPoint<'_>]) 
     let x1 = pts
         .iter()
         .map(|p| p.phi_deg + p.phi_err + 3.0)
+        .chain(bands.iter().map(|b| b.phi_deg + b.half_width_deg + 3.0))
         .fold(curve.last().map(|c| c.0).unwrap_or(40.0), f64::max);
     let k_hi = curve
         .iter()
@@ -234,6 +248,23 @@ pub fn k_phi_plane(path: &Path, curve: &[(f64, f64)], points: &[KPhiPoint<'_>]) 
         .map_err(err("curve"))?
         .label("MALT, eq 10")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+    for (i, b) in bands.iter().enumerate() {
+        let col = Palette99::pick(pts.len() + i + 1).to_rgba();
+        let w = b.half_width_deg.max(0.05);
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(b.phi_deg - w, 0.8), (b.phi_deg + w, k_hi)],
+                col.mix(0.25).filled(),
+            )))
+            .map_err(err("band"))?
+            .label(format!(
+                "{} ({:.2} +- {:.2} deg)",
+                b.label, b.phi_deg, b.half_width_deg
+            ))
+            .legend(move |(x, y)| {
+                Rectangle::new([(x, y - 5), (x + 20, y + 5)], col.mix(0.25).filled())
+            });
+    }
     for (i, p) in pts.iter().enumerate() {
         let col = Palette99::pick(i + 1).to_rgba();
         let style = col.stroke_width(2);
@@ -315,9 +346,15 @@ mod tests {
                 k: 20.0,
                 k_err: 0.5,
             }],
+            &[PhiBand {
+                label: "triaxial",
+                phi_deg: 28.0,
+                half_width_deg: 0.5,
+            }],
         )
         .unwrap();
         let svg = std::fs::read_to_string(&q).unwrap();
         assert!(svg.contains("native (25.00 deg, 20.00)") && svg.contains("MALT"));
+        assert!(svg.contains("triaxial (28.00 +- 0.50 deg)"));
     }
 }

@@ -43,6 +43,22 @@ pub struct Report {
     /// corrupt reference) or a gate could not be evaluated (not compared).
     #[serde(default)]
     pub errored: bool,
+    /// Views across cases that are not checks (a suite's claim figures, the cross-scale
+    /// MALT verdict): each a titled Markdown body and its figures, paths relative to the
+    /// report directory.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sections: Vec<Section>,
+}
+
+/// A titled part of `report.md` after the checks.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Section {
+    pub title: String,
+    /// Markdown (tables allowed).
+    pub body: String,
+    /// Figures shown under the body, relative to the report directory.
+    #[serde(default)]
+    pub figures: Vec<String>,
 }
 
 impl Report {
@@ -58,6 +74,7 @@ impl Report {
             runs,
             notes,
             errored,
+            sections: Vec::new(),
         }
     }
 
@@ -123,6 +140,12 @@ impl Report {
                 },
                 c.detail.replace('|', "/").replace('\n', " ")
             );
+        }
+        for sec in &self.sections {
+            let _ = writeln!(s, "\n## {}\n\n{}", sec.title, sec.body.trim_end());
+            for f in &sec.figures {
+                let _ = writeln!(s, "\n![{f}]({f})");
+            }
         }
         if !self.runs.is_empty() {
             let _ = writeln!(

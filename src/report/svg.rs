@@ -112,6 +112,131 @@ pub fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], title: &str) -> Result
     Ok(())
 }
 
+/// One engine's K_phi along a sweep: per point the value, its standard error and the
+/// single beds' values (drawn small, so the scatter a claim must beat is visible).
+pub struct SweepSeries<'a> {
+    pub label: &'a str,
+    pub k: &'a [f64],
+    pub se: &'a [f64],
+    pub beds: &'a [Vec<f64>],
+}
+
+/// K_phi against the swept parameter `x` (Feng et al. Fig 3, Table 3): each series with
+/// +- 1 SE bars and its single beds, and the paper's published values where it gives
+/// them (`paper`, NaN where it does not). Series are offset slightly along x so their
+/// bars do not hide each other.
+pub fn k_phi_sweep(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    x: &[f64],
+    series: &[SweepSeries<'_>],
+    paper: Option<&[f64]>,
+) -> Result<()> {
+    ensure!(!x.is_empty(), "k_phi_sweep: no points");
+    for s in series {
+        ensure!(
+            s.k.len() == x.len() && s.se.len() == x.len() && s.beds.len() == x.len(),
+            "k_phi_sweep: series '{}' has {} points for {} x values",
+            s.label,
+            s.k.len(),
+            x.len()
+        );
+    }
+    if let Some(p) = paper {
+        ensure!(
+            p.len() == x.len(),
+            "k_phi_sweep: {} paper values for {} x values",
+            p.len(),
+            x.len()
+        );
+    }
+    let (x0, x1) = range(x.iter(), "x")?;
+    let span = if x1 > x0 { x1 - x0 } else { 1.0 };
+    let dx = 0.015 * span;
+    let ys: Vec<f64> = series
+        .iter()
+        .flat_map(|s| {
+            s.k.iter()
+                .zip(s.se)
+                .flat_map(|(k, e)| [k - e, k + e])
+                .chain(s.beds.iter().flatten().copied())
+        })
+        .chain(paper.into_iter().flatten().copied())
+        .collect();
+    let (y0, y1) = range(ys.iter(), "K_phi")?;
+    let (x0, x1) = padded(x0 - dx * series.len() as f64, x1 + dx * series.len() as f64);
+    let (y0, y1) = padded(y0.min(0.0), y1);
+    let root = SVGBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE).map_err(err("fill"))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, (FONT, 20))
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(err("chart layout"))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc("K_phi")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .draw()
+        .map_err(err("axes"))?;
+    for (i, s) in series.iter().enumerate() {
+        let col = Palette99::pick(i).to_rgba();
+        let off = (i as f64 - 0.5 * (series.len() as f64 - 1.0)) * dx;
+        let pts: Vec<(f64, f64)> = x.iter().zip(s.k).map(|(a, k)| (a + off, *k)).collect();
+        chart
+            .draw_series(LineSeries::new(pts.clone(), col.stroke_width(2)))
+            .map_err(err("series"))?
+            .label(format!("{} (+- 1 SE; small: single beds)", s.label))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2)));
+        chart
+            .draw_series(pts.iter().map(|p| Circle::new(*p, 5, col.filled())))
+            .map_err(err("points"))?;
+        chart
+            .draw_series(x.iter().zip(s.k).zip(s.se).map(|((a, k), e)| {
+                PathElement::new(
+                    vec![(a + off, k - e), (a + off, k + e)],
+                    col.stroke_width(2),
+                )
+            }))
+            .map_err(err("error bars"))?;
+        chart
+            .draw_series(x.iter().zip(s.beds).flat_map(|(a, b)| {
+                b.iter()
+                    .map(move |k| Circle::new((a + off, *k), 2, col.stroke_width(1)))
+            }))
+            .map_err(err("beds"))?;
+    }
+    if let Some(p) = paper {
+        let pts: Vec<(f64, f64)> = x
+            .iter()
+            .zip(p)
+            .filter(|(_, k)| k.is_finite())
+            .map(|(a, k)| (*a, *k))
+            .collect();
+        chart
+            .draw_series(pts.iter().map(|p| {
+                Rectangle::new(
+                    [
+                        (p.0 - dx, p.1 - 0.01 * (y1 - y0)),
+                        (p.0 + dx, p.1 + 0.01 * (y1 - y0)),
+                    ],
+                    BLACK.filled(),
+                )
+            }))
+            .map_err(err("paper"))?
+            .label("published values")
+            .legend(|(x, y)| Rectangle::new([(x, y - 4), (x + 10, y + 4)], BLACK.filled()));
+    }
+    legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
+    root.present().map_err(err("write svg"))?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -154,6 +279,27 @@ mod tests {
             assert!(svg.contains(needle), "missing {needle}");
         }
         assert!(fdr_overlay(&path, &[], "x").is_err());
+        let q = dir.path().join("sweep.svg");
+        let beds = vec![vec![22.0, 24.0], vec![23.0, 23.5], vec![22.5, 24.5]];
+        k_phi_sweep(
+            &q,
+            "Table 3",
+            "v (cm/s)",
+            &[0.5, 1.0, 2.0],
+            &[SweepSeries {
+                label: "native",
+                k: &[23.0, 23.2, 23.5],
+                se: &[0.5, 0.4, 0.6],
+                beds: &beds,
+            }],
+            Some(&[23.05, 22.86, 23.14]),
+        )
+        .unwrap();
+        let svg = std::fs::read_to_string(&q).unwrap();
+        assert!(
+            svg.contains("v (cm/s)") && svg.contains("published values") && svg.contains("native")
+        );
+        assert!(k_phi_sweep(&q, "t", "x", &[1.0], &[], Some(&[1.0, 2.0])).is_err());
         assert!(fdr_overlay(&path, &[("bad", &h, &pa[..3], None)], "x").is_err());
     }
 }

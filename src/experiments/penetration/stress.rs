@@ -536,7 +536,8 @@ fn run_checks(
         k: 23.00,
         k_err: 0.15,
     });
-    k_phi_plane(&out.join("k_phi.svg"), &curve, &points)?;
+    k_phi_plane(&out.join("k_phi.svg"), &curve, &points, &[])?;
+    malt_points(case, units, (&np1, &nv2), (&lp1, &lv2), v2_gated).write(out)?;
     write_phi_csv(&out.join("phi_snapshots.csv"), &beds)?;
     let analysis_wall_s: f64 = beds.iter().map(|b| b.analysis_wall_s).sum();
     notes.push(format!("wall time: field analysis {analysis_wall_s:.1} s"));
@@ -681,4 +682,44 @@ fn run_study(
         }))?,
     )?;
     Ok(verdicts)
+}
+
+/// This run's points for the suite's cross-scale MALT verdict (docs/stress.md rule 6):
+/// per engine both estimators, K_phi on the case's fit range, and the run's scale.
+fn malt_points(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: (&EnginePoint, &Result<PhiV2>),
+    liggghts: (&EnginePoint, &Result<PhiV2>),
+    v2_gated: bool,
+) -> crate::compare::malt_points::MaltPoints {
+    use crate::compare::malt_points::{MaltPoint, MaltPoints, Scale};
+    let psi = units.iter().map(|u| u.bed.psi).sum::<f64>() / units.len().max(1) as f64;
+    let point = |(p, v2): (&EnginePoint, &Result<PhiV2>)| MaltPoint {
+        phi_v1_deg: p.phi_deg,
+        phi_v1_sd_deg: p.phi_std_deg,
+        phi_v2_deg: v2.as_ref().map_or(f64::NAN, |v| v.phi_deg),
+        phi_v2_sd_deg: v2.as_ref().map_or(f64::NAN, |v| v.sd_deg),
+        k_phi: p.k_phi,
+        k_phi_se: p.k_phi_se,
+        psi,
+    };
+    MaltPoints {
+        case: case.name.clone(),
+        canonical_hash: crate::case::ValidatedCase::canonical_hash(case).to_string(),
+        gated_estimator: if v2_gated { "v2" } else { "v1" }.into(),
+        scale: Scale {
+            r_over_d: case.intruder_radius / case.diameter.mean(),
+            container_over_r: case.container_radius / case.intruder_radius,
+            grains_per_bed: units.first().map_or(0, |u| u.bed.particles.len()),
+            beds: units.len(),
+            frictionless: case.pairs.friction.iter().all(|&m| m == 0.0),
+        },
+        engines: [
+            ("native".to_string(), point(native)),
+            ("liggghts".to_string(), point(liggghts)),
+        ]
+        .into_iter()
+        .collect(),
+    }
 }
