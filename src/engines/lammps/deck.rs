@@ -19,6 +19,8 @@ pub const DATA_FILE: &str = "data.impact2d";
 pub const DECK_FILE: &str = "in.impact2d";
 pub const SNAP_FILE: &str = "snap.dump";
 pub const INTRUDER_FILE: &str = "intruder.txt";
+pub const GRAINS_FILE: &str = "grains.dump";
+pub const CONTACTS_FILE: &str = "contacts.dump";
 
 /// What to run and what to write.
 #[derive(Debug, Clone)]
@@ -32,6 +34,28 @@ pub struct Outputs {
     /// Title and leading paragraphs of the deck's header (the case, its units); the deck
     /// adds what it runs and writes.
     pub header: Header,
+    /// Bed snapshots (K Sec. IV): grain positions and contact forces at chosen steps.
+    pub fields: crate::physics::dem2d::impact::SnapshotSteps,
+}
+
+/// An equal-style LAMMPS formula whose value is the first of `steps` (sorted, > 0)
+/// after the current step, and `beyond` after the last: `dump_modify every v_NAME`
+/// writes exactly at those steps (LAMMPS 29Sep2021 has no ternary(), so the cases are
+/// products of logical terms).
+fn next_step_formula(steps: &[u64], beyond: u64) -> String {
+    let mut terms = Vec::new();
+    let mut prev: Option<u64> = None;
+    for &k in steps {
+        terms.push(match prev {
+            None => format!("{k}*(step<{k})"),
+            Some(p) => format!("{k}*(step>={p})*(step<{k})"),
+        });
+        prev = Some(k);
+    }
+    if let Some(p) = prev {
+        terms.push(format!("{beyond}*(step>={p})"));
+    }
+    terms.join("+")
 }
 
 /// Number of a LAMMPS atom type (1-based) for a 0-based native type.
@@ -320,6 +344,28 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         }
     };
     let count = |name: &str| pairs.iter().filter(|&&(a, b)| style(a, b) == name).count();
+    // `compute pair/local` calls the pair style's single(); under `pair_style hybrid` the
+    // installed LAMMPS (29 Sep 2021) crashes in PairHybrid::copy_svector, so a deck that
+    // dumps contact forces uses one style, which needs one coefficient set.
+    let single_style = !out.fields.contact_steps.is_empty();
+    if single_style {
+        let first = &sys.coeffs[pairs[0].0 * n_types + pairs[0].1];
+        if let Some(&(a, b)) = pairs
+            .iter()
+            .find(|&&(a, b)| sys.coeffs[a * n_types + b] != *first)
+        {
+            bail!(
+                "contact forces are dumped with `compute pair/local`, which needs one pair style \
+                 (it crashes under `pair_style hybrid` in LAMMPS 29Sep2021), but types {} and {} \
+                 have other coefficients than types {} and {}: give the walls the grains' \
+                 coefficients during the impact (`[walls] impact_as_grains = true`)",
+                ty(a),
+                ty(b),
+                ty(pairs[0].0),
+                ty(pairs[0].1)
+            );
+        }
+    }
     let mut text = String::from(
         "---- Contact law (Kondic et al. Sec. II, eqs 1-2) ----\n\
          Linear spring-dashpot normal force F_n = k_n x - gamma_n m_eff v_n, with gamma_n = -2 \
@@ -350,7 +396,25 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             approx(c.mu)
         );
     }
+    if single_style {
+        text += "\nEvery interacting pair has the same coefficients here, so one style without \
+                 `hybrid` (the contact-force dump below needs it).";
+    }
     block(&mut s, &text);
+    if single_style {
+        let (a, b) = pairs[0];
+        let c = &sys.coeffs[a * n_types + b];
+        let _ = writeln!(
+            s,
+            "pair_style {} {} {} {} {} {} 1\npair_coeff * *",
+            style(a, b),
+            num(c.kn),
+            num(c.kt),
+            num(c.gamma_n),
+            num(c.gamma_t),
+            num(c.mu)
+        );
+    }
     let mut args = String::from("pair_style hybrid");
     for &(a, b) in &pairs {
         let c = &sys.coeffs[a * n_types + b];
@@ -366,13 +430,15 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             num(c.mu)
         );
     }
-    let _ = writeln!(s, "{args}");
-    comment(
-        &mut s,
-        "Which instance acts on which type pair (`none`: pairs that never meet).",
-    );
+    if !single_style {
+        let _ = writeln!(s, "{args}");
+        comment(
+            &mut s,
+            "Which instance acts on which type pair (`none`: pairs that never meet).",
+        );
+    }
     let mut seen = std::collections::HashMap::<&str, usize>::new();
-    for a in 0..n_types {
+    for a in (0..n_types).filter(|_| !single_style) {
         for b in a..n_types {
             if pairs.contains(&(a, b)) {
                 let st = style(a, b);
@@ -466,6 +532,52 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         );
         let _ = writeln!(s, "dump_modify snap sort id format float %.17g");
     }
+    let f = &out.fields;
+    if !f.position_steps.is_empty() {
+        comment(
+            &mut s,
+            &format!(
+                "Bed snapshots (Kondic et al. Sec. IV) at steps {:?}: the grains' positions \
+                 (id x y, %.17g, sorted by id) to {GRAINS_FILE}{}. `dump_modify every v_NAME` \
+                 writes when the step reaches the variable's value, the next listed step.",
+                f.position_steps,
+                if f.contact_steps.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; at steps {:?} every touching pair (atom ids, centre distance, \
+                         normal force |F_n| = `force`, tangential force |F_t| = `p4` of the \
+                         pair style's single(), evaluated on the state at the end of the \
+                         step) to {CONTACTS_FILE}",
+                        f.contact_steps
+                    )
+                }
+            ),
+        );
+        let beyond = out.n_steps + 1;
+        let _ = writeln!(
+            s,
+            "group grains type 1\nvariable gnext equal \"{}\"",
+            next_step_formula(&f.position_steps, beyond)
+        );
+        let _ = writeln!(
+            s,
+            "dump grains grains custom 1 {GRAINS_FILE} id x y\ndump_modify grains every v_gnext sort id format float %.17g"
+        );
+        if !f.contact_steps.is_empty() {
+            let _ = writeln!(
+                s,
+                "variable cnext equal \"{}\"",
+                next_step_formula(&f.contact_steps, beyond)
+            );
+            let _ = writeln!(
+                s,
+                "compute cpl all pair/local dist force p4\ncompute cpp all property/local patom1 patom2\n\
+                 dump contacts all local 1 {CONTACTS_FILE} c_cpp[1] c_cpp[2] c_cpl[1] c_cpl[2] c_cpl[3]\n\
+                 dump_modify contacts every v_cnext format float %.17g"
+            );
+        }
+    }
     comment(
         &mut s,
         &format!(
@@ -482,4 +594,38 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     );
     let _ = writeln!(s, "run {}", out.n_steps);
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// LAMMPS evaluates the formula with `step` the current step: it must give the next
+    /// listed step, and `beyond` after the last.
+    #[test]
+    fn next_step_formula_walks_the_list() {
+        let f = next_step_formula(&[300, 575, 600], 1001);
+        let eval = |step: u64| -> u64 {
+            f.split('+')
+                .map(|term| {
+                    let mut parts = term.split('*');
+                    let k: u64 = parts.next().unwrap().parse().unwrap();
+                    let ok = parts.all(|c| {
+                        let c = c.trim_matches(|c| c == '(' || c == ')');
+                        if let Some(v) = c.strip_prefix("step>=") {
+                            step >= v.parse::<u64>().unwrap()
+                        } else {
+                            step < c.strip_prefix("step<").unwrap().parse::<u64>().unwrap()
+                        }
+                    });
+                    if ok { k } else { 0 }
+                })
+                .sum()
+        };
+        assert_eq!(eval(0), 300);
+        assert_eq!(eval(300), 575);
+        assert_eq!(eval(575), 600);
+        assert_eq!(eval(600), 1001);
+        assert_eq!(next_step_formula(&[], 5), "");
+    }
 }
