@@ -600,6 +600,92 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
 mod tests {
     use super::*;
 
+    /// A deck that dumps contact forces uses one pair style (`compute pair/local` crashes
+    /// under hybrid) and refuses a system whose pairs differ; it dumps at the listed steps.
+    #[test]
+    fn contact_dumps_need_one_pair_style() {
+        use crate::case::impact2d::Coeffs;
+        use crate::physics::dem2d::neighbor::Box2;
+        use crate::physics::dem2d::{Disk, Role};
+        let disk = |id: u64, type_: usize, x: f64, role: Role| Disk {
+            id,
+            type_,
+            radius: 0.5,
+            mass: 1.0,
+            x: [x, 1.0],
+            v: [0.0; 2],
+            omega: 0.0,
+            role,
+        };
+        let g = Coeffs {
+            kn: 1e3,
+            kt: 800.0,
+            gamma_n: 10.0,
+            gamma_t: 5.0,
+            mu: 0.5,
+        };
+        let w = Coeffs { mu: 0.9, ..g };
+        let sys = |c: Vec<Coeffs>| {
+            System::new(
+                vec![
+                    disk(1, 0, 1.0, Role::Free),
+                    disk(2, 0, 2.0, Role::Free),
+                    disk(3, 1, 3.0, Role::Frozen),
+                ],
+                None,
+                c,
+                2,
+                Box2 {
+                    lo: [0.0, 0.0],
+                    hi: [10.0, 10.0],
+                    periodic_x: true,
+                },
+                9.81,
+                1e-4,
+                0.1,
+                vec![],
+            )
+        };
+        let out = Outputs {
+            n_steps: 100,
+            intruder_every: 0,
+            snapshot_every: 0,
+            header: Header::default(),
+            fields: crate::physics::dem2d::impact::SnapshotSteps {
+                position_steps: vec![40, 50],
+                contact_steps: vec![50],
+            },
+        };
+        let e = write_deck(&sys(vec![g, w, w, w]), &out)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("impact_as_grains") && e.contains("hybrid"),
+            "{e}"
+        );
+        let deck = write_deck(&sys(vec![g; 4]), &out).unwrap();
+        assert!(
+            !deck.lines().any(|l| l.starts_with("pair_style hybrid")),
+            "{deck}"
+        );
+        assert!(deck.contains("pair_style gran/hooke/history ") && deck.contains("pair_coeff * *"));
+        assert!(deck.contains(
+            "variable gnext equal \"40*(step<40)+50*(step>=40)*(step<50)+101*(step>=50)\""
+        ));
+        assert!(deck.contains("variable cnext equal \"50*(step<50)+101*(step>=50)\""));
+        assert!(deck.contains("dump contacts all local 1 contacts.dump"));
+        // Without contact dumps the same unequal system keeps its hybrid style.
+        let plain = Outputs {
+            fields: Default::default(),
+            ..out
+        };
+        assert!(
+            write_deck(&sys(vec![g, w, w, w]), &plain)
+                .unwrap()
+                .contains("pair_style hybrid")
+        );
+    }
+
     /// LAMMPS evaluates the formula with `step` the current step: it must give the next
     /// listed step, and `beyond` after the last.
     #[test]
