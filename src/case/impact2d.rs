@@ -575,7 +575,7 @@ impl Impact2dCase {
     /// name, description, analysis window, claim, tolerances or controls. A recorded
     /// reference is sealed to its sha256.
     pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
-        let view = serde_json::json!({
+        let mut view = serde_json::json!({
             "kind": "impact2d",
             "scales": self.scales,
             "dt": self.dt,
@@ -589,9 +589,15 @@ impl Impact2dCase {
             "intruder": [self.intruder_mass, self.release_height],
             "base": self.base,
             "variants": self.variants,
-            "walls_as_grains": self.walls_as_grains,
-            "fields": self.fields,
         });
+        // Added with the bed fields (K Sec. IV); absent from the view when unused, so the
+        // hashes of cases written before them, and their seals, stay as they were.
+        if self.walls_as_grains {
+            view["walls_as_grains"] = serde_json::json!(true);
+        }
+        if let Some(f) = &self.fields {
+            view["fields"] = serde_json::json!(f);
+        }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
 
