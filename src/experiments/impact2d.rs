@@ -269,6 +269,14 @@ impl Experiment for Impact2d {
                     "every energy_every steps every disk (for the energies)",
                 ),
                 (
+                    lammps::deck::GRAINS_FILE,
+                    "only with [fields]: every grain's position at the field steps (%.17g)",
+                ),
+                (
+                    lammps::deck::CONTACTS_FILE,
+                    "only with [fields] network_times: every touching pair's atom ids, distance, |F_n| and |F_t| at those steps",
+                ),
+                (
                     lammps::LOG_FILE,
                     "LAMMPS' log (version, warnings, thermo lines)",
                 ),
