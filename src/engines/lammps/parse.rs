@@ -272,3 +272,31 @@ pub fn for_each_table_frame(
     }
     Ok(n_frames)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A `dump local` frame reads back row by row; other columns or a cut-off file are
+    /// errors naming the file.
+    #[test]
+    fn table_frames_read_and_name_their_mistakes() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("contacts.dump");
+        let frame = "ITEM: TIMESTEP\n600\nITEM: NUMBER OF ENTRIES\n2\nITEM: BOX BOUNDS pp ff pp\n0 1\n0 1\n-1 1\nITEM: ENTRIES a b\n1 2.5\n3 4e-3\n";
+        std::fs::write(&p, frame.repeat(2)).unwrap();
+        let mut got = Vec::new();
+        let n = for_each_table_frame(&p, "ENTRIES", &["a", "b"], |s, rows| {
+            got.push((s, rows.to_vec()));
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(n, 2);
+        assert_eq!(got[1], (600, vec![vec![1.0, 2.5], vec![3.0, 4e-3]]));
+        let e = for_each_table_frame(&p, "ENTRIES", &["a", "c"], |_, _| Ok(())).unwrap_err();
+        assert!(format!("{e:#}").contains("contacts.dump"), "{e:#}");
+        std::fs::write(&p, &frame[..frame.len() - 7]).unwrap();
+        let e = for_each_table_frame(&p, "ENTRIES", &["a", "b"], |_, _| Ok(())).unwrap_err();
+        assert!(format!("{e:#}").contains("truncated"), "{e:#}");
+    }
+}
