@@ -191,3 +191,106 @@ fn fig2_speed_case_sweeps_six_speeds_with_the_linearity_claim() {
         assert!(suite.cases.iter().any(|e| e.path.ends_with(f)), "{f}");
     }
 }
+
+/// Kondic Figs 21-27: the friction_mu sweep, `[fields]` as steps, the new claims, and
+/// their mistakes named by file, field, value and reason.
+#[test]
+fn field_and_force_claims_parse_and_name_their_mistakes() {
+    let t = ci_text()
+        .replace("duration = 1000.0", "duration = 50.0")
+        .replace("final_window = 200.0", "final_window = 10.0");
+    let sweep = "\n[sweep]\nparameter = \"friction_mu\"\nvalues = [{ mu = 0.0, friction = \"kinetic\" }, { mu = 0.5, friction = \"static\" }]\n";
+    let fields = "\n[fields]\nnetwork_times = [12.0, 24.0]\naffine_time = 24.0\naffine_dt = 1.0\naffine_radius = 2.5\n";
+    let claim = "[[claim]]\nkind = \"field_order\"\nquantity = \"d2min\"\nlarger = \"mu=0,kinetic\"\nsmaller = \"mu=0.5,static\"\nmin_ratio = 1.1\n";
+    let ok = format!("{t}{fields}{sweep}{claim}");
+    let c = Impact2dCase::from_toml_str(&ok, Path::new("ok.toml")).unwrap();
+    assert_eq!(c.variants.len(), 2);
+    assert_eq!(c.variants[0].label, "mu=0,kinetic");
+    assert_eq!(c.variants[1].grains.friction, Friction::Static);
+    assert_eq!(c.variants[1].grains.mu, 0.5);
+    let f = c.fields.as_ref().unwrap();
+    // dt = 0.04 tau_c: 12 tau_c = step 300, 24 = 600, 24 - 1 = 575.
+    assert_eq!(f.network_steps, vec![300, 600]);
+    assert_eq!(f.affine.map(|a| (a.0, a.1)), Some((575, 600)));
+    assert_eq!(f.position_steps(), vec![300, 575, 600]);
+    for (from, to, field, why) in [
+        (
+            "larger = \"mu=0,kinetic\"",
+            "larger = \"mu=9\"",
+            "claim.larger",
+            "no such variant",
+        ),
+        (
+            "network_times = [12.0, 24.0]",
+            "network_times = [12.01]",
+            "fields.network_times[0]",
+            "whole number",
+        ),
+        (
+            "network_times = [12.0, 24.0]",
+            "network_times = [24.0, 12.0]",
+            "fields.network_times",
+            "rise",
+        ),
+        (
+            "affine_time = 24.0",
+            "affine_time = 99.0",
+            "fields.affine_time",
+            "after the end",
+        ),
+        ("affine_dt = 1.0\n", "", "fields", "needs all three"),
+        (
+            "min_ratio = 1.1",
+            "min_ratio = 1.1\nmax_ratio = 1.0",
+            "claim.max_ratio",
+            "exceed",
+        ),
+        (
+            "mu = 0.0, friction = \"kinetic\"",
+            "mu = 0.0, friction = \"sticky\"",
+            "sweep.values[0]",
+            "friction_mu takes",
+        ),
+    ] {
+        assert!(ok.contains(from), "{from}");
+        let e = err(&ok.replacen(from, to, 1));
+        assert!(
+            e.contains("bad.toml") && e.contains(field) && e.contains(why),
+            "{e}"
+        );
+    }
+    // A B0 claim without network times.
+    let e = err(&ok
+        .replace("network_times = [12.0, 24.0]\n", "")
+        .replace("\"d2min\"", "\"b0_normal\""));
+    assert!(
+        e.contains("claim.quantity") && e.contains("network_times"),
+        "{e}"
+    );
+    // Force claims: a bin must hold two samples (output_every 25 x 0.04 = 1 tau_c).
+    let force =
+        "[[claim]]\nkind = \"force_impulsive\"\nbin = 1.0\npeak_within = 5.0\nhalf_within = 10.0\n";
+    Impact2dCase::from_toml_str(
+        &format!("{t}{sweep}{force}").replace("output_every = 25", "output_every = 5"),
+        Path::new("ok.toml"),
+    )
+    .unwrap();
+    let e = err(&format!("{t}{sweep}{force}"));
+    assert!(
+        e.contains("claim.bin") && e.contains("2 intruder samples"),
+        "{e}"
+    );
+    // The release cases say what their headers register.
+    for rel in [
+        "cases/release/kondic-fig21-force.toml",
+        "cases/release/kondic-fig22-25-poly-fields.toml",
+        "cases/release/kondic-fig26-27-hex-fields.toml",
+    ] {
+        let c = Impact2dCase::load(&common::root().join(rel)).unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            !c.claims.is_empty() && c.negative_controls.len() == 2,
+            "{rel}"
+        );
+        assert_eq!(c.tolerances.field_rel, 0.05);
+    }
+}

@@ -83,6 +83,7 @@ fn lammps_rows(sys: &System, n: u64, every: u64, name: &str) -> Vec<(u64, u64, [
         intruder_every: 0,
         snapshot_every: every,
         header: Default::default(),
+        fields: Default::default(),
     };
     // The record stands in for LAMMPS only if it was made from today's inputs (these
     // records are test fixtures, not sealed cases: the check is done here). Left out:
@@ -351,6 +352,7 @@ fn crashed_or_silent_lammps_is_an_error() {
         intruder_every: 0,
         snapshot_every: 5,
         header: Default::default(),
+        fields: Default::default(),
     };
     for (binary, why) in [("false", "exited with"), ("true", "Total wall time")] {
         let dir = tempfile::tempdir().unwrap();

@@ -261,3 +261,40 @@ fn table3_speed_points_differ_only_in_speed() {
     assert_eq!(claim.cases.len(), 3);
     assert_eq!(claim.controls.len(), 1);
 }
+
+/// Every recorded impact2d reference is sealed to its case's canonical hash: a field
+/// added to the case schema must not move the hash of cases that do not use it (their
+/// records would turn foreign).
+#[test]
+fn recorded_impact2d_seals_match_their_cases() {
+    let mut seen = 0;
+    for (dir, cases) in [
+        ("reference/release/impact2d", "cases/release"),
+        ("reference/impact2d", "cases/impact2d"),
+    ] {
+        let Ok(entries) = std::fs::read_dir(common::root().join(dir)) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let seal = e.path().join("seal.json");
+            let Ok(text) = std::fs::read_to_string(&seal) else {
+                continue;
+            };
+            let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+            let name = v["case_name"].as_str().unwrap();
+            let case = common::root().join(cases).join(format!("{name}.toml"));
+            let AnyCase::Impact2d(c) = AnyCase::load(&case).unwrap_or_else(|e| panic!("{e}"))
+            else {
+                panic!("{name}: not impact2d");
+            };
+            assert_eq!(
+                c.canonical_hash().to_string(),
+                v["case_sha256"].as_str().unwrap(),
+                "{}",
+                seal.display()
+            );
+            seen += 1;
+        }
+    }
+    assert!(seen >= 4, "{seen} seals checked");
+}

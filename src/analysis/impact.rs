@@ -141,6 +141,107 @@ pub(crate) fn power_law_trajectory(v0: f64, c: f64, k: f64, dt: f64) -> Vec<(f64
     s
 }
 
+/// The force on the intruder during an impact (K Fig 21) from its samples `(t, F_y)`:
+/// the first contact t_c (the first sample with a non-zero force), the force averaged
+/// over bins of `bin` from t_c, the largest bin and how soon the bins fall below half of
+/// it, and the impulse over `[t_c, t_c + window]`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ForceSummary {
+    pub t_contact: f64,
+    /// Start of the largest bin.
+    pub t_peak: f64,
+    pub peak: f64,
+    /// Time from the start of the largest bin to the start of the first later bin whose
+    /// mean is below peak / 2 (None: never).
+    pub half_after: Option<f64>,
+    /// Trapezoid integral of F over `[t_c, t_c + window]`.
+    pub impulse: f64,
+    /// (bin start, bin mean) from t_c on.
+    #[serde(skip)]
+    pub bins: Vec<(f64, f64)>,
+}
+
+/// Summary of a force series `(t, F)` (sorted by t), or why there is none.
+pub fn force_summary(series: &[(f64, f64)], bin: f64, window: f64) -> Result<ForceSummary> {
+    let Some(c) = series.iter().position(|p| p.1 != 0.0) else {
+        bail!("the intruder never touched anything (force zero at every sample)");
+    };
+    let t_c = series[c].0;
+    let mut bins: Vec<(f64, f64)> = Vec::new();
+    let (mut sum, mut n, mut k) = (0.0, 0usize, 0usize);
+    for &(t, f) in &series[c..] {
+        let b = ((t - t_c) / bin + 1e-9).floor() as usize;
+        if b != k {
+            if n > 0 {
+                bins.push((t_c + k as f64 * bin, sum / n as f64));
+            }
+            (sum, n, k) = (0.0, 0, b);
+        }
+        sum += f;
+        n += 1;
+    }
+    if n > 0
+        && series
+            .last()
+            .is_some_and(|l| l.0 >= t_c + (k as f64 + 1.0) * bin - 1e-9 * bin)
+    {
+        bins.push((t_c + k as f64 * bin, sum / n as f64));
+    }
+    if bins.is_empty() {
+        bail!("the run ends within one bin ({bin:e}) of the first contact");
+    }
+    let (ip, &(t_peak, peak)) = bins
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.1.total_cmp(&b.1.1))
+        .expect("non-empty");
+    let half_after = bins[ip..]
+        .iter()
+        .find(|b| b.1 < 0.5 * peak)
+        .map(|b| b.0 - t_peak);
+    let in_window: Vec<(f64, f64)> = series[c..]
+        .iter()
+        .copied()
+        .filter(|p| p.0 <= t_c + window * (1.0 + 1e-12))
+        .collect();
+    let impulse = in_window
+        .windows(2)
+        .map(|w| 0.5 * (w[1].0 - w[0].0) * (w[0].1 + w[1].1))
+        .sum();
+    Ok(ForceSummary {
+        t_contact: t_c,
+        t_peak,
+        peak,
+        half_after,
+        impulse,
+        bins,
+    })
+}
+
+/// RMS difference of two binned force series over the bins both have that start
+/// before `t_end` (matched by bin start).
+pub fn bins_rms(a: &[(f64, f64)], b: &[(f64, f64)], t_end: f64) -> Result<f64> {
+    let (mut s, mut n) = (0.0, 0usize);
+    for (p, q) in a.iter().zip(b) {
+        if p.0 >= t_end || q.0 >= t_end {
+            break;
+        }
+        if (p.0 - q.0).abs() > 1e-6 * p.0.abs().max(1.0) {
+            bail!(
+                "the two force series start their bins at different times ({} vs {})",
+                p.0,
+                q.0
+            );
+        }
+        s += (p.1 - q.1).powi(2);
+        n += 1;
+    }
+    if n < 2 {
+        bail!("fewer than 2 common bins before {t_end}");
+    }
+    Ok((s / n as f64).sqrt())
+}
+
 /// Least-squares line `y = a + b x` and its R^2.
 pub fn linear_r2(x: &[f64], y: &[f64]) -> Result<(f64, f64, f64)> {
     let n = x.len();
@@ -168,6 +269,46 @@ pub fn linear_r2(x: &[f64], y: &[f64]) -> Result<(f64, f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A force series with a known shape: zero before contact at t = 2, a triangle
+    /// peaking in the second bin, then a plateau at a quarter of the peak.
+    #[test]
+    fn force_summary_finds_contact_peak_half_time_and_impulse() {
+        let s: Vec<(f64, f64)> = (0..200)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let f = if t < 2.0 - 1e-9 {
+                    0.0
+                } else if t < 3.5 {
+                    100.0 * (t - 1.9)
+                } else if t < 5.0 {
+                    160.0 - 100.0 * (t - 3.5)
+                } else {
+                    10.0
+                };
+                (t, f)
+            })
+            .collect();
+        let f = force_summary(&s, 1.0, 3.0).unwrap();
+        assert!((f.t_contact - 2.0).abs() < 1e-12);
+        // Bins [2,3): mean of 10..100 = 55; [3,4): 110,120,...,160,150,...,110 peak bin.
+        assert!((f.t_peak - 3.0).abs() < 1e-9, "{f:?}");
+        assert!(f.peak > 120.0 && f.peak < 160.0);
+        // [4,5): 110 down to 20: mean 65 < peak/2? peak ~ 136 -> 65 < 68: 1 bin later.
+        assert_eq!(f.half_after.map(|h| h.round()), Some(1.0), "{f:?}");
+        // Impulse over [2, 5] by trapezoid of the samples.
+        let want: f64 = s
+            .windows(2)
+            .filter(|w| w[0].0 >= 2.0 - 1e-9 && w[1].0 <= 5.0 + 1e-9)
+            .map(|w| 0.5 * (w[1].0 - w[0].0) * (w[0].1 + w[1].1))
+            .sum();
+        assert!((f.impulse - want).abs() < 1e-9, "{} vs {want}", f.impulse);
+        // A slow ramp never falls to half: no half time; no contact at all is an error.
+        let ramp: Vec<(f64, f64)> = (0..100).map(|k| (k as f64 * 0.1, k as f64)).collect();
+        assert_eq!(force_summary(&ramp, 1.0, 3.0).unwrap().half_after, None);
+        assert!(force_summary(&[(0.0, 0.0), (1.0, 0.0)], 1.0, 1.0).is_err());
+        assert_eq!(bins_rms(&f.bins, &f.bins, 10.0).unwrap(), 0.0);
+    }
 
     /// A trajectory with known deceleration decel = c u^k: the passages and the fit
     /// return k and c (to the discretisation of a fine series).

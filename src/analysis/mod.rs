@@ -1,6 +1,8 @@
+pub mod affine;
 pub mod cg_bench;
 pub mod coarse_grain;
 pub mod fdr;
+pub mod force_network;
 pub mod impact;
 pub mod malt;
 pub mod stress;

@@ -34,6 +34,12 @@ pub enum Gate {
     FinalDepth,
     DepthSeries,
     Claim,
+    /// Impact: the force on the intruder F(t) native vs reference (peak, impulse, series).
+    IntruderForce,
+    /// Impact: B0 curves of the force networks native vs reference (Kondic Figs 22-23).
+    ForceNetwork,
+    /// Impact: affine field and D2_min summaries native vs reference (Kondic Figs 24-27).
+    DisplacementField,
     /// Stress fields: phi native vs reference, (phi, K_phi) against MALT, unified fit.
     Phi,
     MaltK,

@@ -48,7 +48,26 @@ struct File {
     #[serde(default)]
     compare: Option<Tolerances>,
     #[serde(default)]
+    fields: Option<FieldsIn>,
+    #[serde(default)]
     negative_control: Vec<super::control::RawControl>,
+}
+
+/// `[fields]`: snapshots of the bed during the impact (K Sec. IV), in tau_c after release.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FieldsIn {
+    /// Contact-force snapshots for B0 of the force networks (K Figs 22-23).
+    #[serde(default)]
+    network_times: Vec<f64>,
+    /// B0 thresholds from 0 to this, in units of the mean per-grain normal force.
+    threshold_max: Option<f64>,
+    threshold_step: Option<f64>,
+    /// Affine field and D2_min (K Figs 24-27, eqs 3-4) at this time, from the positions
+    /// at `affine_time - affine_dt` and `affine_time`, neighbours within `affine_radius` d.
+    affine_time: Option<f64>,
+    affine_dt: Option<f64>,
+    affine_radius: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -110,6 +129,10 @@ struct Walls {
     diameter: f64,
     /// Height of the top wall above the release position of the intruder's top, in d.
     top_gap: f64,
+    /// During the impact (not while the bed settles) the wall disks interact with the
+    /// grains' coefficients: one LAMMPS pair style, which `compute pair/local` needs.
+    #[serde(default)]
+    impact_as_grains: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -229,6 +252,94 @@ pub enum Claim {
         max: f64,
         engine_tol: f64,
     },
+    /// K Fig 21: "this force is very large immediately after impact, and then decreases
+    /// significantly on a very short time scale". In every variant, with F(t) the
+    /// contact force on the intruder along y averaged over bins of `bin` tau_c from the
+    /// first contact t_c: the largest bin starts at most `peak_within` tau_c after t_c,
+    /// and the bin mean falls below half of it at most `half_within` tau_c after that.
+    ForceImpulsive {
+        bin: f64,
+        peak_within: f64,
+        half_within: f64,
+    },
+    /// K Fig 21: "how similar they are for the different systems ... the penetration
+    /// depths differ significantly". Over the variants, the relative spreads
+    /// (max - min) / mean of the peak force and of the impulse over [t_c, t_c + `window`]
+    /// are each at most `max_spread_ratio` times that of the final depths, and the final
+    /// depths span at least `min_depth_spread` d. Bins as the `force_impulsive` claim's
+    /// (1 tau_c unless that claim sets another).
+    ForceSimilar {
+        window: f64,
+        max_spread_ratio: f64,
+        min_depth_spread: f64,
+    },
+    /// K Figs 22-27: a field summary of variant `larger` is at least `min_ratio` (and at
+    /// most `max_ratio`, if given) times that of variant `smaller` (variant labels, e.g.
+    /// `friction=static`); B0 claims hold at every `fields.network_times`.
+    FieldOrder {
+        quantity: FieldQuantity,
+        larger: String,
+        smaller: String,
+        min_ratio: f64,
+        #[serde(default)]
+        max_ratio: Option<f64>,
+    },
+}
+
+/// A field summary a `field_order` claim compares.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FieldQuantity {
+    /// Integral of B0 / N of the normal force network over the thresholds (K Fig 22).
+    B0Normal,
+    /// The same for the tangential network (K Fig 23).
+    B0Tangential,
+    /// Mean |A_f| over the grains (K Figs 24, 26).
+    Affine,
+    /// Mean |A_f . j| (K Fig 24: "in particular for the y component").
+    AffineY,
+    /// Mean D2_min (K Figs 25, 27).
+    D2min,
+}
+
+impl FieldQuantity {
+    pub fn is_network(self) -> bool {
+        matches!(self, FieldQuantity::B0Normal | FieldQuantity::B0Tangential)
+    }
+    pub fn describe(self) -> &'static str {
+        match self {
+            FieldQuantity::B0Normal => "integral of B0/N, normal force network",
+            FieldQuantity::B0Tangential => "integral of B0/N, tangential force network",
+            FieldQuantity::Affine => "mean |A_f| (d)",
+            FieldQuantity::AffineY => "mean |A_f . j| (d)",
+            FieldQuantity::D2min => "mean D2_min (d^2)",
+        }
+    }
+}
+
+/// `[fields]`, validated: snapshot steps and the analysis parameters (SI).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Fields {
+    /// Steps of the contact-force snapshots (B0).
+    pub network_steps: Vec<u64>,
+    /// Thresholds in units of the mean per-grain normal force.
+    pub threshold_max: f64,
+    pub threshold_step: f64,
+    /// (step at t - dt, step at t, neighbourhood radius in m) of the affine analysis.
+    pub affine: Option<(u64, u64, f64)>,
+}
+
+impl Fields {
+    /// Every step at which the grains' positions are written (B0 and affine).
+    pub fn position_steps(&self) -> Vec<u64> {
+        let mut v = self.network_steps.clone();
+        if let Some((a, b, _)) = self.affine {
+            v.extend([a, b]);
+        }
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
 }
 
 /// What an `increasing` claim follows along the sweep.
@@ -266,6 +377,26 @@ pub struct Tolerances {
     /// RMS of D_native(t) - D_lammps(t) over the run (default 1.0 d).
     #[serde(default = "d_rms")]
     pub depth_rms: f64,
+    /// Force on the intruder: the largest relative difference of peak, impulse and the
+    /// RMS of the binned F(t) over `force_window` tau_c after first contact (a
+    /// `force_*` claim's case only; default 0.05).
+    #[serde(default = "d_rel")]
+    pub force_rel: f64,
+    #[serde(default = "d_force_window")]
+    pub force_window: f64,
+    /// B0 curves: L1 distance over the reference integral (default 0.05).
+    #[serde(default = "d_rel")]
+    pub b0_distance: f64,
+    /// Affine / D2_min summaries: relative difference (default 0.05).
+    #[serde(default = "d_rel")]
+    pub field_rel: f64,
+}
+
+fn d_rel() -> f64 {
+    0.05
+}
+fn d_force_window() -> f64 {
+    50.0
 }
 
 fn d_final() -> f64 {
@@ -280,6 +411,10 @@ impl Default for Tolerances {
         Tolerances {
             final_depth_abs: d_final(),
             depth_rms: d_rms(),
+            force_rel: d_rel(),
+            force_window: d_force_window(),
+            b0_distance: d_rel(),
+            field_rel: d_rel(),
         }
     }
 }
@@ -386,6 +521,10 @@ pub struct Impact2dCase {
     pub intruder_mass: f64,
     pub release_height: f64,
     pub final_window: f64,
+    /// Wall disks take the grains' coefficients during the impact.
+    pub walls_as_grains: bool,
+    /// Bed snapshots during the impact (K Sec. IV), if any.
+    pub fields: Option<Fields>,
     pub sweep_parameter: Option<String>,
     /// The case without its sweep: beds are prepared with these materials.
     pub base: Variant,
@@ -401,6 +540,9 @@ pub const IMPACT2D_GATES: &[super::Gate] = &[
     super::Gate::FinalDepth,
     super::Gate::DepthSeries,
     super::Gate::Claim,
+    super::Gate::IntruderForce,
+    super::Gate::ForceNetwork,
+    super::Gate::DisplacementField,
 ];
 
 fn unit_interval(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
@@ -433,7 +575,7 @@ impl Impact2dCase {
     /// name, description, analysis window, claim, tolerances or controls. A recorded
     /// reference is sealed to its sha256.
     pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
-        let view = serde_json::json!({
+        let mut view = serde_json::json!({
             "kind": "impact2d",
             "scales": self.scales,
             "dt": self.dt,
@@ -448,6 +590,14 @@ impl Impact2dCase {
             "base": self.base,
             "variants": self.variants,
         });
+        // Added with the bed fields (K Sec. IV); absent from the view when unused, so the
+        // hashes of cases written before them, and their seals, stay as they were.
+        if self.walls_as_grains {
+            view["walls_as_grains"] = serde_json::json!(true);
+        }
+        if let Some(f) = &self.fields {
+            view["fields"] = serde_json::json!(f);
+        }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
 
@@ -762,6 +912,37 @@ impl Impact2dCase {
                         var.x = k as f64;
                         label = format!("friction={t}");
                     }
+                    "friction_mu" => {
+                        // K Figs 6, 21: mu and the friction model together.
+                        let bad = || {
+                            ctx.bad(
+                                &field,
+                                v.to_string(),
+                                "friction_mu takes tables { mu = NUMBER, friction = \"static\" | \"kinetic\" }",
+                            )
+                        };
+                        let t = v.as_table().ok_or_else(bad)?;
+                        if t.len() != 2 {
+                            return Err(bad());
+                        }
+                        let mu = t
+                            .get("mu")
+                            .and_then(|m| m.as_float().or_else(|| m.as_integer().map(|n| n as f64)))
+                            .ok_or_else(bad)?;
+                        let fr = t.get("friction").and_then(|f| f.as_str()).ok_or_else(bad)?;
+                        var.grains.mu = non_negative(&ctx, &format!("{field}.mu"), mu)?;
+                        var.grains.friction = match fr {
+                            "static" => Friction::Static,
+                            "kinetic" => Friction::Kinetic,
+                            _ => return Err(bad()),
+                        };
+                        if w.friction.is_none() {
+                            var.walls.friction = var.grains.friction;
+                        }
+                        var.intruder = intruder_of(&var.grains)?;
+                        var.x = k as f64;
+                        label = format!("mu={mu},{fr}");
+                    }
                     "packing" => {
                         let t = text()?;
                         var.packing = match t.as_str() {
@@ -782,7 +963,7 @@ impl Impact2dCase {
                         return Err(ctx.bad(
                             "sweep.parameter",
                             other,
-                            "one of speed, gravity, e_n, mu, friction, packing",
+                            "one of speed, gravity, e_n, mu, friction, friction_mu, packing",
                         ));
                     }
                 }
@@ -878,6 +1059,92 @@ impl Impact2dCase {
                         ));
                     }
                 }
+                Claim::ForceImpulsive {
+                    bin,
+                    peak_within,
+                    half_within,
+                } => {
+                    positive(&ctx, &at("bin"), *bin)?;
+                    positive(&ctx, &at("peak_within"), *peak_within)?;
+                    positive(&ctx, &at("half_within"), *half_within)?;
+                    if *bin < 2.0 * dt_tau * s.output_every as f64 {
+                        return Err(ctx.bad(
+                            at("bin"),
+                            bin,
+                            "a bin must hold at least 2 intruder samples (output_every * dt)",
+                        ));
+                    }
+                }
+                Claim::ForceSimilar {
+                    window,
+                    max_spread_ratio,
+                    min_depth_spread,
+                } => {
+                    positive(&ctx, &at("window"), *window)?;
+                    positive(&ctx, &at("max_spread_ratio"), *max_spread_ratio)?;
+                    non_negative(&ctx, &at("min_depth_spread"), *min_depth_spread)?;
+                    if variants.len() < 2 {
+                        return Err(ctx.bad(
+                            at("kind"),
+                            "force_similar",
+                            "needs at least 2 variants",
+                        ));
+                    }
+                }
+                Claim::FieldOrder {
+                    quantity,
+                    larger,
+                    smaller,
+                    min_ratio,
+                    max_ratio,
+                } => {
+                    positive(&ctx, &at("min_ratio"), *min_ratio)?;
+                    if let Some(m) = max_ratio
+                        && !(m.is_finite() && m > min_ratio)
+                    {
+                        return Err(ctx.bad(
+                            at("max_ratio"),
+                            m,
+                            format!("must exceed min_ratio = {min_ratio}"),
+                        ));
+                    }
+                    for (f, l) in [("larger", larger), ("smaller", smaller)] {
+                        if !variants.iter().any(|v| &v.label == l) {
+                            return Err(ctx.bad(
+                                at(f),
+                                l,
+                                format!(
+                                    "no such variant; the variants: {}",
+                                    variants
+                                        .iter()
+                                        .map(|v| v.label.as_str())
+                                        .collect::<Vec<_>>()
+                                        .join(", ")
+                                ),
+                            ));
+                        }
+                    }
+                    if larger == smaller {
+                        return Err(ctx.bad(at("smaller"), smaller, "must differ from `larger`"));
+                    }
+                    let f = raw.fields.as_ref();
+                    let has = if quantity.is_network() {
+                        f.is_some_and(|f| !f.network_times.is_empty())
+                    } else {
+                        f.is_some_and(|f| f.affine_time.is_some())
+                    };
+                    if !has {
+                        return Err(ctx.bad(
+                            at("quantity"),
+                            format!("{quantity:?}"),
+                            if quantity.is_network() {
+                                "a B0 claim needs [fields] network_times"
+                            } else {
+                                "an affine or D2_min claim needs [fields] affine_time"
+                            },
+                        ));
+                    }
+                }
                 Claim::Linear { from, r2_min } => {
                     finite(&ctx, &at("from"), *from)?;
                     if !(0.0..=1.0).contains(r2_min) {
@@ -903,6 +1170,14 @@ impl Impact2dCase {
         let tolerances = raw.compare.unwrap_or_default();
         positive(&ctx, "compare.final_depth_abs", tolerances.final_depth_abs)?;
         positive(&ctx, "compare.depth_rms", tolerances.depth_rms)?;
+        positive(&ctx, "compare.force_rel", tolerances.force_rel)?;
+        positive(&ctx, "compare.force_window", tolerances.force_window)?;
+        positive(&ctx, "compare.b0_distance", tolerances.b0_distance)?;
+        positive(&ctx, "compare.field_rel", tolerances.field_rel)?;
+        let fields = match &raw.fields {
+            None => None,
+            Some(f) => Some(fields(&ctx, f, dt_tau, n_steps, d)?),
+        };
 
         // Wall disks are type 2, the intruder type 3 (a pair_friction control names them).
         let negative_controls =
@@ -943,6 +1218,8 @@ impl Impact2dCase {
             intruder_mass,
             release_height,
             final_window,
+            walls_as_grains: w.impact_as_grains,
+            fields,
             sweep_parameter,
             base,
             variants,
@@ -950,6 +1227,84 @@ impl Impact2dCase {
             tolerances,
         })
     }
+}
+
+/// `[fields]` as steps: every time a whole number of steps inside the run.
+fn fields(ctx: &Ctx, f: &FieldsIn, dt_tau: f64, n_steps: u64, d: f64) -> Result<Fields, CaseError> {
+    let step = |field: &str, t: f64| -> Result<u64, CaseError> {
+        let t = positive(ctx, field, t)?;
+        let k = (t / dt_tau).round();
+        if (t / dt_tau - k).abs() > 1e-6 {
+            return Err(ctx.bad(
+                field,
+                t,
+                format!("must be a whole number of time steps ({dt_tau} tau_c)"),
+            ));
+        }
+        if k as u64 > n_steps {
+            return Err(ctx.bad(field, t, "after the end of the run (simulation.duration)"));
+        }
+        Ok(k as u64)
+    };
+    let mut network_steps = Vec::new();
+    for (k, t) in f.network_times.iter().enumerate() {
+        network_steps.push(step(&format!("fields.network_times[{k}]"), *t)?);
+    }
+    if network_steps.windows(2).any(|w| w[0] >= w[1]) {
+        return Err(ctx.bad(
+            "fields.network_times",
+            format!("{:?}", f.network_times),
+            "must rise",
+        ));
+    }
+    let threshold_max = positive(ctx, "fields.threshold_max", f.threshold_max.unwrap_or(6.0))?;
+    let threshold_step = positive(
+        ctx,
+        "fields.threshold_step",
+        f.threshold_step.unwrap_or(0.05),
+    )?;
+    if threshold_max / threshold_step > 1e5 || threshold_step >= threshold_max {
+        return Err(ctx.bad(
+            "fields.threshold_step",
+            threshold_step,
+            "must be below threshold_max, with at most 1e5 thresholds",
+        ));
+    }
+    let affine = match (f.affine_time, f.affine_dt, f.affine_radius) {
+        (None, None, None) => None,
+        (Some(t), Some(dt), Some(r)) => {
+            let b = step("fields.affine_time", t)?;
+            let a_dt = step("fields.affine_dt", dt)?;
+            if a_dt > b {
+                return Err(ctx.bad(
+                    "fields.affine_dt",
+                    dt,
+                    "reaches before the release (affine_time - affine_dt < 0)",
+                ));
+            }
+            Some((b - a_dt, b, positive(ctx, "fields.affine_radius", r)? * d))
+        }
+        _ => {
+            return Err(ctx.bad(
+                "fields",
+                "affine_time / affine_dt / affine_radius",
+                "the affine analysis needs all three",
+            ));
+        }
+    };
+    if network_steps.is_empty() && affine.is_none() {
+        return Err(ctx.bad(
+            "fields",
+            "{}",
+            "asks for nothing: give network_times or affine_time",
+        ));
+    }
+    Ok(Fields {
+        network_steps,
+        threshold_max,
+        threshold_step,
+        affine,
+    })
 }
 
 /// How a bed is built: random polydisperse (K Sec. II) or a hexagonal lattice.

@@ -7,9 +7,9 @@ use crate::case::penetration::PenetrationCase;
 use crate::physics::dem::{self, Simulation, packing::Bed};
 use crate::physics::dem2d::energy::EnergyModel;
 use crate::physics::dem2d::impact::Scene;
+use crate::physics::dem2d::impact::{NativeSeries, SnapshotSteps};
 use crate::rundata::force::ForceSample;
 use crate::rundata::frames::{FrameWriter, JsonlFrameWriter};
-use crate::rundata::impact::{EnergySample, IntruderSample};
 use crate::rundata::provenance::{EngineKind, Provenance, Sha256, now_utc};
 use anyhow::Result;
 use std::path::Path;
@@ -114,24 +114,25 @@ pub fn impact2d(
     output_every: u64,
     energy_every: u64,
     energy: &EnergyModel,
+    snaps: &SnapshotSteps,
     input_hash: Sha256,
     case_file: &Path,
     pert: &Perturbation,
     on_step: impl FnMut(u64),
-) -> Result<(Vec<IntruderSample>, Vec<EnergySample>, Provenance)> {
+) -> Result<(NativeSeries, Provenance)> {
     let start = Instant::now();
     let scene = crate::physics::dem2d::impact::perturbed(scene, pert);
-    let (samples, energies) = crate::physics::dem2d::impact::run_native(
+    let (samples, energies, fields) = crate::physics::dem2d::impact::run_native(
         &scene,
         n_steps,
         output_every,
         energy_every,
         energy,
+        snaps,
         on_step,
     )?;
     Ok((
-        samples,
-        energies,
+        (samples, energies, fields),
         provenance(input_hash, case_file, start, "2D DEM", pert, vec![]),
     ))
 }

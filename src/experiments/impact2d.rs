@@ -9,15 +9,16 @@ use crate::analysis::impact as obs;
 use crate::case::impact2d::IntruderShape;
 use crate::case::impact2d::{Impact2dCase, Packing, Variant};
 use crate::compare::Check;
-use crate::compare::impact2d::{self as cmp, VariantObs};
+use crate::compare::impact2d::{self as cmp, FieldObs, VariantObs};
 use crate::engines::deck_text::{Header, approx, num, safe};
 use crate::engines::lammps::{self, Lammps};
 use crate::physics::dem2d::bed::{self, Bed};
 use crate::physics::dem2d::energy::EnergyModel;
+use crate::physics::dem2d::impact::SnapshotSteps;
 use crate::physics::dem2d::impact::{self as scene_mod, Scene};
 use crate::rundata::impact::{
-    EnergySample, IntruderSample, read_energy_csv, read_intruder_csv, write_energy_csv,
-    write_intruder_csv,
+    EnergySample, FieldSnapshot, IntruderSample, read_energy_csv, read_fields_csv,
+    read_intruder_csv, write_energy_csv, write_fields_csv, write_intruder_csv,
 };
 use crate::rundata::provenance::{
     EngineKind, Provenance, Sha256, now_utc, read_provenance, write_provenance,
@@ -43,6 +44,8 @@ pub struct Unit {
 pub struct ImpactRun {
     pub samples: Vec<IntruderSample>,
     pub energy: Vec<EnergySample>,
+    /// Bed snapshots at the case's `[fields]` steps (empty without).
+    pub fields: Vec<FieldSnapshot>,
     pub provenance: Provenance,
 }
 
@@ -55,6 +58,8 @@ impl Run for ImpactRun {
 const PROVENANCE_FILE: &str = "provenance.json";
 const INTRUDER_CSV: &str = "intruder.csv";
 const ENERGY_CSV: &str = "energy.csv";
+const GRAINS_CSV: &str = "grains.csv";
+const CONTACTS_CSV: &str = "contacts.csv";
 
 fn write_series(dir: &Path, run: &ImpactRun, scene: &Scene) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -65,6 +70,9 @@ fn write_series(dir: &Path, run: &ImpactRun, scene: &Scene) -> Result<()> {
         scene.bottom_offset,
     )?;
     write_energy_csv(&dir.join(ENERGY_CSV), &run.energy)?;
+    if !run.fields.is_empty() {
+        write_fields_csv(&dir.join(GRAINS_CSV), &dir.join(CONTACTS_CSV), &run.fields)?;
+    }
     write_provenance(&dir.join(PROVENANCE_FILE), &run.provenance)
 }
 
@@ -185,12 +193,13 @@ impl Experiment for Impact2d {
             &u.scene
         };
         let bar = crate::report::progress::bar(opts.progress, c.n_steps, "native");
-        let (samples, energy, provenance) = crate::engines::native::impact2d(
+        let ((samples, energy, fields), provenance) = crate::engines::native::impact2d(
             scene,
             c.n_steps,
             c.output_every,
             c.energy_every,
             &energy_model(scene),
+            &snapshot_steps(c),
             scene_hash(scene),
             &c.source,
             &pert,
@@ -200,6 +209,7 @@ impl Experiment for Impact2d {
         let run = ImpactRun {
             samples,
             energy,
+            fields,
             provenance,
         };
         write_series(dir, &run, &u.scene)?;
@@ -222,7 +232,12 @@ impl Experiment for Impact2d {
             &energy_model(&u.scene),
             dir,
         )?;
-        let run = self.lammps_run(u, r.samples, r.energy, &r.finished, opts.mpi_procs);
+        let run = self.lammps_run(
+            u,
+            (r.samples, r.energy, r.fields),
+            &r.finished,
+            opts.mpi_procs,
+        );
         write_series(dir, &run, &u.scene)?;
         Ok(run)
     }
@@ -230,9 +245,9 @@ impl Experiment for Impact2d {
     fn read_run_dir(&self, u: &Unit, dir: &Path) -> Result<ImpactRun> {
         let out = self.outputs(u);
         let fin = lammps::finished(&u.scene.sys, &out, dir)?;
-        let (samples, energy) = lammps::impact::read(&u.scene, &out, &energy_model(&u.scene), dir)?;
+        let series = lammps::impact::read(&u.scene, &out, &energy_model(&u.scene), dir)?;
         let procs = lammps_procs(&std::fs::read_to_string(dir.join(lammps::LOG_FILE))?);
-        Ok(self.lammps_run(u, samples, energy, &fin, procs))
+        Ok(self.lammps_run(u, series, &fin, procs))
     }
 
     fn deck_files(&self) -> DeckFiles {
@@ -254,6 +269,14 @@ impl Experiment for Impact2d {
                     "every energy_every steps every disk (for the energies)",
                 ),
                 (
+                    lammps::deck::GRAINS_FILE,
+                    "only with [fields]: every grain's position at the field steps (%.17g)",
+                ),
+                (
+                    lammps::deck::CONTACTS_FILE,
+                    "only with [fields] network_times: every touching pair's atom ids, distance, |F_n| and |F_t| at those steps",
+                ),
+                (
                     lammps::LOG_FILE,
                     "LAMMPS' log (version, warnings, thermo lines)",
                 ),
@@ -271,9 +294,19 @@ impl Experiment for Impact2d {
     }
 
     fn read_record(&self, _u: &Unit, name: &str, seal: &Verified) -> Result<ImpactRun> {
+        let snaps = snapshot_steps(&self.case);
         Ok(ImpactRun {
             samples: read_intruder_csv(&seal.file(name, INTRUDER_CSV)?)?,
             energy: read_energy_csv(&seal.file(name, ENERGY_CSV)?)?,
+            fields: if snaps.position_steps.is_empty() {
+                Vec::new()
+            } else {
+                read_fields_csv(
+                    &seal.file(name, GRAINS_CSV)?,
+                    &seal.file(name, CONTACTS_CSV)?,
+                    &snaps.contact_steps,
+                )?
+            },
             provenance: read_provenance(&seal.file(name, PROVENANCE_FILE)?)?,
         })
     }
@@ -314,6 +347,8 @@ impl Experiment for Impact2d {
                         .map(|r| r / d)
                         .map_err(|e| format!("{e:#}"));
                     checks.extend(cmp::cross_check(case, &oa, &ob, rms, "lammps"));
+                    checks.extend(cmp::force_cross_check(case, &oa, &ob, "lammps"));
+                    checks.extend(cmp::field_cross_checks(case, &oa, &ob, "lammps"));
                     let scaled = |s: &[(f64, f64)]| {
                         s.iter().map(|p| (p.0 / tau, p.1 / d)).collect::<Vec<_>>()
                     };
@@ -355,6 +390,9 @@ impl Experiment for Impact2d {
             ) {
                 notes.push(format!("SVG not written: {e:#}"));
             }
+            if let Err(e) = field_plots(case, &native_obs, &ref_obs, out) {
+                notes.push(format!("field plots not written: {e:#}"));
+            }
             if let Err(e) = std::fs::write(
                 out.join("final_depths.json"),
                 serde_json::to_string_pretty(
@@ -367,6 +405,133 @@ impl Experiment for Impact2d {
         }
         Verdict { checks, notes }
     }
+}
+
+/// Plots where a person would rather look (K Figs 21-27): F(t) of every variant in both
+/// engines, the B0 curves of both networks at each field time, and maps of D2_min and
+/// |A_f| per variant and engine (log10, one colour range for all maps of a quantity).
+fn field_plots(
+    case: &Impact2dCase,
+    native: &[VariantObs],
+    reference: &[VariantObs],
+    out: &Path,
+) -> Result<()> {
+    use crate::report::svg_impact::{curves, grain_map};
+    let engines = [("native", native), ("LAMMPS", reference)];
+    if cmp::has_force_claims(case) {
+        let bin = cmp::force_bin(case);
+        let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        for (e, obs) in engines {
+            for o in obs {
+                let f = crate::analysis::impact::force_summary(&o.force, bin, bin)?;
+                let early: Vec<(f64, f64)> = f
+                    .bins
+                    .iter()
+                    .copied()
+                    .filter(|b| b.0 <= f.t_contact + case.tolerances.force_window)
+                    .collect();
+                series.push((format!("{e} {}", o.label), early));
+            }
+        }
+        let refs: Vec<(&str, &[(f64, f64)])> = series
+            .iter()
+            .map(|(l, s)| (l.as_str(), s.as_slice()))
+            .collect();
+        curves(
+            &out.join("force.svg"),
+            &refs,
+            &format!("{}: force on the intruder ({bin} tau_c bins)", case.name),
+            "t / tau_c (after release)",
+            "F_y / m g",
+        )?;
+    }
+    let Some(first) = native.first().and_then(|o| o.fields.as_ref()) else {
+        return Ok(());
+    };
+    for (k, (t, _)) in first.networks.iter().enumerate() {
+        for net in ["normal", "tangential"] {
+            let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+            for (e, obs) in engines {
+                for o in obs {
+                    if let Some((_, c)) = o.fields.as_ref().and_then(|f| f.networks.get(k)) {
+                        let y = if net == "normal" {
+                            &c.normal
+                        } else {
+                            &c.tangential
+                        };
+                        series.push((
+                            format!("{e} {}", o.label),
+                            c.thresholds
+                                .iter()
+                                .copied()
+                                .zip(y.iter().copied())
+                                .collect(),
+                        ));
+                    }
+                }
+            }
+            let refs: Vec<(&str, &[(f64, f64)])> = series
+                .iter()
+                .map(|(l, s)| (l.as_str(), s.as_slice()))
+                .collect();
+            curves(
+                &out.join(format!("b0-{net}-t{t}.svg")),
+                &refs,
+                &format!(
+                    "{}: B0 of the {net} force network, t = {t} tau_c",
+                    case.name
+                ),
+                "force threshold / mean normal force per grain",
+                "B0 / N",
+            )?;
+        }
+    }
+    type Pick = fn(&crate::analysis::affine::AffineGrain) -> f64;
+    let maps: [(&str, &str, Pick); 2] = [
+        ("d2min", "log10(D2_min / d^2)", |g| {
+            g.d2min.max(1e-30).log10()
+        }),
+        ("affine", "log10(|A_f| / d)", |g| {
+            g.af[0].hypot(g.af[1]).max(1e-30).log10()
+        }),
+    ];
+    for (file, what, pick) in maps {
+        let mut all: Vec<f64> = engines
+            .iter()
+            .flat_map(|(_, obs)| obs.iter())
+            .filter_map(|o| o.fields.as_ref())
+            .flat_map(|f| f.affine_map.iter().map(pick))
+            .collect();
+        if all.is_empty() {
+            continue;
+        }
+        all.sort_by(f64::total_cmp);
+        let range = (all[all.len() / 100], all[all.len() * 99 / 100]);
+        for (e, obs) in engines {
+            for o in obs {
+                let Some(f) = &o.fields else { continue };
+                let pts: Vec<(f64, f64, f64)> = f
+                    .affine_map
+                    .iter()
+                    .map(|g| (g.x[0], g.x[1], pick(g)))
+                    .collect();
+                grain_map(
+                    &out.join(format!(
+                        "{file}-{}-{}.svg",
+                        label_dir_str(&o.label),
+                        e.to_lowercase()
+                    )),
+                    &pts,
+                    range,
+                    &format!(
+                        "{} {e} {}: {what} at t = {} tau_c, colour {:.2} (blue) to {:.2} (red)",
+                        case.name, o.label, f.affine_t, range.0, range.1
+                    ),
+                )?;
+            }
+        }
+    }
+    Ok(())
 }
 
 /// MPI processes a LAMMPS log says it ran on (`Loop time of T on N procs ...`), 1 if
@@ -389,8 +554,7 @@ impl Impact2d {
     fn lammps_run(
         &self,
         u: &Unit,
-        samples: Vec<IntruderSample>,
-        energy: Vec<EnergySample>,
+        (samples, energy, fields): (Vec<IntruderSample>, Vec<EnergySample>, Vec<FieldSnapshot>),
         fin: &lammps::Finished,
         procs: usize,
     ) -> ImpactRun {
@@ -399,6 +563,7 @@ impl Impact2d {
         ImpactRun {
             samples,
             energy,
+            fields,
             provenance: Provenance {
                 engine: EngineKind::Lammps,
                 version: fin.version.clone(),
@@ -421,6 +586,7 @@ impl Impact2d {
             intruder_every: c.output_every,
             snapshot_every: c.energy_every,
             header: self.header(u),
+            fields: snapshot_steps(c),
         }
     }
 
@@ -627,6 +793,77 @@ pub fn scene_hash(scene: &Scene) -> Sha256 {
     Sha256::of(text.as_bytes())
 }
 
+/// A time in tau_c as the case file wrote it (a whole number of steps times dt, whose
+/// product carries round-off): to 1e-6.
+fn round6(t: f64) -> f64 {
+    (t * 1e6).round() / 1e6
+}
+
+/// The bed snapshots a case asks for (none without `[fields]`).
+pub fn snapshot_steps(case: &Impact2dCase) -> SnapshotSteps {
+    case.fields
+        .as_ref()
+        .map(|f| SnapshotSteps {
+            position_steps: f.position_steps(),
+            contact_steps: f.network_steps.clone(),
+        })
+        .unwrap_or_default()
+}
+
+/// The fields of one run reduced (K Sec. IV): B0 curves at each network step, the
+/// affine field at the affine step; lengths in d.
+pub fn observe_fields(case: &Impact2dCase, run: &ImpactRun) -> Result<Option<FieldObs>> {
+    use crate::analysis::{affine, force_network};
+    let Some(f) = &case.fields else {
+        return Ok(None);
+    };
+    let (d, tau) = (case.scales.d, case.scales.tau_c);
+    let at = |step: u64| {
+        run.fields
+            .iter()
+            .find(|s| s.step == step)
+            .with_context(|| format!("no bed snapshot at step {step}"))
+    };
+    let mut networks = Vec::new();
+    for &k in &f.network_steps {
+        let s = at(k)?;
+        let contacts = s
+            .contacts
+            .as_ref()
+            .with_context(|| format!("the snapshot at step {k} has no contacts"))?;
+        let ids: Vec<u64> = s.grains.iter().map(|g| g.id).collect();
+        let net = force_network::Network::new(&ids, contacts);
+        networks.push((
+            round6(k as f64 * case.dt / tau),
+            force_network::curves(&net, f.threshold_max, f.threshold_step)
+                .with_context(|| format!("B0 at step {k}"))?,
+        ));
+    }
+    let (mut summary, mut map, mut affine_t) = (None, Vec::new(), f64::NAN);
+    if let Some((a, b, radius)) = f.affine {
+        let field = affine::field(&at(a)?.grains, &at(b)?.grains, radius, Some(case.length))
+            .with_context(|| format!("affine field between steps {a} and {b}"))?;
+        summary = Some(affine::summary(&field, d));
+        map = field
+            .grains
+            .iter()
+            .map(|g| affine::AffineGrain {
+                id: g.id,
+                x: [g.x[0] / d, g.x[1] / d],
+                af: [g.af[0] / d, g.af[1] / d],
+                d2min: g.d2min / (d * d),
+            })
+            .collect();
+        affine_t = round6(b as f64 * case.dt / tau);
+    }
+    Ok(Some(FieldObs {
+        networks,
+        affine: summary,
+        affine_t,
+        affine_map: map,
+    }))
+}
+
 /// Final and maximum depth (in d) of one run.
 pub fn observe(
     case: &Impact2dCase,
@@ -684,6 +921,14 @@ pub fn observe(
                     .map(|(&(t, z), s)| (t / tau, z / d, -s.v[1] / vel))
                     .collect()
             },
+            force: {
+                let (tau, weight) = (case.scales.tau_c, case.scales.m * case.scales.g0);
+                run.samples
+                    .iter()
+                    .map(|s| (s.t / tau, s.f[1] / weight))
+                    .collect()
+            },
+            fields: observe_fields(case, run)?,
         },
         series,
     ))
@@ -691,7 +936,11 @@ pub fn observe(
 
 /// Directory name of a variant: its label with `=` kept, other odd characters `_`.
 pub fn label_dir(v: &Variant) -> String {
-    v.label
+    label_dir_str(&v.label)
+}
+
+fn label_dir_str(label: &str) -> String {
+    label
         .chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || "=.-".contains(c) {

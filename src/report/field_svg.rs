@@ -22,7 +22,7 @@ pub struct RzMap<'a> {
 }
 
 /// Blue (low) to red (high) through white, on [lo, hi].
-fn colour(v: f64, lo: f64, hi: f64) -> RGBColor {
+pub(super) fn colour(v: f64, lo: f64, hi: f64) -> RGBColor {
     let t = ((v - lo) / (hi - lo)).clamp(0.0, 1.0);
     let (r, g, b) = if t < 0.5 {
         let s = t / 0.5;

@@ -124,3 +124,127 @@ pub fn read_energy_csv(path: &Path) -> Result<Vec<EnergySample>> {
         })
         .collect())
 }
+
+/// A grain's position in a field snapshot (SI).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GrainPos {
+    pub id: u64,
+    pub x: [f64; 2],
+}
+
+/// One touching pair in a field snapshot: the magnitudes of its normal and tangential
+/// contact forces (N), as the contact law gives them at the end of the step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ContactForce {
+    pub i: u64,
+    pub j: u64,
+    #[serde(rename = "fn")]
+    pub f_n: f64,
+    pub ft: f64,
+}
+
+/// The bed at one step (K Sec. IV): every grain's position and, where asked for, every
+/// touching pair's force (grains, walls and intruder alike, by atom id).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FieldSnapshot {
+    pub step: u64,
+    pub grains: Vec<GrainPos>,
+    /// None where the snapshot carries positions only.
+    pub contacts: Option<Vec<ContactForce>>,
+}
+
+const GRAINS_HEAD: &str = "step,id,x,y";
+const CONTACTS_HEAD: &str = "step,i,j,fn,ft";
+
+/// `grains.csv` (step, id, x, y) and `contacts.csv` (step, i, j, fn, ft) of the field
+/// snapshots, SI, shortest round-trip numbers.
+pub fn write_fields_csv(grains: &Path, contacts: &Path, snaps: &[FieldSnapshot]) -> Result<()> {
+    let mut g = std::io::BufWriter::new(
+        std::fs::File::create(grains)
+            .with_context(|| format!("cannot write {}", grains.display()))?,
+    );
+    let mut c = std::io::BufWriter::new(
+        std::fs::File::create(contacts)
+            .with_context(|| format!("cannot write {}", contacts.display()))?,
+    );
+    writeln!(g, "{GRAINS_HEAD}")?;
+    writeln!(c, "{CONTACTS_HEAD}")?;
+    for s in snaps {
+        for p in &s.grains {
+            writeln!(g, "{},{},{:e},{:e}", s.step, p.id, p.x[0], p.x[1])?;
+        }
+        for k in s.contacts.iter().flatten() {
+            writeln!(c, "{},{},{},{:e},{:e}", s.step, k.i, k.j, k.f_n, k.ft)?;
+        }
+    }
+    g.flush()?;
+    c.flush()?;
+    Ok(())
+}
+
+#[derive(Deserialize)]
+struct GrainRow {
+    step: u64,
+    id: u64,
+    x: f64,
+    y: f64,
+}
+
+#[derive(Deserialize)]
+struct ContactRow {
+    step: u64,
+    i: u64,
+    j: u64,
+    #[serde(rename = "fn")]
+    f_n: f64,
+    ft: f64,
+}
+
+/// Reads what [`write_fields_csv`] wrote; `contact_steps` are the snapshots that carry
+/// contacts (an empty contact list there is a snapshot without touching pairs).
+pub fn read_fields_csv(
+    grains: &Path,
+    contacts: &Path,
+    contact_steps: &[u64],
+) -> Result<Vec<FieldSnapshot>> {
+    let mut out: Vec<FieldSnapshot> = Vec::new();
+    for r in read_rows::<GrainRow>(grains)? {
+        if out.last().is_none_or(|s| s.step != r.step) {
+            out.push(FieldSnapshot {
+                step: r.step,
+                grains: Vec::new(),
+                contacts: contact_steps.contains(&r.step).then(Vec::new),
+            });
+        }
+        let s = out.last_mut().expect("pushed above");
+        s.grains.push(GrainPos {
+            id: r.id,
+            x: [r.x, r.y],
+        });
+    }
+    for r in read_rows::<ContactRow>(contacts)? {
+        let s = out.iter_mut().find(|s| s.step == r.step).with_context(|| {
+            format!(
+                "{}: contacts at step {} without grains",
+                contacts.display(),
+                r.step
+            )
+        })?;
+        s.contacts
+            .as_mut()
+            .with_context(|| {
+                format!(
+                    "{}: contacts at step {}, which is not a network step",
+                    contacts.display(),
+                    r.step
+                )
+            })?
+            .push(ContactForce {
+                i: r.i,
+                j: r.j,
+                f_n: r.f_n,
+                ft: r.ft,
+            });
+    }
+    Ok(out)
+}

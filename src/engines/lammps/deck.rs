@@ -19,6 +19,8 @@ pub const DATA_FILE: &str = "data.impact2d";
 pub const DECK_FILE: &str = "in.impact2d";
 pub const SNAP_FILE: &str = "snap.dump";
 pub const INTRUDER_FILE: &str = "intruder.txt";
+pub const GRAINS_FILE: &str = "grains.dump";
+pub const CONTACTS_FILE: &str = "contacts.dump";
 
 /// What to run and what to write.
 #[derive(Debug, Clone)]
@@ -32,6 +34,28 @@ pub struct Outputs {
     /// Title and leading paragraphs of the deck's header (the case, its units); the deck
     /// adds what it runs and writes.
     pub header: Header,
+    /// Bed snapshots (K Sec. IV): grain positions and contact forces at chosen steps.
+    pub fields: crate::physics::dem2d::impact::SnapshotSteps,
+}
+
+/// An equal-style LAMMPS formula whose value is the first of `steps` (sorted, > 0)
+/// after the current step, and `beyond` after the last: `dump_modify every v_NAME`
+/// writes exactly at those steps (LAMMPS 29Sep2021 has no ternary(), so the cases are
+/// products of logical terms).
+fn next_step_formula(steps: &[u64], beyond: u64) -> String {
+    let mut terms = Vec::new();
+    let mut prev: Option<u64> = None;
+    for &k in steps {
+        terms.push(match prev {
+            None => format!("{k}*(step<{k})"),
+            Some(p) => format!("{k}*(step>={p})*(step<{k})"),
+        });
+        prev = Some(k);
+    }
+    if let Some(p) = prev {
+        terms.push(format!("{beyond}*(step>={p})"));
+    }
+    terms.join("+")
 }
 
 /// Number of a LAMMPS atom type (1-based) for a 0-based native type.
@@ -320,6 +344,28 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         }
     };
     let count = |name: &str| pairs.iter().filter(|&&(a, b)| style(a, b) == name).count();
+    // `compute pair/local` calls the pair style's single(); under `pair_style hybrid` the
+    // installed LAMMPS (29 Sep 2021) crashes in PairHybrid::copy_svector, so a deck that
+    // dumps contact forces uses one style, which needs one coefficient set.
+    let single_style = !out.fields.contact_steps.is_empty();
+    if single_style {
+        let first = &sys.coeffs[pairs[0].0 * n_types + pairs[0].1];
+        if let Some(&(a, b)) = pairs
+            .iter()
+            .find(|&&(a, b)| sys.coeffs[a * n_types + b] != *first)
+        {
+            bail!(
+                "contact forces are dumped with `compute pair/local`, which needs one pair style \
+                 (it crashes under `pair_style hybrid` in LAMMPS 29Sep2021), but types {} and {} \
+                 have other coefficients than types {} and {}: give the walls the grains' \
+                 coefficients during the impact (`[walls] impact_as_grains = true`)",
+                ty(a),
+                ty(b),
+                ty(pairs[0].0),
+                ty(pairs[0].1)
+            );
+        }
+    }
     let mut text = String::from(
         "---- Contact law (Kondic et al. Sec. II, eqs 1-2) ----\n\
          Linear spring-dashpot normal force F_n = k_n x - gamma_n m_eff v_n, with gamma_n = -2 \
@@ -350,7 +396,25 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             approx(c.mu)
         );
     }
+    if single_style {
+        text += "\nEvery interacting pair has the same coefficients here, so one style without \
+                 `hybrid` (the contact-force dump below needs it).";
+    }
     block(&mut s, &text);
+    if single_style {
+        let (a, b) = pairs[0];
+        let c = &sys.coeffs[a * n_types + b];
+        let _ = writeln!(
+            s,
+            "pair_style {} {} {} {} {} {} 1\npair_coeff * *",
+            style(a, b),
+            num(c.kn),
+            num(c.kt),
+            num(c.gamma_n),
+            num(c.gamma_t),
+            num(c.mu)
+        );
+    }
     let mut args = String::from("pair_style hybrid");
     for &(a, b) in &pairs {
         let c = &sys.coeffs[a * n_types + b];
@@ -366,13 +430,15 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             num(c.mu)
         );
     }
-    let _ = writeln!(s, "{args}");
-    comment(
-        &mut s,
-        "Which instance acts on which type pair (`none`: pairs that never meet).",
-    );
+    if !single_style {
+        let _ = writeln!(s, "{args}");
+        comment(
+            &mut s,
+            "Which instance acts on which type pair (`none`: pairs that never meet).",
+        );
+    }
     let mut seen = std::collections::HashMap::<&str, usize>::new();
-    for a in 0..n_types {
+    for a in (0..n_types).filter(|_| !single_style) {
         for b in a..n_types {
             if pairs.contains(&(a, b)) {
                 let st = style(a, b);
@@ -466,6 +532,52 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         );
         let _ = writeln!(s, "dump_modify snap sort id format float %.17g");
     }
+    let f = &out.fields;
+    if !f.position_steps.is_empty() {
+        comment(
+            &mut s,
+            &format!(
+                "Bed snapshots (Kondic et al. Sec. IV) at steps {:?}: the grains' positions \
+                 (id x y, %.17g, sorted by id) to {GRAINS_FILE}{}. `dump_modify every v_NAME` \
+                 writes when the step reaches the variable's value, the next listed step.",
+                f.position_steps,
+                if f.contact_steps.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; at steps {:?} every touching pair (atom ids, centre distance, \
+                         normal force |F_n| = `force`, tangential force |F_t| = `p4` of the \
+                         pair style's single(), evaluated on the state at the end of the \
+                         step) to {CONTACTS_FILE}",
+                        f.contact_steps
+                    )
+                }
+            ),
+        );
+        let beyond = out.n_steps + 1;
+        let _ = writeln!(
+            s,
+            "group grains type 1\nvariable gnext equal \"{}\"",
+            next_step_formula(&f.position_steps, beyond)
+        );
+        let _ = writeln!(
+            s,
+            "dump grains grains custom 1 {GRAINS_FILE} id x y\ndump_modify grains every v_gnext sort id format float %.17g"
+        );
+        if !f.contact_steps.is_empty() {
+            let _ = writeln!(
+                s,
+                "variable cnext equal \"{}\"",
+                next_step_formula(&f.contact_steps, beyond)
+            );
+            let _ = writeln!(
+                s,
+                "compute cpl all pair/local dist force p4\ncompute cpp all property/local patom1 patom2\n\
+                 dump contacts all local 1 {CONTACTS_FILE} c_cpp[1] c_cpp[2] c_cpl[1] c_cpl[2] c_cpl[3]\n\
+                 dump_modify contacts every v_cnext format float %.17g"
+            );
+        }
+    }
     comment(
         &mut s,
         &format!(
@@ -482,4 +594,124 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     );
     let _ = writeln!(s, "run {}", out.n_steps);
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deck that dumps contact forces uses one pair style (`compute pair/local` crashes
+    /// under hybrid) and refuses a system whose pairs differ; it dumps at the listed steps.
+    #[test]
+    fn contact_dumps_need_one_pair_style() {
+        use crate::case::impact2d::Coeffs;
+        use crate::physics::dem2d::neighbor::Box2;
+        use crate::physics::dem2d::{Disk, Role};
+        let disk = |id: u64, type_: usize, x: f64, role: Role| Disk {
+            id,
+            type_,
+            radius: 0.5,
+            mass: 1.0,
+            x: [x, 1.0],
+            v: [0.0; 2],
+            omega: 0.0,
+            role,
+        };
+        let g = Coeffs {
+            kn: 1e3,
+            kt: 800.0,
+            gamma_n: 10.0,
+            gamma_t: 5.0,
+            mu: 0.5,
+        };
+        let w = Coeffs { mu: 0.9, ..g };
+        let sys = |c: Vec<Coeffs>| {
+            System::new(
+                vec![
+                    disk(1, 0, 1.0, Role::Free),
+                    disk(2, 0, 2.0, Role::Free),
+                    disk(3, 1, 3.0, Role::Frozen),
+                ],
+                None,
+                c,
+                2,
+                Box2 {
+                    lo: [0.0, 0.0],
+                    hi: [10.0, 10.0],
+                    periodic_x: true,
+                },
+                9.81,
+                1e-4,
+                0.1,
+                vec![],
+            )
+        };
+        let out = Outputs {
+            n_steps: 100,
+            intruder_every: 0,
+            snapshot_every: 0,
+            header: Header::default(),
+            fields: crate::physics::dem2d::impact::SnapshotSteps {
+                position_steps: vec![40, 50],
+                contact_steps: vec![50],
+            },
+        };
+        let e = write_deck(&sys(vec![g, w, w, w]), &out)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("impact_as_grains") && e.contains("hybrid"),
+            "{e}"
+        );
+        let deck = write_deck(&sys(vec![g; 4]), &out).unwrap();
+        assert!(
+            !deck.lines().any(|l| l.starts_with("pair_style hybrid")),
+            "{deck}"
+        );
+        assert!(deck.contains("pair_style gran/hooke/history ") && deck.contains("pair_coeff * *"));
+        assert!(deck.contains(
+            "variable gnext equal \"40*(step<40)+50*(step>=40)*(step<50)+101*(step>=50)\""
+        ));
+        assert!(deck.contains("variable cnext equal \"50*(step<50)+101*(step>=50)\""));
+        assert!(deck.contains("dump contacts all local 1 contacts.dump"));
+        // Without contact dumps the same unequal system keeps its hybrid style.
+        let plain = Outputs {
+            fields: Default::default(),
+            ..out
+        };
+        assert!(
+            write_deck(&sys(vec![g, w, w, w]), &plain)
+                .unwrap()
+                .contains("pair_style hybrid")
+        );
+    }
+
+    /// LAMMPS evaluates the formula with `step` the current step: it must give the next
+    /// listed step, and `beyond` after the last.
+    #[test]
+    fn next_step_formula_walks_the_list() {
+        let f = next_step_formula(&[300, 575, 600], 1001);
+        let eval = |step: u64| -> u64 {
+            f.split('+')
+                .map(|term| {
+                    let mut parts = term.split('*');
+                    let k: u64 = parts.next().unwrap().parse().unwrap();
+                    let ok = parts.all(|c| {
+                        let c = c.trim_matches(|c| c == '(' || c == ')');
+                        if let Some(v) = c.strip_prefix("step>=") {
+                            step >= v.parse::<u64>().unwrap()
+                        } else {
+                            step < c.strip_prefix("step<").unwrap().parse::<u64>().unwrap()
+                        }
+                    });
+                    if ok { k } else { 0 }
+                })
+                .sum()
+        };
+        assert_eq!(eval(0), 300);
+        assert_eq!(eval(300), 575);
+        assert_eq!(eval(575), 600);
+        assert_eq!(eval(600), 1001);
+        assert_eq!(next_step_formula(&[], 5), "");
+    }
 }

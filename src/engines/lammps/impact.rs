@@ -4,13 +4,14 @@
 use super::{Finished, Lammps, Outputs, parse};
 use crate::physics::dem2d::energy::{EnergyModel, SnapDisk, energies};
 use crate::physics::dem2d::impact::Scene;
-use crate::rundata::impact::{EnergySample, IntruderSample};
+use crate::rundata::impact::{ContactForce, EnergySample, FieldSnapshot, GrainPos, IntruderSample};
 use anyhow::{Result, bail};
 use std::path::Path;
 
 pub struct LammpsImpact {
     pub samples: Vec<IntruderSample>,
     pub energy: Vec<EnergySample>,
+    pub fields: Vec<FieldSnapshot>,
     pub finished: Finished,
 }
 
@@ -23,22 +24,96 @@ pub fn run(
     dir: &Path,
 ) -> Result<LammpsImpact> {
     let finished = lmp.run(&scene.sys, out, dir)?;
-    let (samples, energy) = read(scene, out, model, dir)?;
+    let (samples, energy, fields) = read(scene, out, model, dir)?;
     Ok(LammpsImpact {
         samples,
         energy,
+        fields,
         finished,
     })
 }
 
-/// The intruder samples and energies of a finished run in `dir` (made by granval or by
-/// hand from a deck directory), each series complete or an error.
+/// The bed snapshots of a finished run in `dir`: grains from `grains.dump`, contacts
+/// (the touching pairs: a non-touching neighbour has zero force in single()) from
+/// `contacts.dump`; every asked-for step present, nothing else.
+pub fn read_fields(out: &Outputs, dir: &Path) -> Result<Vec<FieldSnapshot>> {
+    let f = &out.fields;
+    let mut snaps: Vec<FieldSnapshot> = Vec::new();
+    if f.position_steps.is_empty() {
+        return Ok(snaps);
+    }
+    let gpath = dir.join(super::deck::GRAINS_FILE);
+    parse::for_each_table_frame(&gpath, "ATOMS", &["id", "x", "y"], |step, rows| {
+        snaps.push(FieldSnapshot {
+            step,
+            grains: rows
+                .iter()
+                .map(|r| GrainPos {
+                    id: r[0] as u64,
+                    x: [r[1], r[2]],
+                })
+                .collect(),
+            contacts: f.contact_steps.contains(&step).then(Vec::new),
+        });
+        Ok(())
+    })?;
+    let steps: Vec<u64> = snaps.iter().map(|s| s.step).collect();
+    if steps != f.position_steps {
+        bail!(
+            "{}: snapshots at steps {steps:?}, expected {:?}",
+            gpath.display(),
+            f.position_steps
+        );
+    }
+    if !f.contact_steps.is_empty() {
+        let cpath = dir.join(super::deck::CONTACTS_FILE);
+        let mut seen = Vec::new();
+        parse::for_each_table_frame(
+            &cpath,
+            "ENTRIES",
+            &["c_cpp[1]", "c_cpp[2]", "c_cpl[1]", "c_cpl[2]", "c_cpl[3]"],
+            |step, rows| {
+                seen.push(step);
+                let Some(c) = snaps
+                    .iter_mut()
+                    .find(|s| s.step == step)
+                    .and_then(|s| s.contacts.as_mut())
+                else {
+                    bail!(
+                        "{}: contacts at step {step}, not asked for",
+                        cpath.display()
+                    );
+                };
+                c.extend(rows.iter().filter(|r| r[3] != 0.0 || r[4] != 0.0).map(|r| {
+                    ContactForce {
+                        i: r[0] as u64,
+                        j: r[1] as u64,
+                        f_n: r[3].abs(),
+                        ft: r[4].abs(),
+                    }
+                }));
+                Ok(())
+            },
+        )?;
+        if seen != f.contact_steps {
+            bail!(
+                "{}: contacts at steps {seen:?}, expected {:?}",
+                cpath.display(),
+                f.contact_steps
+            );
+        }
+    }
+    Ok(snaps)
+}
+
+/// The intruder samples, energies and bed snapshots of a finished run in `dir` (made by
+/// granval or by hand from a deck directory), each series complete or an error.
 pub fn read(
     scene: &Scene,
     out: &Outputs,
     model: &EnergyModel,
     dir: &Path,
-) -> Result<(Vec<IntruderSample>, Vec<EnergySample>)> {
+) -> Result<(Vec<IntruderSample>, Vec<EnergySample>, Vec<FieldSnapshot>)> {
     let (n_steps, output_every, energy_every) =
         (out.n_steps, out.intruder_every, out.snapshot_every);
     let dt = scene.sys.dt;
@@ -107,5 +182,5 @@ pub fn read(
             );
         }
     }
-    Ok((samples, energy))
+    Ok((samples, energy, read_fields(out, dir)?))
 }

@@ -126,6 +126,8 @@ impl Lammps {
                 STDERR_FILE,
                 INTRUDER_FILE,
                 SNAP_FILE,
+                deck::GRAINS_FILE,
+                deck::CONTACTS_FILE,
             ],
         )?;
         let (deck, data) = inputs(sys, out, dir)?;
@@ -170,6 +172,12 @@ fn missing_output(sys: &System, out: &Outputs, dir: &Path) -> Option<String> {
     }
     if out.snapshot_every > 0 {
         wanted.push(SNAP_FILE);
+    }
+    if !out.fields.position_steps.is_empty() {
+        wanted.push(deck::GRAINS_FILE);
+    }
+    if !out.fields.contact_steps.is_empty() {
+        wanted.push(deck::CONTACTS_FILE);
     }
     wanted
         .into_iter()

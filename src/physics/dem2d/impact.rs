@@ -168,7 +168,11 @@ pub fn build(case: &Impact2dCase, v: &Variant, bed: &Bed) -> Result<Scene> {
     let top = wall_row(l, case.wall_d, top_y, next_id);
     disks.extend(top);
     let g = v.grains.coeffs(s);
-    let w = v.walls.coeffs(s);
+    let w = if case.walls_as_grains {
+        g
+    } else {
+        v.walls.coeffs(s)
+    };
     let i = v.intruder.coeffs(s);
     // Row-major 3x3: grain, wall, intruder.
     let coeffs = vec![g, w, i, w, w, w, i, w, i];
@@ -188,26 +192,75 @@ pub fn build(case: &Impact2dCase, v: &Variant, bed: &Bed) -> Result<Scene> {
     })
 }
 
-/// Native run of a scene: intruder samples every `output_every` steps and energies
-/// (from the same snapshot function the LAMMPS dumps go through) every `energy_every`.
+/// Which bed snapshots a run writes (K Sec. IV): the grains' positions at
+/// `position_steps`, and every contact's forces at `contact_steps` (a subset).
+#[derive(Debug, Clone, Default)]
+pub struct SnapshotSteps {
+    pub position_steps: Vec<u64>,
+    pub contact_steps: Vec<u64>,
+}
+
+/// The bed at the current step of `sys`: grains (type 0) sorted by id, and the touching
+/// pairs by atom id if `contacts`.
+pub fn field_snapshot(sys: &System, contacts: bool) -> crate::rundata::impact::FieldSnapshot {
+    use crate::rundata::impact::{ContactForce, FieldSnapshot, GrainPos};
+    let mut grains: Vec<GrainPos> = sys
+        .disks
+        .iter()
+        .filter(|d| d.type_ == 0)
+        .map(|d| GrainPos { id: d.id, x: d.x })
+        .collect();
+    grains.sort_by_key(|g| g.id);
+    FieldSnapshot {
+        step: sys.step,
+        grains,
+        contacts: contacts.then(|| {
+            sys.contact_forces()
+                .into_iter()
+                .map(|(i, j, f_n, ft)| ContactForce {
+                    i: sys.disks[i].id,
+                    j: sys.disks[j].id,
+                    f_n,
+                    ft,
+                })
+                .collect()
+        }),
+    }
+}
+
+/// What a native run leaves: intruder samples, energies, bed snapshots.
+pub type NativeSeries = (
+    Vec<crate::rundata::impact::IntruderSample>,
+    Vec<crate::rundata::impact::EnergySample>,
+    Vec<crate::rundata::impact::FieldSnapshot>,
+);
+
+/// Native run of a scene: intruder samples every `output_every` steps, energies (from
+/// the same snapshot function the LAMMPS dumps go through) every `energy_every`, bed
+/// snapshots at the steps `snaps` lists.
 pub fn run_native(
     scene: &Scene,
     n_steps: u64,
     output_every: u64,
     energy_every: u64,
     model: &super::energy::EnergyModel,
+    snaps: &SnapshotSteps,
     mut progress: impl FnMut(u64),
-) -> Result<(
-    Vec<crate::rundata::impact::IntruderSample>,
-    Vec<crate::rundata::impact::EnergySample>,
-)> {
+) -> Result<NativeSeries> {
     use super::energy::{SnapDisk, energies};
     use crate::rundata::impact::IntruderSample;
     let mut sys = scene.sys.clone();
     sys.setup();
     let mut samples = Vec::new();
     let mut energy = Vec::new();
+    let mut fields = Vec::new();
     loop {
+        if snaps.position_steps.contains(&sys.step) {
+            fields.push(field_snapshot(
+                &sys,
+                snaps.contact_steps.contains(&sys.step),
+            ));
+        }
         if sys.step.is_multiple_of(output_every) {
             let (x, v) = intruder_cm(&sys);
             anyhow::ensure!(x[1].is_finite(), "native run diverged at step {}", sys.step);
@@ -240,7 +293,7 @@ pub fn run_native(
         }
         sys.step();
     }
-    Ok((samples, energy))
+    Ok((samples, energy, fields))
 }
 
 /// Intruder centre of mass and velocity (unwrapped in x relative to its first disk).

@@ -355,6 +355,43 @@ impl System {
         self.step += 1;
     }
 
+    /// Every touching pair's (i, j, |F_n|, |F_t|) (indices into `disks`), the contact law
+    /// re-evaluated on the current state with the stored shear left as it is: what LAMMPS'
+    /// `compute pair/local` reports at the end of a step (its `single()` reads positions,
+    /// full-step velocities and the stored shear the same way). F_n is the component
+    /// along the centre line; the tangential force is perpendicular to it.
+    pub fn contact_forces(&self) -> Vec<(usize, usize, f64, f64)> {
+        let mut out = Vec::new();
+        for (&(i, j), &sh) in self.list.pairs.iter().zip(&self.list.shear) {
+            let (i, j) = (i as usize, j as usize);
+            let (a, b) = (&self.disks[i], &self.disks[j]);
+            let p = PairIn {
+                del: self.bx.delta(a.x, b.x),
+                ri: a.radius,
+                rj: b.radius,
+                vi: a.v,
+                vj: b.v,
+                wi: a.omega,
+                wj: b.omega,
+                mi: self.meff_mass(i),
+                mj: self.meff_mass(j),
+                frozen_i: a.role == Role::Frozen,
+                frozen_j: b.role == Role::Frozen,
+            };
+            let mut sh = sh;
+            if let Some(o) =
+                contact::hooke(self.coeff(a.type_, b.type_), &p, &mut sh, false, self.dt)
+            {
+                let r = p.del[0].hypot(p.del[1]);
+                let n = [p.del[0] / r, p.del[1] / r];
+                let f_n = o.f[0] * n[0] + o.f[1] * n[1];
+                let ft = [o.f[0] - f_n * n[0], o.f[1] - f_n * n[1]];
+                out.push((i, j, f_n.abs(), ft[0].hypot(ft[1])));
+            }
+        }
+        out
+    }
+
     /// Contact force on the intruder from everything else (gravity excluded).
     pub fn intruder_contact_force(&self) -> [f64; 2] {
         let mut s = [0.0; 2];
