@@ -321,9 +321,10 @@ fn real_main() -> Result<ExitCode> {
             let c = load(&case)?;
             let wrong = match (&c, engine) {
                 (AnyCase::Impact2d(_), EngineName::Liggghts) => Some("2D: use native or lammps"),
-                (AnyCase::Micro(_) | AnyCase::Penetration(_), EngineName::Lammps) => {
-                    Some("3D: use native or liggghts")
-                }
+                (
+                    AnyCase::Micro(_) | AnyCase::Penetration(_) | AnyCase::Triaxial(_),
+                    EngineName::Lammps,
+                ) => Some("3D: use native or liggghts"),
                 _ => None,
             };
             if let Some(w) = wrong {
@@ -451,6 +452,7 @@ fn real_main() -> Result<ExitCode> {
                 AnyCase::Micro(_) => ("micro", "LIGGGHTS"),
                 AnyCase::Penetration(_) => ("penetration", "LIGGGHTS"),
                 AnyCase::Impact2d(_) => ("impact2d", "LAMMPS"),
+                AnyCase::Triaxial(_) => ("triaxial", "LIGGGHTS"),
             };
             let (name, lines) = with_experiment!(c, false, |exp| (
                 exp.name().to_string(),
@@ -488,6 +490,7 @@ fn real_main() -> Result<ExitCode> {
                 AnyCase::Micro(_) => ("micro", EngineName::Liggghts),
                 AnyCase::Penetration(_) => ("penetration", EngineName::Liggghts),
                 AnyCase::Impact2d(_) => ("impact2d", EngineName::Lammps),
+                AnyCase::Triaxial(_) => ("triaxial", EngineName::Liggghts),
             };
             if let Some(e) = engine
                 && e != wanted

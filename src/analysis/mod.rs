@@ -9,3 +9,4 @@ pub mod stress;
 pub mod stress_fields;
 pub mod stress_study;
 pub mod stress_v2;
+pub mod triaxial;

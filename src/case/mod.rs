@@ -7,6 +7,7 @@ mod fields;
 pub mod impact2d;
 pub mod penetration;
 pub(crate) mod schema;
+pub mod triaxial;
 pub(crate) mod validate;
 
 pub use error::CaseError;
@@ -64,6 +65,7 @@ pub enum AnyCase {
     Micro(Case),
     Penetration(penetration::PenetrationCase),
     Impact2d(impact2d::Impact2dCase),
+    Triaxial(triaxial::TriaxialCase),
 }
 
 impl AnyCase {
@@ -91,13 +93,14 @@ impl AnyCase {
                 penetration::PenetrationCase::from_toml_str(text, path).map(AnyCase::Penetration)
             }
             "impact2d" => impact2d::Impact2dCase::from_toml_str(text, path).map(AnyCase::Impact2d),
+            "triaxial" => triaxial::TriaxialCase::from_toml_str(text, path).map(AnyCase::Triaxial),
             other => Err(error::Ctx {
                 file: path.to_path_buf(),
             }
             .bad(
                 "case.kind",
                 other,
-                "supported kinds: \"micro\", \"penetration\", \"impact2d\"",
+                "supported kinds: \"micro\", \"penetration\", \"impact2d\", \"triaxial\"",
             )),
         }
     }
@@ -107,6 +110,7 @@ impl AnyCase {
             AnyCase::Micro(c) => &c.name,
             AnyCase::Penetration(c) => &c.name,
             AnyCase::Impact2d(c) => &c.name,
+            AnyCase::Triaxial(c) => &c.name,
         }
     }
 }

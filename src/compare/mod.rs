@@ -8,6 +8,7 @@ pub mod penetration;
 pub mod stress;
 pub mod sweep;
 pub mod trajectory;
+pub mod triaxial;
 
 use serde::{Deserialize, Serialize};
 

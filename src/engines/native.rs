@@ -136,3 +136,32 @@ pub fn impact2d(
         provenance(input_hash, case_file, start, "2D DEM", pert, vec![]),
     ))
 }
+
+/// The shear of a compacted triaxial sample (docs/stress.md rule 5) for `steps` steps;
+/// the wall records every `output_every` steps, `on_step(step)` every 1000 steps.
+pub fn triaxial(
+    case: &crate::case::triaxial::TriaxialCase,
+    sample: &dem::triaxial::Sample,
+    pert: &Perturbation,
+    steps: u64,
+    mut on_step: impl FnMut(u64),
+) -> Result<(Vec<crate::rundata::triaxial::WallRecord>, Provenance)> {
+    let start = Instant::now();
+    let mut records = Vec::with_capacity((steps / case.output_every) as usize);
+    dem::triaxial::shear(case, sample, *pert, steps, |r| {
+        if r.step.is_multiple_of(1000) {
+            on_step(r.step);
+        }
+        records.push(*r);
+        Ok(())
+    })?;
+    let p = provenance(
+        case.canonical_hash(),
+        &case.source,
+        start,
+        "triaxial",
+        pert,
+        vec![],
+    );
+    Ok((records, p))
+}

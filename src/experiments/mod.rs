@@ -15,6 +15,7 @@ pub mod penetration;
 pub mod reference;
 pub mod runner;
 pub mod suite;
+pub mod triaxial;
 
 use crate::case::{NegativeControl, Perturbation, ValidatedCase};
 use crate::compare::Check;
@@ -44,6 +45,10 @@ macro_rules! with_experiment {
             }
             $crate::case::AnyCase::Impact2d(case) => {
                 let $exp = $crate::experiments::impact2d::Impact2d { case };
+                $body
+            }
+            $crate::case::AnyCase::Triaxial(case) => {
+                let $exp = $crate::experiments::triaxial::Triaxial { case };
                 $body
             }
         }

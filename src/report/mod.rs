@@ -8,6 +8,7 @@ pub mod progress;
 pub mod stress;
 pub mod svg;
 pub mod svg_impact;
+pub mod svg_triaxial;
 pub mod vtk;
 
 use crate::compare::{Check, Status};

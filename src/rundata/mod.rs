@@ -7,3 +7,4 @@ pub mod frames;
 pub mod impact;
 pub mod provenance;
 pub mod snapshot;
+pub mod triaxial;

@@ -13,6 +13,7 @@ mod dump;
 pub mod penetration;
 pub mod snapshot;
 pub mod stl;
+pub mod triaxial;
 pub mod units;
 
 pub use deck::{

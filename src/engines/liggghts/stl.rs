@@ -119,6 +119,26 @@ pub fn write_flat_cylinder_stl(
     Ok(n)
 }
 
+/// ASCII STL of one equilateral triangle in the plane `x[axis] = position`, centred at
+/// `centre` (the other two coordinates, in axis order `axis + 1`, `axis + 2` mod 3) with
+/// circumradius `r`: the mesh of a plane wall whose edges must stay away from the grains
+/// (the triaxial box's walls).
+pub fn triangle_stl(name: &str, axis: usize, position: f64, centre: [f64; 2], r: f64) -> String {
+    let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+    let vertex = |deg: f64| {
+        let (s, c) = deg.to_radians().sin_cos();
+        let mut p = [0.0; 3];
+        p[axis] = position;
+        p[a] = centre[0] + r * c;
+        p[b] = centre[1] + r * s;
+        p
+    };
+    let mut out = format!("solid {name}\n");
+    facet(&mut out, vertex(90.0), vertex(210.0), vertex(330.0));
+    out.push_str(&format!("endsolid {name}\n"));
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

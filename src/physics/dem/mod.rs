@@ -9,6 +9,7 @@ pub mod contact;
 pub mod contacts;
 pub mod intruder;
 mod lanes;
+mod moving_walls;
 pub mod neighbor;
 mod overlap;
 pub mod packing;
@@ -16,6 +17,8 @@ mod pairs;
 mod par;
 pub mod penetration;
 pub mod rigid;
+pub mod servo;
+pub mod triaxial;
 pub mod walls;
 
 use crate::case::{Case, Perturbation, RollingModel, Wall};
@@ -60,6 +63,17 @@ pub struct Simulation {
     coeffs: Vec<PairCoeffs>,
     rolling: RollingModel,
     walls: Vec<Wall>,
+    /// Velocity of each wall (zero unless a driver sets it, see
+    /// [`Simulation::set_wall_velocity`]): plane walls move along their normal by
+    /// `dt * v` at the start of every step and grains feel `v` in the contact's relative
+    /// velocity, as LIGGGHTS' moving meshes (`move/mesh`, mesh module servo).
+    wall_vel: Vec<V3>,
+    /// Plane positions at the last neighbour build: a wall that moved more than skin/2
+    /// since then forces a rebuild (LIGGGHTS rebuilds when a mesh moved that far), so the
+    /// `r + skin` near-wall masks stay valid.
+    wall_pos_at_build: Vec<f64>,
+    /// Whether any wall has a non-zero velocity (the step moves walls only then).
+    walls_move: bool,
     /// Wall contact history, `walls_stride` entries per particle: shear, and the EPSD2
     /// rolling torque only when the rolling model is EPSD2 (empty otherwise).
     wall_shear: Vec<V3>,
@@ -273,6 +287,9 @@ impl Simulation {
             coeffs,
             rolling: case.rolling,
             walls: case.walls.clone(),
+            wall_vel: vec![[0.0; 3]; case.walls.len()],
+            wall_pos_at_build: vec![f64::NAN; case.walls.len()],
+            walls_move: false,
             wall_shear: vec![[0.0; 3]; n * stride],
             wall_roll: vec![[0.0; 3]; if epsd2 { n * stride } else { 0 }],
             walls_stride: stride,
@@ -353,6 +370,9 @@ impl Simulation {
         self.step += 1;
         if let Some(it) = &mut self.intruder {
             it.body.translate(it.velocity[2] * self.dt);
+        }
+        if self.walls_move {
+            moved |= self.move_walls();
         }
         self.domain_error(non_finite, outside)?;
         let t1 = Instant::now();
@@ -525,6 +545,11 @@ impl Simulation {
             self.lo,
             self.hi,
         );
+        for (p, w) in self.wall_pos_at_build.iter_mut().zip(&self.walls) {
+            if let Wall::Plane { position, .. } = w {
+                *p = *position;
+            }
+        }
         let (walls, skin, stride) = (&self.walls, self.skin, self.walls_stride);
         (
             &mut self.near_walls,
@@ -805,6 +830,7 @@ impl Simulation {
         let (coeffs, n_types, rolling) = (&self.coeffs, self.n_types, self.rolling);
         let (rev_start, rev_out) = (&self.pairs.rev_start, &self.rev_out);
         let (walls, gravity, stride) = (&self.walls, self.gravity, self.walls_stride);
+        let wall_vel = &self.wall_vel;
         let near_walls = &self.near_walls;
         let free = self.free;
         let epsd2 = !self.wall_roll.is_empty();
@@ -914,7 +940,7 @@ impl Simulation {
                                 is_wall: true,
                                 meff: mass[l],
                                 vel_i: vb[l],
-                                vel_j: [0.0; 3],
+                                vel_j: wall_vel[k],
                                 omega_i: wb[l],
                                 omega_j: [0.0; 3],
                             };
@@ -1101,8 +1127,9 @@ mod tests {
     use super::*;
 
     /// 3000 spheres thrown at each other (random velocities and spins, so most pairs
-    /// touch within the run), walls on five sides and the intruder driven into them:
-    /// every state array, the intruder force and every contact must be bit-identical
+    /// touch within the run), walls on five sides (two of them closing in) and the
+    /// intruder driven into them: every state array, the intruder force, every wall's
+    /// force and every contact must be bit-identical
     /// for 1, 2 and 3 threads, with CDT and with EPSD2 rolling friction (which carries
     /// per-pair, per-wall and per-intruder rolling history). Then again with 900 of the
     /// spheres replaced by dimer clumps, so the free/member boundary (index 2100) falls
@@ -1157,13 +1184,24 @@ mod tests {
                         0,
                     );
                     sim.setup().unwrap();
+                    // The x_hi and y_hi walls close in (moving planes): their velocity
+                    // enters the contacts, and every wall's force is summed in particle
+                    // order.
+                    sim.set_wall_velocity(2, -0.5).unwrap();
+                    sim.set_wall_velocity(4, -0.3).unwrap();
                     let mut touching = 0;
                     let mut f_int = Vec::new();
+                    let mut f_walls = Vec::new();
                     for _ in 0..300 {
                         sim.step().unwrap();
                         touching = touching.max(sim.pair_touch.iter().filter(|&&t| t).count());
                         f_int.push(sim.intruder_force());
+                        f_walls.push((0..5).map(|k| sim.wall_force(k)).collect::<Vec<_>>());
                     }
+                    assert!(
+                        f_walls.last().unwrap()[2] != [0.0; 3],
+                        "the moving wall never touched"
+                    );
                     assert!(touching > 1000, "too few contacts: {touching}");
                     assert!(f_int.iter().any(|f| f[2] != 0.0), "intruder never touched");
                     let contacts: Vec<_> = sim
@@ -1184,7 +1222,7 @@ mod tests {
                     (
                         (sim.x.clone(), sim.v.clone(), sim.omega.clone()),
                         (sim.f.clone(), sim.torque.clone()),
-                        f_int,
+                        (f_int, f_walls, sim.wall_position(2)),
                         contacts,
                         bodies,
                     )
