@@ -72,11 +72,38 @@ impl MaltPoints {
 
 /// An angle measured without the stress-field estimators (rule 5: the triaxial test's
 /// critical-state angle), drawn as a band on the phi axis.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct IndependentAngle {
     pub label: String,
     pub phi_deg: f64,
     pub se_deg: f64,
+}
+
+/// File name of a run's independent angles inside its output directory.
+pub const ANGLES_FILE: &str = "independent_angles.json";
+
+/// `independent_angles.json`: the angles one case measured, per engine.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct IndependentAngles {
+    pub case: String,
+    pub canonical_hash: String,
+    pub angles: Vec<IndependentAngle>,
+}
+
+impl IndependentAngles {
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        let p = dir.join(ANGLES_FILE);
+        std::fs::write(&p, serde_json::to_string_pretty(self)?)
+            .with_context(|| format!("writing {}", p.display()))
+    }
+
+    pub fn read(dir: &Path) -> Result<IndependentAngles> {
+        let p = dir.join(ANGLES_FILE);
+        let text =
+            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?;
+        serde_json::from_str(&text)
+            .with_context(|| format!("{}: not a run's independent angles", p.display()))
+    }
 }
 
 /// phi(K) through eq 10, NaN where K has no angle (below 1 or beyond the table).
@@ -186,5 +213,16 @@ mod tests {
         assert!(t.contains(&format!("{:+.2}", 29.0 - pk)), "{t}");
         assert!(t.contains("triaxial = 28.00 +- 0.50"), "{t}");
         assert!(MaltPoints::read(&dir.path().join("none")).is_err());
+        let a = IndependentAngles {
+            case: "t".into(),
+            canonical_hash: "h".into(),
+            angles: vec![IndependentAngle {
+                label: "triaxial phi_cs, native".into(),
+                phi_deg: 20.8,
+                se_deg: 0.1,
+            }],
+        };
+        a.write(dir.path()).unwrap();
+        assert_eq!(IndependentAngles::read(dir.path()).unwrap(), a);
     }
 }

@@ -641,19 +641,45 @@ pub fn malt_verdict(
             None => {}
         }
     }
-    if points.is_empty() {
+    // Independent angles (rule 5's triaxial test) of the suite's other cases.
+    let mut angles = Vec::new();
+    for e in &suite.cases {
+        let Ok(c) = crate::case::AnyCase::load(&e.path) else {
+            continue;
+        };
+        let crate::case::AnyCase::Triaxial(tc) = &c else {
+            continue;
+        };
+        let hash = crate::case::ValidatedCase::canonical_hash(tc).to_string();
+        let name = c.name().to_string();
+        let found = dirs.iter().find_map(|d| {
+            [d.join(&name), d.to_path_buf()].into_iter().find_map(|dir| {
+                crate::compare::malt_points::IndependentAngles::read(&dir)
+                    .ok()
+                    .filter(|a| a.case == name)
+            })
+        });
+        match found {
+            Some(a) if a.canonical_hash == hash => angles.extend(a.angles),
+            Some(_) => notes.push(format!(
+                "MALT verdict: the angles of {name} are of another version of the case (canonical hash); left out"
+            )),
+            None => {}
+        }
+    }
+    if points.is_empty() && angles.is_empty() {
         return (notes, None);
     }
     let mut section = crate::report::Section {
         title: "MALT across scales (docs/stress.md rule 6)".into(),
         body: format!(
             "Reported, not gated: each case keeps its own engine and MALT gates. phi(K_phi) is eq 10 inverted at the measured K_phi; 'v2 - phi(K)' is how far the stress-field angle sits from the MALT curve in phi.\n\n{}",
-            table(&points, &[])
+            table(&points, &angles)
         ),
         figures: Vec::new(),
     };
     const FIGURE: &str = "malt_verdict.svg";
-    match draw_malt_verdict(&out.join(FIGURE), &points) {
+    match draw_malt_verdict(&out.join(FIGURE), &points, &angles) {
         Ok(()) => section.figures.push(FIGURE.into()),
         Err(e) => notes.push(format!("MALT verdict figure not written: {e:#}")),
     }
@@ -663,8 +689,9 @@ pub fn malt_verdict(
 fn draw_malt_verdict(
     path: &Path,
     points: &[crate::compare::malt_points::MaltPoints],
+    angles: &[crate::compare::malt_points::IndependentAngle],
 ) -> Result<()> {
-    use crate::report::field_svg::{KPhiPoint, k_phi_plane};
+    use crate::report::field_svg::{KPhiPoint, PhiBand, k_phi_plane};
     let curve: Vec<(f64, f64)> = crate::analysis::malt::table(45.0, 0.5)?
         .into_iter()
         .filter(|(_, k)| *k <= 2e3)
@@ -690,7 +717,15 @@ fn draw_malt_verdict(
             k_err: e.k_phi_se,
         })
         .collect();
-    k_phi_plane(path, &curve, &kp, &[])
+    let bands: Vec<PhiBand> = angles
+        .iter()
+        .map(|a| PhiBand {
+            label: &a.label,
+            phi_deg: a.phi_deg,
+            half_width_deg: a.se_deg,
+        })
+        .collect();
+    k_phi_plane(path, &curve, &kp, &bands)
 }
 
 #[cfg(test)]

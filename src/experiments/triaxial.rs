@@ -504,6 +504,30 @@ impl Experiment for Triaxial {
                 notes.push(format!("phi_mob_{name}.svg not written: {e:#}"));
             }
         }
+        // The critical-state angle per engine (mean over units, SE = sd / sqrt(n)) for the
+        // suite's cross-scale MALT verdict (docs/stress.md rule 6).
+        let angle = |engine: &str, v: &[f64]| {
+            let n = v.len() as f64;
+            crate::compare::malt_points::IndependentAngle {
+                label: format!("triaxial phi_cs, {engine}"),
+                phi_deg: v.iter().sum::<f64>() / n,
+                se_deg: at::sample_sd(v) / n.sqrt(),
+            }
+        };
+        if !cs_n.is_empty() {
+            let angles = crate::compare::malt_points::IndependentAngles {
+                case: c.name.clone(),
+                canonical_hash: crate::case::ValidatedCase::canonical_hash(c).to_string(),
+                angles: [("native", &cs_n), ("LIGGGHTS", &cs_r)]
+                    .into_iter()
+                    .filter(|(_, v)| !v.is_empty())
+                    .map(|(e, v)| angle(e, v))
+                    .collect(),
+            };
+            if let Err(e) = angles.write(out) {
+                notes.push(format!("{e:#}"));
+            }
+        }
         if !reference.is_empty() && checks.iter().all(|k| !k.is_error()) {
             checks.push(crate::compare::triaxial::phi_cs_gate(
                 &c.name,
