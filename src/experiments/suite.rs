@@ -653,11 +653,13 @@ pub fn malt_verdict(
         let hash = crate::case::ValidatedCase::canonical_hash(tc).to_string();
         let name = c.name().to_string();
         let found = dirs.iter().find_map(|d| {
-            [d.join(&name), d.to_path_buf()].into_iter().find_map(|dir| {
-                crate::compare::malt_points::IndependentAngles::read(&dir)
-                    .ok()
-                    .filter(|a| a.case == name)
-            })
+            [d.join(&name), d.to_path_buf()]
+                .into_iter()
+                .find_map(|dir| {
+                    crate::compare::malt_points::IndependentAngles::read(&dir)
+                        .ok()
+                        .filter(|a| a.case == name)
+                })
         });
         match found {
             Some(a) if a.canonical_hash == hash => angles.extend(a.angles),

@@ -215,18 +215,7 @@ pub fn prepare(case: &PenetrationCase, progress: impl FnMut(f64, f64)) -> Result
             case.settle_ke_ratio
         );
     }
-    let frame = sim.frame();
-    let settled: Vec<Particle> = sim_case
-        .particles
-        .iter()
-        .zip(&frame.particles)
-        .map(|(p, s)| Particle {
-            x: s.x,
-            v: s.v,
-            omega: s.omega,
-            ..p.clone()
-        })
-        .collect();
+    let settled = particles_now(&sim_case.particles, &sim);
     let surface_z = surface_height(case, &settled);
     let psi = packing_fraction(case, &settled, surface_z);
     Ok(Bed {
@@ -237,6 +226,25 @@ pub fn prepare(case: &PenetrationCase, progress: impl FnMut(f64, f64)) -> Result
         settle_time: sim.step as f64 * case.dt,
         ke_at_end_of_pour: ke_peak,
     })
+}
+
+/// The case's free spheres (in id order, as `Simulation::frame` gives them) with the
+/// positions, velocities and spins the simulation has now: a prepared state to start
+/// both engines from.
+pub fn particles_now(particles: &[Particle], sim: &Simulation) -> Vec<Particle> {
+    particles
+        .iter()
+        .zip(&sim.frame().particles)
+        .map(|(p, s)| {
+            debug_assert_eq!(p.id, s.id, "particles must be in id order");
+            Particle {
+                x: s.x,
+                v: s.v,
+                omega: s.omega,
+                ..p.clone()
+            }
+        })
+        .collect()
 }
 
 pub fn surface_height(case: &PenetrationCase, ps: &[Particle]) -> f64 {

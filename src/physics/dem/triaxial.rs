@@ -260,18 +260,7 @@ pub fn compact(
             );
         }
     };
-    let frame = sim.frame();
-    let particles: Vec<Particle> = c
-        .particles
-        .iter()
-        .zip(&frame.particles)
-        .map(|(p, s)| Particle {
-            x: s.x,
-            v: s.v,
-            omega: s.omega,
-            ..p.clone()
-        })
-        .collect();
+    let particles = super::packing::particles_now(&c.particles, &sim);
     let hi = hi_positions(&sim);
     let v_grains = particles.len() as f64 * std::f64::consts::PI / 6.0 * case.diameter.powi(3);
     Ok(Sample {
