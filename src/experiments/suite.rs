@@ -575,7 +575,9 @@ fn claim_figures(
     } else {
         c.x.clone()
     };
-    let per_engine: Vec<(&str, Vec<f64>, Vec<f64>, Vec<Vec<f64>>)> = engines
+    // Per engine along the sweep: K_phi, its standard error, and each case's per-bed values.
+    type EngineSweep<'a> = (&'a str, Vec<f64>, Vec<f64>, Vec<Vec<f64>>);
+    let per_engine: Vec<EngineSweep> = engines
         .iter()
         .filter_map(|e| {
             let v: Option<Vec<_>> = found.iter().map(|(_, _, s)| s.engines.get(*e)).collect();
