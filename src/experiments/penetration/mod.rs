@@ -301,6 +301,11 @@ fn liggghts_run(
     bar.finish_and_clear();
     provenance.notes.push(packing::bed_note(&u.case, &u.bed));
     provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
+    if !u.bed.bodies.is_empty() {
+        provenance
+            .notes
+            .push(clump_start_note(&u.case, &u.bed, dir, np)?);
+    }
     let snapshots = match plan {
         Some(plan) => Some(stress::convert_liggghts_snapshots(
             &u.case,
@@ -322,6 +327,34 @@ fn liggghts_run(
         snapshots,
         study_snapshots: None,
     })
+}
+
+/// How far LIGGGHTS' bodies at step 0 of the penetration (its start dump) are from the
+/// native engine's start from the same bed: zero when the insertion was exact and the
+/// native start reproduces LIGGGHTS' insertion step and run boundary.
+pub fn clump_start_difference(
+    case: &PenetrationCase,
+    bed: &Bed,
+    dir: &Path,
+) -> Result<crate::engines::liggghts::clump_bed::StartDifference> {
+    use crate::engines::liggghts::clump_bed;
+    let lig = clump_bed::read_start(dir, &bed.bodies)?;
+    let sim = crate::physics::dem::penetration::simulation(
+        case,
+        bed,
+        crate::case::Perturbation::default(),
+    )?;
+    clump_bed::StartDifference::between(&sim.frame().bodies, &lig)
+}
+
+fn clump_start_note(case: &PenetrationCase, bed: &Bed, dir: &Path, np: usize) -> Result<String> {
+    let d = clump_start_difference(case, bed, dir)
+        .with_context(|| format!("start state of the clump bed in {}", dir.display()))?;
+    Ok(format!(
+        "clump bed start, LIGGGHTS ({np} process(es)) vs native, {} bodies: {}",
+        bed.bodies.len(),
+        d.text()
+    ))
 }
 
 impl Penetration {
@@ -524,16 +557,24 @@ impl Experiment for Penetration {
         Ok(main)
     }
 
-    fn record(&self, _u: &Unit, run: &RefRun, run_dir: &Path, rec: &Path) -> Result<()> {
+    fn record(&self, u: &Unit, run: &RefRun, run_dir: &Path, rec: &Path) -> Result<()> {
         std::fs::create_dir_all(rec).with_context(|| format!("cannot create {}", rec.display()))?;
+        let grains: &[&str] = if u.bed.bodies.is_empty() {
+            &[lp::DATA_FILE]
+        } else {
+            use crate::engines::liggghts::clump_bed;
+            &[clump_bed::BODIES_FILE, clump_bed::START_DUMP_FILE]
+        };
         for f in [
             lp::DECK_FILE,
-            lp::DATA_FILE,
             lp::STL_FILE,
             lp::FORCE_FILE,
             lp::LOG_FILE,
             crate::engines::liggghts::STDOUT_FILE,
-        ] {
+        ]
+        .iter()
+        .chain(grains)
+        {
             std::fs::copy(run_dir.join(f), rec.join(f))
                 .with_context(|| format!("copying {f} into {}", rec.display()))?;
         }
