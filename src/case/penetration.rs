@@ -409,7 +409,7 @@ pub struct PenetrationCase {
     /// Grains (spheres or clump bodies).
     pub count: usize,
     /// The clump template every grain is made of (Feng et al. Fig 3(f)); `None`: spheres.
-    pub clump: Option<super::clumps::ClumpTemplate>,
+    pub clump: Option<Box<super::clumps::ClumpTemplate>>,
     pub seed: u64,
     pub settle_ke_ratio: f64,
     pub max_settle_time: f64,
@@ -942,7 +942,7 @@ fn bed_clump(
     n_types: usize,
     density: f64,
     diameter: Diameter,
-) -> Result<Option<super::clumps::ClumpTemplate>, CaseError> {
+) -> Result<Option<Box<super::clumps::ClumpTemplate>>, CaseError> {
     let Some(name) = &bed.clump_template else {
         if !raw.is_empty() {
             return Err(ctx.bad(
@@ -996,7 +996,7 @@ fn bed_clump(
             ),
         ));
     }
-    Ok(Some(t))
+    Ok(Some(Box::new(t)))
 }
 
 super::validated_case!(PenetrationCase);

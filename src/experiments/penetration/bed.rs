@@ -74,7 +74,7 @@ pub fn liggghts_deck(case: &PenetrationCase, bed: &Bed) -> Result<PenetrationDec
         domain_lo: lo,
         domain_hi: hi,
         particles: bed.particles.clone(),
-        clump: case.clump.clone(),
+        clump: case.clump.as_deref().cloned(),
         bodies: bed.bodies.clone(),
         intruder_radius: case.intruder_radius,
         intruder_length: case.intruder_length,

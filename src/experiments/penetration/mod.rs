@@ -399,7 +399,8 @@ impl Experiment for Penetration {
 
     fn estimate(&self) -> Estimate {
         let c = &self.case;
-        let n = c.count as f64;
+        // Spheres the engines integrate: clump members count one by one.
+        let n = (c.count * c.clump.as_ref().map_or(1, |t| t.radii.len())) as f64;
         let travel = c.start_gap + c.final_depth + c.diameter.max();
         let steps = travel / c.speed / c.dt;
         let slow = c.quasi_static_speed.map_or(0.0, |v| travel / v / c.dt);
@@ -427,12 +428,22 @@ impl Experiment for Penetration {
             Derived::new(
                 "grains",
                 c.count.to_string(),
-                format!(
-                    "per bed; {} independent bed(s); diameter {:e} to {:e} m",
-                    c.ensemble_beds,
-                    c.diameter.min(),
-                    c.diameter.max()
-                ),
+                match &c.clump {
+                    None => format!(
+                        "per bed; {} independent bed(s); diameter {:e} to {:e} m",
+                        c.ensemble_beds,
+                        c.diameter.min(),
+                        c.diameter.max()
+                    ),
+                    Some(t) => format!(
+                        "rigid clumps `{}` of {} spheres of diameter {:e} m (volume {:.4e} m^3 each), per bed; {} independent bed(s)",
+                        t.name,
+                        t.radii.len(),
+                        c.diameter.max(),
+                        t.volume,
+                        c.ensemble_beds
+                    ),
+                },
             ),
             Derived::new(
                 "Rayleigh time",
@@ -462,6 +473,11 @@ impl Experiment for Penetration {
     }
 
     fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
+        ensure!(
+            !(self.stress && self.case.clump.is_some()),
+            "{}: the stress fields of a bed of clumps are not built (contact snapshots and coarse graining are per sphere); run it without the stress option",
+            self.case.source.display()
+        );
         (0..self.case.ensemble_beds)
             .map(|k| {
                 let ck = self.case.realisation(k);

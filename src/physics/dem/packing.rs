@@ -118,7 +118,7 @@ pub fn container_case_with(
         },
         clumps: match &case.clump {
             Some(t) if !bodies.is_empty() => Clumps {
-                templates: vec![t.clone()],
+                templates: vec![(**t).clone()],
                 bodies,
             },
             _ => Clumps::default(),
