@@ -143,10 +143,11 @@ fn pen_sim(case: &PenetrationCase, st: &State) -> Result<Simulation> {
 }
 
 fn bed_of(case: &PenetrationCase, particles: Vec<granval::case::Particle>) -> Bed {
-    let surface_z = packing::surface_height(case, &particles);
+    let surface_z = packing::surface_height(case, &packing::grain_spheres(case, &particles, &[]));
     Bed {
-        psi: packing::packing_fraction(case, &particles, surface_z),
+        psi: packing::packing_fraction(case, &particles, &[], surface_z),
         particles,
+        bodies: Vec::new(),
         surface_z,
         ke_ratio: f64::NAN,
         settle_time: f64::NAN,

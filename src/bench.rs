@@ -253,10 +253,14 @@ pub fn measure_packing(case: &Case, steps: u64, reps: usize) -> Result<BenchResu
     Ok(r)
 }
 
+/// The case of `granval bench --clumps`: the CI geometry with rigid dimers.
+pub const CLUMP_BENCH_CASE: &str = "cases/penetration/ci-dimers.toml";
+
 /// Every timing of one penetration benchmark ([`run_penetration`]; seconds for `steps`
 /// steps; the figure reported is the best of each list).
 #[derive(Debug, Clone)]
 pub struct PenetrationBench {
+    /// Spheres the engines integrate (clump members one by one): the particle-steps.
     pub grains: usize,
     pub steps: u64,
     /// Native bed preparation (pour and settle, 2 threads), seconds.
@@ -329,10 +333,19 @@ pub fn run_penetration(case_path: &Path, steps: u64, reps: usize) -> Result<Pene
         pool(2)?.install(|| crate::experiments::penetration::bed::prepare_bed(&case, false))?;
     let preparation = t0.elapsed().as_secs_f64();
     let steps = steps.min(dem::penetration::n_steps(&case, &bed));
-    let grains = bed.particles.len();
+    let grains = bed.spheres(&case).len();
     println!(
-        "{} (prepared in {preparation:.1} s, 2 threads)",
-        dem::packing::bed_note(&case, &bed)
+        "{} (prepared in {preparation:.1} s, 2 threads){}",
+        dem::packing::bed_note(&case, &bed),
+        if bed.bodies.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; {} rigid clumps of {} spheres: particle-steps count the spheres",
+                bed.bodies.len(),
+                grains
+            )
+        }
     );
     println!(
         "timing {steps} penetration steps, {reps} repetitions (native 2 threads, LIGGGHTS np 2 in turn), best reported"

@@ -129,7 +129,8 @@ enum Cmd {
     },
     /// Throughput of the native engine vs LIGGGHTS on the same dense settled packing
     /// (native 1 thread vs LIGGGHTS 1 process, native 2 threads vs 1 thread), or with
-    /// `--penetration` on bed 0 of a penetration case (native 2 threads vs LIGGGHTS np 2).
+    /// `--penetration` on bed 0 of a penetration case (native 2 threads vs LIGGGHTS np 2),
+    /// `--clumps` on bed 0 of the CI bed of rigid dimers.
     /// Best of `--reps`, every repetition printed, memory per particle.
     Bench {
         /// Number of spheres in the packing.
@@ -145,6 +146,10 @@ enum Cmd {
         /// intruder start and speed in both engines.
         #[arg(long, num_args = 0..=1, default_missing_value = "cases/penetration/ci.toml")]
         penetration: Option<PathBuf>,
+        /// The penetration benchmark on a bed of rigid clumps: bed 0 of
+        /// `cases/penetration/ci-dimers.toml` (`--penetration` with that case).
+        #[arg(long, conflicts_with = "penetration")]
+        clumps: bool,
     },
     /// Stress and velocity fields of a penetration case from both engines, every bed of
     /// its ensemble: phi per engine, (phi, K_phi) against MALT, CSV/VTK/SVG under OUT
@@ -576,7 +581,10 @@ fn real_main() -> Result<ExitCode> {
             steps,
             reps,
             penetration,
+            clumps,
         } => {
+            let penetration =
+                penetration.or(clumps.then(|| PathBuf::from(granval::bench::CLUMP_BENCH_CASE)));
             match penetration {
                 Some(case) => {
                     granval::bench::run_penetration(&case, steps.unwrap_or(10_000), reps)?;

@@ -83,6 +83,7 @@ fn bed(turn_deg: f64) -> Bed {
     let top = particles.iter().map(|p| p.x[2] + r).fold(0.0, f64::max);
     Bed {
         particles,
+        bodies: Vec::new(),
         surface_z: top,
         psi: 0.0,
         ke_ratio: 0.0,

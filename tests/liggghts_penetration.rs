@@ -65,6 +65,8 @@ fn deck(units: Units, e: f64) -> PenetrationDeck {
     let n = 2;
     PenetrationDeck {
         units,
+        clump: None,
+        bodies: Vec::new(),
         materials: vec![material(e, 0.3); n],
         pairs: PairTable {
             n_types: n,

@@ -99,6 +99,7 @@ fn stl_rim_error_sets_the_segment_count() {
     let fine = PenetrationCase::from_toml_str(&text, Path::new("tiny.toml")).unwrap();
     let bed = granval::physics::dem::packing::Bed {
         particles: vec![],
+        bodies: vec![],
         surface_z: 0.01,
         psi: 0.0,
         ke_ratio: 0.0,

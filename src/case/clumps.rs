@@ -83,8 +83,8 @@ pub struct ClumpTemplate {
     pub bounding_radius: f64,
 }
 
-/// A validated body.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// A validated body (also a settled grain of a penetration bed, hence `Deserialize`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Clump {
     pub id: u64,
     /// Index into [`Clumps::templates`].

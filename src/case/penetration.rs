@@ -38,6 +38,10 @@ struct File {
     published_phi: Option<PublishedPhi>,
     #[serde(default)]
     negative_control: Vec<super::control::RawControl>,
+    /// Non-spherical grains (Feng et al. Sec. 3 (f), Fig 3(f)): the one rigid
+    /// multisphere template `[bed] clump_template` names, as in micro cases.
+    #[serde(default)]
+    clump_templates: Vec<super::clumps::RawTemplate>,
 }
 
 /// Realisations: granular penetration is chaotic, so one bed gives K_phi only to about
@@ -156,6 +160,10 @@ struct Bed {
     #[serde(default = "default_packing_guess")]
     packing_guess: f64,
     seed: u64,
+    /// Grains are rigid clumps of this `[[clump_templates]]` entry instead of spheres;
+    /// `diameter` is then the members' diameter and `count` counts bodies.
+    #[serde(default)]
+    clump_template: Option<String>,
 }
 
 fn default_packing_guess() -> f64 {
@@ -396,8 +404,12 @@ pub struct PenetrationCase {
     pub grain_type: usize,
     pub intruder_type: usize,
     pub density: f64,
+    /// Sphere diameter; for clump grains, the diameter of every member sphere.
     pub diameter: Diameter,
+    /// Grains (spheres or clump bodies).
     pub count: usize,
+    /// The clump template every grain is made of (Feng et al. Fig 3(f)); `None`: spheres.
+    pub clump: Option<Box<super::clumps::ClumpTemplate>>,
     pub seed: u64,
     pub settle_ke_ratio: f64,
     pub max_settle_time: f64,
@@ -474,6 +486,9 @@ impl PenetrationCase {
         // Only when present, so the hashes (and seals) of cases without it are unchanged.
         if let (Some(p), Some(o)) = (&self.settle_pairs, view.as_object_mut()) {
             o.insert("settle_pairs".into(), serde_json::json!(p));
+        }
+        if let (Some(t), Some(o)) = (&self.clump, view.as_object_mut()) {
+            o.insert("clump".into(), serde_json::json!(t));
         }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
@@ -583,6 +598,14 @@ impl PenetrationCase {
             }
         }
         let d_mean = diameter.mean();
+        let clump = bed_clump(
+            &ctx,
+            &raw.clump_templates,
+            &raw.bed,
+            n_types,
+            density,
+            diameter,
+        )?;
         let packing_guess = raw.bed.packing_guess;
         if !(packing_guess > 0.0 && packing_guess < 0.75) {
             return Err(ctx.bad("bed.packing_guess", packing_guess, "must lie in (0, 0.75)"));
@@ -599,7 +622,10 @@ impl PenetrationCase {
                         format!("the bed would overflow the container (container.height = {container_height:e} m)"),
                     ));
                 }
-                let v_grain = std::f64::consts::PI / 6.0 * d_mean.powi(3);
+                let v_grain = match &clump {
+                    Some(t) => t.volume,
+                    None => std::f64::consts::PI / 6.0 * d_mean.powi(3),
+                };
                 (packing_guess * std::f64::consts::PI * container_radius.powi(2) * h / v_grain)
                     .round() as usize
             }
@@ -877,6 +903,7 @@ impl PenetrationCase {
             density,
             diameter,
             count,
+            clump,
             seed: raw.bed.seed,
             settle_ke_ratio,
             max_settle_time,
@@ -902,6 +929,74 @@ impl PenetrationCase {
             phi_estimator,
         })
     }
+}
+
+/// The clump template of a bed of non-spherical grains, checked against `[bed]`: the
+/// template is the grain, so its material type and density must be the bed's and its
+/// members must all have the bed's (constant) diameter, which the case uses for the
+/// Rayleigh time, the skin and the scales of the analysis.
+fn bed_clump(
+    ctx: &Ctx,
+    raw: &[super::clumps::RawTemplate],
+    bed: &Bed,
+    n_types: usize,
+    density: f64,
+    diameter: Diameter,
+) -> Result<Option<Box<super::clumps::ClumpTemplate>>, CaseError> {
+    let Some(name) = &bed.clump_template else {
+        if !raw.is_empty() {
+            return Err(ctx.bad(
+                "clump_templates",
+                raw.len(),
+                "templates are defined but [bed] clump_template names none: the grains would be spheres",
+            ));
+        }
+        return Ok(None);
+    };
+    let templates = super::clumps::templates(ctx, raw, n_types)?;
+    if templates.len() != 1 || &templates[0].name != name {
+        return Err(ctx.bad(
+            "bed.clump_template",
+            name,
+            format!(
+                "must name the one [[clump_templates]] entry of the case; defined: {:?}",
+                templates.iter().map(|t| &t.name).collect::<Vec<_>>()
+            ),
+        ));
+    }
+    let t = templates.into_iter().next().expect("one template");
+    if t.type_ != bed.type_.wrapping_sub(1) {
+        return Err(ctx.bad(
+            "clump_templates[0].type",
+            t.type_ + 1,
+            format!("must be the bed's material type {}", bed.type_),
+        ));
+    }
+    if t.density != density {
+        return Err(ctx.bad(
+            "clump_templates[0].density",
+            t.density,
+            format!("must be the bed's density {density:e} kg/m^3"),
+        ));
+    }
+    let Diameter::Constant { value } = diameter else {
+        return Err(ctx.bad(
+            "bed.diameter",
+            "a distribution",
+            "a bed of clumps takes a constant diameter (that of every member sphere)",
+        ));
+    };
+    if let Some(k) = t.radii.iter().position(|&r| r != 0.5 * value) {
+        return Err(ctx.bad(
+            format!("clump_templates[0].spheres[{k}].radius"),
+            t.radii[k],
+            format!(
+                "must be half the bed's diameter ({:e} m): every member is one grain sphere",
+                0.5 * value
+            ),
+        ));
+    }
+    Ok(Some(Box::new(t)))
 }
 
 super::validated_case!(PenetrationCase);

@@ -66,6 +66,14 @@ mod tests {
                     omega: [1.0 / 7.0, 0.0, awkward[(i + 4) % 5]],
                 })
                 .collect(),
+            bodies: vec![crate::case::clumps::Clump {
+                id: 6,
+                template: 0,
+                x: [awkward[1], awkward[3], -awkward[0]],
+                orientation: [awkward[0], -1.0 / 3.0, 0.5, awkward[4]],
+                v: [awkward[2], 1e-300, 0.0],
+                omega: [-0.0, awkward[1], 7.0],
+            }],
             surface_z: (0.1f64 + 0.2) / 7.0,
             psi: 0.5941,
             ke_ratio: 8.01e-8,
@@ -80,6 +88,15 @@ mod tests {
             for p in &b.particles {
                 v.extend(p.x.iter().chain(&p.v).chain(&p.omega).map(|x| x.to_bits()));
                 v.push(p.radius.to_bits());
+            }
+            for c in &b.bodies {
+                v.extend(
+                    c.x.iter()
+                        .chain(&c.orientation)
+                        .chain(&c.v)
+                        .chain(&c.omega)
+                        .map(|x| x.to_bits()),
+                );
             }
             v
         };

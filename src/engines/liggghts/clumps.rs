@@ -28,17 +28,17 @@ pub const BODY_DUMP_FILE: &str = "body.granval";
 
 /// Points LIGGGHTS' region draws for its volume estimate before placing (region.cpp
 /// `volume_mc`, 3 per try); `ntry_mc` of the insert fix, its minimum.
-const NTRY_MC: u64 = 1000;
+pub(super) const NTRY_MC: u64 = 1000;
 
 /// Park-Miller minimal standard as LIGGGHTS' RanPark (random_park.cpp:54-80).
-struct RanPark(i64);
+pub(super) struct RanPark(pub(super) i64);
 
 impl RanPark {
     const IA: i64 = 16807;
     const IM: i64 = 2147483647;
     const IQ: i64 = 127773;
     const IR: i64 = 2836;
-    fn uniform(&mut self) -> f64 {
+    pub(super) fn uniform(&mut self) -> f64 {
         let k = self.0 / Self::IQ;
         self.0 = Self::IA * (self.0 - k * Self::IQ) - Self::IR * k;
         if self.0 < 0 {
@@ -80,7 +80,7 @@ pub fn exact_region(seed: u64, target: [f64; 3]) -> Result<[(f64, f64); 3]> {
     Ok(out)
 }
 
-fn is_prime(n: u64) -> bool {
+pub(super) fn is_prime(n: u64) -> bool {
     n >= 2
         && (2..)
             .take_while(|d| d * d <= n)
@@ -90,7 +90,7 @@ fn is_prime(n: u64) -> bool {
 /// Distinct primes for every seed of the deck: LIGGGHTS requires prime seeds above
 /// 10000 (random.cpp:79-97), distinct across insert fixes, distributions and templates
 /// (fix_insert.cpp:450-479). Deterministic, so the deck is reproducible.
-fn primes(n: usize) -> Vec<u64> {
+pub(super) fn primes(n: usize) -> Vec<u64> {
     (15_485_863u64..).filter(|&k| is_prime(k)).take(n).collect()
 }
 
@@ -212,41 +212,7 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
          uses these numbers instead of its Monte-Carlo estimate and both engines integrate the \
          same doubles.",
     );
-    for (k, t) in cl.templates.iter().enumerate() {
-        let spheres: Vec<String> = t
-            .offsets
-            .iter()
-            .zip(&t.radii)
-            .map(|(o, r)| format!("{} {}", join(*o), f(*r)))
-            .collect();
-        writeln!(
-            s,
-            "# template {}: union of the members, mass and principal moments computed by granval",
-            super::deck::comment_safe(&t.name)
-        )?;
-        writeln!(
-            s,
-            "fix pts{} all particletemplate/multisphere {} atom_type {} density constant {} nspheres {} ntry 100000 spheres {} type {} mass {} inertia_tensor {} 0.0 0.0 {} 0.0 {} use_density",
-            k + 1,
-            seeds[2 * k],
-            t.type_ + 1,
-            f(t.density),
-            t.radii.len(),
-            spheres.join(" "),
-            k + 1,
-            f(t.mass),
-            f(t.inertia[0]),
-            f(t.inertia[1]),
-            f(t.inertia[2])
-        )?;
-        writeln!(
-            s,
-            "fix pdd{} all particledistribution/discrete {} 1 pts{} 1.0",
-            k + 1,
-            seeds[2 * k + 1],
-            k + 1
-        )?;
-    }
+    write_templates(&mut s, &cl.templates, &seeds)?;
     let free = !case.particles.is_empty();
     writeln!(
         s,
@@ -372,11 +338,57 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
     Ok(s)
 }
 
+/// The `fix particletemplate/multisphere` and `fix particledistribution/discrete` of
+/// every template, with seeds `seeds[2k]`, `seeds[2k + 1]`.
+pub(super) fn write_templates(
+    s: &mut String,
+    templates: &[crate::case::clumps::ClumpTemplate],
+    seeds: &[u64],
+) -> Result<()> {
+    for (k, t) in templates.iter().enumerate() {
+        let spheres: Vec<String> = t
+            .offsets
+            .iter()
+            .zip(&t.radii)
+            .map(|(o, r)| format!("{} {}", join(*o), f(*r)))
+            .collect();
+        writeln!(
+            s,
+            "# template {}: union of the members, mass and principal moments computed by granval",
+            super::deck::comment_safe(&t.name)
+        )?;
+        writeln!(
+            s,
+            "fix pts{} all particletemplate/multisphere {} atom_type {} density constant {} nspheres {} ntry 100000 spheres {} type {} mass {} inertia_tensor {} 0.0 0.0 {} 0.0 {} use_density",
+            k + 1,
+            seeds[2 * k],
+            t.type_ + 1,
+            f(t.density),
+            t.radii.len(),
+            spheres.join(" "),
+            k + 1,
+            f(t.mass),
+            f(t.inertia[0]),
+            f(t.inertia[1]),
+            f(t.inertia[2])
+        )?;
+        writeln!(
+            s,
+            "fix pdd{} all particledistribution/discrete {} 1 pts{} 1.0",
+            k + 1,
+            seeds[2 * k + 1],
+            k + 1
+        )?;
+    }
+    Ok(())
+}
+
 /// The frames of a finished clump run in `dir`, mapped onto native steps: LIGGGHTS step
 /// s is native step s - 1; LIGGGHTS body k (insertion order) is the case's k-th clump,
 /// free atom k the case's k-th particle.
 pub fn clump_frames(case: &Case, dir: &Path) -> Result<Vec<Frame>> {
-    let bodies = read_body_dump(case, &dir.join(BODY_DUMP_FILE))?;
+    let ids: Vec<u64> = case.clumps.bodies.iter().map(|b| b.id).collect();
+    let bodies = read_body_dump(&ids, &dir.join(BODY_DUMP_FILE))?;
     let free = if case.particles.is_empty() {
         None
     } else {
@@ -428,7 +440,8 @@ pub fn clump_frames(case: &Case, dir: &Path) -> Result<Vec<Frame>> {
 }
 
 /// `dump local` of the body computes: (LIGGGHTS step, bodies with case ids, sorted).
-fn read_body_dump(case: &Case, path: &Path) -> Result<Vec<(u64, Vec<BodyState>)>> {
+/// LIGGGHTS body k (insertion order) is `ids[k - 1]`; every step must hold them all.
+pub(super) fn read_body_dump(ids: &[u64], path: &Path) -> Result<Vec<(u64, Vec<BodyState>)>> {
     let file =
         std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
     let mut lines = BufReader::new(file).lines().enumerate();
@@ -511,15 +524,15 @@ fn read_body_dump(case: &Case, path: &Path) -> Result<Vec<(u64, Vec<BodyState>)>
             }
             let c = |k: usize| v[idx[k]];
             let lid = c(0) as usize;
-            let Some(b) = case.clumps.bodies.get(lid.wrapping_sub(1)) else {
+            let Some(id) = ids.get(lid.wrapping_sub(1)) else {
                 bail!(
                     "{}: line {no}: body id {lid}, the case has {} clumps",
                     path.display(),
-                    case.clumps.bodies.len()
+                    ids.len()
                 );
             };
             bodies.push(BodyState {
-                id: b.id,
+                id: *id,
                 x: [c(1), c(2), c(3)],
                 q: [c(4), c(5), c(6), c(7)],
                 v: [c(8), c(9), c(10)],
@@ -528,12 +541,12 @@ fn read_body_dump(case: &Case, path: &Path) -> Result<Vec<(u64, Vec<BodyState>)>
             });
         }
         bodies.sort_by_key(|b| b.id);
-        if bodies.len() != case.clumps.bodies.len() {
+        if bodies.len() != ids.len() {
             bail!(
                 "{}: step {step} has {} bodies, the case has {} (an insertion failed?)",
                 path.display(),
                 bodies.len(),
-                case.clumps.bodies.len()
+                ids.len()
             );
         }
         out.push((step, bodies));

@@ -7,6 +7,7 @@
 //! A run directory is therefore self-describing and can be re-run by hand with the
 //! command recorded in the provenance.
 
+pub mod clump_bed;
 pub mod clumps;
 mod deck;
 mod dump;

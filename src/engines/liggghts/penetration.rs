@@ -33,6 +33,7 @@ pub use super::units::{
 };
 pub use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE};
 use super::{TRANSCRIPT, VERSION_PREFIX};
+use crate::case::clumps::{Clump, ClumpTemplate};
 use crate::case::{Material, PairTable, Particle, RollingModel};
 use crate::engines::deck_text;
 use crate::engines::process::{self, Transcript};
@@ -65,6 +66,10 @@ pub struct PenetrationDeck {
     pub domain_hi: [f64; 3],
     /// The settled bed, SI.
     pub particles: Vec<Particle>,
+    /// A settled bed of clumps instead (`particles` empty): the template and the bodies,
+    /// inserted exactly ([`super::clump_bed`]).
+    pub clump: Option<ClumpTemplate>,
+    pub bodies: Vec<Clump>,
     pub intruder_radius: f64,
     pub intruder_length: f64,
     /// 0-based material type of the intruder mesh.
@@ -286,6 +291,35 @@ pub fn validate(d: &PenetrationDeck) -> Result<()> {
             d.floor_z
         );
     }
+    if !d.bodies.is_empty() {
+        let Some(t) = &d.clump else {
+            bail!("penetration deck: clump bodies without their template");
+        };
+        if !d.particles.is_empty() || d.settle.is_some() {
+            bail!(
+                "penetration deck: a bed of clumps holds bodies only and is settled by granval (not in the deck)"
+            );
+        }
+        if t.type_ >= n {
+            bail!(
+                "penetration deck: the clump template has type {} (0-based), only {n} materials",
+                t.type_
+            );
+        }
+        for b in &d.bodies {
+            if (0..3).any(|k| {
+                !(b.x[k] - t.bounding_radius > d.domain_lo[k]
+                    && b.x[k] + t.bounding_radius < d.domain_hi[k])
+            }) {
+                bail!(
+                    "penetration deck: clump {} at {:?} m does not fit in the domain with its bounding radius {:e} m",
+                    b.id,
+                    b.x,
+                    t.bounding_radius
+                );
+            }
+        }
+    }
     for p in &d.particles {
         if p.type_ >= n {
             bail!(
@@ -317,6 +351,9 @@ pub fn validate(d: &PenetrationDeck) -> Result<()> {
 /// then `Velocities`), every float in `{:e}`.
 pub fn data_text(d: &PenetrationDeck) -> Result<String> {
     validate(d)?;
+    if !d.bodies.is_empty() {
+        return Ok(super::clump_bed::bodies_text(&d.bodies));
+    }
     let u = d.units;
     Ok(super::deck::data_text(
         &format!("penetration bed ({} units)", u.keyword()),
@@ -372,7 +409,7 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
         "Geometry (SI): {} grains {} in a cylindrical container of radius {} m about the z axis, \
          floor at z = {} m; intruder radius {} m, length {} m, {}; speed {} m/s down for {} steps \
          of {} s (travel {} m).",
-        d.particles.len(),
+        d.particles.len() + d.bodies.len(),
         if d.settle.is_some() {
             "poured as a loose lattice and settled by this deck"
         } else {
@@ -434,9 +471,15 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
             u.keyword()
         ),
     );
+    let clumps = !d.bodies.is_empty();
     writeln!(s, "units {}", u.keyword())?;
     writeln!(s, "atom_style granular")?;
-    writeln!(s, "atom_modify map {map}")?;
+    if clumps {
+        // fix multisphere needs the map; no sorting keeps members in insertion order.
+        writeln!(s, "atom_modify map array sort 0 0.0")?;
+    } else {
+        writeln!(s, "atom_modify map {map}")?;
+    }
     writeln!(s, "boundary f f f")?;
     deck_text::comment(
         &mut s,
@@ -456,21 +499,42 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
     } else {
         DATA_FILE
     };
-    deck_text::block(
-        &mut s,
-        &format!(
-            "The grains: {data} holds the box ({lu}) and per grain its ID, type, diameter ({lu}), \
+    if clumps {
+        deck_text::block(
+            &mut s,
+            &format!(
+                "The box ({lu}); the grains are rigid clumps, inserted body by body below after                  the walls ({}: the bodies granval settled natively).",
+                super::clump_bed::BODIES_FILE
+            ),
+        );
+        writeln!(
+            s,
+            "region domain block {} {} {} {} {} {} units box",
+            f(d.domain_lo[0] * l),
+            f(d.domain_hi[0] * l),
+            f(d.domain_lo[1] * l),
+            f(d.domain_hi[1] * l),
+            f(d.domain_lo[2] * l),
+            f(d.domain_hi[2] * l)
+        )?;
+        writeln!(s, "create_box {} domain", d.materials.len())?;
+    } else {
+        deck_text::block(
+            &mut s,
+            &format!(
+                "The grains: {data} holds the box ({lu}) and per grain its ID, type, diameter ({lu}), \
              density ({}), position ({lu}), velocity ({vu}) and angular velocity (rad/s){}.",
-            u.density_unit(),
-            if d.settle.is_some() {
-                ": the loose lattice granval's native pour also starts from"
-            } else {
-                ": the bed granval's native engine poured and settled (Feng et al. Sec. 2), \
+                u.density_unit(),
+                if d.settle.is_some() {
+                    ": the loose lattice granval's native pour also starts from"
+                } else {
+                    ": the bed granval's native engine poured and settled (Feng et al. Sec. 2), \
                  exactly, so both engines penetrate the very same grains"
-            }
-        ),
-    );
-    writeln!(s, "read_data {data}")?;
+                }
+            ),
+        );
+        writeln!(s, "read_data {data}")?;
+    }
     deck_text::block(
         &mut s,
         &format!(
@@ -531,12 +595,16 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
         "fix container all wall/gran {models} primitive type {wt} zcylinder {} 0 0",
         f(d.container_radius * l)
     )?;
-    deck_text::comment(
-        &mut s,
-        "Velocity Verlet for spheres (`nve/sphere`: half kick, drift, forces, half kick; \
-         moment of inertia 0.4 m r^2).",
-    );
-    writeln!(s, "fix integr all nve/sphere")?;
+    if let (true, Some(t)) = (clumps, &d.clump) {
+        super::clump_bed::write_insertion(&mut s, t, &d.bodies, d.n_steps)?;
+    } else {
+        deck_text::comment(
+            &mut s,
+            "Velocity Verlet for spheres (`nve/sphere`: half kick, drift, forces, half kick; \
+             moment of inertia 0.4 m r^2).",
+        );
+        writeln!(s, "fix integr all nve/sphere")?;
+    }
     if let Some(st) = &d.settle {
         write_settle_block(&mut s, d, st)?;
     }
@@ -776,7 +844,7 @@ fn readme_text(d: &PenetrationDeck, segments: usize) -> String {
          `{STDOUT_FILE}` / `{STDERR_FILE}`.\n\n\
          ## Files\n\n\
          - `{DECK_FILE}`: the LIGGGHTS deck.\n\
-         - `{DATA_FILE}`: the settled bed (`read_data`): box, `atom-ID type diameter density x y z`, velocities; {len_unit}, {dens}, {len_unit}/s.\n\
+         {grains_line}\
          - `{STL_FILE}`: the intruder, closed ASCII STL in {len_unit}, already at its start position.\n\
          - `{FORCE_FILE}` (output): every {every} steps, `step t z_bottom fx fy fz`: time (s), measured height of the \
            intruder's bottom face ({len_unit}) and the force of the grains on the intruder ({force_unit}; fz > 0 = the bed \
@@ -787,16 +855,40 @@ fn readme_text(d: &PenetrationDeck, segments: usize) -> String {
         r = d.intruder_radius,
         len = d.intruder_length,
         speed = d.speed,
-        np = d.particles.len(),
+        np = d.particles.len() + d.bodies.len(),
+        grains_line = if d.bodies.is_empty() {
+            format!(
+                "- `{DATA_FILE}`: the settled bed (`read_data`): box, `atom-ID type diameter density x y z`, velocities; {len_unit}, {}, {len_unit}/s.\n",
+                if u == Units::Si { "kg/m^3" } else { "g/cm^3" }
+            )
+        } else {
+            format!(
+                "- `{}`: the settled rigid clumps (not read by LIGGGHTS: the deck inserts each body itself), `id x y z qw qx qy qz vx vy vz wx wy wz`, SI.\n\
+                 - `{}` (output): the bodies at step 0 of the penetration, for granval's start-state check.\n",
+                super::clump_bed::BODIES_FILE,
+                super::clump_bed::START_DUMP_FILE
+            )
+        },
         cr = d.container_radius,
         steps = d.n_steps,
         dt = d.dt,
         kw = u.keyword(),
         names = u.names(),
-        dens = if u == Units::Si { "kg/m^3" } else { "g/cm^3" },
         every = d.force_every,
         thermo = thermo_every(d.n_steps),
     )
+}
+
+/// The grains' file of a deck directory: the lattice a settling deck pours, the bodies
+/// of a clump bed, else the bed LIGGGHTS reads.
+pub fn data_file_name(d: &PenetrationDeck) -> &'static str {
+    if d.settle.is_some() {
+        LATTICE_FILE
+    } else if !d.bodies.is_empty() {
+        super::clump_bed::BODIES_FILE
+    } else {
+        DATA_FILE
+    }
 }
 
 /// Writes `in.penetration`, `data.bed`, `intruder.stl` and `README.md` into `dir`
@@ -830,11 +922,7 @@ pub fn write_deck_dir_with_snapshots(
     let readme = readme_text(d, segments);
     let files = DeckFiles {
         deck: dir.join(DECK_FILE),
-        data: dir.join(if d.settle.is_some() {
-            LATTICE_FILE
-        } else {
-            DATA_FILE
-        }),
+        data: dir.join(data_file_name(d)),
         stl: dir.join(STL_FILE),
         readme: dir.join(README_FILE),
         stl_segments: segments,
@@ -1058,10 +1146,16 @@ pub fn input_hash_of(d: &PenetrationDeck) -> Result<Sha256> {
 
 fn input_hash(dir: &Path) -> Sha256 {
     // A missing input is left for LIGGGHTS to report (its error is the useful one).
-    let texts: Vec<String> = [DECK_FILE, DATA_FILE, LATTICE_FILE, STL_FILE]
-        .iter()
-        .filter_map(|name| std::fs::read_to_string(dir.join(name)).ok())
-        .collect();
+    let texts: Vec<String> = [
+        DECK_FILE,
+        DATA_FILE,
+        LATTICE_FILE,
+        super::clump_bed::BODIES_FILE,
+        STL_FILE,
+    ]
+    .iter()
+    .filter_map(|name| std::fs::read_to_string(dir.join(name)).ok())
+    .collect();
     deck_text::fingerprint(&texts.iter().map(String::as_str).collect::<Vec<_>>())
 }
 

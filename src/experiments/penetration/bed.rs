@@ -74,6 +74,8 @@ pub fn liggghts_deck(case: &PenetrationCase, bed: &Bed) -> Result<PenetrationDec
         domain_lo: lo,
         domain_hi: hi,
         particles: bed.particles.clone(),
+        clump: case.clump.as_deref().cloned(),
+        bodies: bed.bodies.clone(),
         intruder_radius: case.intruder_radius,
         intruder_length: case.intruder_length,
         intruder_type: case.intruder_type,
@@ -102,7 +104,7 @@ pub fn liggghts_deck(case: &PenetrationCase, bed: &Bed) -> Result<PenetrationDec
 /// Fingerprint of a bed (positions, radii, velocities), so a recorded LIGGGHTS run is
 /// only ever compared with a native run from the very same grains.
 pub fn bed_hash(bed: &Bed) -> Sha256 {
-    let mut bytes = Vec::with_capacity(bed.particles.len() * 80);
+    let mut bytes = Vec::with_capacity(bed.particles.len() * 80 + bed.bodies.len() * 112);
     for p in &bed.particles {
         for v in
             p.x.iter()
@@ -110,6 +112,13 @@ pub fn bed_hash(bed: &Bed) -> Sha256 {
                 .chain(&p.omega)
                 .chain(std::iter::once(&p.radius))
         {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    // Bodies after the spheres (none in a sphere bed, whose hash is unchanged).
+    for b in &bed.bodies {
+        bytes.extend_from_slice(&b.id.to_le_bytes());
+        for v in b.x.iter().chain(&b.orientation).chain(&b.v).chain(&b.omega) {
             bytes.extend_from_slice(&v.to_le_bytes());
         }
     }
@@ -121,6 +130,11 @@ pub fn bed_hash(bed: &Bed) -> Sha256 {
 /// native pour, settled with the same criterion, then penetrated.
 pub fn liggghts_settle_deck(case: &PenetrationCase) -> Result<PenetrationDeck> {
     use crate::engines::liggghts::penetration::Settle;
+    anyhow::ensure!(
+        case.clump.is_none(),
+        "{}: a bed of clumps is poured and settled natively and inserted into LIGGGHTS body by body; prepare the beds natively (`--bed native`)",
+        case.source.display()
+    );
     anyhow::ensure!(
         case.settle_pairs.is_none(),
         "{}: [[penetration_interactions]]: the bed and the penetration use different pair values, which one LIGGGHTS deck that settles and penetrates cannot switch; prepare the beds natively (`--bed native`)",
@@ -137,6 +151,7 @@ pub fn liggghts_settle_deck(case: &PenetrationCase) -> Result<PenetrationDeck> {
     let fill_guess = lattice_top;
     let bed = Bed {
         particles: lattice,
+        bodies: Vec::new(),
         surface_z: fill_guess,
         psi: f64::NAN,
         ke_ratio: f64::NAN,

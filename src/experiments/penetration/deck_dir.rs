@@ -74,7 +74,7 @@ pub fn write(
             "| {} | {} | {} | {psi} | {} |",
             bed_dir_name(k),
             ck.seed,
-            deck.particles.len(),
+            deck.particles.len() + deck.bodies.len(),
             deck.n_steps
         ));
         dirs.push(dir);
@@ -120,15 +120,30 @@ fn readme(case: &PenetrationCase, rows: &[String], bed_by: BedBy) -> String {
 
 /// The bed a deck directory starts from, read back from its `data.bed`.
 pub fn read_bed(case: &PenetrationCase, dir: &Path) -> Result<Bed> {
-    let particles = if settles_in_liggghts(dir) {
-        lp::parse_bed_dump(&dir.join(lp::BED_DUMP_FILE), Units::Si, case.density)?
+    let (particles, bodies) = if case.clump.is_some() {
+        (
+            Vec::new(),
+            crate::engines::liggghts::clump_bed::parse_bodies(
+                &dir.join(crate::engines::liggghts::clump_bed::BODIES_FILE),
+            )?,
+        )
+    } else if settles_in_liggghts(dir) {
+        (
+            lp::parse_bed_dump(&dir.join(lp::BED_DUMP_FILE), Units::Si, case.density)?,
+            Vec::new(),
+        )
     } else {
-        lp::parse_data_file(&dir.join(lp::DATA_FILE), Units::Si)?
+        (
+            lp::parse_data_file(&dir.join(lp::DATA_FILE), Units::Si)?,
+            Vec::new(),
+        )
     };
-    let surface_z = packing::surface_height(case, &particles);
-    let psi = packing::packing_fraction(case, &particles, surface_z);
+    let spheres = packing::grain_spheres(case, &particles, &bodies);
+    let surface_z = packing::surface_height(case, &spheres);
+    let psi = packing::packing_fraction(case, &particles, &bodies, surface_z);
     Ok(Bed {
         particles,
+        bodies,
         surface_z,
         psi,
         ke_ratio: f64::NAN,
@@ -200,7 +215,7 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
         let bed = read_bed(&ck, &bdir)?;
         notes.push(format!(
             "bed {k}: {} grains read from {} (sha256 {}), surface z = {:.6e} m, psi = {:.4}",
-            bed.particles.len(),
+            bed.n_grains(),
             bdir.display(),
             bed_hash(&bed),
             bed.surface_z,

@@ -301,6 +301,11 @@ fn liggghts_run(
     bar.finish_and_clear();
     provenance.notes.push(packing::bed_note(&u.case, &u.bed));
     provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
+    if !u.bed.bodies.is_empty() {
+        provenance
+            .notes
+            .push(clump_start_note(&u.case, &u.bed, dir, np)?);
+    }
     let snapshots = match plan {
         Some(plan) => Some(stress::convert_liggghts_snapshots(
             &u.case,
@@ -322,6 +327,34 @@ fn liggghts_run(
         snapshots,
         study_snapshots: None,
     })
+}
+
+/// How far LIGGGHTS' bodies at step 0 of the penetration (its start dump) are from the
+/// native engine's start from the same bed: zero when the insertion was exact and the
+/// native start reproduces LIGGGHTS' insertion step and run boundary.
+pub fn clump_start_difference(
+    case: &PenetrationCase,
+    bed: &Bed,
+    dir: &Path,
+) -> Result<crate::engines::liggghts::clump_bed::StartDifference> {
+    use crate::engines::liggghts::clump_bed;
+    let lig = clump_bed::read_start(dir, &bed.bodies)?;
+    let sim = crate::physics::dem::penetration::simulation(
+        case,
+        bed,
+        crate::case::Perturbation::default(),
+    )?;
+    clump_bed::StartDifference::between(&sim.frame().bodies, &lig)
+}
+
+fn clump_start_note(case: &PenetrationCase, bed: &Bed, dir: &Path, np: usize) -> Result<String> {
+    let d = clump_start_difference(case, bed, dir)
+        .with_context(|| format!("start state of the clump bed in {}", dir.display()))?;
+    Ok(format!(
+        "clump bed start, LIGGGHTS ({np} process(es)) vs native, {} bodies: {}",
+        bed.bodies.len(),
+        d.text()
+    ))
 }
 
 impl Penetration {
@@ -366,7 +399,8 @@ impl Experiment for Penetration {
 
     fn estimate(&self) -> Estimate {
         let c = &self.case;
-        let n = c.count as f64;
+        // Spheres the engines integrate: clump members count one by one.
+        let n = (c.count * c.clump.as_ref().map_or(1, |t| t.radii.len())) as f64;
         let travel = c.start_gap + c.final_depth + c.diameter.max();
         let steps = travel / c.speed / c.dt;
         let slow = c.quasi_static_speed.map_or(0.0, |v| travel / v / c.dt);
@@ -394,12 +428,22 @@ impl Experiment for Penetration {
             Derived::new(
                 "grains",
                 c.count.to_string(),
-                format!(
-                    "per bed; {} independent bed(s); diameter {:e} to {:e} m",
-                    c.ensemble_beds,
-                    c.diameter.min(),
-                    c.diameter.max()
-                ),
+                match &c.clump {
+                    None => format!(
+                        "per bed; {} independent bed(s); diameter {:e} to {:e} m",
+                        c.ensemble_beds,
+                        c.diameter.min(),
+                        c.diameter.max()
+                    ),
+                    Some(t) => format!(
+                        "rigid clumps `{}` of {} spheres of diameter {:e} m (volume {:.4e} m^3 each), per bed; {} independent bed(s)",
+                        t.name,
+                        t.radii.len(),
+                        c.diameter.max(),
+                        t.volume,
+                        c.ensemble_beds
+                    ),
+                },
             ),
             Derived::new(
                 "Rayleigh time",
@@ -429,6 +473,11 @@ impl Experiment for Penetration {
     }
 
     fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
+        ensure!(
+            !(self.stress && self.case.clump.is_some()),
+            "{}: the stress fields of a bed of clumps are not built (contact snapshots and coarse graining are per sphere); run it without the stress option",
+            self.case.source.display()
+        );
         (0..self.case.ensemble_beds)
             .map(|k| {
                 let ck = self.case.realisation(k);
@@ -524,16 +573,24 @@ impl Experiment for Penetration {
         Ok(main)
     }
 
-    fn record(&self, _u: &Unit, run: &RefRun, run_dir: &Path, rec: &Path) -> Result<()> {
+    fn record(&self, u: &Unit, run: &RefRun, run_dir: &Path, rec: &Path) -> Result<()> {
         std::fs::create_dir_all(rec).with_context(|| format!("cannot create {}", rec.display()))?;
+        let grains: &[&str] = if u.bed.bodies.is_empty() {
+            &[lp::DATA_FILE]
+        } else {
+            use crate::engines::liggghts::clump_bed;
+            &[clump_bed::BODIES_FILE, clump_bed::START_DUMP_FILE]
+        };
         for f in [
             lp::DECK_FILE,
-            lp::DATA_FILE,
             lp::STL_FILE,
             lp::FORCE_FILE,
             lp::LOG_FILE,
             crate::engines::liggghts::STDOUT_FILE,
-        ] {
+        ]
+        .iter()
+        .chain(grains)
+        {
             std::fs::copy(run_dir.join(f), rec.join(f))
                 .with_context(|| format!("copying {f} into {}", rec.display()))?;
         }

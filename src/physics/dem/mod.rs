@@ -337,11 +337,28 @@ impl Simulation {
     /// LIGGGHTS): its overlaps are the equilibrium of its own contact law (a soft G = 1 MPa
     /// bed carries up to ~5 % of a radius at the bottom), not input errors, so the
     /// initial-overlap refusal is skipped; the domain and finiteness checks remain.
+    ///
+    /// With clumps, the start is LIGGGHTS' with the bodies inserted into the settled
+    /// state: the insertion step (see [`Simulation::setup`]: forces with history, final
+    /// half kick) and then the boundary of the next `run` command, where LIGGGHTS builds
+    /// the neighbour list again and recomputes every force without advancing history
+    /// (`Verlet::setup`), and `fix multisphere` gathers the bodies' force and torque from
+    /// them (fix_multisphere.cpp `setup` -> `calc_force(true)`) without moving anything.
+    /// The first step's half kick uses those.
     pub fn setup_settled(&mut self) -> anyhow::Result<()> {
         self.check_domain()?;
         self.refresh_kick();
         self.rebuild();
-        self.compute_forces(false, false);
+        if self.bodies.is_empty() {
+            self.compute_forces(false, false);
+        } else {
+            self.compute_forces(true, true);
+            self.rebuild();
+            self.compute_forces(false, false);
+            for b in &mut self.bodies {
+                b.gather(&self.x, &self.f, &self.torque, self.gravity);
+            }
+        }
         Ok(())
     }
 
@@ -1083,10 +1100,24 @@ impl Simulation {
     /// preparation uses it: CDT rolling friction makes resting grains flip their spin
     /// every step (the torque follows the sign of w), a numerical floor in the
     /// rotational energy that no amount of settling removes.
+    ///
+    /// A clump counts once, with its body mass and centre-of-mass velocity (its members
+    /// carry the whole body's mass as contact mass, so summing them would count it once
+    /// per member and add the rotation).
     pub fn translational_kinetic_energy(&self) -> f64 {
-        (0..self.x.len())
+        let free: f64 = (0..self.free)
             .map(|k| 0.5 * self.mass[k] * dot(self.v[k], self.v[k]))
-            .sum()
+            .sum();
+        free + self
+            .bodies
+            .iter()
+            .map(|b| 0.5 * b.mass * dot(b.vcm, b.vcm))
+            .sum::<f64>()
+    }
+
+    /// Grains: free spheres and clump bodies.
+    pub fn n_grains(&self) -> usize {
+        self.free + self.bodies.len()
     }
 
     pub fn kinetic_energy(&self) -> f64 {

@@ -5,7 +5,8 @@
 //! `Simulation::translational_kinetic_energy`). "End of pouring" is taken as the kinetic-energy maximum: until
 //! then grains are still gaining energy in free fall; afterwards the heap only dissipates.
 
-use super::Simulation;
+use super::{Simulation, rigid};
+use crate::case::clumps::{Clump, Clumps};
 use crate::case::penetration::{Diameter, PenetrationCase};
 use crate::case::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances, Wall};
 use anyhow::{Result, bail};
@@ -17,6 +18,10 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Bed {
     pub particles: Vec<Particle>,
+    /// The grains of a bed of clumps (the case's `clump` template; `particles` is then
+    /// empty): centre of mass, orientation, velocity and angular velocity of each body.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub bodies: Vec<Clump>,
     /// Bed surface height (m): mean over a 2 d_mean grid of the highest grain top
     /// `z + r` in each cell, for cells within R_container - d_mean of the axis.
     pub surface_z: f64,
@@ -66,6 +71,16 @@ pub fn domain(case: &PenetrationCase, top: f64) -> ([f64; 3], [f64; 3]) {
 
 /// A `Case` the native engine can run: the given grains in the container.
 pub fn container_case(case: &PenetrationCase, particles: Vec<Particle>, top: f64) -> Case {
+    container_case_with(case, particles, Vec::new(), top)
+}
+
+/// [`container_case`] with clump grains (bodies of the case's template) besides spheres.
+pub fn container_case_with(
+    case: &PenetrationCase,
+    particles: Vec<Particle>,
+    bodies: Vec<Clump>,
+    top: f64,
+) -> Case {
     let (lo, hi) = domain(case, top);
     Case {
         name: format!("{}-bed", case.name),
@@ -101,7 +116,13 @@ pub fn container_case(case: &PenetrationCase, particles: Vec<Particle>, top: f64
             position_frac_radius: 1e-6,
             orientation_rad: 1e-6,
         },
-        clumps: Default::default(),
+        clumps: match &case.clump {
+            Some(t) if !bodies.is_empty() => Clumps {
+                templates: vec![(**t).clone()],
+                bodies,
+            },
+            _ => Clumps::default(),
+        },
         rayleigh_time: case.rayleigh_time,
         negative_controls: vec![],
     }
@@ -152,9 +173,70 @@ pub fn lattice(case: &PenetrationCase) -> Result<Vec<Particle>> {
     Ok(particles)
 }
 
+/// Loose lattice of clump bodies (a bed of the case's clump template): sites 1.05 times
+/// the body's bounding diameter apart, so no two bodies touch whatever their orientation,
+/// inside R_c minus the bounding radius, layers from one bounding diameter up; each body
+/// jittered and turned to a uniformly random orientation (a normalised Gaussian
+/// quaternion), at rest.
+pub fn lattice_bodies(case: &PenetrationCase) -> Result<Vec<Clump>> {
+    let Some(t) = &case.clump else {
+        bail!("{}: not a bed of clumps", case.source.display());
+    };
+    let rb = t.bounding_radius;
+    let a = 1.05 * 2.0 * rb;
+    let rin = case.container_radius - rb;
+    let n1 = (2.0 * rin / a).floor() as i64;
+    let mut sites = Vec::new();
+    for j in 0..=n1 {
+        for i in 0..=n1 {
+            let (x, y) = (-rin + i as f64 * a, -rin + j as f64 * a);
+            if (x * x + y * y).sqrt() <= rin - 0.5 * a {
+                sites.push((x, y));
+            }
+        }
+    }
+    if sites.is_empty() {
+        bail!(
+            "{}: container too narrow for the clumps (bounding radius {rb:e} m)",
+            case.source.display()
+        );
+    }
+    let mut rng = rand::rngs::StdRng::seed_from_u64(case.seed ^ 0x5EED);
+    let normal = Normal::new(0.0, 1.0)?;
+    let jitter = 0.02 * a;
+    let mut bodies = Vec::with_capacity(case.count);
+    for k in 0..case.count {
+        let layer = k / sites.len();
+        let (x, y) = sites[k % sites.len()];
+        let x = [
+            x + jitter * (rng.random::<f64>() - 0.5),
+            y + jitter * (rng.random::<f64>() - 0.5),
+            2.0 * rb + layer as f64 * a,
+        ];
+        let q = rigid::qnormalize(std::array::from_fn(|_| normal.sample(&mut rng)));
+        bodies.push(Clump {
+            id: k as u64 + 1,
+            template: 0,
+            x,
+            orientation: q,
+            v: [0.0; 3],
+            omega: [0.0; 3],
+        });
+    }
+    Ok(bodies)
+}
+
 /// The case the native engine pours: the loose lattice in the container, the domain up
 /// to the lattice's top.
 pub fn pour_case(case: &PenetrationCase) -> Result<Case> {
+    if let Some(t) = &case.clump {
+        let bodies = lattice_bodies(case)?;
+        let top = bodies
+            .iter()
+            .map(|b| b.x[2] + t.bounding_radius)
+            .fold(0.0, f64::max);
+        return Ok(container_case_with(case, Vec::new(), bodies, top));
+    }
     let particles = lattice(case)?;
     let top = particles
         .iter()
@@ -173,7 +255,7 @@ pub fn settle(
     case: &PenetrationCase,
     mut progress: impl FnMut(f64, f64),
 ) -> Result<(f64, f64)> {
-    let n = sim.x.len() as f64;
+    let n = sim.n_grains() as f64;
     let check_every = 50u64;
     let max_steps = (case.max_settle_time / case.dt).ceil() as u64;
     let (mut ke_peak, mut ratio) = (0.0f64, f64::INFINITY);
@@ -215,11 +297,29 @@ pub fn prepare(case: &PenetrationCase, progress: impl FnMut(f64, f64)) -> Result
             case.settle_ke_ratio
         );
     }
+    let frame = sim.frame();
     let settled = particles_now(&sim_case.particles, &sim);
-    let surface_z = surface_height(case, &settled);
-    let psi = packing_fraction(case, &settled, surface_z);
+    // Bodies: the state both engines insert them with (LIGGGHTS' `fix insert` takes
+    // centre of mass, orientation, velocity and angular velocity).
+    let bodies: Vec<Clump> = sim_case
+        .clumps
+        .bodies
+        .iter()
+        .zip(&frame.bodies)
+        .map(|(c, s)| Clump {
+            x: s.x,
+            orientation: s.q,
+            v: s.v,
+            omega: s.omega,
+            ..c.clone()
+        })
+        .collect();
+    let spheres = grain_spheres(case, &settled, &bodies);
+    let surface_z = surface_height(case, &spheres);
+    let psi = packing_fraction(case, &settled, &bodies, surface_z);
     Ok(Bed {
         particles: settled,
+        bodies,
         surface_z,
         psi,
         ke_ratio: ratio,
@@ -247,37 +347,76 @@ pub fn particles_now(particles: &[Particle], sim: &Simulation) -> Vec<Particle> 
         .collect()
 }
 
-pub fn surface_height(case: &PenetrationCase, ps: &[Particle]) -> f64 {
+/// Every sphere of the grains, `(centre, radius)`: the free spheres and the members of
+/// the bodies where both engines place them at the start (`RigidBody::new`, `set_xv`).
+pub fn grain_spheres(
+    case: &PenetrationCase,
+    particles: &[Particle],
+    bodies: &[Clump],
+) -> Vec<([f64; 3], f64)> {
+    let mut out: Vec<([f64; 3], f64)> = particles.iter().map(|p| (p.x, p.radius)).collect();
+    if let Some(t) = &case.clump {
+        for b in bodies {
+            let xs = rigid::member_positions(b.x, b.orientation, &t.offsets);
+            out.extend(xs.into_iter().zip(t.radii.iter().copied()));
+        }
+    }
+    out
+}
+
+impl Bed {
+    /// [`grain_spheres`] of this bed.
+    pub fn spheres(&self, case: &PenetrationCase) -> Vec<([f64; 3], f64)> {
+        grain_spheres(case, &self.particles, &self.bodies)
+    }
+
+    /// Grains: spheres or clump bodies.
+    pub fn n_grains(&self) -> usize {
+        self.particles.len() + self.bodies.len()
+    }
+}
+
+pub fn surface_height(case: &PenetrationCase, ps: &[([f64; 3], f64)]) -> f64 {
     let d = case.diameter.mean();
     let cell = 2.0 * d;
     let rmax = case.container_radius - d;
     let n = (2.0 * rmax / cell).ceil() as usize + 1;
     let mut top = vec![f64::NEG_INFINITY; n * n];
-    for p in ps {
-        let (x, y) = (p.x[0], p.x[1]);
+    for (p, r) in ps {
+        let (x, y) = (p[0], p[1]);
         if (x * x + y * y).sqrt() > rmax {
             continue;
         }
         let (i, j) = (((x + rmax) / cell) as usize, ((y + rmax) / cell) as usize);
         let c = &mut top[j.min(n - 1) * n + i.min(n - 1)];
-        *c = c.max(p.x[2] + p.radius);
+        *c = c.max(p[2] + r);
     }
     let filled: Vec<f64> = top.into_iter().filter(|v| v.is_finite()).collect();
     filled.iter().sum::<f64>() / filled.len() as f64
 }
 
-pub fn packing_fraction(case: &PenetrationCase, ps: &[Particle], surface_z: f64) -> f64 {
+/// Solid fraction of the grains whose centre (a body's: its centre of mass) lies in the
+/// region; a clump counts with the volume of the union of its members.
+pub fn packing_fraction(
+    case: &PenetrationCase,
+    ps: &[Particle],
+    bodies: &[Clump],
+    surface_z: f64,
+) -> f64 {
     let d = case.diameter.mean();
     let (rr, z0, z1) = (
         case.container_radius - 2.0 * d,
         2.0 * d,
         surface_z - 2.0 * d,
     );
+    let inside = |x: &[f64; 3]| (x[0].powi(2) + x[1].powi(2)).sqrt() < rr && x[2] > z0 && x[2] < z1;
     let vol: f64 = ps
         .iter()
-        .filter(|p| (p.x[0].powi(2) + p.x[1].powi(2)).sqrt() < rr && p.x[2] > z0 && p.x[2] < z1)
+        .filter(|p| inside(&p.x))
         .map(|p| 4.0 / 3.0 * std::f64::consts::PI * p.radius.powi(3))
         .sum();
+    let body_vol = case.clump.as_ref().map_or(0.0, |t| t.volume);
+    let vol = vol + bodies.iter().filter(|b| inside(&b.x)).count() as f64 * body_vol;
     vol / (std::f64::consts::PI * rr * rr * (z1 - z0))
 }
 
@@ -285,7 +424,7 @@ pub fn packing_fraction(case: &PenetrationCase, ps: &[Particle], surface_z: f64)
 pub fn bed_note(case: &PenetrationCase, bed: &Bed) -> String {
     format!(
         "bed of {} grains prepared natively from {} (seed {}): settled after {:.3} s, KE ratio {:.2e}, surface z = {:.6e} m, psi = {:.4}",
-        bed.particles.len(),
+        bed.n_grains(),
         PathBuf::from(&case.source).display(),
         case.seed,
         bed.settle_time,

@@ -4,7 +4,7 @@
 
 use super::Simulation;
 use super::intruder::FlatCylinder;
-use super::packing::{Bed, container_case};
+use super::packing::{Bed, container_case_with};
 use crate::case::Perturbation;
 use crate::case::penetration::PenetrationCase;
 use crate::rundata::force::ForceSample;
@@ -19,10 +19,10 @@ pub fn n_steps(case: &PenetrationCase, bed: &Bed) -> u64 {
 /// under its footprint (not the mean surface), so no grain starts inside it.
 pub fn start_z(case: &PenetrationCase, bed: &Bed) -> f64 {
     let highest = bed
-        .particles
+        .spheres(case)
         .iter()
-        .filter(|p| (p.x[0] * p.x[0] + p.x[1] * p.x[1]).sqrt() < case.intruder_radius + p.radius)
-        .map(|p| p.x[2] + p.radius)
+        .filter(|(x, r)| (x[0] * x[0] + x[1] * x[1]).sqrt() < case.intruder_radius + r)
+        .map(|(x, r)| x[2] + r)
         .fold(bed.surface_z, f64::max);
     highest + case.start_gap
 }
@@ -35,7 +35,12 @@ pub fn box_top(case: &PenetrationCase, bed: &Bed) -> f64 {
 /// The penetration of `bed` set up and ready to step: grains in the container, the
 /// intruder at its start height moving down at the case's speed, forces evaluated.
 pub fn simulation(case: &PenetrationCase, bed: &Bed, pert: Perturbation) -> Result<Simulation> {
-    let sim_case = container_case(case, bed.particles.clone(), box_top(case, bed));
+    let sim_case = container_case_with(
+        case,
+        bed.particles.clone(),
+        bed.bodies.clone(),
+        box_top(case, bed),
+    );
     let mut sim = Simulation::from_case_perturbed(&sim_case, pert);
     let body = FlatCylinder::new(
         case.intruder_radius,

@@ -344,6 +344,22 @@ impl RigidBody {
     }
 }
 
+/// Where a body at `x` with insertion quaternion `q` puts members at `offsets`: the
+/// axes of [`RigidBody::new`] and the positions of [`RigidBody::set_xv`], the same
+/// doubles both engines start from.
+pub fn member_positions(x: V3, q: Quat, offsets: &[V3]) -> Vec<V3> {
+    let ex = vec_quat_rotate([1.0, 0.0, 0.0], q);
+    let ey = vec_quat_rotate([0.0, 1.0, 0.0], q);
+    let ez = vec_quat_rotate([0.0, 0.0, 1.0], q);
+    offsets
+        .iter()
+        .map(|d| {
+            let r = matvec_exyz(ex, ey, ez, *d);
+            [r[0] + x[0], r[1] + x[1], r[2] + x[2]]
+        })
+        .collect()
+}
+
 /// Rotation angle (rad) between two orientations, 2 atan2(|vec(a* b)|, |scalar(a* b)|):
 /// well conditioned near 0, unlike acos, and q ~ -q.
 pub fn rotation_angle(a: Quat, b: Quat) -> f64 {
