@@ -607,21 +607,7 @@ impl Impact2dCase {
     }
 
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Impact2dCase, CaseError> {
-        let raw: File = toml::from_str(text).map_err(|e| CaseError::Parse {
-            file: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-        let ctx = Ctx {
-            file: path.to_path_buf(),
-        };
-        super::validate::case_name(&ctx, &raw.case.name)?;
-        if raw.case.kind != "impact2d" {
-            return Err(ctx.bad(
-                "case.kind",
-                &raw.case.kind,
-                "this loader reads kind = \"impact2d\"",
-            ));
-        }
+        let (raw, ctx) = super::validate::parse_kind(text, path, "impact2d", |r: &File| &r.case)?;
         let d = positive(&ctx, "units.d", raw.units.d)?;
         let m = positive(&ctx, "units.mass", raw.units.mass)?;
         let g0 = positive(&ctx, "units.g", raw.units.g)?;

@@ -520,21 +520,8 @@ impl PenetrationCase {
     }
 
     pub fn from_toml_str(text: &str, path: &Path) -> Result<PenetrationCase, CaseError> {
-        let raw: File = toml::from_str(text).map_err(|e| CaseError::Parse {
-            file: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-        let ctx = Ctx {
-            file: path.to_path_buf(),
-        };
-        if raw.case.kind != "penetration" {
-            return Err(ctx.bad(
-                "case.kind",
-                &raw.case.kind,
-                "this loader reads kind = \"penetration\"",
-            ));
-        }
-        super::validate::case_name(&ctx, &raw.case.name)?;
+        let (raw, ctx) =
+            super::validate::parse_kind(text, path, "penetration", |r: &File| &r.case)?;
         let (rolling, materials, bed_pairs) =
             physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
         let n_types = materials.len();

@@ -5,7 +5,7 @@
 //! down at constant speed while x_hi and y_hi hold the confining pressure. Parsed and
 //! validated once; all SI.
 
-use super::error::{CaseError, Ctx};
+use super::error::CaseError;
 use super::validate::{physics, positive};
 use super::{Gate, Material, NegativeControl, PairTable, RollingModel, schema};
 use serde::Deserialize;
@@ -208,21 +208,7 @@ impl TriaxialCase {
     }
 
     pub fn from_toml_str(text: &str, path: &Path) -> Result<TriaxialCase, CaseError> {
-        let raw: File = toml::from_str(text).map_err(|e| CaseError::Parse {
-            file: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-        let ctx = Ctx {
-            file: path.to_path_buf(),
-        };
-        if raw.case.kind != "triaxial" {
-            return Err(ctx.bad(
-                "case.kind",
-                &raw.case.kind,
-                "this loader reads kind = \"triaxial\"",
-            ));
-        }
-        super::validate::case_name(&ctx, &raw.case.name)?;
+        let (raw, ctx) = super::validate::parse_kind(text, path, "triaxial", |r: &File| &r.case)?;
         let (rolling, materials, pairs) =
             physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
         let n_types = materials.len();

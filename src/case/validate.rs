@@ -18,6 +18,35 @@ pub const MICRO_GATES: &[super::Gate] = &[
 /// micro case would take weeks): a duration that large is a typo.
 pub const MAX_STEPS: f64 = 1e12;
 
+/// The raw schema of a case file of one kind, and the context its errors are reported
+/// in: a TOML error names the file, a header whose kind is not the loader's is refused
+/// before any of its fields (so the message says which loader, not which field it
+/// lacks), and the name must be a safe directory name.
+pub(super) fn parse_kind<T: serde::de::DeserializeOwned>(
+    text: &str,
+    path: &Path,
+    kind: &str,
+    meta: impl Fn(&T) -> &schema::Meta,
+) -> Result<(T, Ctx), CaseError> {
+    let raw: T = toml::from_str(text).map_err(|e| CaseError::Parse {
+        file: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let ctx = Ctx {
+        file: path.to_path_buf(),
+    };
+    let m = meta(&raw);
+    if m.kind != kind {
+        return Err(ctx.bad(
+            "case.kind",
+            &m.kind,
+            format!("this loader reads kind = \"{kind}\""),
+        ));
+    }
+    case_name(&ctx, &m.name)?;
+    Ok((raw, ctx))
+}
+
 /// Case names become directory names under `--report` and `reference/`: only
 /// `[A-Za-z0-9._-]`, not starting with a dot, so a name can never climb out of them.
 pub(super) fn case_name(ctx: &Ctx, name: &str) -> Result<(), CaseError> {

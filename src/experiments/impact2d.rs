@@ -97,12 +97,18 @@ impl Experiment for Impact2d {
         let n = c.count as f64 + c.length / (c.wall_d.max(1e-300) / c.scales.d) * 3.0;
         let runs = (c.variants.len() * (1 + c.negative_controls.len())) as f64;
         let steps = c.n_steps as f64;
+        // Field snapshots (Figs 22-27): each position dump is about 200 bytes per grain
+        // at full precision; each contact dump about 2 contacts per grain (coordination
+        // near 4 in 2D) of about 350 bytes.
+        let snapshot_bytes = c.fields.as_ref().map_or(0.0, |f| {
+            n * (200.0 * f.position_steps().len() as f64 + 700.0 * f.network_steps.len() as f64)
+        });
         Estimate {
             particle_steps: n * steps * runs,
             particles: n,
             output_bytes: runs
-                * 200.0
-                * (steps / c.output_every as f64 + steps / c.energy_every as f64),
+                * (200.0 * (steps / c.output_every as f64 + steps / c.energy_every as f64)
+                    + snapshot_bytes),
             memory_bytes: 2e3 * n + 1e8,
         }
     }
