@@ -69,6 +69,8 @@ impl Gate {
 pub struct Perturbation {
     /// Every sliding friction coefficient multiplied by this.
     pub friction_factor: f64,
+    /// Every rolling friction coefficient multiplied by this (3D).
+    pub rolling_friction_factor: f64,
     /// Added to every restitution coefficient (capped at 1).
     pub restitution_shift: f64,
     /// Added to every Poisson ratio.
@@ -91,6 +93,7 @@ impl Default for Perturbation {
     fn default() -> Self {
         Perturbation {
             friction_factor: 1.0,
+            rolling_friction_factor: 1.0,
             restitution_shift: 0.0,
             poisson_shift: 0.0,
             pair_friction: None,
@@ -128,6 +131,7 @@ pub(crate) struct RawControl {
 #[serde(deny_unknown_fields)]
 struct RawPerturbation {
     friction_factor: Option<f64>,
+    rolling_friction_factor: Option<f64>,
     restitution_shift: Option<f64>,
     poisson_shift: Option<f64>,
     pair_friction: Option<RawPairFriction>,
@@ -199,6 +203,24 @@ pub(crate) fn controls(
                 return Err(ctx.bad(f("perturbation.friction_factor"), v, "must be >= 0"));
             }
             pert.friction_factor = v;
+        }
+        if let Some(v) = p.rolling_friction_factor {
+            if gates.contains(&Gate::Claim) {
+                return Err(ctx.bad(
+                    f("perturbation.rolling_friction_factor"),
+                    v,
+                    "2D disks have no rolling friction to change",
+                ));
+            }
+            let v = finite("rolling_friction_factor", v)?;
+            if v < 0.0 {
+                return Err(ctx.bad(
+                    f("perturbation.rolling_friction_factor"),
+                    v,
+                    "must be >= 0",
+                ));
+            }
+            pert.rolling_friction_factor = v;
         }
         if let Some(v) = p.restitution_shift {
             pert.restitution_shift = finite("restitution_shift", v)?;

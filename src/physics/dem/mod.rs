@@ -219,7 +219,7 @@ impl Simulation {
                         Some((i, j, mu)) if (i, j) == (a, b) || (j, i) == (a, b) => mu,
                         _ => case.pairs.friction[k] * pert.friction_factor,
                     },
-                    case.pairs.rolling_friction[k],
+                    case.pairs.rolling_friction[k] * pert.rolling_friction_factor,
                 ));
             }
         }
