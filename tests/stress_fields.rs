@@ -1,4 +1,4 @@
-//! Issue 4: coarse graining on synthetic packings with known answers, phi from gamma,
+//! Coarse graining on synthetic packings with known answers, phi from gamma,
 //! native penetration snapshots on a tiny bed, the LIGGGHTS snapshot round trip
 //! (same contact set and convention as the native engine), and the negative control.
 

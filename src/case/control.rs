@@ -214,11 +214,7 @@ pub(crate) fn controls(
             }
             let v = finite("rolling_friction_factor", v)?;
             if v < 0.0 {
-                return Err(ctx.bad(
-                    f("perturbation.rolling_friction_factor"),
-                    v,
-                    "must be >= 0",
-                ));
+                return Err(ctx.bad(f("perturbation.rolling_friction_factor"), v, "must be >= 0"));
             }
             pert.rolling_friction_factor = v;
         }
