@@ -24,7 +24,7 @@
 //! penetration steps the native ones (`Simulation::setup_settled` does the same two
 //! things).
 
-use super::clumps::{NTRY_MC, RanPark, is_prime, read_body_dump, write_templates};
+use super::clumps::{NTRY_MC, RanPark, is_prime, read_body_dump, write_body_dump, write_templates};
 use super::deck::{f, join};
 use crate::case::clumps::{Clump, ClumpTemplate};
 use crate::engines::deck_text;
@@ -252,34 +252,7 @@ pub fn write_insertion(
              {START_DUMP_FILE}: granval compares them with the native start."
         ),
     );
-    let props = [
-        ("bid", "id_multisphere", 1),
-        ("bx", "xcm", 3),
-        ("bq", "quat", 4),
-        ("bv", "vcm", 3),
-        ("bw", "omega", 3),
-        ("bf", "fcm", 3),
-    ];
-    let mut cols = Vec::new();
-    for (name, prop, n) in props {
-        writeln!(s, "compute {name} all multisphere property {prop}")?;
-        if n == 1 {
-            cols.push(format!("c_{name}"));
-        } else {
-            cols.extend((1..=n).map(|k| format!("c_{name}[{k}]")));
-        }
-    }
-    writeln!(
-        s,
-        "dump dstart all local {} {START_DUMP_FILE} {}",
-        n_steps + 1,
-        cols.join(" ")
-    )?;
-    let fmt = std::iter::once("%.0f")
-        .chain(std::iter::repeat_n("%.17g", cols.len() - 1))
-        .collect::<Vec<_>>()
-        .join(" ");
-    writeln!(s, "dump_modify dstart format \"{fmt}\"")?;
+    write_body_dump(s, "dstart", &(n_steps + 1).to_string(), START_DUMP_FILE, "")?;
     Ok(())
 }
 

@@ -292,33 +292,13 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
         s,
         "variable granval_next equal floor((step-1)/{every})*{every}+{every}+1"
     )?;
-    let props = [
-        ("bid", "id_multisphere", 1),
-        ("bx", "xcm", 3),
-        ("bq", "quat", 4),
-        ("bv", "vcm", 3),
-        ("bw", "omega", 3),
-        ("bf", "fcm", 3),
-    ];
-    let mut cols = Vec::new();
-    for (name, prop, n) in props {
-        writeln!(s, "compute {name} all multisphere property {prop}")?;
-        if n == 1 {
-            cols.push(format!("c_{name}"));
-        } else {
-            cols.extend((1..=n).map(|k| format!("c_{name}[{k}]")));
-        }
-    }
-    writeln!(
-        s,
-        "dump db all local {every} {BODY_DUMP_FILE} {}",
-        cols.join(" ")
+    write_body_dump(
+        &mut s,
+        "db",
+        &every.to_string(),
+        BODY_DUMP_FILE,
+        " every v_granval_next",
     )?;
-    let fmt = std::iter::once("%.0f")
-        .chain(std::iter::repeat_n("%.17g", cols.len() - 1))
-        .collect::<Vec<_>>()
-        .join(" ");
-    writeln!(s, "dump_modify db format \"{fmt}\" every v_granval_next")?;
     if free {
         let dc = super::DUMP_COLUMNS;
         writeln!(s, "dump d free custom {every} {dump_file} {}", dc.join(" "))?;
@@ -336,6 +316,42 @@ pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
     writeln!(s, "thermo {}", (case.n_steps / 20).max(1))?;
     writeln!(s, "run {}", case.n_steps + 1)?;
     Ok(s)
+}
+
+/// A local dump `name` of every body's state at full precision (id, centre of mass,
+/// quaternion, velocity, angular velocity, force), the columns `read_body_dump` reads,
+/// written every `every` steps to `file`; `modify` ends its `dump_modify` line.
+pub(super) fn write_body_dump(
+    s: &mut String,
+    name: &str,
+    every: &str,
+    file: &str,
+    modify: &str,
+) -> Result<()> {
+    let props = [
+        ("bid", "id_multisphere", 1),
+        ("bx", "xcm", 3),
+        ("bq", "quat", 4),
+        ("bv", "vcm", 3),
+        ("bw", "omega", 3),
+        ("bf", "fcm", 3),
+    ];
+    let mut cols = Vec::new();
+    for (c, prop, n) in props {
+        writeln!(s, "compute {c} all multisphere property {prop}")?;
+        if n == 1 {
+            cols.push(format!("c_{c}"));
+        } else {
+            cols.extend((1..=n).map(|k| format!("c_{c}[{k}]")));
+        }
+    }
+    writeln!(s, "dump {name} all local {every} {file} {}", cols.join(" "))?;
+    let fmt = std::iter::once("%.0f")
+        .chain(std::iter::repeat_n("%.17g", cols.len() - 1))
+        .collect::<Vec<_>>()
+        .join(" ");
+    writeln!(s, "dump_modify {name} format \"{fmt}\"{modify}")?;
+    Ok(())
 }
 
 /// The `fix particletemplate/multisphere` and `fix particledistribution/discrete` of

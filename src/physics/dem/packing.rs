@@ -128,12 +128,9 @@ pub fn container_case_with(
     }
 }
 
-/// Loose lattice: spacing 1.05 d_max, inside R_c - d_max/2, layers from d_max up.
-pub fn lattice(case: &PenetrationCase) -> Result<Vec<Particle>> {
-    let d = draw_diameters(&case.diameter, case.count, case.seed)?;
-    let dmax = case.diameter.max();
-    let a = 1.05 * dmax;
-    let rin = case.container_radius - 0.5 * dmax;
+/// The (x, y) sites of a square lattice of spacing `a` whose cells lie inside the circle
+/// of radius `rin`: one layer of a loose pour.
+fn lattice_sites(rin: f64, a: f64) -> Vec<(f64, f64)> {
     let n1 = (2.0 * rin / a).floor() as i64;
     let mut sites = Vec::new();
     for j in 0..=n1 {
@@ -144,6 +141,16 @@ pub fn lattice(case: &PenetrationCase) -> Result<Vec<Particle>> {
             }
         }
     }
+    sites
+}
+
+/// Loose lattice: spacing 1.05 d_max, inside R_c - d_max/2, layers from d_max up.
+pub fn lattice(case: &PenetrationCase) -> Result<Vec<Particle>> {
+    let d = draw_diameters(&case.diameter, case.count, case.seed)?;
+    let dmax = case.diameter.max();
+    let a = 1.05 * dmax;
+    let rin = case.container_radius - 0.5 * dmax;
+    let sites = lattice_sites(rin, a);
     if sites.is_empty() {
         bail!(
             "{}: container too narrow for the grains",
@@ -185,16 +192,7 @@ pub fn lattice_bodies(case: &PenetrationCase) -> Result<Vec<Clump>> {
     let rb = t.bounding_radius;
     let a = 1.05 * 2.0 * rb;
     let rin = case.container_radius - rb;
-    let n1 = (2.0 * rin / a).floor() as i64;
-    let mut sites = Vec::new();
-    for j in 0..=n1 {
-        for i in 0..=n1 {
-            let (x, y) = (-rin + i as f64 * a, -rin + j as f64 * a);
-            if (x * x + y * y).sqrt() <= rin - 0.5 * a {
-                sites.push((x, y));
-            }
-        }
-    }
+    let sites = lattice_sites(rin, a);
     if sites.is_empty() {
         bail!(
             "{}: container too narrow for the clumps (bounding radius {rb:e} m)",
