@@ -298,3 +298,77 @@ fn recorded_impact2d_seals_match_their_cases() {
     }
     assert!(seen >= 4, "{seen} seals checked");
 }
+
+/// The Feng Fig 3(a), 3(d) and 3(g) points as registered: each is the Fig 3(b)
+/// mu_gg = 0.5 point with only the stated edits (modulus and time step; grain diameter
+/// and time step; the preparation's sliding friction), checked by making those edits to
+/// that file's text and comparing canonical hashes; and the suite carries their claims.
+#[test]
+fn fig3a_3d_3g_points_differ_from_the_fig3b_point_only_as_registered() {
+    use granval::compare::sweep::SweepClaim;
+    let root = common::root();
+    let base = std::fs::read_to_string(root.join("cases/release/feng-fig3b-mugg-0.5.toml"))
+        .unwrap()
+        .replace("beds = 3", "beds = 5");
+    let p = std::path::Path::new("x.toml");
+    let same_as = |rel: &str, edits: &[(&str, &str)]| {
+        let mut text = base.clone();
+        for (from, to) in edits {
+            assert!(text.contains(from), "{rel}: `{from}` not in the base");
+            text = text.replace(from, to);
+        }
+        let want = PenetrationCase::from_toml_str(&text, p).unwrap();
+        let mut got = penetration(rel);
+        got.name = want.name.clone();
+        got.description = want.description.clone();
+        got.source = want.source.clone();
+        assert_eq!(got.canonical_hash(), want.canonical_hash(), "{rel}");
+        got
+    };
+    same_as("cases/release/feng-fig3a-g-1.toml", &[]);
+    for (rel, g, dt) in [
+        ("cases/release/feng-fig3a-g-10.toml", "1.0e7", "9.5e-6"),
+        ("cases/release/feng-fig3a-g-100.toml", "1.0e8", "3.0e-6"),
+    ] {
+        let c = same_as(
+            rel,
+            &[
+                ("shear_modulus = 1.0e6", &format!("shear_modulus = {g}")),
+                ("dt = 3.0e-5", &format!("dt = {dt}")),
+            ],
+        );
+        // The paper's time-step rule: the same fraction of the Rayleigh time.
+        assert!((c.dt / c.rayleigh_time - 0.1768).abs() < 0.001, "{rel}");
+    }
+    let d = same_as(
+        "cases/release/feng-fig3d-dg-1.4.toml",
+        &[
+            ("value = 2.0e-3 }", "value = 1.4e-3 }"),
+            ("dt = 3.0e-5", "dt = 2.1e-5"),
+        ],
+    );
+    assert!((d.dt / d.rayleigh_time - 0.1768).abs() < 0.001);
+    // The dense bed: settled with sliding friction 0.1 (longer settling allowed), then
+    // penetrated with exactly the loose point's pair values.
+    let loose = penetration("cases/release/feng-fig3b-mugg-0.5.toml");
+    let dense = penetration("cases/release/feng-fig3g-psi-dense.toml");
+    assert_eq!(dense.pairs, loose.pairs);
+    let settle = dense.settle_pairs.as_ref().expect("a preparation table");
+    assert_eq!(settle.friction[settle.idx(0, 0)], 0.1);
+    assert_eq!(dense.seed, loose.seed);
+    let s = granval::experiments::suite::load(&root.join("cases"), "release").unwrap();
+    let claim = |prefix: &str| {
+        s.claims
+            .iter()
+            .find(|c| c.name.starts_with(prefix))
+            .unwrap_or_else(|| panic!("{prefix}: no such claim"))
+    };
+    for (prefix, n) in [("Feng Fig 3(a)", 3), ("Feng Fig 3(d)", 2)] {
+        let c = claim(prefix);
+        assert!(matches!(c.claim, SweepClaim::Independent { max_rel, .. } if max_rel == 0.10));
+        assert_eq!((c.cases.len(), c.controls.len()), (n, 1), "{prefix}");
+    }
+    let g = claim("Feng Fig 3(g)");
+    assert!(matches!(g.claim, SweepClaim::Increasing { min_step_se, .. } if min_step_se == 2.0));
+    assert_eq!(g.controls.len(), 1);
+}

@@ -160,7 +160,7 @@ pub struct Material {
 }
 
 /// Per type-pair coefficients, symmetric, indexed by 0-based type.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct PairTable {
     pub n_types: usize,
     pub restitution: Vec<f64>,
