@@ -1056,6 +1056,44 @@ mod tests {
         assert!(x.iter().filter(|k| !k.passed).count() == 2, "{x:?}");
     }
 
+    /// K Fig 11's rule on synthetic final depths (two sizes, three seeds each): sizes
+    /// closer than the seeds pass; a size 1 d or more off fails; sizes within 1 d but
+    /// farther apart than the seeds fail; equal depths everywhere (nothing varies) fail.
+    #[test]
+    fn size_insensitive_claim_compares_sizes_with_realizations() {
+        let c = case(
+            "[claim]\nkind = \"size_insensitive\"\nmax_spread = 1.0",
+            "[sweep]\nparameter = \"bed\"\nvalues = [{ count = 450, length = 30, seed = 1 }, { count = 450, length = 30, seed = 2 }, { count = 450, length = 30, seed = 3 }, { count = 600, length = 30, seed = 1 }, { count = 600, length = 30, seed = 2 }, { count = 600, length = 30, seed = 3 }]",
+        );
+        let with = |d: [f64; 6]| {
+            let mut o = obs(&[0.0, 1.0, 2.0, 3.0, 4.0, 5.0], &d);
+            for (x, v) in o.iter_mut().zip(&c.variants) {
+                x.label = v.label.clone();
+            }
+            o
+        };
+        // Means 5.0 and 5.2: between sizes 0.2; between seeds (1.0 + 0.6) / 2 = 0.8.
+        let k = one(&c, &with([4.5, 5.0, 5.5, 4.9, 5.2, 5.5])).unwrap();
+        assert!(k.passed, "{k:?}");
+        assert!((k.value - 0.2).abs() < 1e-12 && (k.tolerance - 0.8).abs() < 1e-12);
+        assert!(k.detail.contains("seed 2: 5.200"), "{}", k.detail);
+        // Means 5.0 and 6.2 with seeds 2 d apart: between sizes 1.2 >= 1 d fails.
+        let k = one(&c, &with([4.0, 5.0, 6.0, 5.2, 6.2, 7.2])).unwrap();
+        assert!(!k.passed && (k.value - 1.2).abs() < 1e-12, "{k:?}");
+        // Means 5.0 and 5.5 (< 1 d) but seeds only 0.2 apart: fails the second part.
+        let k = one(&c, &with([4.9, 5.0, 5.1, 5.4, 5.5, 5.6])).unwrap();
+        assert!(!k.passed && (k.tolerance - 0.2).abs() < 1e-12, "{k:?}");
+        let k = one(&c, &with([5.0; 6])).unwrap();
+        assert!(!k.passed, "equal spreads (0 = 0) must not pass: {k:?}");
+        // A variant without a result is an error, not a smaller group.
+        let k = one(&c, &with([5.0; 6])[..5]).unwrap();
+        assert!(k.is_error(), "{k:?}");
+        assert_eq!(
+            size_spreads(&[vec![1.0, 3.0], vec![2.0, 2.5, 3.0]]),
+            (0.5, 1.5)
+        );
+    }
+
     #[test]
     fn linear_claim_fails_curved_and_falling_data() {
         let c = case(
