@@ -335,6 +335,7 @@ fn kondic_fig11_case_sweeps_two_sizes_of_three_seeds_from_the_fig2_bed() {
     );
     let spec = |c: &Impact2dCase, v| serde_json::to_string(&bed_spec(c, &c.bed_of(v))).unwrap();
     assert_eq!(spec(&c, &c.variants[0]), spec(&fig2, &fig2.base));
+    assert_eq!(c.variants[5].label, "count=10000,length=100,seed=3");
     assert!(
         c.variants
             .iter()

@@ -1020,13 +1020,8 @@ impl Impact2dCase {
                     }
                     "bed" => {
                         // K Fig 11: a bed of another size and/or seed per variant.
-                        let bed = bed_value(&ctx, &field, v, d, width)?;
-                        label = format!(
-                            "count={},length={},seed={}",
-                            bed.count,
-                            bed.length / d,
-                            bed.seed
-                        );
+                        let (bed, l) = bed_value(&ctx, &field, v, d, width)?;
+                        label = format!("count={},length={l},seed={}", bed.count, bed.seed);
                         var.bed = Some(bed);
                         var.x = k as f64;
                     }
@@ -1371,14 +1366,15 @@ fn size_groups(variants: &[Variant], count: usize, length: f64) -> Vec<((usize, 
 }
 
 /// One value of a `bed` sweep: `{ count = N, length = L, seed = S }` (L in d), checked
-/// as `[bed]`'s own count, length and seed are; `width` is the intruder's (m).
+/// as `[bed]`'s own count, length and seed are; `width` is the intruder's (m). Also
+/// returns L in d as written (for the variant's label).
 fn bed_value(
     ctx: &Ctx,
     field: &str,
     v: &toml::Value,
     d: f64,
     width: f64,
-) -> Result<BedSize, CaseError> {
+) -> Result<(BedSize, f64), CaseError> {
     const FORM: &str = "a bed sweep takes tables { count = N, length = L (d), seed = S }";
     let t = v
         .as_table()
@@ -1423,11 +1419,14 @@ fn bed_value(
     if width > 0.8 * l * d {
         return Err(ctx.bad(&lf, l, "the intruder must be narrower than 0.8 L"));
     }
-    Ok(BedSize {
-        count,
-        length: l * d,
-        seed,
-    })
+    Ok((
+        BedSize {
+            count,
+            length: l * d,
+            seed,
+        },
+        l,
+    ))
 }
 
 /// `[fields]` as steps: every time a whole number of steps inside the run.
