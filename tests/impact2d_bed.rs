@@ -2,6 +2,8 @@
 //! criterion, smoothing and packing fraction; the hexagonal lattice; and the impact
 //! scene built on top (release height, walls, LAMMPS data file round trip).
 
+mod common;
+
 use granval::physics::dem2d::bed::{self, BedSpec, Packing};
 use granval::physics::dem2d::contact::Coeffs;
 
@@ -160,4 +162,95 @@ fn bed_preparation_is_reproducible_for_a_seed_and_differs_across_seeds() {
     };
     assert_eq!(key(&a), key(&b));
     assert_ne!(key(&a), key(&c));
+}
+
+/// K Fig 11's `bed` sweep: one bed per (count, length, seed), each poured and settled
+/// by the same protocol, each variant's scene on its own bed; and the claim control's
+/// perturbation slows the intruder only in the variants of another size than the first.
+#[test]
+fn bed_sweep_prepares_a_bed_per_key_and_the_control_slows_only_other_sizes() {
+    use granval::case::Perturbation;
+    use granval::case::impact2d::Impact2dCase;
+    use granval::experiments::impact2d::{Impact2d, control_scene, prepare_beds};
+    use granval::experiments::{Experiment, Options};
+    use granval::physics::dem2d::impact::intruder_cm;
+    let text = std::fs::read_to_string(common::root().join("cases/impact2d/ci.toml"))
+        .unwrap()
+        .replace("settle_ke = 1e-10", "settle_ke = 1e-6")
+        + "\n[sweep]\nparameter = \"bed\"\nvalues = [{ count = 200, length = 20, seed = 1 }, { count = 200, length = 20, seed = 2 }, { count = 240, length = 20, seed = 1 }, { count = 240, length = 20, seed = 2 }]\n"
+        + "[[negative_control]]\nname = \"slow\"\nmust_fail = [\"claim\"]\nperturbation = { other_size_speed_factor = 0.5 }\n";
+    let case = Impact2dCase::from_toml_str(&text, std::path::Path::new("tiny.toml")).unwrap();
+    let d = case.scales.d;
+    let start = std::time::Instant::now();
+    let exp = Impact2d { case };
+    let units = exp.units(&Options::default()).unwrap();
+    eprintln!(
+        "4 tiny beds and scenes: {:.1} s",
+        start.elapsed().as_secs_f64()
+    );
+    // Prepared once per key: asking again takes them from this process's memo.
+    let beds = prepare_beds(&exp.case, false).unwrap();
+    assert_eq!(beds.beds.len(), 4);
+    let layout = |b: &granval::physics::dem2d::bed::Bed| {
+        b.grains.iter().map(|g| (g.radius, g.x)).collect::<Vec<_>>()
+    };
+    for (i, (ki, bi)) in beds.beds.iter().enumerate() {
+        assert_eq!(bi.grains.len() + bi.removed, ki.count, "{ki:?}");
+        assert!(bi.final_ke < exp.case.settle_ke, "{ki:?} not settled");
+        assert!((ki.length - 20.0 * d).abs() < 1e-15);
+        for (kj, bj) in &beds.beds[i + 1..] {
+            assert_ne!(ki, kj);
+            assert_ne!(layout(bi), layout(bj), "{ki:?} and {kj:?} are the same bed");
+        }
+    }
+    for u in &units {
+        let key = exp.case.bed_of(&u.variant);
+        let bed = beds.get(&key);
+        let sys = &u.scene.sys;
+        // The scene is the variant's bed: its grains, its period, the intruder released
+        // 5 d above its own surface.
+        let grains: Vec<_> = sys
+            .disks
+            .iter()
+            .filter(|g| g.type_ == 0)
+            .map(|g| (g.radius, g.x))
+            .collect();
+        assert_eq!(grains, layout(bed), "{}", u.variant.label);
+        assert!((sys.bx.hi[0] - key.length).abs() < 1e-15);
+        let surface = bed.surface_at(0.5 * key.length, key.length);
+        assert_eq!(u.scene.surface, surface);
+        let (x, _) = intruder_cm(sys);
+        assert!((x[1] - u.scene.bottom_offset - surface - 5.0 * d).abs() < 1e-12);
+        assert!(
+            u.bed_note.contains(&format!("seed {}", key.seed)),
+            "{}",
+            u.bed_note
+        );
+    }
+    // The control: half speed in the 240-disk variants only, nothing else changed.
+    let slow = Perturbation {
+        other_size_speed_factor: 0.5,
+        ..Perturbation::default()
+    };
+    let state = |s: &granval::physics::dem2d::impact::Scene| {
+        s.sys.disks.iter().map(|g| (g.x, g.v)).collect::<Vec<_>>()
+    };
+    for u in &units {
+        let other = exp.case.bed_of(&u.variant).count == 240;
+        assert_eq!(other, exp.case.is_other_size(&u.variant));
+        let s = control_scene(&exp.case, u, &slow).unwrap();
+        let (_, v0) = intruder_cm(&u.scene.sys);
+        let (_, v) = intruder_cm(&s.sys);
+        assert!(v0[1] < 0.0);
+        if other {
+            assert_eq!(v[1], 0.5 * v0[1], "{}", u.variant.label);
+            let (a, b) = (state(&s), state(&u.scene));
+            let changed: Vec<usize> = (0..a.len()).filter(|&k| a[k] != b[k]).collect();
+            assert_eq!(changed, s.sys.intruder, "only the intruder changes");
+        } else {
+            assert_eq!(state(&s), state(&u.scene), "{}", u.variant.label);
+        }
+        let plain = control_scene(&exp.case, u, &Perturbation::default()).unwrap();
+        assert_eq!(state(&plain), state(&u.scene));
+    }
 }

@@ -294,3 +294,185 @@ fn field_and_force_claims_parse_and_name_their_mistakes() {
         assert_eq!(c.tolerances.field_rel, 0.05);
     }
 }
+
+/// K Fig 11's `bed` sweep and `size_insensitive` claim: each value is its own bed (count,
+/// length, seed; the rest of `[bed]` kept), the case hash sees them, and bad values,
+/// claims and controls name their field.
+#[test]
+fn bed_sweep_and_size_claim_parse_and_name_their_mistakes() {
+    use granval::case::impact2d::{BedSize, Claim};
+    let t = ci_text();
+    let d = 0.004;
+    let sweep = "\n[sweep]\nparameter = \"bed\"\nvalues = [{ count = 450, length = 30, seed = 7 }, { count = 450, length = 30.0, seed = 8 }, { count = 600, length = 40, seed = 7 }, { count = 600, length = 40, seed = 8 }]\n";
+    let claim = "[claim]\nkind = \"size_insensitive\"\nmax_spread = 1.0\n";
+    let control = "[[negative_control]]\nname = \"slow\"\nmust_fail = [\"claim\"]\nperturbation = { other_size_speed_factor = 0.5 }\n";
+    let ok = format!("{t}{sweep}{claim}{control}");
+    let c = Impact2dCase::from_toml_str(&ok, Path::new("ok.toml")).unwrap();
+    let labels: Vec<&str> = c.variants.iter().map(|v| v.label.as_str()).collect();
+    assert_eq!(
+        labels,
+        [
+            "count=450,length=30,seed=7",
+            "count=450,length=30,seed=8",
+            "count=600,length=40,seed=7",
+            "count=600,length=40,seed=8"
+        ]
+    );
+    assert_eq!(
+        c.variants[2].bed,
+        Some(BedSize {
+            count: 600,
+            length: 40.0 * d,
+            seed: 7
+        })
+    );
+    // The first variant's bed is `[bed]`'s own (count 450, L 30, seed 7).
+    assert_eq!(c.bed_of(&c.variants[0]), c.bed_of(&c.base));
+    assert!(c.variants.iter().all(|v| v.speed == c.base.speed));
+    let groups: Vec<(usize, Vec<usize>)> = c
+        .size_groups()
+        .into_iter()
+        .map(|((n, _), g)| (n, g))
+        .collect();
+    assert_eq!(groups, vec![(450, vec![0, 1]), (600, vec![2, 3])]);
+    assert!(!c.is_other_size(&c.variants[1]) && c.is_other_size(&c.variants[3]));
+    assert!(matches!(c.claims[0], Claim::SizeInsensitive { max_spread } if max_spread == 1.0));
+    assert_eq!(
+        c.negative_controls[1].perturbation.other_size_speed_factor,
+        0.5
+    );
+    // Another seed is another case.
+    let other = Impact2dCase::from_toml_str(
+        &ok.replacen("seed = 8 }", "seed = 9 }", 1),
+        Path::new("ok.toml"),
+    )
+    .unwrap();
+    assert_ne!(other.canonical_hash(), c.canonical_hash());
+    for (from, to, field, why) in [
+        (
+            "count = 600, length = 40, seed = 7",
+            "count = 0, length = 40, seed = 7",
+            "sweep.values[2].count",
+            "whole number >= 1",
+        ),
+        (
+            "count = 600, length = 40, seed = 7",
+            "count = 6.5, length = 40, seed = 7",
+            "sweep.values[2].count",
+            "whole number",
+        ),
+        (
+            "count = 600, length = 40, seed = 7",
+            "count = 600, length = 4, seed = 7",
+            "sweep.values[2].length",
+            ">= 5 d",
+        ),
+        (
+            "count = 600, length = 40, seed = 7",
+            "count = 600, length = 6, seed = 7",
+            "sweep.values[2].length",
+            "narrower than 0.8 L",
+        ),
+        (
+            "count = 600, length = 40, seed = 7",
+            "count = 600, length = \"x\", seed = 7",
+            "sweep.values[2].length",
+            "number",
+        ),
+        (
+            "count = 600, length = 40, seed = 7",
+            "count = 600, length = 40, seed = -1",
+            "sweep.values[2].seed",
+            "whole number >= 0",
+        ),
+        (
+            "count = 600, length = 40, seed = 7",
+            "count = 600, length = 40",
+            "sweep.values[2].seed",
+            "missing",
+        ),
+        (
+            "count = 600, length = 40, seed = 7",
+            "count = 600, length = 40, seed = 7, packing = \"hexagonal\"",
+            "sweep.values[2].packing",
+            "unknown field",
+        ),
+        (
+            "{ count = 600, length = 40, seed = 7 }",
+            "600",
+            "sweep.values[2]",
+            "tables",
+        ),
+        (
+            "count = 600, length = 40, seed = 8",
+            "count = 600, length = 40.0, seed = 7",
+            "sweep.values[3]",
+            "repeated",
+        ),
+        // One size: nothing to compare.
+        (
+            "count = 600, length = 40, seed = 7 }, { count = 600, length = 40, seed = 8",
+            "count = 450, length = 30, seed = 9 }, { count = 450, length = 30, seed = 10",
+            "claim.kind",
+            "at least 2 sizes",
+        ),
+        // A size with one realization.
+        (
+            "count = 600, length = 40, seed = 8",
+            "count = 700, length = 40, seed = 8",
+            "claim.kind",
+            "every size needs at least 2",
+        ),
+        (
+            "max_spread = 1.0",
+            "max_spread = 0.0",
+            "claim.max_spread",
+            "> 0",
+        ),
+        (
+            "other_size_speed_factor = 0.5",
+            "other_size_speed_factor = 1.0",
+            "negative_control[1].perturbation.other_size_speed_factor",
+            "not 1",
+        ),
+        (
+            "other_size_speed_factor = 0.5",
+            "other_size_speed_factor = -2.0",
+            "negative_control[1].perturbation.other_size_speed_factor",
+            "> 0",
+        ),
+        (
+            "other_size_speed_factor = 0.5",
+            "sweep_ignored = true",
+            "negative_control[1].perturbation.sweep_ignored",
+            "bed sweep",
+        ),
+    ] {
+        assert!(ok.contains(from), "{from}");
+        let e = err(&ok.replacen(from, to, 1));
+        assert!(
+            e.contains("bad.toml") && e.contains(field) && e.contains(why),
+            "{from} -> {to}: {e}"
+        );
+    }
+    // The claim and the slowing control need a bed sweep.
+    let speed = "\n[sweep]\nparameter = \"speed\"\nvalues = [0.4, 0.7]\n";
+    let e = err(&format!("{t}{speed}{claim}"));
+    assert!(
+        e.contains("claim.kind") && e.contains("sweep] of `bed`"),
+        "{e}"
+    );
+    let e = err(&format!("{t}{speed}{control}"));
+    assert!(
+        e.contains("other_size_speed_factor") && e.contains("`bed`"),
+        "{e}"
+    );
+    // A hexagonal bed needs a whole number of d in every variant's period.
+    let e = err(&ok
+        .replace("packing = \"random\"", "packing = \"hexagonal\"")
+        .replace("length = 40,", "length = 40.5,"));
+    assert!(
+        e.contains("sweep.values[2].length") && e.contains("whole number of d"),
+        "{e}"
+    );
+}

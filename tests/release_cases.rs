@@ -372,3 +372,64 @@ fn fig3a_3d_3g_points_differ_from_the_fig3b_point_only_as_registered() {
     assert!(matches!(g.claim, SweepClaim::Increasing { min_step_se, .. } if min_step_se == 2.0));
     assert_eq!(g.controls.len(), 1);
 }
+
+/// Kondic et al. Fig 11 as registered: v = 1.0 on Fig 2 beds of two sizes (6000 and
+/// 10 000 disks at L = 100 d), seeds 1-3 each; the first is the Fig 2 bed itself (the
+/// same bed specification as `fig2-v0.7`, so the same prepared bed); the size claim at
+/// 1 d, the engine gate control and the claim control (the second size at half speed).
+#[test]
+fn kondic_fig11_case_sweeps_two_sizes_of_three_seeds_from_the_fig2_bed() {
+    use granval::case::impact2d::{Claim, Impact2dCase};
+    use granval::physics::dem2d::impact::bed_spec;
+    let load = |rel: &str| match AnyCase::load(&common::root().join(rel))
+        .unwrap_or_else(|e| panic!("{e}"))
+    {
+        AnyCase::Impact2d(c) => c,
+        _ => panic!("{rel}: not an impact2d case"),
+    };
+    let c: Impact2dCase = load("cases/release/kondic-fig11-size.toml");
+    let fig2 = load("cases/impact2d/fig2-v0.7.toml");
+    let d = c.scales.d;
+    let sizes: Vec<((usize, f64), Vec<u64>)> = c
+        .size_groups()
+        .into_iter()
+        .map(|((n, l), g)| {
+            (
+                (n, l / d),
+                g.iter().map(|&k| c.bed_of(&c.variants[k]).seed).collect(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        sizes,
+        vec![
+            ((6000, 100.0), vec![1, 2, 3]),
+            ((10000, 100.0), vec![1, 2, 3])
+        ]
+    );
+    let spec = |c: &Impact2dCase, v| serde_json::to_string(&bed_spec(c, &c.bed_of(v))).unwrap();
+    assert_eq!(spec(&c, &c.variants[0]), spec(&fig2, &fig2.base));
+    assert_eq!(c.variants[5].label, "count=10000,length=100,seed=3");
+    assert!(
+        c.variants
+            .iter()
+            .all(|v| (v.speed / c.scales.velocity() - 1.0).abs() < 1e-12)
+    );
+    assert_eq!(c.n_steps, fig2.n_steps);
+    assert_eq!(c.final_window, fig2.final_window);
+    assert!(matches!(c.claims[..], [Claim::SizeInsensitive { max_spread }] if max_spread == 1.0));
+    let p: Vec<_> = c
+        .negative_controls
+        .iter()
+        .map(|n| (n.perturbation, n.must_fail.clone()))
+        .collect();
+    assert_eq!(p.len(), 2);
+    assert!(p[0].0.swap_friction_model && p[0].1 == vec![Gate::FinalDepth]);
+    assert!(p[1].0.other_size_speed_factor == 0.5 && p[1].1 == vec![Gate::Claim]);
+    let s = granval::experiments::suite::load(&common::root().join("cases"), "release").unwrap();
+    assert!(
+        s.cases
+            .iter()
+            .any(|e| e.path.ends_with("release/kondic-fig11-size.toml"))
+    );
+}

@@ -82,6 +82,11 @@ pub struct Perturbation {
     /// 2D sweeps: every variant runs with the base case's parameters, i.e. the swept
     /// parameter is not applied; a claim over the sweep must then fail.
     pub sweep_ignored: bool,
+    /// 2D `bed` sweeps (K Fig 11): the intruder's impact speed multiplied by this in
+    /// every variant whose bed size (count, length) differs from the first variant's;
+    /// the first size runs as written. A claim that the size does not matter must then
+    /// fail.
+    pub other_size_speed_factor: f64,
     /// Clumps: every principal moment of inertia multiplied by this.
     pub inertia_factor: f64,
     /// Clumps: members use their own sphere mass as contact mass instead of the body
@@ -99,6 +104,7 @@ impl Default for Perturbation {
             pair_friction: None,
             swap_friction_model: false,
             sweep_ignored: false,
+            other_size_speed_factor: 1.0,
             inertia_factor: 1.0,
             member_sphere_mass: false,
         }
@@ -139,6 +145,7 @@ struct RawPerturbation {
     swap_friction_model: bool,
     #[serde(default)]
     sweep_ignored: bool,
+    other_size_speed_factor: Option<f64>,
     inertia_factor: Option<f64>,
     #[serde(default)]
     member_sphere_mass: bool,
@@ -248,6 +255,24 @@ pub(crate) fn controls(
             ));
         }
         pert.sweep_ignored = p.sweep_ignored;
+        if let Some(v) = p.other_size_speed_factor {
+            if !gates.contains(&Gate::Claim) {
+                return Err(ctx.bad(
+                    f("perturbation.other_size_speed_factor"),
+                    v,
+                    "only impact2d cases have an intruder speed and beds of several sizes",
+                ));
+            }
+            let v = finite("other_size_speed_factor", v)?;
+            if v <= 0.0 || v == 1.0 {
+                return Err(ctx.bad(
+                    f("perturbation.other_size_speed_factor"),
+                    v,
+                    "must be > 0 and not 1 (1 changes nothing)",
+                ));
+            }
+            pert.other_size_speed_factor = v;
+        }
         if let Some(v) = p.inertia_factor {
             let v = finite("inertia_factor", v)?;
             if v <= 0.0 {

@@ -20,8 +20,9 @@
 //! grain-intruder contacts, else the grains'.
 //!
 //! A case may declare a one-parameter `[sweep]`; each value is one run (variant) from
-//! the same prepared bed (the `packing` sweep prepares one bed per packing), and an
-//! optional `[claim]` turns the variants' final depths into one of K's claims.
+//! the same prepared bed (the `packing` and `bed` sweeps prepare one bed per distinct
+//! bed: packing, count, length and seed), and an optional `[claim]` turns the variants'
+//! final depths into one of K's claims.
 
 use super::error::{CaseError, Ctx};
 use super::validate::{finite, positive};
@@ -206,7 +207,7 @@ struct AnalysisIn {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SweepIn {
-    /// speed | e_n | mu | gravity | friction | packing
+    /// speed | e_n | mu | gravity | friction | friction_mu | packing | bed
     parameter: String,
     values: Vec<toml::Value>,
 }
@@ -284,6 +285,16 @@ pub enum Claim {
         #[serde(default)]
         max_ratio: Option<f64>,
     },
+    /// K Sec. III, Fig 11 ("Effect of system size and initial configuration"): "the final
+    /// penetration depth ... varies only very little (less than a particle diameter)
+    /// between systems of different sizes. This variation is smaller than that due to
+    /// different initial conditions". A `bed` sweep's variants are grouped by size
+    /// (count, length); the realizations of a size are its seeds. Between-size spread =
+    /// max - min over sizes of the size's mean final depth; between-realization spread =
+    /// mean over sizes of (max - min of the size's final depths). Holds when the
+    /// between-size spread is below `max_spread` (d) and below the between-realization
+    /// spread (both strictly).
+    SizeInsensitive { max_spread: f64 },
 }
 
 /// A field summary a `field_order` claim compares.
@@ -475,6 +486,33 @@ pub enum IntruderShape {
     Ellipse { a: f64, b: f64, count: usize },
 }
 
+/// A bed of its own for one variant (the `bed` sweep, K Fig 11): grain count, periodic
+/// length (m) and seed in place of `[bed]`'s; everything else of `[bed]` is kept.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BedSize {
+    pub count: usize,
+    pub length: f64,
+    pub seed: u64,
+}
+
+/// Which prepared bed a variant runs on: the key of the bed map (one bed is prepared
+/// per distinct key) and what the scene's geometry follows.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BedKey {
+    pub packing: Packing,
+    pub count: usize,
+    /// Periodic length L (m).
+    pub length: f64,
+    pub seed: u64,
+}
+
+impl BedKey {
+    /// The system size (count, L in m) K Fig 11 compares; the seed is the realization.
+    pub fn size(&self) -> (usize, f64) {
+        (self.count, self.length)
+    }
+}
+
 /// One run: the base case with the sweep value applied.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Variant {
@@ -483,6 +521,11 @@ pub struct Variant {
     /// The swept value as a number (for claims; 0, 1, ... for text values).
     pub x: f64,
     pub packing: Packing,
+    /// The variant's own bed size and seed (a `bed` sweep), else `[bed]`'s. Left out of
+    /// the serialised variant when absent, so the canonical hash of cases without a `bed`
+    /// sweep (and the seals of their records) stays as it was.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bed: Option<BedSize>,
     pub grains: Material2d,
     pub walls: Material2d,
     pub intruder: Material2d,
@@ -571,6 +614,35 @@ fn material(ctx: &Ctx, prefix: &str, m: &MaterialIn) -> Result<Material2d, CaseE
 }
 
 impl Impact2dCase {
+    /// The bed variant `v` runs on.
+    pub fn bed_of(&self, v: &Variant) -> BedKey {
+        let b = v.bed.unwrap_or(BedSize {
+            count: self.count,
+            length: self.length,
+            seed: self.seed,
+        });
+        BedKey {
+            packing: v.packing,
+            count: b.count,
+            length: b.length,
+            seed: b.seed,
+        }
+    }
+
+    /// The variants' indices grouped by system size (count, length), sizes in order of
+    /// first appearance (K Fig 11: the realizations of each size).
+    pub fn size_groups(&self) -> Vec<((usize, f64), Vec<usize>)> {
+        size_groups(&self.variants, self.count, self.length)
+    }
+
+    /// Whether a control's `other_size_speed_factor` applies to variant `v`: its size
+    /// (count, length) differs from the first variant's.
+    pub fn is_other_size(&self, v: &Variant) -> bool {
+        self.variants
+            .first()
+            .is_some_and(|f| self.bed_of(f).size() != self.bed_of(v).size())
+    }
+
     /// What the runs depend on (scales, bed, intruder, protocol, every variant), not the
     /// name, description, analysis window, claim, tolerances or controls. A recorded
     /// reference is sealed to its sha256.
@@ -811,6 +883,7 @@ impl Impact2dCase {
             label: "base".into(),
             x: 0.0,
             packing: b.packing,
+            bed: None,
             grains,
             walls,
             intruder: intruder_of(&grains)?,
@@ -945,11 +1018,18 @@ impl Impact2dCase {
                         var.x = k as f64;
                         label = format!("packing={t}");
                     }
+                    "bed" => {
+                        // K Fig 11: a bed of another size and/or seed per variant.
+                        let (bed, l) = bed_value(&ctx, &field, v, d, width)?;
+                        label = format!("count={},length={l},seed={}", bed.count, bed.seed);
+                        var.bed = Some(bed);
+                        var.x = k as f64;
+                    }
                     other => {
                         return Err(ctx.bad(
                             "sweep.parameter",
                             other,
-                            "one of speed, gravity, e_n, mu, friction, friction_mu, packing",
+                            "one of speed, gravity, e_n, mu, friction, friction_mu, packing, bed",
                         ));
                     }
                 }
@@ -1131,6 +1211,36 @@ impl Impact2dCase {
                         ));
                     }
                 }
+                Claim::SizeInsensitive { max_spread } => {
+                    positive(&ctx, &at("max_spread"), *max_spread)?;
+                    let param = raw.sweep.as_ref().map(|w| w.parameter.as_str());
+                    if param != Some("bed") {
+                        return Err(ctx.bad(
+                            at("kind"),
+                            "size_insensitive",
+                            "compares beds of different sizes: needs a [sweep] of `bed`",
+                        ));
+                    }
+                    let groups = size_groups(&variants, b.count, length);
+                    if groups.len() < 2 {
+                        return Err(ctx.bad(
+                            at("kind"),
+                            "size_insensitive",
+                            "needs at least 2 sizes (count, length) among the sweep's beds",
+                        ));
+                    }
+                    if let Some(((n, l), g)) = groups.iter().find(|g| g.1.len() < 2) {
+                        return Err(ctx.bad(
+                            at("kind"),
+                            "size_insensitive",
+                            format!(
+                                "the size count = {n}, length = {} has {} realization(s); every size needs at least 2 (seeds)",
+                                l / d,
+                                g.len()
+                            ),
+                        ));
+                    }
+                }
                 Claim::Linear { from, r2_min } => {
                     finite(&ctx, &at("from"), *from)?;
                     if !(0.0..=1.0).contains(r2_min) {
@@ -1143,12 +1253,18 @@ impl Impact2dCase {
                 }
             }
         }
-        if variants.iter().any(|v| v.packing == Packing::Hexagonal) {
-            let n = length / d;
-            if (n - n.round()).abs() > 1e-9 {
+        for (k, v) in variants.iter().enumerate() {
+            if v.packing != Packing::Hexagonal {
+                continue;
+            }
+            let (field, l) = match v.bed {
+                Some(bed) => (format!("sweep.values[{k}].length"), bed.length / d),
+                None => ("bed.length".to_string(), b.length),
+            };
+            if (l - l.round()).abs() > 1e-9 {
                 return Err(ctx.bad(
-                    "bed.length",
-                    b.length,
+                    field,
+                    l,
                     "a hexagonal bed needs L to be a whole number of d",
                 ));
             }
@@ -1178,6 +1294,26 @@ impl Impact2dCase {
                 true,
                 "ignores a [sweep] the case does not have",
             ));
+        }
+        let bed_sweep = raw.sweep.as_ref().is_some_and(|w| w.parameter == "bed");
+        for (k, c) in negative_controls.iter().enumerate() {
+            let p = &c.perturbation;
+            if p.sweep_ignored && bed_sweep {
+                return Err(ctx.bad(
+                    format!("negative_control[{k}].perturbation.sweep_ignored"),
+                    true,
+                    "a bed sweep changes the beds themselves: each variant keeps its own bed, so ignoring the sweep would rerun it unchanged (use other_size_speed_factor)",
+                ));
+            }
+            if p.other_size_speed_factor != 1.0
+                && (!bed_sweep || size_groups(&variants, b.count, length).len() < 2)
+            {
+                return Err(ctx.bad(
+                    format!("negative_control[{k}].perturbation.other_size_speed_factor"),
+                    p.other_size_speed_factor,
+                    "slows the variants of other sizes than the first: needs a [sweep] of `bed` with at least 2 sizes",
+                ));
+            }
         }
         Ok(Impact2dCase {
             negative_controls,
@@ -1213,6 +1349,84 @@ impl Impact2dCase {
             tolerances,
         })
     }
+}
+
+/// Variant indices grouped by size (count, length in m), in order of first appearance;
+/// a variant without its own bed has `[bed]`'s.
+fn size_groups(variants: &[Variant], count: usize, length: f64) -> Vec<((usize, f64), Vec<usize>)> {
+    let mut out: Vec<((usize, f64), Vec<usize>)> = Vec::new();
+    for (k, v) in variants.iter().enumerate() {
+        let size = v.bed.map_or((count, length), |b| (b.count, b.length));
+        match out.iter_mut().find(|g| g.0 == size) {
+            Some(g) => g.1.push(k),
+            None => out.push((size, vec![k])),
+        }
+    }
+    out
+}
+
+/// One value of a `bed` sweep: `{ count = N, length = L, seed = S }` (L in d), checked
+/// as `[bed]`'s own count, length and seed are; `width` is the intruder's (m). Also
+/// returns L in d as written (for the variant's label).
+fn bed_value(
+    ctx: &Ctx,
+    field: &str,
+    v: &toml::Value,
+    d: f64,
+    width: f64,
+) -> Result<(BedSize, f64), CaseError> {
+    const FORM: &str = "a bed sweep takes tables { count = N, length = L (d), seed = S }";
+    let t = v
+        .as_table()
+        .ok_or_else(|| ctx.bad(field, v.to_string(), FORM))?;
+    if let Some(k) = t
+        .keys()
+        .find(|k| !["count", "length", "seed"].contains(&k.as_str()))
+    {
+        return Err(ctx.bad(
+            format!("{field}.{k}"),
+            &t[k],
+            format!("unknown field; {FORM}"),
+        ));
+    }
+    let get = |k: &str| {
+        t.get(k)
+            .ok_or_else(|| ctx.bad(format!("{field}.{k}"), "missing", FORM))
+    };
+    let whole = |k: &str, min: i64| -> Result<i64, CaseError> {
+        let x = get(k)?;
+        match x.as_integer() {
+            Some(n) if n >= min => Ok(n),
+            _ => Err(ctx.bad(
+                format!("{field}.{k}"),
+                x.to_string(),
+                format!("must be a whole number >= {min}"),
+            )),
+        }
+    };
+    let count = whole("count", 1)? as usize;
+    let seed = whole("seed", 0)? as u64;
+    let lf = format!("{field}.length");
+    let x = get("length")?;
+    let l = x
+        .as_float()
+        .or_else(|| x.as_integer().map(|n| n as f64))
+        .ok_or_else(|| ctx.bad(&lf, x.to_string(), "must be a number (d)"))?;
+    let l = positive(ctx, &lf, l)?;
+    if l < 5.0 {
+        return Err(ctx.bad(&lf, l, "must be >= 5 d"));
+    }
+    if width > 0.8 * l * d {
+        return Err(ctx.bad(&lf, l, "the intruder must be narrower than 0.8 L"));
+    }
+    Ok((
+        BedSize {
+            count,
+            length: l * d,
+            seed,
+        },
+        l,
+    ))
 }
 
 /// `[fields]` as steps: every time a whole number of steps inside the run.

@@ -498,6 +498,7 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
                 Err(e) => Check::error_in(name, Gate::Claim, e),
             }
         }
+        Claim::SizeInsensitive { max_spread } => size_insensitive(case, *max_spread, engine, obs),
         Claim::Increasing { min_step, of, at } => {
             let (what, unit) = of.describe();
             if obs.len() < 2 {
@@ -641,6 +642,101 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
             }
         }
     }
+}
+
+/// K Fig 11's two spreads over final depths grouped by size (each inner vector one
+/// size's realizations): (max - min over sizes of the size's mean, mean over sizes of
+/// the size's max - min). NaN when a size has no realization.
+pub fn size_spreads(groups: &[Vec<f64>]) -> (f64, f64) {
+    let span = |v: &[f64]| {
+        v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+            - v.iter().copied().fold(f64::INFINITY, f64::min)
+    };
+    let means: Vec<f64> = groups
+        .iter()
+        .map(|g| g.iter().sum::<f64>() / g.len() as f64)
+        .collect();
+    let within = groups.iter().map(|g| span(g)).sum::<f64>() / groups.len() as f64;
+    (span(&means), within)
+}
+
+/// The `size_insensitive` claim (K Fig 11) in one engine: between-size spread <
+/// `max_spread` and < between-realization spread (rule in [`Claim::SizeInsensitive`]).
+/// Variants are matched to the case's by label, so a missing run is an error, not a
+/// smaller group.
+fn size_insensitive(
+    case: &Impact2dCase,
+    max_spread: f64,
+    engine: &str,
+    obs: &[VariantObs],
+) -> Check {
+    let name = format!(
+        "{}: claim ({engine}): final depth varies between sizes by < {max_spread} d and by less than between realizations",
+        case.name
+    );
+    let d = case.scales.d;
+    let mut groups: Vec<Vec<f64>> = Vec::new();
+    let mut per_size: Vec<String> = Vec::new();
+    for ((n, l), idx) in case.size_groups() {
+        let mut depths = Vec::new();
+        let mut listed = Vec::new();
+        for k in idx {
+            let v = &case.variants[k];
+            let Some(o) = obs.iter().find(|o| o.label == v.label) else {
+                return Check::error_in(
+                    name,
+                    Gate::Claim,
+                    format!("variant {} has no result", v.label),
+                );
+            };
+            if !o.final_depth.is_finite() {
+                return Check::error_in(
+                    name,
+                    Gate::Claim,
+                    format!("variant {}: final depth {}", v.label, o.final_depth),
+                );
+            }
+            depths.push(o.final_depth);
+            listed.push(format!(
+                "seed {}: {:.3}",
+                case.bed_of(v).seed,
+                o.final_depth
+            ));
+        }
+        let mean = depths.iter().sum::<f64>() / depths.len() as f64;
+        per_size.push(format!(
+            "count {n}, L {} d: {} (mean {mean:.3})",
+            l / d,
+            listed.join(", ")
+        ));
+        groups.push(depths);
+    }
+    if groups.len() < 2 || groups.iter().any(|g| g.len() < 2) {
+        return Check::error_in(
+            name,
+            Gate::Claim,
+            "needs at least 2 sizes with at least 2 realizations each",
+        );
+    }
+    let (between, within) = size_spreads(&groups);
+    let bound = max_spread.min(within);
+    let status = if between < bound {
+        super::Status::Pass
+    } else {
+        super::Status::Fail
+    };
+    Check::with_status(
+        name,
+        Gate::Claim,
+        "between-size spread of the mean final depth (d), must be < min(max_spread, between-realization spread)",
+        between,
+        bound,
+        status,
+        format!(
+            "between sizes {between:.3} d (max - min of the size means), between realizations {within:.3} d (mean over sizes of max - min), registered max_spread {max_spread} d; final depths (d): {}",
+            per_size.join("; ")
+        ),
+    )
 }
 
 /// k of a ~ u^k (K Fig 29) over the passages of every variant through the bins, with
@@ -958,6 +1054,44 @@ mod tests {
         assert!(x.len() == 4 && x.iter().all(|k| k.passed), "{x:?}");
         let x = field_cross_checks(&c, &o[1], &with("friction=static", [0.12, 0.115]), "lammps");
         assert!(x.iter().filter(|k| !k.passed).count() == 2, "{x:?}");
+    }
+
+    /// K Fig 11's rule on synthetic final depths (two sizes, three seeds each): sizes
+    /// closer than the seeds pass; a size 1 d or more off fails; sizes within 1 d but
+    /// farther apart than the seeds fail; equal depths everywhere (nothing varies) fail.
+    #[test]
+    fn size_insensitive_claim_compares_sizes_with_realizations() {
+        let c = case(
+            "[claim]\nkind = \"size_insensitive\"\nmax_spread = 1.0",
+            "[sweep]\nparameter = \"bed\"\nvalues = [{ count = 450, length = 30, seed = 1 }, { count = 450, length = 30, seed = 2 }, { count = 450, length = 30, seed = 3 }, { count = 600, length = 30, seed = 1 }, { count = 600, length = 30, seed = 2 }, { count = 600, length = 30, seed = 3 }]",
+        );
+        let with = |d: [f64; 6]| {
+            let mut o = obs(&[0.0, 1.0, 2.0, 3.0, 4.0, 5.0], &d);
+            for (x, v) in o.iter_mut().zip(&c.variants) {
+                x.label = v.label.clone();
+            }
+            o
+        };
+        // Means 5.0 and 5.2: between sizes 0.2; between seeds (1.0 + 0.6) / 2 = 0.8.
+        let k = one(&c, &with([4.5, 5.0, 5.5, 4.9, 5.2, 5.5])).unwrap();
+        assert!(k.passed, "{k:?}");
+        assert!((k.value - 0.2).abs() < 1e-12 && (k.tolerance - 0.8).abs() < 1e-12);
+        assert!(k.detail.contains("seed 2: 5.200"), "{}", k.detail);
+        // Means 5.0 and 6.2 with seeds 2 d apart: between sizes 1.2 >= 1 d fails.
+        let k = one(&c, &with([4.0, 5.0, 6.0, 5.2, 6.2, 7.2])).unwrap();
+        assert!(!k.passed && (k.value - 1.2).abs() < 1e-12, "{k:?}");
+        // Means 5.0 and 5.5 (< 1 d) but seeds only 0.2 apart: fails the second part.
+        let k = one(&c, &with([4.9, 5.0, 5.1, 5.4, 5.5, 5.6])).unwrap();
+        assert!(!k.passed && (k.tolerance - 0.2).abs() < 1e-12, "{k:?}");
+        let k = one(&c, &with([5.0; 6])).unwrap();
+        assert!(!k.passed, "equal spreads (0 = 0) must not pass: {k:?}");
+        // A variant without a result is an error, not a smaller group.
+        let k = one(&c, &with([5.0; 6])[..5]).unwrap();
+        assert!(k.is_error(), "{k:?}");
+        assert_eq!(
+            size_spreads(&[vec![1.0, 3.0], vec![2.0, 2.5, 3.0]]),
+            (0.5, 1.5)
+        );
     }
 
     #[test]

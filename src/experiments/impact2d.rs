@@ -7,7 +7,7 @@ use super::reference::Verified;
 use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
 use crate::analysis::impact as obs;
 use crate::case::impact2d::IntruderShape;
-use crate::case::impact2d::{Impact2dCase, Packing, Variant};
+use crate::case::impact2d::{BedKey, Impact2dCase, Packing, Variant};
 use crate::compare::Check;
 use crate::compare::impact2d::{self as cmp, FieldObs, VariantObs};
 use crate::engines::deck_text::{Header, approx, num, safe};
@@ -94,7 +94,13 @@ impl Experiment for Impact2d {
 
     fn estimate(&self) -> Estimate {
         let c = &self.case;
-        let n = c.count as f64 + c.length / (c.wall_d.max(1e-300) / c.scales.d) * 3.0;
+        // Disks of a variant's scene: its bed plus about three wall rows.
+        let disks = |v: &Variant| {
+            let b = c.bed_of(v);
+            b.count as f64 + b.length / c.wall_d.max(1e-300) * 3.0
+        };
+        let n = c.variants.iter().map(disks).fold(0.0, f64::max);
+        let all: f64 = c.variants.iter().map(disks).sum();
         let runs = (c.variants.len() * (1 + c.negative_controls.len())) as f64;
         let steps = c.n_steps as f64;
         // Field snapshots (Figs 22-27): each position dump is about 200 bytes per grain
@@ -104,7 +110,7 @@ impl Experiment for Impact2d {
             n * (200.0 * f.position_steps().len() as f64 + 700.0 * f.network_steps.len() as f64)
         });
         Estimate {
-            particle_steps: n * steps * runs,
+            particle_steps: all * steps * (1 + c.negative_controls.len()) as f64,
             particles: n,
             output_bytes: runs
                 * (200.0 * (steps / c.output_every as f64 + steps / c.energy_every as f64)
@@ -119,7 +125,16 @@ impl Experiment for Impact2d {
         vec![
             Derived::new(
                 "grains",
-                c.count.to_string(),
+                {
+                    let mut counts: Vec<usize> =
+                        c.variants.iter().map(|v| c.bed_of(v).count).collect();
+                    counts.dedup();
+                    counts
+                        .iter()
+                        .map(|n| n.to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                },
                 format!(
                     "per bed, plus the frozen wall disks; {} variant(s)",
                     c.variants.len()
@@ -158,23 +173,25 @@ impl Experiment for Impact2d {
             .variants
             .iter()
             .map(|v| {
+                let key = self.case.bed_of(v);
                 Ok(Unit {
                     variant: v.clone(),
-                    scene: scene_mod::build(&self.case, v, beds.get(v.packing))?,
-                    // On this variant's bed (a packing sweep's base keeps its own bed).
+                    scene: scene_mod::build(&self.case, v, beds.get(&key))?,
+                    // On this variant's bed (a packing or bed sweep's base keeps its own bed).
                     base_scene: if wants_base {
                         Some(scene_mod::build(
                             &self.case,
                             &Variant {
                                 packing: v.packing,
+                                bed: v.bed,
                                 ..self.case.base.clone()
                             },
-                            beds.get(v.packing),
+                            beds.get(&key),
                         )?)
                     } else {
                         None
                     },
-                    bed_note: bed_note(&self.case, v.packing, beds.get(v.packing)),
+                    bed_note: bed_note(&self.case, &key, beds.get(&key)),
                 })
             })
             .collect()
@@ -191,13 +208,7 @@ impl Experiment for Impact2d {
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<ImpactRun> {
         let c = &self.case;
         let pert = role.perturbation();
-        let scene = if pert.sweep_ignored {
-            u.base_scene
-                .as_ref()
-                .context("a sweep_ignored control needs the base scene")?
-        } else {
-            &u.scene
-        };
+        let scene = &*control_scene(c, u, &pert)?;
         let bar = crate::report::progress::bar(opts.progress, c.n_steps, "native");
         let ((samples, energy, fields), provenance) = crate::engines::native::impact2d(
             scene,
@@ -629,14 +640,14 @@ impl Impact2d {
                      (polydispersity +-{}), {} bed, {} d long with periodic sides, between rows \
                      of frozen wall disks; {shape} hits the middle of the surface at v = {} \
                      d/tau_c from {} d above it.",
-                    c.count,
+                    c.bed_of(v).count,
                     num(s.d),
                     approx(c.polydispersity),
                     match v.packing {
                         Packing::Random => "random",
                         Packing::Hexagonal => "hexagonal",
                     },
-                    approx(c.length / s.d),
+                    approx(c.bed_of(v).length / s.d),
                     approx(v.speed / s.velocity()),
                     approx(c.release_height / s.d),
                 ),
@@ -674,34 +685,71 @@ impl Impact2d {
     }
 }
 
-/// The beds a case needs, one per packing, in first-use order.
+/// The scene the native engine starts from for unit `u` under `pert` (before
+/// [`scene_mod::perturbed`] changes the coefficients): the base case's for
+/// `sweep_ignored`, the intruder slowed by `other_size_speed_factor` in the variants of
+/// another size than the first (K Fig 11's control), else the unit's own.
+pub fn control_scene<'a>(
+    case: &Impact2dCase,
+    u: &'a Unit,
+    pert: &crate::case::Perturbation,
+) -> Result<std::borrow::Cow<'a, Scene>> {
+    use std::borrow::Cow;
+    if pert.sweep_ignored {
+        return Ok(Cow::Borrowed(
+            u.base_scene
+                .as_ref()
+                .context("a sweep_ignored control needs the base scene")?,
+        ));
+    }
+    if pert.other_size_speed_factor != 1.0 && case.is_other_size(&u.variant) {
+        return Ok(Cow::Owned(scene_mod::with_intruder_speed(
+            &u.scene,
+            pert.other_size_speed_factor,
+        )));
+    }
+    Ok(Cow::Borrowed(&u.scene))
+}
+
+/// The beds a case needs, one per distinct bed (packing, count, length, seed), in
+/// first-use order.
 pub struct Beds {
-    pub beds: Vec<(Packing, Bed)>,
+    pub beds: Vec<(BedKey, Bed)>,
 }
 
 impl Beds {
-    pub fn get(&self, p: Packing) -> &Bed {
+    pub fn get(&self, k: &BedKey) -> &Bed {
         &self
             .beds
             .iter()
-            .find(|b| b.0 == p)
-            .expect("bed prepared for every packing")
+            .find(|b| b.0 == *k)
+            .expect("bed prepared for every variant's bed key")
             .1
     }
 }
 
-pub fn bed_note(case: &Impact2dCase, p: Packing, b: &Bed) -> String {
+pub fn bed_note(case: &Impact2dCase, k: &BedKey, b: &Bed) -> String {
     let s = &case.scales;
+    let size = if case.sweep_parameter.as_deref() == Some("bed") {
+        format!(
+            ", {} disks poured on L = {} d, seed {}",
+            k.count,
+            k.length / s.d,
+            k.seed
+        )
+    } else {
+        String::new()
+    };
     format!(
-        "{} bed ({:?}): {} grains ({} removed by smoothing), settled in {:.0} tau_c to total KE {:.2e} m g d, packing fraction {:.3}, surface at {:.2} d above the floor",
+        "{} bed ({:?}{size}): {} grains ({} removed by smoothing), settled in {:.0} tau_c to total KE {:.2e} m g d, packing fraction {:.3}, surface at {:.2} d above the floor",
         case.name,
-        p,
+        k.packing,
         b.grains.len(),
         b.removed,
         b.settle_time / s.tau_c,
         b.final_ke / (s.m * s.g0 * s.d),
         b.packing_fraction,
-        (b.surface_at(0.5 * case.length, case.length) - b.floor) / s.d
+        (b.surface_at(0.5 * k.length, k.length) - b.floor) / s.d
     )
 }
 
@@ -717,22 +765,23 @@ static BED_MEMO: std::sync::Mutex<std::collections::BTreeMap<String, BedSlot>> =
 /// specification (sha256 of the spec and the crate version). Preparation is
 /// deterministic, so a hit is the bed that would be prepared; tests never set it.
 pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
-    let mut beds: Vec<(Packing, Bed)> = Vec::new();
+    let mut beds: Vec<(BedKey, Bed)> = Vec::new();
     for v in &case.variants {
-        if beds.iter().any(|b| b.0 == v.packing) {
+        let key = case.bed_of(v);
+        if beds.iter().any(|b| b.0 == key) {
             continue;
         }
-        let spec = scene_mod::bed_spec(case, v.packing);
-        let key =
+        let spec = scene_mod::bed_spec(case, &key);
+        let memo_key =
             Sha256::of(serde_json::to_string(&spec).unwrap_or_default().as_bytes()).to_string();
         let slot = {
             let mut memo = BED_MEMO.lock().unwrap_or_else(|p| p.into_inner());
-            memo.entry(key).or_default().clone()
+            memo.entry(memo_key).or_default().clone()
         };
         // Held while preparing, so a second case needing this bed waits for it.
         let mut slot = slot.lock().unwrap_or_else(|p| p.into_inner());
         if let Some(b) = slot.as_ref() {
-            beds.push((v.packing, b.clone()));
+            beds.push((key, b.clone()));
             continue;
         }
         let cache = super::bed_cache::file("impact2d", &spec);
@@ -752,9 +801,12 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
                 })
                 .with_context(|| {
                     format!(
-                        "{}: preparing the {:?} bed",
+                        "{}: preparing the {:?} bed of {} disks on L = {} d, seed {}",
                         case.source.display(),
-                        v.packing
+                        key.packing,
+                        key.count,
+                        key.length / case.scales.d,
+                        key.seed
                     )
                 })?;
                 bar.finish_and_clear();
@@ -763,7 +815,7 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
             }
         };
         *slot = Some(b.clone());
-        beds.push((v.packing, b));
+        beds.push((key, b));
     }
     Ok(Beds { beds })
 }
@@ -818,7 +870,11 @@ pub fn snapshot_steps(case: &Impact2dCase) -> SnapshotSteps {
 
 /// The fields of one run reduced (K Sec. IV): B0 curves at each network step, the
 /// affine field at the affine step; lengths in d.
-pub fn observe_fields(case: &Impact2dCase, run: &ImpactRun) -> Result<Option<FieldObs>> {
+pub fn observe_fields(
+    case: &Impact2dCase,
+    v: &Variant,
+    run: &ImpactRun,
+) -> Result<Option<FieldObs>> {
     use crate::analysis::{affine, force_network};
     let Some(f) = &case.fields else {
         return Ok(None);
@@ -847,8 +903,13 @@ pub fn observe_fields(case: &Impact2dCase, run: &ImpactRun) -> Result<Option<Fie
     }
     let (mut summary, mut map, mut affine_t) = (None, Vec::new(), f64::NAN);
     if let Some((a, b, radius)) = f.affine {
-        let field = affine::field(&at(a)?.grains, &at(b)?.grains, radius, Some(case.length))
-            .with_context(|| format!("affine field between steps {a} and {b}"))?;
+        let field = affine::field(
+            &at(a)?.grains,
+            &at(b)?.grains,
+            radius,
+            Some(case.bed_of(v).length),
+        )
+        .with_context(|| format!("affine field between steps {a} and {b}"))?;
         summary = Some(affine::summary(&field, d));
         map = field
             .grains
@@ -934,7 +995,7 @@ pub fn observe(
                     .map(|s| (s.t / tau, s.f[1] / weight))
                     .collect()
             },
-            fields: observe_fields(case, run)?,
+            fields: observe_fields(case, v, run)?,
         },
         series,
     ))

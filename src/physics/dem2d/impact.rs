@@ -11,7 +11,7 @@
 use super::bed::{Bed, BedSpec, wall_row};
 use super::neighbor::Box2;
 use super::{Cluster, Disk, Role, System, lammps_mass};
-use crate::case::impact2d::{Impact2dCase, IntruderShape, Variant};
+use crate::case::impact2d::{BedKey, Impact2dCase, IntruderShape, Variant};
 use anyhow::Result;
 
 /// A scene ready to run, plus what the analysis needs to turn the intruder's centre
@@ -26,21 +26,22 @@ pub struct Scene {
     pub intruder_mass: f64,
 }
 
-/// Bed preparation inputs for a packing: always the case's base grain and wall
-/// materials, so every variant of a sweep (e_n, mu, friction, speed, gravity) hits
-/// the very same bed and only the impact differs.
-pub fn bed_spec(case: &Impact2dCase, packing: super::bed::Packing) -> BedSpec {
+/// Bed preparation inputs for a bed key (packing, count, length, seed): always the
+/// case's base grain and wall materials, so every variant of a sweep (e_n, mu,
+/// friction, speed, gravity) hits the very same bed and only the impact differs; a
+/// `bed` sweep's variants differ only in count, length and seed.
+pub fn bed_spec(case: &Impact2dCase, key: &BedKey) -> BedSpec {
     let s = &case.scales;
     let g = case.base.grains.coeffs(s);
     let w = case.base.walls.coeffs(s);
     let v = Variant {
-        packing,
+        packing: key.packing,
         ..case.base.clone()
     };
     BedSpec {
         packing: v.packing,
-        count: case.count,
-        length: case.length,
+        count: key.count,
+        length: key.length,
         d: s.d,
         polydispersity: match v.packing {
             super::bed::Packing::Random => case.polydispersity,
@@ -52,7 +53,7 @@ pub fn bed_spec(case: &Impact2dCase, packing: super::bed::Packing) -> BedSpec {
             // The lattice sits in the pockets of a wall row of the same pitch.
             super::bed::Packing::Hexagonal => s.d,
         },
-        seed: case.seed,
+        seed: key.seed,
         initial_speed: match v.packing {
             super::bed::Packing::Random => case.initial_speed,
             super::bed::Packing::Hexagonal => 0.0,
@@ -94,9 +95,11 @@ fn ellipse_outline(a: f64, b: f64, n: usize) -> Vec<[f64; 2]> {
     out
 }
 
+/// The scene of variant `v` on `bed` (the bed of `case.bed_of(v)`; its period is the
+/// scene's).
 pub fn build(case: &Impact2dCase, v: &Variant, bed: &Bed) -> Result<Scene> {
     let s = &case.scales;
-    let l = case.length;
+    let l = case.bed_of(v).length;
     let x_imp = 0.5 * l;
     let surface = bed.surface_at(x_imp, l);
     anyhow::ensure!(
@@ -303,6 +306,20 @@ pub fn intruder_cm(sys: &System) -> ([f64; 2], [f64; 2]) {
     }
     let k = sys.intruder[0];
     (sys.disks[k].x, sys.disks[k].v)
+}
+
+/// The scene with the intruder's velocity multiplied by `factor` (every intruder disk,
+/// and a cluster's centre-of-mass velocity): a negative control's wrong impact speed.
+pub fn with_intruder_speed(scene: &Scene, factor: f64) -> Scene {
+    let mut s = scene.clone();
+    for &k in &s.sys.intruder {
+        let v = &mut s.sys.disks[k].v;
+        *v = [v[0] * factor, v[1] * factor];
+    }
+    if let Some(c) = &mut s.sys.cluster {
+        c.vcm = [c.vcm[0] * factor, c.vcm[1] * factor];
+    }
+    s
 }
 
 /// The scene made wrong on purpose for a negative control (the reference engine always
