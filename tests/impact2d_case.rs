@@ -16,6 +16,19 @@ fn err(text: &str) -> String {
         .to_string()
 }
 
+/// Each edit (from, to, field, why) of `base`, made alone, is refused with an error
+/// naming the file, the field and the reason.
+fn assert_rejected(base: &str, edits: &[(&str, &str, &str, &str)]) {
+    for (from, to, field, why) in edits {
+        assert!(base.contains(from), "{from}");
+        let e = err(&base.replacen(from, to, 1));
+        assert!(
+            e.contains("bad.toml") && e.contains(field) && e.contains(why),
+            "{from} -> {to}: {e}"
+        );
+    }
+}
+
 #[test]
 fn shipped_cases_load() {
     let cases = common::root().join("cases");
@@ -66,42 +79,38 @@ fn paper_units_convert_to_si() {
 #[test]
 fn bad_inputs_name_file_field_value_and_reason() {
     let t = ci_text();
-    for (from, to, field, why) in [
-        ("\ne_n = 0.5", "\ne_n = 1.5", "grains.e_n", "(0, 1]"),
-        ("k_n = 4000.0", "k_n = -1.0", "grains.k_n", "> 0"),
-        ("dt = 0.04 ", "dt = 0.5 ", "simulation.dt", "tau_c/10"),
-        (
-            "polydispersity = 0.2",
-            "polydispersity = 0.7",
-            "bed.polydispersity",
-            "[0, 0.5)",
-        ),
-        (
-            "final_window = 200.0",
-            "final_window = 5000.0",
-            "analysis.final_window",
-            "shorter",
-        ),
-        (
-            "shape = \"disk\"",
-            "shape = \"ellipse\"",
-            "intruder.a",
-            "semi-axes",
-        ),
-        (
-            "energy_every = 1000",
-            "energy_every = 1010",
-            "simulation.energy_every",
-            "multiple",
-        ),
-    ] {
-        assert!(t.contains(from), "{from}");
-        let e = err(&t.replacen(from, to, 1));
-        assert!(
-            e.contains("bad.toml") && e.contains(field) && e.contains(why),
-            "{e}"
-        );
-    }
+    assert_rejected(
+        &t,
+        &[
+            ("\ne_n = 0.5", "\ne_n = 1.5", "grains.e_n", "(0, 1]"),
+            ("k_n = 4000.0", "k_n = -1.0", "grains.k_n", "> 0"),
+            ("dt = 0.04 ", "dt = 0.5 ", "simulation.dt", "tau_c/10"),
+            (
+                "polydispersity = 0.2",
+                "polydispersity = 0.7",
+                "bed.polydispersity",
+                "[0, 0.5)",
+            ),
+            (
+                "final_window = 200.0",
+                "final_window = 5000.0",
+                "analysis.final_window",
+                "shorter",
+            ),
+            (
+                "shape = \"disk\"",
+                "shape = \"ellipse\"",
+                "intruder.a",
+                "semi-axes",
+            ),
+            (
+                "energy_every = 1000",
+                "energy_every = 1010",
+                "simulation.energy_every",
+                "multiple",
+            ),
+        ],
+    );
     let e = err(&t.replace("friction = \"kinetic\"", "friction = \"sticky\""));
     assert!(e.contains("bad.toml") && e.contains("sticky"), "{e}");
     let e = err(&(t.clone() + "\n[sweep]\nparameter = \"colour\"\nvalues = [1, 2]\n"));
@@ -213,52 +222,48 @@ fn field_and_force_claims_parse_and_name_their_mistakes() {
     assert_eq!(f.network_steps, vec![300, 600]);
     assert_eq!(f.affine.map(|a| (a.0, a.1)), Some((575, 600)));
     assert_eq!(f.position_steps(), vec![300, 575, 600]);
-    for (from, to, field, why) in [
-        (
-            "larger = \"mu=0,kinetic\"",
-            "larger = \"mu=9\"",
-            "claim.larger",
-            "no such variant",
-        ),
-        (
-            "network_times = [12.0, 24.0]",
-            "network_times = [12.01]",
-            "fields.network_times[0]",
-            "whole number",
-        ),
-        (
-            "network_times = [12.0, 24.0]",
-            "network_times = [24.0, 12.0]",
-            "fields.network_times",
-            "rise",
-        ),
-        (
-            "affine_time = 24.0",
-            "affine_time = 99.0",
-            "fields.affine_time",
-            "after the end",
-        ),
-        ("affine_dt = 1.0\n", "", "fields", "needs all three"),
-        (
-            "min_ratio = 1.1",
-            "min_ratio = 1.1\nmax_ratio = 1.0",
-            "claim.max_ratio",
-            "exceed",
-        ),
-        (
-            "mu = 0.0, friction = \"kinetic\"",
-            "mu = 0.0, friction = \"sticky\"",
-            "sweep.values[0]",
-            "friction_mu takes",
-        ),
-    ] {
-        assert!(ok.contains(from), "{from}");
-        let e = err(&ok.replacen(from, to, 1));
-        assert!(
-            e.contains("bad.toml") && e.contains(field) && e.contains(why),
-            "{e}"
-        );
-    }
+    assert_rejected(
+        &ok,
+        &[
+            (
+                "larger = \"mu=0,kinetic\"",
+                "larger = \"mu=9\"",
+                "claim.larger",
+                "no such variant",
+            ),
+            (
+                "network_times = [12.0, 24.0]",
+                "network_times = [12.01]",
+                "fields.network_times[0]",
+                "whole number",
+            ),
+            (
+                "network_times = [12.0, 24.0]",
+                "network_times = [24.0, 12.0]",
+                "fields.network_times",
+                "rise",
+            ),
+            (
+                "affine_time = 24.0",
+                "affine_time = 99.0",
+                "fields.affine_time",
+                "after the end",
+            ),
+            ("affine_dt = 1.0\n", "", "fields", "needs all three"),
+            (
+                "min_ratio = 1.1",
+                "min_ratio = 1.1\nmax_ratio = 1.0",
+                "claim.max_ratio",
+                "exceed",
+            ),
+            (
+                "mu = 0.0, friction = \"kinetic\"",
+                "mu = 0.0, friction = \"sticky\"",
+                "sweep.values[0]",
+                "friction_mu takes",
+            ),
+        ],
+    );
     // A B0 claim without network times.
     let e = err(&ok
         .replace("network_times = [12.0, 24.0]\n", "")
@@ -348,113 +353,109 @@ fn bed_sweep_and_size_claim_parse_and_name_their_mistakes() {
     )
     .unwrap();
     assert_ne!(other.canonical_hash(), c.canonical_hash());
-    for (from, to, field, why) in [
-        (
-            "count = 600, length = 40, seed = 7",
-            "count = 0, length = 40, seed = 7",
-            "sweep.values[2].count",
-            "whole number >= 1",
-        ),
-        (
-            "count = 600, length = 40, seed = 7",
-            "count = 6.5, length = 40, seed = 7",
-            "sweep.values[2].count",
-            "whole number",
-        ),
-        (
-            "count = 600, length = 40, seed = 7",
-            "count = 600, length = 4, seed = 7",
-            "sweep.values[2].length",
-            ">= 5 d",
-        ),
-        (
-            "count = 600, length = 40, seed = 7",
-            "count = 600, length = 6, seed = 7",
-            "sweep.values[2].length",
-            "narrower than 0.8 L",
-        ),
-        (
-            "count = 600, length = 40, seed = 7",
-            "count = 600, length = \"x\", seed = 7",
-            "sweep.values[2].length",
-            "number",
-        ),
-        (
-            "count = 600, length = 40, seed = 7",
-            "count = 600, length = 40, seed = -1",
-            "sweep.values[2].seed",
-            "whole number >= 0",
-        ),
-        (
-            "count = 600, length = 40, seed = 7",
-            "count = 600, length = 40",
-            "sweep.values[2].seed",
-            "missing",
-        ),
-        (
-            "count = 600, length = 40, seed = 7",
-            "count = 600, length = 40, seed = 7, packing = \"hexagonal\"",
-            "sweep.values[2].packing",
-            "unknown field",
-        ),
-        (
-            "{ count = 600, length = 40, seed = 7 }",
-            "600",
-            "sweep.values[2]",
-            "tables",
-        ),
-        (
-            "count = 600, length = 40, seed = 8",
-            "count = 600, length = 40.0, seed = 7",
-            "sweep.values[3]",
-            "repeated",
-        ),
-        // One size: nothing to compare.
-        (
-            "count = 600, length = 40, seed = 7 }, { count = 600, length = 40, seed = 8",
-            "count = 450, length = 30, seed = 9 }, { count = 450, length = 30, seed = 10",
-            "claim.kind",
-            "at least 2 sizes",
-        ),
-        // A size with one realization.
-        (
-            "count = 600, length = 40, seed = 8",
-            "count = 700, length = 40, seed = 8",
-            "claim.kind",
-            "every size needs at least 2",
-        ),
-        (
-            "max_spread = 1.0",
-            "max_spread = 0.0",
-            "claim.max_spread",
-            "> 0",
-        ),
-        (
-            "other_size_speed_factor = 0.5",
-            "other_size_speed_factor = 1.0",
-            "negative_control[1].perturbation.other_size_speed_factor",
-            "not 1",
-        ),
-        (
-            "other_size_speed_factor = 0.5",
-            "other_size_speed_factor = -2.0",
-            "negative_control[1].perturbation.other_size_speed_factor",
-            "> 0",
-        ),
-        (
-            "other_size_speed_factor = 0.5",
-            "sweep_ignored = true",
-            "negative_control[1].perturbation.sweep_ignored",
-            "bed sweep",
-        ),
-    ] {
-        assert!(ok.contains(from), "{from}");
-        let e = err(&ok.replacen(from, to, 1));
-        assert!(
-            e.contains("bad.toml") && e.contains(field) && e.contains(why),
-            "{from} -> {to}: {e}"
-        );
-    }
+    assert_rejected(
+        &ok,
+        &[
+            (
+                "count = 600, length = 40, seed = 7",
+                "count = 0, length = 40, seed = 7",
+                "sweep.values[2].count",
+                "whole number >= 1",
+            ),
+            (
+                "count = 600, length = 40, seed = 7",
+                "count = 6.5, length = 40, seed = 7",
+                "sweep.values[2].count",
+                "whole number",
+            ),
+            (
+                "count = 600, length = 40, seed = 7",
+                "count = 600, length = 4, seed = 7",
+                "sweep.values[2].length",
+                ">= 5 d",
+            ),
+            (
+                "count = 600, length = 40, seed = 7",
+                "count = 600, length = 6, seed = 7",
+                "sweep.values[2].length",
+                "narrower than 0.8 L",
+            ),
+            (
+                "count = 600, length = 40, seed = 7",
+                "count = 600, length = \"x\", seed = 7",
+                "sweep.values[2].length",
+                "number",
+            ),
+            (
+                "count = 600, length = 40, seed = 7",
+                "count = 600, length = 40, seed = -1",
+                "sweep.values[2].seed",
+                "whole number >= 0",
+            ),
+            (
+                "count = 600, length = 40, seed = 7",
+                "count = 600, length = 40",
+                "sweep.values[2].seed",
+                "missing",
+            ),
+            (
+                "count = 600, length = 40, seed = 7",
+                "count = 600, length = 40, seed = 7, packing = \"hexagonal\"",
+                "sweep.values[2].packing",
+                "unknown field",
+            ),
+            (
+                "{ count = 600, length = 40, seed = 7 }",
+                "600",
+                "sweep.values[2]",
+                "tables",
+            ),
+            (
+                "count = 600, length = 40, seed = 8",
+                "count = 600, length = 40.0, seed = 7",
+                "sweep.values[3]",
+                "repeated",
+            ),
+            // One size: nothing to compare.
+            (
+                "count = 600, length = 40, seed = 7 }, { count = 600, length = 40, seed = 8",
+                "count = 450, length = 30, seed = 9 }, { count = 450, length = 30, seed = 10",
+                "claim.kind",
+                "at least 2 sizes",
+            ),
+            // A size with one realization.
+            (
+                "count = 600, length = 40, seed = 8",
+                "count = 700, length = 40, seed = 8",
+                "claim.kind",
+                "every size needs at least 2",
+            ),
+            (
+                "max_spread = 1.0",
+                "max_spread = 0.0",
+                "claim.max_spread",
+                "> 0",
+            ),
+            (
+                "other_size_speed_factor = 0.5",
+                "other_size_speed_factor = 1.0",
+                "negative_control[1].perturbation.other_size_speed_factor",
+                "not 1",
+            ),
+            (
+                "other_size_speed_factor = 0.5",
+                "other_size_speed_factor = -2.0",
+                "negative_control[1].perturbation.other_size_speed_factor",
+                "> 0",
+            ),
+            (
+                "other_size_speed_factor = 0.5",
+                "sweep_ignored = true",
+                "negative_control[1].perturbation.sweep_ignored",
+                "bed sweep",
+            ),
+        ],
+    );
     // The claim and the slowing control need a bed sweep.
     let speed = "\n[sweep]\nparameter = \"speed\"\nvalues = [0.4, 0.7]\n";
     let e = err(&format!("{t}{speed}{claim}"));

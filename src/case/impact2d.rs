@@ -744,7 +744,7 @@ impl Impact2dCase {
         if b.count == 0 {
             return Err(ctx.bad("bed.count", 0, "must be >= 1"));
         }
-        let length = positive(&ctx, "bed.length", b.length)? * d;
+        let length = period_length(&ctx, "bed.length", b.length, d)?;
         let poly = finite(&ctx, "bed.polydispersity", b.polydispersity)?;
         if !(0.0..0.5).contains(&poly) {
             return Err(ctx.bad(
@@ -757,9 +757,6 @@ impl Impact2dCase {
             non_negative(&ctx, "bed.initial_speed", b.initial_speed)? * scales.velocity();
         let settle_ke = positive(&ctx, "bed.settle_ke", b.settle_ke)? * m * g0 * d;
         let max_settle_time = positive(&ctx, "bed.max_settle_time", b.max_settle_time)? * tau;
-        if length < 5.0 * d {
-            return Err(ctx.bad("bed.length", b.length, "must be >= 5 d"));
-        }
 
         let i = &raw.intruder;
         let areal = m / (std::f64::consts::PI * 0.25 * d * d);
@@ -843,12 +840,8 @@ impl Impact2dCase {
                 )
             }
         };
-        if width > 0.8 * length {
-            return Err(ctx.bad(
-                "intruder",
-                width / d,
-                "the intruder must be narrower than 0.8 L",
-            ));
+        if !fits_period(width, length) {
+            return Err(ctx.bad("intruder", width / d, NARROWER));
         }
         let speed = non_negative(&ctx, "intruder.speed", i.speed)? * scales.velocity();
         let release_height = positive(&ctx, "intruder.release_height", i.release_height)? * d;
@@ -1365,6 +1358,24 @@ fn size_groups(variants: &[Variant], count: usize, length: f64) -> Vec<((usize, 
     out
 }
 
+/// The periodic length L of a bed, given in d, in m: positive and at least 5 d (fewer
+/// grains across than that is no bed), for `[bed]` and every `bed` sweep value alike.
+fn period_length(ctx: &Ctx, field: &str, l_d: f64, d: f64) -> Result<f64, CaseError> {
+    let l_d = positive(ctx, field, l_d)?;
+    if l_d < 5.0 {
+        return Err(ctx.bad(field, l_d, "must be >= 5 d"));
+    }
+    Ok(l_d * d)
+}
+
+const NARROWER: &str = "the intruder must be narrower than 0.8 L";
+
+/// Whether an intruder of this width (m) leaves room in a period of length L (m): its
+/// periodic images must not meet across the boundary.
+fn fits_period(width: f64, length: f64) -> bool {
+    width <= 0.8 * length
+}
+
 /// One value of a `bed` sweep: `{ count = N, length = L, seed = S }` (L in d), checked
 /// as `[bed]`'s own count, length and seed are; `width` is the intruder's (m). Also
 /// returns L in d as written (for the variant's label).
@@ -1412,17 +1423,14 @@ fn bed_value(
         .as_float()
         .or_else(|| x.as_integer().map(|n| n as f64))
         .ok_or_else(|| ctx.bad(&lf, x.to_string(), "must be a number (d)"))?;
-    let l = positive(ctx, &lf, l)?;
-    if l < 5.0 {
-        return Err(ctx.bad(&lf, l, "must be >= 5 d"));
-    }
-    if width > 0.8 * l * d {
-        return Err(ctx.bad(&lf, l, "the intruder must be narrower than 0.8 L"));
+    let length = period_length(ctx, &lf, l, d)?;
+    if !fits_period(width, length) {
+        return Err(ctx.bad(&lf, l, NARROWER));
     }
     Ok((
         BedSize {
             count,
-            length: l * d,
+            length,
             seed,
         },
         l,
