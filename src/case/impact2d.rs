@@ -225,6 +225,12 @@ pub enum Claim {
     /// `of` strictly increases along the sweep, each step by at least `min_step` (d, or
     /// tau_c for a time) (K: static < kinetic friction, hexagonal < random, grows with
     /// e_n; Fig 9: deeper and later for smaller g).
+    ///
+    /// On a seed ensemble (`[bed] seeds`, registered before any ensemble run): per sweep
+    /// value the mean of `of` over the seeds and its standard error SE = sample sd /
+    /// sqrt(n); passes iff every step of the means rises by at least max(`min_step`,
+    /// 2 SE_c), SE_c = sqrt(SE_k^2 + SE_k+1^2), else fails. The detail lists mean +- SE
+    /// per value and each seed's value.
     Increasing {
         #[serde(default)]
         min_step: f64,
@@ -240,6 +246,10 @@ pub enum Claim {
     EnergyNonIncreasing { max_rise: f64 },
     /// Final depth vs sweep value is linear for values >= `from`: R^2 of the
     /// least-squares line must be >= `r2_min` (K Fig 8b: linear in v for v >= 0.4).
+    ///
+    /// On a seed ensemble: the same rule on the per-value means of the final depth over
+    /// the seeds (at least 3 values >= `from`, slope > 0); the detail also gives mean +-
+    /// SE per value (SE = sample sd / sqrt(n)) and the slope.
     Linear { from: f64, r2_min: f64 },
     /// K Appendix, Fig 29: at fixed depth the intruder's deceleration follows a power of
     /// its speed, a ~ u^k ("for the kinetic friction case we find k ~ 1"). k is fitted
