@@ -495,11 +495,7 @@ fn seed_ensemble_expands_every_value_per_seed_and_names_its_mistakes() {
     let c = Impact2dCase::from_toml_str(&ok, Path::new("ok.toml")).unwrap();
     assert!(c.is_ensemble());
     assert_eq!(c.seeds, [7, 8, 9]);
-    let labels: Vec<(&str, f64)> = c
-        .variants
-        .iter()
-        .map(|v| (v.label.as_str(), v.x))
-        .collect();
+    let labels: Vec<(&str, f64)> = c.variants.iter().map(|v| (v.label.as_str(), v.x)).collect();
     assert_eq!(
         labels,
         [
@@ -528,8 +524,8 @@ fn seed_ensemble_expands_every_value_per_seed_and_names_its_mistakes() {
         assert_eq!(v.grains.friction, want, "{}", v.label);
     }
     // Seed 7's bed is the one `seed = 7` gives: the same bed key as the single-bed case.
-    let single = Impact2dCase::from_toml_str(&format!("{t}{sweep}{claim}"), Path::new("s.toml"))
-        .unwrap();
+    let single =
+        Impact2dCase::from_toml_str(&format!("{t}{sweep}{claim}"), Path::new("s.toml")).unwrap();
     assert_eq!(c.bed_of(&c.variants[3]), single.bed_of(&single.variants[1]));
     assert_eq!(
         c.ensemble_groups(),
@@ -585,8 +581,18 @@ fn seed_ensemble_expands_every_value_per_seed_and_names_its_mistakes() {
                 "not both",
             ),
             ("seeds = [7, 8, 9]", "", "bed.seed", "seed ensemble"),
-            ("seeds = [7, 8, 9]", "seeds = [7]", "bed.seeds", "at least 2 seeds"),
-            ("seeds = [7, 8, 9]", "seeds = []", "bed.seeds", "at least 2 seeds"),
+            (
+                "seeds = [7, 8, 9]",
+                "seeds = [7]",
+                "bed.seeds",
+                "at least 2 seeds",
+            ),
+            (
+                "seeds = [7, 8, 9]",
+                "seeds = []",
+                "bed.seeds",
+                "at least 2 seeds",
+            ),
             (
                 "seeds = [7, 8, 9]",
                 "seeds = [7, 8, 7]",

@@ -1144,7 +1144,9 @@ impl Impact2dCase {
                     format!("claim[{k}].{f}")
                 }
             };
-            if !seeds.is_empty() && !matches!(claim, Claim::Increasing { .. } | Claim::Linear { .. }) {
+            if !seeds.is_empty()
+                && !matches!(claim, Claim::Increasing { .. } | Claim::Linear { .. })
+            {
                 let kind = serde_json::to_value(claim)
                     .ok()
                     .and_then(|v| v["kind"].as_str().map(str::to_string))
@@ -1340,8 +1342,11 @@ impl Impact2dCase {
                         return Err(ctx.bad(at("r2_min"), r2_min, "must lie in [0, 1]"));
                     }
                     // Distinct values (a seed ensemble has one variant per seed of each).
-                    let mut xs: Vec<f64> =
-                        variants.iter().filter(|v| v.x >= *from).map(|v| v.x).collect();
+                    let mut xs: Vec<f64> = variants
+                        .iter()
+                        .filter(|v| v.x >= *from)
+                        .map(|v| v.x)
+                        .collect();
                     xs.dedup();
                     let n = xs.len();
                     if n < 3 {
@@ -1474,7 +1479,10 @@ fn bed_seeds(ctx: &Ctx, b: &BedIn, sweep: Option<&str>) -> Result<(u64, Vec<u64>
     let list = |v: &[toml::Value]| {
         format!(
             "[{}]",
-            v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(", ")
+            v.iter()
+                .map(|x| x.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         )
     };
     match (b.seed, &b.seeds) {

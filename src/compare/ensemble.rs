@@ -100,7 +100,10 @@ mod tests {
         ValueStats::new(
             format!("x={x}"),
             x,
-            ys.iter().enumerate().map(|(k, y)| (k as u64 + 1, *y)).collect(),
+            ys.iter()
+                .enumerate()
+                .map(|(k, y)| (k as u64 + 1, *y))
+                .collect(),
         )
     }
 
@@ -116,14 +119,16 @@ mod tests {
 
     #[test]
     fn increasing_needs_the_larger_of_min_step_and_two_combined_se() {
-        let shifted = |a: &ValueStats, d: f64| {
-            v(1.0, &a.seeds.iter().map(|s| s.1 + d).collect::<Vec<_>>())
-        };
+        let shifted =
+            |a: &ValueStats, d: f64| v(1.0, &a.seeds.iter().map(|s| s.1 + d).collect::<Vec<_>>());
         // Quiet seeds: SE = sqrt(0.025 / 5) = 0.0707 per value, 2 SE_c = 0.2 < min_step
         // 0.5, so 0.5 is needed: a rise of 0.6 passes, 0.4 fails (below min_step).
         let a = v(0.0, &[1.0, 1.2, 1.1, 0.9, 1.3]);
         let (w, steps) = increasing(&[a.clone(), shifted(&a, 0.6)], 0.5);
-        assert!((steps[0].combined_se - 0.2 / 2.0).abs() < 1e-12, "{steps:?}");
+        assert!(
+            (steps[0].combined_se - 0.2 / 2.0).abs() < 1e-12,
+            "{steps:?}"
+        );
         assert_eq!(steps[0].needed, 0.5);
         assert!((w + 0.1).abs() < 1e-12, "{w}");
         assert!(increasing(&[a.clone(), shifted(&a, 0.4)], 0.5).0 > 0.0);

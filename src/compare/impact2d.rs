@@ -1,11 +1,11 @@
 //! Impact checks (Kondic et al.): native vs LAMMPS per variant (final depth, D(t) RMS
 //! distance), and K's claims over a sweep, evaluated separately in each engine.
 
+use super::ensemble::{self, ValueStats};
 use super::{Check, Gate};
 use crate::analysis::affine::{AffineGrain, AffineSummary};
 use crate::analysis::force_network::{B0Curves, integral, relative_l1};
 use crate::analysis::impact::{ForceSummary, bins_rms, force_summary};
-use super::ensemble::{self, ValueStats};
 use crate::case::impact2d::{Claim, ClaimQuantity, FieldQuantity, Impact2dCase};
 
 /// The bed fields of one run (K Sec. IV), reduced.
@@ -702,7 +702,12 @@ pub fn ensemble_stats(
 /// `increasing` passes iff every step of the per-value means rises by at least
 /// max(min_step, 2 combined SE); `linear` is the single-bed rule on the means. Other
 /// kinds are refused when the case loads.
-fn ensemble_claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantObs]) -> Check {
+fn ensemble_claim_check(
+    case: &Impact2dCase,
+    claim: &Claim,
+    engine: &str,
+    obs: &[VariantObs],
+) -> Check {
     let param = case.sweep_parameter.clone().unwrap_or_default();
     let n = case.seeds.len();
     let stats = ensemble_stats(case, obs, &|o| claim_value(claim, o));
@@ -741,7 +746,11 @@ fn ensemble_claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &
                 0.0,
                 format!(
                     "min_step {min_step} {unit}; steps: {steps}; {what} ({unit}), mean +- SE over seeds: {}",
-                    stats.iter().map(|s| s.describe()).collect::<Vec<_>>().join("; ")
+                    stats
+                        .iter()
+                        .map(|s| s.describe())
+                        .collect::<Vec<_>>()
+                        .join("; ")
                 ),
             )
         }
@@ -778,7 +787,11 @@ fn ensemble_claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &
                     format!(
                         "mean D = {a:.3} + {b:.3} x (slope {b:.3} d per unit of {param}, must be > 0; R^2 {r2:.4} over {} values); final depth (d), mean +- SE over seeds: {}",
                         fit.len(),
-                        stats.iter().map(|s| s.describe()).collect::<Vec<_>>().join("; ")
+                        stats
+                            .iter()
+                            .map(|s| s.describe())
+                            .collect::<Vec<_>>()
+                            .join("; ")
                     ),
                 ),
                 Err(e) => Check::error_in(name, Gate::Claim, format!("{e:#}")),
@@ -1281,10 +1294,15 @@ mod tests {
             "[1, 2, 3, 4, 5]",
         );
         let scatter = [0.0, 0.2, -0.1, 0.3, -0.2];
-        let k = one(&c, &ensemble_obs(&c, &|i, j| 3.0 + 2.0 * i as f64 + scatter[j])).unwrap();
+        let k = one(
+            &c,
+            &ensemble_obs(&c, &|i, j| 3.0 + 2.0 * i as f64 + scatter[j]),
+        )
+        .unwrap();
         assert!(k.passed, "{k:?}");
         assert!(
-            k.detail.contains("friction=static: 3.040 +- 0.093 (seed 1: 3.000, seed 2: 3.200")
+            k.detail
+                .contains("friction=static: 3.040 +- 0.093 (seed 1: 3.000, seed 2: 3.200")
                 && k.detail.contains("friction=kinetic: 5.040 +-")
                 && k.detail.contains("rise 2.000, needed 0.500"),
             "{}",
@@ -1293,18 +1311,35 @@ mod tests {
         assert!((k.value - (0.5 - 2.0)).abs() < 1e-12, "{}", k.value);
         // The same mean step, seeds scattered by several d: 2 SE_c = 5.25 > 2.
         let wide = [0.0, 4.0, -2.0, 6.0, -4.0];
-        let k = one(&c, &ensemble_obs(&c, &|i, j| 5.0 + 2.0 * i as f64 + wide[j])).unwrap();
-        assert!(!k.passed && k.status == crate::compare::Status::Fail, "{k:?}");
+        let k = one(
+            &c,
+            &ensemble_obs(&c, &|i, j| 5.0 + 2.0 * i as f64 + wide[j]),
+        )
+        .unwrap();
+        assert!(
+            !k.passed && k.status == crate::compare::Status::Fail,
+            "{k:?}"
+        );
         assert!(k.detail.contains("needed 5.246"), "{}", k.detail);
         // Resolved (SE 0.09) but only 0.3 d: below min_step.
-        let k = one(&c, &ensemble_obs(&c, &|i, j| 3.0 + 0.3 * i as f64 + scatter[j])).unwrap();
+        let k = one(
+            &c,
+            &ensemble_obs(&c, &|i, j| 3.0 + 0.3 * i as f64 + scatter[j]),
+        )
+        .unwrap();
         assert!(!k.passed, "{k:?}");
         let k = one(&c, &ensemble_obs(&c, &|_, j| 3.0 + scatter[j])).unwrap();
-        assert!(!k.passed && k.status == crate::compare::Status::Fail, "{k:?}");
+        assert!(
+            !k.passed && k.status == crate::compare::Status::Fail,
+            "{k:?}"
+        );
         let mut missing = ensemble_obs(&c, &|i, j| 3.0 + 2.0 * i as f64 + scatter[j]);
         missing.remove(7);
         let k = one(&c, &missing).unwrap();
-        assert!(k.is_error() && k.detail.contains("friction=kinetic,seed=3"), "{k:?}");
+        assert!(
+            k.is_error() && k.detail.contains("friction=kinetic,seed=3"),
+            "{k:?}"
+        );
     }
 
     /// The ensemble `linear` rule (K Fig 8b): R^2 of the line through the per-value means
@@ -1320,11 +1355,16 @@ mod tests {
         assert_eq!(c.seeds, [3, 1, 2]);
         let xs = [0.1, 0.4, 0.7, 1.0];
         let scatter = [0.4, -0.3, -0.1];
-        let k = one(&c, &ensemble_obs(&c, &|i, j| 5.0 + 8.0 * xs[i] + scatter[j])).unwrap();
+        let k = one(
+            &c,
+            &ensemble_obs(&c, &|i, j| 5.0 + 8.0 * xs[i] + scatter[j]),
+        )
+        .unwrap();
         assert!(k.passed && k.value < 1e-12, "{k:?}");
         assert!(
             k.detail.contains("slope 8.000")
-                && k.detail.contains("speed=0.7: 10.600 +- 0.208 (seed 3: 11.000, seed 1: 10.300"),
+                && k.detail
+                    .contains("speed=0.7: 10.600 +- 0.208 (seed 3: 11.000, seed 1: 10.300"),
             "{}",
             k.detail
         );
@@ -1332,7 +1372,10 @@ mod tests {
         let k = one(&c, &ensemble_obs(&c, &|i, j| curved[i] + scatter[j])).unwrap();
         assert!(!k.passed, "{k:?}");
         let k = one(&c, &ensemble_obs(&c, &|_, j| 10.0 + scatter[j])).unwrap();
-        assert!(!k.passed && k.status == crate::compare::Status::Fail, "{k:?}");
+        assert!(
+            !k.passed && k.status == crate::compare::Status::Fail,
+            "{k:?}"
+        );
     }
 
     #[test]
