@@ -136,10 +136,20 @@ impl Experiment for Impact2d {
                         .collect::<Vec<_>>()
                         .join(", ")
                 },
-                format!(
-                    "per bed, plus the frozen wall disks; {} variant(s)",
-                    c.variants.len()
-                ),
+                if c.is_ensemble() {
+                    format!(
+                        "per bed, plus the frozen wall disks; {} run(s): {} value(s) x {} seeds {:?}",
+                        c.variants.len(),
+                        c.ensemble_groups().len(),
+                        c.seeds.len(),
+                        c.seeds
+                    )
+                } else {
+                    format!(
+                        "per bed, plus the frozen wall disks; {} variant(s)",
+                        c.variants.len()
+                    )
+                },
             ),
             Derived::new(
                 "collision time tau_c",
