@@ -22,7 +22,8 @@
 //! A case may declare a one-parameter `[sweep]`; each value is one run (variant) from
 //! the same prepared bed (the `packing` and `bed` sweeps prepare one bed per distinct
 //! bed: packing, count, length and seed), and an optional `[claim]` turns the variants'
-//! final depths into one of K's claims.
+//! final depths into one of K's claims. `[bed] seeds` makes a seed ensemble: every
+//! variant once per seed, the claims judged on the per-value means over the seeds.
 
 use super::error::{CaseError, Ctx};
 use super::validate::{finite, positive};

@@ -1,7 +1,7 @@
 //! The 2D impact experiment (Kondic et al.): beds prepared natively, one unit per sweep
-//! variant (a scene: the bed, the walls and the intruder with its speed), each run
-//! natively and in LAMMPS from the same scene; final depth and D(t) per variant, the
-//! paper's claim over the sweep in each engine.
+//! variant (once per seed of a seed ensemble; a scene: the bed, the walls and the
+//! intruder with its speed), each run natively and in LAMMPS from the same scene; final
+//! depth and D(t) per variant, the paper's claim over the sweep in each engine.
 
 use super::reference::Verified;
 use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
