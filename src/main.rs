@@ -297,20 +297,31 @@ fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOut
         },
         Ok(case) => {
             eprintln!("== {} ({})", case.name(), path.display());
-            let dir = out.join(case.name());
-            with_experiment!(case, stress, |exp| runner::compare(&exp, opts, &dir))
+            let name = case.name().to_string();
+            let dir = out.join(&name);
+            let mut o = with_experiment!(case, stress, |exp| runner::compare(&exp, opts, &dir));
+            // The case's figures are under its own directory of the report.
+            for s in &mut o.sections {
+                for f in &mut s.figures {
+                    *f = format!("{name}/{f}");
+                }
+            }
+            o
         }
     }
 }
 
 fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
-    let (mut checks, mut runs, mut notes) = (vec![], vec![], vec![]);
+    let (mut checks, mut runs, mut notes, mut sections) = (vec![], vec![], vec![], vec![]);
     for o in outcomes {
         checks.extend(o.checks);
         runs.extend(o.run);
         notes.extend(o.notes);
+        sections.extend(o.sections);
     }
-    Report::new(checks, runs, notes)
+    let mut r = Report::new(checks, runs, notes);
+    r.sections = sections;
+    r
 }
 
 fn real_main() -> Result<ExitCode> {
@@ -405,6 +416,7 @@ fn real_main() -> Result<ExitCode> {
                 checks: claim_checks,
                 run: None,
                 notes: claim_notes.into_iter().chain(malt_notes).collect(),
+                ..CaseOutcome::default()
             });
             let (figure_notes, claim_sections) = suite::claim_sections(&s, &dirs, &report);
             let mut r = report_of(outcomes);

@@ -477,3 +477,152 @@ fn bed_sweep_and_size_claim_parse_and_name_their_mistakes() {
         "{e}"
     );
 }
+
+/// `[bed] seeds`: every sweep value runs once per seed on that seed's bed (`[bed]`'s
+/// count and length), labelled `VALUE,seed=S` with x the swept value; the case hash sees
+/// the seeds; bad ensembles name their field, value and reason.
+#[test]
+fn seed_ensemble_expands_every_value_per_seed_and_names_its_mistakes() {
+    use granval::case::impact2d::{BedSize, EnsembleGroup};
+    let t = ci_text();
+    assert!(t.contains("seed = 7\n"));
+    let d = 0.004;
+    let ens = t.replace("seed = 7\n", "seeds = [7, 8, 9]\n");
+    let sweep = "\n[sweep]\nparameter = \"friction\"\nvalues = [\"static\", \"kinetic\"]\n";
+    let claim = "[claim]\nkind = \"increasing\"\nmin_step = 0.5\n";
+    let control = "[[negative_control]]\nname = \"ignored\"\nmust_fail = [\"claim\"]\nperturbation = { sweep_ignored = true }\n";
+    let ok = format!("{ens}{sweep}{claim}{control}");
+    let c = Impact2dCase::from_toml_str(&ok, Path::new("ok.toml")).unwrap();
+    assert!(c.is_ensemble());
+    assert_eq!(c.seeds, [7, 8, 9]);
+    let labels: Vec<(&str, f64)> = c.variants.iter().map(|v| (v.label.as_str(), v.x)).collect();
+    assert_eq!(
+        labels,
+        [
+            ("friction=static,seed=7", 0.0),
+            ("friction=static,seed=8", 0.0),
+            ("friction=static,seed=9", 0.0),
+            ("friction=kinetic,seed=7", 1.0),
+            ("friction=kinetic,seed=8", 1.0),
+            ("friction=kinetic,seed=9", 1.0)
+        ]
+    );
+    for (k, v) in c.variants.iter().enumerate() {
+        assert_eq!(
+            v.bed,
+            Some(BedSize {
+                count: 450,
+                length: 30.0 * d,
+                seed: 7 + k as u64 % 3
+            })
+        );
+        let want = if k < 3 {
+            Friction::Static
+        } else {
+            Friction::Kinetic
+        };
+        assert_eq!(v.grains.friction, want, "{}", v.label);
+    }
+    // Seed 7's bed is the one `seed = 7` gives: the same bed key as the single-bed case.
+    let single =
+        Impact2dCase::from_toml_str(&format!("{t}{sweep}{claim}"), Path::new("s.toml")).unwrap();
+    assert_eq!(c.bed_of(&c.variants[3]), single.bed_of(&single.variants[1]));
+    assert_eq!(
+        c.ensemble_groups(),
+        vec![
+            EnsembleGroup {
+                value: "friction=static".into(),
+                x: 0.0,
+                members: vec![0, 1, 2]
+            },
+            EnsembleGroup {
+                value: "friction=kinetic".into(),
+                x: 1.0,
+                members: vec![3, 4, 5]
+            }
+        ]
+    );
+    assert!(single.ensemble_groups().is_empty() && !single.is_ensemble());
+    // The seeds are part of what the runs depend on.
+    assert_ne!(c.canonical_hash(), single.canonical_hash());
+    let other = Impact2dCase::from_toml_str(
+        &ok.replace("seeds = [7, 8, 9]", "seeds = [7, 8, 10]"),
+        Path::new("ok.toml"),
+    )
+    .unwrap();
+    assert_ne!(other.canonical_hash(), c.canonical_hash());
+    // Without a sweep: the case itself once per seed.
+    let plain = Impact2dCase::from_toml_str(&ens, Path::new("p.toml")).unwrap();
+    let labels: Vec<&str> = plain.variants.iter().map(|v| v.label.as_str()).collect();
+    assert_eq!(labels, ["seed=7", "seed=8", "seed=9"]);
+    assert_eq!(plain.ensemble_groups()[0].value, "base");
+    // A linear claim counts sweep values, not runs: 2 speeds >= from on 3 seeds is 2.
+    let lin = format!(
+        "{ens}\n[sweep]\nparameter = \"speed\"\nvalues = [0.2, 0.4, 0.7]\n[claim]\nkind = \"linear\"\nfrom = 0.4\nr2_min = 0.9\n"
+    );
+    let e = err(&lin);
+    assert!(
+        e.contains("claim.from") && e.contains("only 2 sweep values"),
+        "{e}"
+    );
+    let bed_sweep = "\n[sweep]\nparameter = \"bed\"\nvalues = [{ count = 450, length = 30, seed = 1 }, { count = 450, length = 30, seed = 2 }]\n";
+    let e = err(&format!("{ens}{bed_sweep}"));
+    assert!(
+        e.contains("bad.toml") && e.contains("bed.seeds") && e.contains("`bed` sweep"),
+        "{e}"
+    );
+    assert_rejected(
+        &ok,
+        &[
+            (
+                "seeds = [7, 8, 9]",
+                "seed = 7\nseeds = [7, 8, 9]",
+                "bed.seeds",
+                "not both",
+            ),
+            ("seeds = [7, 8, 9]", "", "bed.seed", "seed ensemble"),
+            (
+                "seeds = [7, 8, 9]",
+                "seeds = [7]",
+                "bed.seeds",
+                "at least 2 seeds",
+            ),
+            (
+                "seeds = [7, 8, 9]",
+                "seeds = []",
+                "bed.seeds",
+                "at least 2 seeds",
+            ),
+            (
+                "seeds = [7, 8, 9]",
+                "seeds = [7, 8, 7]",
+                "bed.seeds[2]",
+                "repeated seed",
+            ),
+            (
+                "seeds = [7, 8, 9]",
+                "seeds = [7, -8, 9]",
+                "bed.seeds[1]",
+                "whole number >= 0",
+            ),
+            (
+                "seeds = [7, 8, 9]",
+                "seeds = [7, 8.5, 9]",
+                "bed.seeds[1]",
+                "whole number >= 0",
+            ),
+            (
+                "kind = \"increasing\"\nmin_step = 0.5",
+                "kind = \"energy_non_increasing\"\nmax_rise = 0.01",
+                "claim.kind",
+                "not defined on a seed ensemble",
+            ),
+            (
+                "sweep_ignored = true",
+                "other_size_speed_factor = 0.5",
+                "negative_control[1].perturbation.other_size_speed_factor",
+                "`bed`",
+            ),
+        ],
+    );
+}

@@ -258,3 +258,102 @@ fn elliptical_cluster_intruder_matches_lammps() {
         assert!(c.passed, "{c:?}");
     }
 }
+
+/// A seed ensemble end to end on a tiny bed (120 disks, L = 12 d, two seeds, two speeds):
+/// one bed per seed shared by both speeds, one run per (speed, seed), the claim judged on
+/// the per-speed means, and the sweep-ignored control (every run at the base speed: equal
+/// means) biting on it. With `lmp` installed the whole comparison runs live (cross-checks
+/// per run, the ensemble figure and report section); without it there is no record of
+/// this test-only case, so only the native side runs, and the log says so.
+#[test]
+fn seed_ensemble_runs_each_value_on_each_seed_and_its_control_bites() {
+    use granval::compare::impact2d::claim_checks;
+    use granval::experiments::impact2d::{ENSEMBLE_FIGURE, observe};
+    let text = std::fs::read_to_string(common::root().join("cases/impact2d/ci.toml"))
+        .unwrap()
+        .replace("name = \"ci\"", "name = \"tiny-ensemble\"")
+        .replace("count = 450", "count = 200")
+        .replace("length = 30.0", "length = 16.0")
+        .replace("seed = 7", "seeds = [3, 4]")
+        .replace("settle_ke = 1e-10", "settle_ke = 1e-6")
+        .replace("diameter = 6.0", "diameter = 4.0")
+        .replace("duration = 1000.0", "duration = 300.0")
+        .replace("final_window = 200.0", "final_window = 100.0")
+        + "\n[sweep]\nparameter = \"speed\"\nvalues = [0.1, 0.7]\n\n[claim]\nkind = \"increasing\"\nmin_step = 0.1\n\n[[negative_control]]\nname = \"speed ignored\"\nmust_fail = [\"claim\"]\nperturbation = { sweep_ignored = true }\n";
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("tiny-ensemble.toml");
+    std::fs::write(&file, &text).unwrap();
+    let exp = Impact2d {
+        case: Impact2dCase::load(&file).unwrap_or_else(|e| panic!("{e}")),
+    };
+    let c = &exp.case;
+    assert_eq!(c.variants.len(), 4);
+    let start = std::time::Instant::now();
+    let live = reference::installed(EngineKind::Lammps).is_some();
+    if live {
+        eprintln!("[tiny-ensemble] reference: LIVE LAMMPS");
+        let out = dir.path().join("out");
+        let r = runner::compare(&exp, &common::options(), &out);
+        common::show("tiny-ensemble", &r.checks);
+        assert!(r.checks.iter().all(|k| !k.is_error()), "{:?}", r.checks);
+        // Native vs LAMMPS per run: final depth and D(t) for each (speed, seed).
+        for v in &c.variants {
+            let per: Vec<_> = r
+                .checks
+                .iter()
+                .filter(|k| k.name.contains(&format!("[{}]", v.label)))
+                .collect();
+            assert_eq!(per.len(), 2, "{}: {per:?}", v.label);
+        }
+        let claims: Vec<_> = r.checks.iter().filter(|k| k.gate == Gate::Claim).collect();
+        assert_eq!(claims.len(), 2, "one per engine: {claims:?}");
+        for k in &claims {
+            assert!(k.name.contains("mean of 2 seeds"), "{}", k.name);
+            assert!(k.detail.contains("speed=0.1: ") && k.detail.contains("seed 4: "));
+            assert!(k.passed, "the speed raises the mean depth: {k:?}");
+        }
+        let control = r
+            .checks
+            .iter()
+            .find(|k| k.gate == Gate::NegativeControl)
+            .unwrap();
+        assert!(control.passed, "{control:?}");
+        assert_eq!(r.sections.len(), 1, "{:?}", r.sections);
+        assert_eq!(r.sections[0].figures, [ENSEMBLE_FIGURE]);
+        let svg = std::fs::read_to_string(out.join(ENSEMBLE_FIGURE)).unwrap();
+        assert!(svg.contains("final depth / d") && svg.contains("LAMMPS"));
+    } else {
+        assert!(
+            !common::require_live(),
+            "GRANVAL_REQUIRE_LIVE=1 but LAMMPS is not installed"
+        );
+        eprintln!(
+            "[tiny-ensemble] LAMMPS is not installed and this test-only case has no record: NATIVE SIDE ONLY (claim and control on the native runs)"
+        );
+        let units = exp.units(&common::options()).unwrap();
+        let ignored = Perturbation {
+            sweep_ignored: true,
+            ..Perturbation::default()
+        };
+        let judge = |role: Role| {
+            let obs: Vec<_> = units
+                .iter()
+                .map(|u| {
+                    let d = dir.path().join("native").join(label_dir(&u.variant));
+                    let run = exp.run_native(u, role, &d, &common::options()).unwrap();
+                    observe(c, &u.variant, &u.scene, &run).unwrap().0
+                })
+                .collect();
+            claim_checks(c, "native", &obs).remove(0)
+        };
+        let k = judge(Role::Main);
+        common::show("tiny-ensemble", std::slice::from_ref(&k));
+        assert!(k.passed, "the speed raises the mean depth: {k:?}");
+        let k = judge(Role::Control(&ignored));
+        assert!(
+            k.status == Status::Fail && k.value >= 0.1,
+            "equal means fail by at least min_step: {k:?}"
+        );
+    }
+    eprintln!("[tiny-ensemble] {:.1} s", start.elapsed().as_secs_f64());
+}

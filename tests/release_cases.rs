@@ -433,3 +433,112 @@ fn kondic_fig11_case_sweeps_two_sizes_of_three_seeds_from_the_fig2_bed() {
             .any(|e| e.path.ends_with("release/kondic-fig11-size.toml"))
     );
 }
+
+/// Kondic et al. Figs 8(b) and 6 on five seeds as registered: each is fig2-speed.toml (the
+/// Fig 2 bed) with only `seed = 1` turned into `seeds = [1, 2, 3, 4, 5]` (and, for Fig 6,
+/// the friction sweep at v = 0.7 in place of the speed sweep), down to the canonical hash;
+/// their claims and controls as the files say; and seeds 1-3 are exactly the W = 60 beds
+/// of the Fig 11 case (same bed key and bed specification, so the bed cache shares them).
+#[test]
+fn kondic_five_seed_cases_are_the_fig2_bed_on_seeds_1_to_5_sharing_fig11_beds() {
+    use granval::case::impact2d::{Claim, Impact2dCase};
+    use granval::physics::dem2d::impact::bed_spec;
+    let root = common::root();
+    let load = |rel: &str| match AnyCase::load(&root.join(rel)).unwrap_or_else(|e| panic!("{e}")) {
+        AnyCase::Impact2d(c) => c,
+        _ => panic!("{rel}: not an impact2d case"),
+    };
+    let fig2 = std::fs::read_to_string(root.join("cases/impact2d/fig2-speed.toml"))
+        .unwrap()
+        .replace("seed = 1\n", "seeds = [1, 2, 3, 4, 5]\n");
+    let same_as = |rel: &str, edits: &[(&str, &str)]| {
+        let mut text = fig2.clone();
+        for (from, to) in edits {
+            assert!(
+                text.contains(from),
+                "{rel}: `{from}` not in fig2-speed.toml"
+            );
+            text = text.replace(from, to);
+        }
+        let want = Impact2dCase::from_toml_str(&text, std::path::Path::new("x.toml")).unwrap();
+        let got = load(rel);
+        assert_eq!(got.canonical_hash(), want.canonical_hash(), "{rel}");
+        assert_eq!(got.seeds, [1, 2, 3, 4, 5]);
+        got
+    };
+    let speed = same_as("cases/release/kondic-fig8b-speed-5beds.toml", &[]);
+    assert_eq!(speed.variants.len(), 30);
+    assert_eq!(speed.variants[14].label, "speed=0.2,seed=5");
+    assert!(
+        matches!(speed.claims[..], [Claim::Linear { from, r2_min }] if from == 0.4 && r2_min == 0.9)
+    );
+    let friction = same_as(
+        "cases/release/kondic-fig6-friction-5beds.toml",
+        &[
+            (
+                "parameter = \"speed\"\nvalues = [0.05, 0.1, 0.2, 0.4, 0.7, 1.0]",
+                "parameter = \"friction\"\nvalues = [\"static\", \"kinetic\"]",
+            ),
+            (
+                "kind = \"linear\"\nfrom = 0.4\nr2_min = 0.9",
+                "kind = \"increasing\"\nmin_step = 0.5",
+            ),
+        ],
+    );
+    let labels: Vec<&str> = friction
+        .ensemble_groups()
+        .iter()
+        .map(|g| friction.variants[g.members[0]].label.as_str())
+        .collect();
+    assert_eq!(
+        labels,
+        ["friction=static,seed=1", "friction=kinetic,seed=1"]
+    );
+    assert!(matches!(friction.claims[..], [Claim::Increasing { min_step, .. }] if min_step == 0.5));
+    for c in [&speed, &friction] {
+        let p: Vec<_> = c
+            .negative_controls
+            .iter()
+            .map(|n| (n.perturbation, n.must_fail.clone()))
+            .collect();
+        assert_eq!(p.len(), 2, "{}", c.name);
+        assert!(p[0].0.swap_friction_model && p[0].1 == vec![Gate::FinalDepth]);
+        assert!(p[1].0.sweep_ignored && p[1].1 == vec![Gate::Claim]);
+    }
+    // Seeds 1-3 are the Fig 11 case's W = 60 beds: same key, same specification.
+    let fig11 = load("cases/release/kondic-fig11-size.toml");
+    let spec = |c: &Impact2dCase, v| serde_json::to_string(&bed_spec(c, &c.bed_of(v))).unwrap();
+    for c in [&speed, &friction] {
+        for seed in 1..=3 {
+            let mine = c
+                .variants
+                .iter()
+                .find(|v| c.bed_of(v).seed == seed)
+                .unwrap();
+            let theirs = fig11
+                .variants
+                .iter()
+                .find(|v| c.bed_of(v).seed == seed && fig11.bed_of(v).count == 6000)
+                .unwrap();
+            assert_eq!(
+                c.bed_of(mine),
+                fig11.bed_of(theirs),
+                "{} seed {seed}",
+                c.name
+            );
+            assert_eq!(
+                spec(c, mine),
+                spec(&fig11, theirs),
+                "{} seed {seed}",
+                c.name
+            );
+        }
+    }
+    let s = granval::experiments::suite::load(&root.join("cases"), "release").unwrap();
+    for rel in [
+        "release/kondic-fig8b-speed-5beds.toml",
+        "release/kondic-fig6-friction-5beds.toml",
+    ] {
+        assert!(s.cases.iter().any(|e| e.path.ends_with(rel)), "{rel}");
+    }
+}

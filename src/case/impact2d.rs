@@ -22,7 +22,8 @@
 //! A case may declare a one-parameter `[sweep]`; each value is one run (variant) from
 //! the same prepared bed (the `packing` and `bed` sweeps prepare one bed per distinct
 //! bed: packing, count, length and seed), and an optional `[claim]` turns the variants'
-//! final depths into one of K's claims.
+//! final depths into one of K's claims. `[bed] seeds` makes a seed ensemble: every
+//! variant once per seed, the claims judged on the per-value means over the seeds.
 
 use super::error::{CaseError, Ctx};
 use super::validate::{finite, positive};
@@ -146,7 +147,13 @@ struct BedIn {
     /// r: diameters uniform in d (1 +- r) (random packing only).
     #[serde(default)]
     polydispersity: f64,
-    seed: u64,
+    /// One bed: its seed. Or `seeds`, never both.
+    #[serde(default)]
+    seed: Option<u64>,
+    /// A seed ensemble: every variant runs once on the bed of each seed (at least 2,
+    /// all different); claims are judged on the per-value means (docs/impact2d.md).
+    #[serde(default)]
+    seeds: Option<Vec<toml::Value>>,
     /// Random initial velocity components uniform in +- this, in d / tau_c.
     #[serde(default)]
     initial_speed: f64,
@@ -225,6 +232,12 @@ pub enum Claim {
     /// `of` strictly increases along the sweep, each step by at least `min_step` (d, or
     /// tau_c for a time) (K: static < kinetic friction, hexagonal < random, grows with
     /// e_n; Fig 9: deeper and later for smaller g).
+    ///
+    /// On a seed ensemble (`[bed] seeds`, registered before any ensemble run): per sweep
+    /// value the mean of `of` over the seeds and its standard error SE = sample sd /
+    /// sqrt(n); passes iff every step of the means rises by at least max(`min_step`,
+    /// 2 SE_c), SE_c = sqrt(SE_k^2 + SE_k+1^2), else fails. The detail lists mean +- SE
+    /// per value and each seed's value.
     Increasing {
         #[serde(default)]
         min_step: f64,
@@ -240,6 +253,10 @@ pub enum Claim {
     EnergyNonIncreasing { max_rise: f64 },
     /// Final depth vs sweep value is linear for values >= `from`: R^2 of the
     /// least-squares line must be >= `r2_min` (K Fig 8b: linear in v for v >= 0.4).
+    ///
+    /// On a seed ensemble: the same rule on the per-value means of the final depth over
+    /// the seeds (at least 3 values >= `from`, slope > 0); the detail also gives mean +-
+    /// SE per value (SE = sample sd / sqrt(n)) and the slope.
     Linear { from: f64, r2_min: f64 },
     /// K Appendix, Fig 29: at fixed depth the intruder's deceleration follows a power of
     /// its speed, a ~ u^k ("for the kinetic friction case we find k ~ 1"). k is fitted
@@ -513,6 +530,17 @@ impl BedKey {
     }
 }
 
+/// The realizations of one sweep value in a seed ensemble.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnsembleGroup {
+    /// The value's label without the seed (e.g. `speed=0.7`, or `base` without a sweep).
+    pub value: String,
+    /// The swept value as a number (the variants' `x`).
+    pub x: f64,
+    /// Indices into `variants`, one per seed in `seeds` order.
+    pub members: Vec<usize>,
+}
+
 /// One run: the base case with the sweep value applied.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Variant {
@@ -526,6 +554,11 @@ pub struct Variant {
     /// sweep (and the seals of their records) stays as it was.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bed: Option<BedSize>,
+    /// In a seed ensemble (`[bed] seeds`), the label of the sweep value this run is a
+    /// realization of (the label without its `,seed=S`); `None` otherwise. Not hashed:
+    /// the label and the bed carry it.
+    #[serde(skip)]
+    pub ensemble_value: Option<String>,
     pub grains: Material2d,
     pub walls: Material2d,
     pub intruder: Material2d,
@@ -553,7 +586,10 @@ pub struct Impact2dCase {
     pub count: usize,
     pub length: f64,
     pub polydispersity: f64,
+    /// `[bed] seed`, or the first of `seeds`.
     pub seed: u64,
+    /// `[bed] seeds` of a seed ensemble; empty for one bed.
+    pub seeds: Vec<u64>,
     pub initial_speed: f64,
     pub settle_ke: f64,
     pub max_settle_time: f64,
@@ -629,6 +665,31 @@ impl Impact2dCase {
         }
     }
 
+    /// Whether the case is a seed ensemble (`[bed] seeds`).
+    pub fn is_ensemble(&self) -> bool {
+        !self.seeds.is_empty()
+    }
+
+    /// A seed ensemble's variants grouped by sweep value, in sweep order: each group the
+    /// realizations (one per seed, in `seeds` order) of one value. Empty for one bed.
+    pub fn ensemble_groups(&self) -> Vec<EnsembleGroup> {
+        let mut out: Vec<EnsembleGroup> = Vec::new();
+        for (k, v) in self.variants.iter().enumerate() {
+            let Some(value) = &v.ensemble_value else {
+                continue;
+            };
+            match out.iter_mut().find(|g| &g.value == value) {
+                Some(g) => g.members.push(k),
+                None => out.push(EnsembleGroup {
+                    value: value.clone(),
+                    x: v.x,
+                    members: vec![k],
+                }),
+            }
+        }
+        out
+    }
+
     /// The variants' indices grouped by system size (count, length), sizes in order of
     /// first appearance (K Fig 11: the realizations of each size).
     pub fn size_groups(&self) -> Vec<((usize, f64), Vec<usize>)> {
@@ -669,6 +730,11 @@ impl Impact2dCase {
         }
         if let Some(f) = &self.fields {
             view["fields"] = serde_json::json!(f);
+        }
+        // Added with seed ensembles; absent for one bed, so the hashes (and seals) of
+        // the cases written before stay as they were.
+        if self.is_ensemble() {
+            view["seeds"] = serde_json::json!(self.seeds);
         }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
@@ -757,6 +823,7 @@ impl Impact2dCase {
             non_negative(&ctx, "bed.initial_speed", b.initial_speed)? * scales.velocity();
         let settle_ke = positive(&ctx, "bed.settle_ke", b.settle_ke)? * m * g0 * d;
         let max_settle_time = positive(&ctx, "bed.max_settle_time", b.max_settle_time)? * tau;
+        let (seed, seeds) = bed_seeds(&ctx, b, raw.sweep.as_ref().map(|w| w.parameter.as_str()))?;
 
         let i = &raw.intruder;
         let areal = m / (std::f64::consts::PI * 0.25 * d * d);
@@ -877,6 +944,7 @@ impl Impact2dCase {
             x: 0.0,
             packing: b.packing,
             bed: None,
+            ensemble_value: None,
             grains,
             walls,
             intruder: intruder_of(&grains)?,
@@ -1035,6 +1103,28 @@ impl Impact2dCase {
         } else {
             variants.push(base.clone());
         }
+        if !seeds.is_empty() {
+            // A seed ensemble: every value once per seed, on that seed's bed (the bed
+            // machinery of the `bed` sweep: one bed per BedKey), value-major.
+            let values = std::mem::take(&mut variants);
+            for v in values {
+                for &s in &seeds {
+                    let mut r = v.clone();
+                    r.label = if raw.sweep.is_some() {
+                        format!("{},seed={s}", v.label)
+                    } else {
+                        format!("seed={s}")
+                    };
+                    r.bed = Some(BedSize {
+                        count: b.count,
+                        length,
+                        seed: s,
+                    });
+                    r.ensemble_value = Some(v.label.clone());
+                    variants.push(r);
+                }
+            }
+        }
         let claims: Vec<Claim> = match raw.claim.clone() {
             None => vec![],
             Some(OneOrMany::One(c)) => vec![c],
@@ -1055,6 +1145,19 @@ impl Impact2dCase {
                     format!("claim[{k}].{f}")
                 }
             };
+            if !seeds.is_empty()
+                && !matches!(claim, Claim::Increasing { .. } | Claim::Linear { .. })
+            {
+                let kind = serde_json::to_value(claim)
+                    .ok()
+                    .and_then(|v| v["kind"].as_str().map(str::to_string))
+                    .unwrap_or_default();
+                return Err(ctx.bad(
+                    at("kind"),
+                    kind,
+                    "not defined on a seed ensemble ([bed] seeds): only `increasing` and `linear` have a registered ensemble rule (docs/impact2d.md)",
+                ));
+            }
             match claim {
                 Claim::Increasing {
                     min_step,
@@ -1239,7 +1342,14 @@ impl Impact2dCase {
                     if !(0.0..=1.0).contains(r2_min) {
                         return Err(ctx.bad(at("r2_min"), r2_min, "must lie in [0, 1]"));
                     }
-                    let n = variants.iter().filter(|v| v.x >= *from).count();
+                    // Distinct values (a seed ensemble has one variant per seed of each).
+                    let mut xs: Vec<f64> = variants
+                        .iter()
+                        .filter(|v| v.x >= *from)
+                        .map(|v| v.x)
+                        .collect();
+                    xs.dedup();
+                    let n = xs.len();
                     if n < 3 {
                         return Err(ctx.bad(at("from"), from, format!("only {n} sweep values are >= it; a line through fewer than 3 points always fits")));
                     }
@@ -1251,8 +1361,10 @@ impl Impact2dCase {
                 continue;
             }
             let (field, l) = match v.bed {
-                Some(bed) => (format!("sweep.values[{k}].length"), bed.length / d),
-                None => ("bed.length".to_string(), b.length),
+                Some(bed) if v.ensemble_value.is_none() => {
+                    (format!("sweep.values[{k}].length"), bed.length / d)
+                }
+                _ => ("bed.length".to_string(), b.length),
             };
             if (l - l.round()).abs() > 1e-9 {
                 return Err(ctx.bad(
@@ -1323,7 +1435,8 @@ impl Impact2dCase {
             count: b.count,
             length,
             polydispersity: poly,
-            seed: b.seed,
+            seed,
+            seeds,
             initial_speed,
             settle_ke,
             max_settle_time,
@@ -1356,6 +1469,65 @@ fn size_groups(variants: &[Variant], count: usize, length: f64) -> Vec<((usize, 
         }
     }
     out
+}
+
+/// `[bed] seed` (one bed) or `seeds` (an ensemble): (the seed of `[bed]`, the
+/// ensemble's seeds or none). Exactly one of the two; an ensemble has at least 2
+/// different seeds, each a whole number >= 0, and no `bed` sweep (which sets each
+/// variant's seed itself).
+fn bed_seeds(ctx: &Ctx, b: &BedIn, sweep: Option<&str>) -> Result<(u64, Vec<u64>), CaseError> {
+    const EITHER: &str = "give `seed = S` (one bed) or `seeds = [S1, S2, ...]` (a seed ensemble)";
+    let list = |v: &[toml::Value]| {
+        format!(
+            "[{}]",
+            v.iter()
+                .map(|x| x.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    match (b.seed, &b.seeds) {
+        (Some(s), None) => Ok((s, Vec::new())),
+        (None, None) => Err(ctx.bad("bed.seed", "missing", EITHER)),
+        (Some(_), Some(v)) => Err(ctx.bad(
+            "bed.seeds",
+            list(v),
+            format!("given together with bed.seed: {EITHER}, not both"),
+        )),
+        (None, Some(v)) => {
+            if v.len() < 2 {
+                return Err(ctx.bad(
+                    "bed.seeds",
+                    list(v),
+                    "a seed ensemble needs at least 2 seeds (one bed is `seed = S`)",
+                ));
+            }
+            if sweep == Some("bed") {
+                return Err(ctx.bad(
+                    "bed.seeds",
+                    list(v),
+                    "a `bed` sweep sets each variant's seed itself: give the realizations there, not as a seed ensemble",
+                ));
+            }
+            let mut seeds: Vec<u64> = Vec::with_capacity(v.len());
+            for (k, x) in v.iter().enumerate() {
+                let field = format!("bed.seeds[{k}]");
+                let s = match x.as_integer() {
+                    Some(n) if n >= 0 => n as u64,
+                    _ => return Err(ctx.bad(field, x.to_string(), "must be a whole number >= 0")),
+                };
+                if seeds.contains(&s) {
+                    return Err(ctx.bad(
+                        field,
+                        s,
+                        "repeated seed: each realization needs a bed of its own",
+                    ));
+                }
+                seeds.push(s);
+            }
+            Ok((seeds[0], seeds))
+        }
+    }
 }
 
 /// The periodic length L of a bed, given in d, in m: positive and at least 5 d (fewer

@@ -1,6 +1,7 @@
 //! Impact checks (Kondic et al.): native vs LAMMPS per variant (final depth, D(t) RMS
 //! distance), and K's claims over a sweep, evaluated separately in each engine.
 
+use super::ensemble::{self, ValueStats};
 use super::{Check, Gate};
 use crate::analysis::affine::{AffineGrain, AffineSummary};
 use crate::analysis::force_network::{B0Curves, integral, relative_l1};
@@ -315,8 +316,17 @@ pub fn cross_check(
     out
 }
 
-/// K's claims of the case over its variants (in sweep order), for one engine.
+/// K's claims of the case over its variants (in sweep order), for one engine. On a seed
+/// ensemble (`[bed] seeds`) each claim is judged on the per-value means over the seeds
+/// ([`ensemble_claim_check`]).
 pub fn claim_checks(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Vec<Check> {
+    if case.is_ensemble() {
+        return case
+            .claims
+            .iter()
+            .map(|c| ensemble_claim_check(case, c, engine, obs))
+            .collect();
+    }
     case.claims
         .iter()
         .flat_map(|c| match c {
@@ -641,6 +651,157 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
                 }
             }
         }
+    }
+}
+
+/// The quantity an ensemble claim follows, in one run (NaN where the run has none).
+fn claim_value(claim: &Claim, o: &VariantObs) -> f64 {
+    match claim {
+        Claim::Increasing { of, at, .. } => match of {
+            ClaimQuantity::FinalDepth => o.final_depth,
+            ClaimQuantity::TimeOfMaxDepth => o.t_max_depth,
+            ClaimQuantity::EnergyLost => energy_lost(o, at.unwrap_or(f64::NAN)),
+        },
+        _ => o.final_depth,
+    }
+}
+
+/// Per sweep value of a seed ensemble, `value` of each seed's run, its mean and SE, in
+/// sweep order. Runs are matched to the case's variants by label, so a missing or
+/// quantity-less run is an error, not a smaller ensemble.
+pub fn ensemble_stats(
+    case: &Impact2dCase,
+    obs: &[VariantObs],
+    value: &dyn Fn(&VariantObs) -> f64,
+) -> Result<Vec<ValueStats>, String> {
+    case.ensemble_groups()
+        .into_iter()
+        .map(|g| {
+            let seeds = g
+                .members
+                .iter()
+                .map(|&k| {
+                    let v = &case.variants[k];
+                    let o = obs
+                        .iter()
+                        .find(|o| o.label == v.label)
+                        .ok_or_else(|| format!("run {} has no result", v.label))?;
+                    let y = value(o);
+                    if !y.is_finite() {
+                        return Err(format!("run {}: no value ({y})", v.label));
+                    }
+                    Ok((case.bed_of(v).seed, y))
+                })
+                .collect::<Result<Vec<_>, String>>()?;
+            Ok(ValueStats::new(g.value, g.x, seeds))
+        })
+        .collect()
+}
+
+/// A claim on a seed ensemble in one engine (docs/impact2d.md, "Seed ensembles"):
+/// `increasing` passes iff every step of the per-value means rises by at least
+/// max(min_step, 2 combined SE); `linear` is the single-bed rule on the means. Other
+/// kinds are refused when the case loads.
+fn ensemble_claim_check(
+    case: &Impact2dCase,
+    claim: &Claim,
+    engine: &str,
+    obs: &[VariantObs],
+) -> Check {
+    let param = case.sweep_parameter.clone().unwrap_or_default();
+    let n = case.seeds.len();
+    let stats = ensemble_stats(case, obs, &|o| claim_value(claim, o));
+    match claim {
+        Claim::Increasing { min_step, of, .. } => {
+            let (what, unit) = of.describe();
+            let name = format!(
+                "{}: claim ({engine}): {what} increases along {param} (mean of {n} seeds)",
+                case.name
+            );
+            let stats = match stats {
+                Ok(s) => s,
+                Err(e) => return Check::error_in(name, Gate::Claim, e),
+            };
+            let (worst, steps) = ensemble::increasing(&stats, *min_step);
+            let steps = stats
+                .windows(2)
+                .zip(&steps)
+                .map(|(w, s)| {
+                    format!(
+                        "{} -> {}: rise {:.3}, needed {:.3} (2 SE_c = {:.3})",
+                        w[0].value,
+                        w[1].value,
+                        s.rise,
+                        s.needed,
+                        2.0 * s.combined_se
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join("; ");
+            Check::at_most(
+                name,
+                Gate::Claim,
+                format!("max_k (mean_k + max(min_step, 2 SE_c) - mean_k+1) / {unit}"),
+                worst,
+                0.0,
+                format!(
+                    "min_step {min_step} {unit}; steps: {steps}; {what} ({unit}), mean +- SE over seeds: {}",
+                    stats
+                        .iter()
+                        .map(|s| s.describe())
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                ),
+            )
+        }
+        Claim::Linear { from, r2_min } => {
+            let name = format!(
+                "{}: claim ({engine}): mean final depth of {n} seeds linear in {param} for {param} >= {from}",
+                case.name
+            );
+            let stats = match stats {
+                Ok(s) => s,
+                Err(e) => return Check::error_in(name, Gate::Claim, e),
+            };
+            let fit: Vec<&ValueStats> = stats.iter().filter(|s| s.x >= *from).collect();
+            if fit.len() < 3 {
+                return Check::not_compared(
+                    name,
+                    Gate::Claim,
+                    format!(
+                        "a line through {} value(s) tests nothing: at least 3 values with {param} >= {from} are needed",
+                        fit.len()
+                    ),
+                );
+            }
+            let x: Vec<f64> = fit.iter().map(|s| s.x).collect();
+            let y: Vec<f64> = fit.iter().map(|s| s.mean).collect();
+            match crate::analysis::impact::linear_r2(&x, &y) {
+                Ok((a, b, r2)) => Check::at_most(
+                    name,
+                    Gate::Claim,
+                    "1 - R^2 of the least-squares line through the means",
+                    // A falling line is no support for "grows linearly".
+                    if b > 0.0 { 1.0 - r2 } else { f64::INFINITY },
+                    1.0 - r2_min,
+                    format!(
+                        "mean D = {a:.3} + {b:.3} x (slope {b:.3} d per unit of {param}, must be > 0; R^2 {r2:.4} over {} values); final depth (d), mean +- SE over seeds: {}",
+                        fit.len(),
+                        stats
+                            .iter()
+                            .map(|s| s.describe())
+                            .collect::<Vec<_>>()
+                            .join("; ")
+                    ),
+                ),
+                Err(e) => Check::error_in(name, Gate::Claim, format!("{e:#}")),
+            }
+        }
+        _ => Check::error_in(
+            format!("{}: claim ({engine})", case.name),
+            Gate::Claim,
+            "not defined on a seed ensemble (refused when the case loads)",
+        ),
     }
 }
 
@@ -1091,6 +1252,129 @@ mod tests {
         assert_eq!(
             size_spreads(&[vec![1.0, 3.0], vec![2.0, 2.5, 3.0]]),
             (0.5, 1.5)
+        );
+    }
+
+    /// A seed ensemble of the CI case (seeds 1-5, or as given) with a sweep and a claim.
+    fn ensemble(claim: &str, sweep: &str, seeds: &str) -> Impact2dCase {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/cases/impact2d/ci.toml"
+        ))
+        .unwrap()
+        .replace("seed = 7", &format!("seeds = {seeds}"));
+        Impact2dCase::from_toml_str(&format!("{text}\n{sweep}\n{claim}\n"), Path::new("t.toml"))
+            .unwrap()
+    }
+
+    /// Runs of every variant of `c` with the final depth (and time of the maximum)
+    /// `depth(value index, seed index)`.
+    fn ensemble_obs(c: &Impact2dCase, depth: &dyn Fn(usize, usize) -> f64) -> Vec<VariantObs> {
+        let mut out = Vec::new();
+        for (i, g) in c.ensemble_groups().iter().enumerate() {
+            for (j, &k) in g.members.iter().enumerate() {
+                let v = &c.variants[k];
+                let mut o = obs(&[v.x], &[depth(i, j)]).remove(0);
+                o.label = v.label.clone();
+                out.push(o);
+            }
+        }
+        out
+    }
+
+    /// The ensemble `increasing` rule (K Fig 6): static vs kinetic friction on five
+    /// seeds. Means 2 d apart with 0.1-0.3 d scatter pass; the same step within the
+    /// noise (scatter of several d) fails; a clean step below min_step fails; equal
+    /// ensembles (the sweep ignored) fail; a missing run is an error.
+    #[test]
+    fn increasing_claim_on_a_seed_ensemble_judges_the_means_against_their_errors() {
+        let c = ensemble(
+            "[claim]\nkind = \"increasing\"\nmin_step = 0.5",
+            "[sweep]\nparameter = \"friction\"\nvalues = [\"static\", \"kinetic\"]",
+            "[1, 2, 3, 4, 5]",
+        );
+        let scatter = [0.0, 0.2, -0.1, 0.3, -0.2];
+        let k = one(
+            &c,
+            &ensemble_obs(&c, &|i, j| 3.0 + 2.0 * i as f64 + scatter[j]),
+        )
+        .unwrap();
+        assert!(k.passed, "{k:?}");
+        assert!(
+            k.detail
+                .contains("friction=static: 3.040 +- 0.093 (seed 1: 3.000, seed 2: 3.200")
+                && k.detail.contains("friction=kinetic: 5.040 +-")
+                && k.detail.contains("rise 2.000, needed 0.500"),
+            "{}",
+            k.detail
+        );
+        assert!((k.value - (0.5 - 2.0)).abs() < 1e-12, "{}", k.value);
+        // The same mean step, seeds scattered by several d: 2 SE_c = 5.25 > 2.
+        let wide = [0.0, 4.0, -2.0, 6.0, -4.0];
+        let k = one(
+            &c,
+            &ensemble_obs(&c, &|i, j| 5.0 + 2.0 * i as f64 + wide[j]),
+        )
+        .unwrap();
+        assert!(
+            !k.passed && k.status == crate::compare::Status::Fail,
+            "{k:?}"
+        );
+        assert!(k.detail.contains("needed 5.246"), "{}", k.detail);
+        // Resolved (SE 0.09) but only 0.3 d: below min_step.
+        let k = one(
+            &c,
+            &ensemble_obs(&c, &|i, j| 3.0 + 0.3 * i as f64 + scatter[j]),
+        )
+        .unwrap();
+        assert!(!k.passed, "{k:?}");
+        let k = one(&c, &ensemble_obs(&c, &|_, j| 3.0 + scatter[j])).unwrap();
+        assert!(
+            !k.passed && k.status == crate::compare::Status::Fail,
+            "{k:?}"
+        );
+        let mut missing = ensemble_obs(&c, &|i, j| 3.0 + 2.0 * i as f64 + scatter[j]);
+        missing.remove(7);
+        let k = one(&c, &missing).unwrap();
+        assert!(
+            k.is_error() && k.detail.contains("friction=kinetic,seed=3"),
+            "{k:?}"
+        );
+    }
+
+    /// The ensemble `linear` rule (K Fig 8b): R^2 of the line through the per-value means
+    /// over values >= from; seeds scattered about a line pass, curved means fail, equal
+    /// means (every value at one speed: the sweep ignored) fail on the zero slope.
+    #[test]
+    fn linear_claim_on_a_seed_ensemble_fits_the_means() {
+        let c = ensemble(
+            "[claim]\nkind = \"linear\"\nfrom = 0.4\nr2_min = 0.9",
+            "[sweep]\nparameter = \"speed\"\nvalues = [0.1, 0.4, 0.7, 1.0]",
+            "[3, 1, 2]",
+        );
+        assert_eq!(c.seeds, [3, 1, 2]);
+        let xs = [0.1, 0.4, 0.7, 1.0];
+        let scatter = [0.4, -0.3, -0.1];
+        let k = one(
+            &c,
+            &ensemble_obs(&c, &|i, j| 5.0 + 8.0 * xs[i] + scatter[j]),
+        )
+        .unwrap();
+        assert!(k.passed && k.value < 1e-12, "{k:?}");
+        assert!(
+            k.detail.contains("slope 8.000")
+                && k.detail
+                    .contains("speed=0.7: 10.600 +- 0.208 (seed 3: 11.000, seed 1: 10.300"),
+            "{}",
+            k.detail
+        );
+        let curved = [0.0, 2.0, 2.1, 9.0];
+        let k = one(&c, &ensemble_obs(&c, &|i, j| curved[i] + scatter[j])).unwrap();
+        assert!(!k.passed, "{k:?}");
+        let k = one(&c, &ensemble_obs(&c, &|_, j| 10.0 + scatter[j])).unwrap();
+        assert!(
+            !k.passed && k.status == crate::compare::Status::Fail,
+            "{k:?}"
         );
     }
 

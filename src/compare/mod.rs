@@ -2,6 +2,7 @@
 //! tolerances and a verdict each. Nothing here knows which engine produced what.
 
 pub mod coverage;
+pub mod ensemble;
 pub mod impact2d;
 pub mod malt_points;
 pub mod penetration;

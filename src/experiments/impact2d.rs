@@ -1,7 +1,7 @@
 //! The 2D impact experiment (Kondic et al.): beds prepared natively, one unit per sweep
-//! variant (a scene: the bed, the walls and the intruder with its speed), each run
-//! natively and in LAMMPS from the same scene; final depth and D(t) per variant, the
-//! paper's claim over the sweep in each engine.
+//! variant (once per seed of a seed ensemble; a scene: the bed, the walls and the
+//! intruder with its speed), each run natively and in LAMMPS from the same scene; final
+//! depth and D(t) per variant, the paper's claim over the sweep in each engine.
 
 use super::reference::Verified;
 use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
@@ -9,6 +9,7 @@ use crate::analysis::impact as obs;
 use crate::case::impact2d::IntruderShape;
 use crate::case::impact2d::{BedKey, Impact2dCase, Packing, Variant};
 use crate::compare::Check;
+use crate::compare::ensemble::ValueStats;
 use crate::compare::impact2d::{self as cmp, FieldObs, VariantObs};
 use crate::engines::deck_text::{Header, approx, num, safe};
 use crate::engines::lammps::{self, Lammps};
@@ -135,10 +136,20 @@ impl Experiment for Impact2d {
                         .collect::<Vec<_>>()
                         .join(", ")
                 },
-                format!(
-                    "per bed, plus the frozen wall disks; {} variant(s)",
-                    c.variants.len()
-                ),
+                if c.is_ensemble() {
+                    format!(
+                        "per bed, plus the frozen wall disks; {} run(s): {} value(s) x {} seeds {:?}",
+                        c.variants.len(),
+                        c.ensemble_groups().len(),
+                        c.seeds.len(),
+                        c.seeds
+                    )
+                } else {
+                    format!(
+                        "per bed, plus the frozen wall disks; {} variant(s)",
+                        c.variants.len()
+                    )
+                },
             ),
             Derived::new(
                 "collision time tau_c",
@@ -348,6 +359,7 @@ impl Experiment for Impact2d {
         let (tau, d) = (case.scales.tau_c, case.scales.d);
         let mut checks = Vec::new();
         let mut notes: Vec<String> = Vec::new();
+        let mut sections = Vec::new();
         for u in units {
             if !notes.contains(&u.bed_note) {
                 notes.push(u.bed_note.clone());
@@ -410,18 +422,142 @@ impl Experiment for Impact2d {
             if let Err(e) = field_plots(case, &native_obs, &ref_obs, out) {
                 notes.push(format!("field plots not written: {e:#}"));
             }
+            let mut depths = serde_json::json!({"native": native_obs, "lammps": ref_obs});
+            if case.is_ensemble() {
+                let fd = |o: &VariantObs| o.final_depth;
+                match (
+                    cmp::ensemble_stats(case, &native_obs, &fd),
+                    cmp::ensemble_stats(case, &ref_obs, &fd),
+                ) {
+                    (Ok(a), Ok(b)) => {
+                        depths["ensemble"] = serde_json::json!({"native": a, "lammps": b});
+                        match ensemble_section(case, &a, &b, out) {
+                            Ok(s) => sections.push(s),
+                            Err(e) => notes.push(format!("ensemble figure not written: {e:#}")),
+                        }
+                    }
+                    (a, b) => notes.push(format!(
+                        "no ensemble figure: native {:?}, lammps {:?}",
+                        a.err(),
+                        b.err()
+                    )),
+                }
+            }
             if let Err(e) = std::fs::write(
                 out.join("final_depths.json"),
-                serde_json::to_string_pretty(
-                    &serde_json::json!({"native": native_obs, "lammps": ref_obs}),
-                )
-                .unwrap_or_default(),
+                serde_json::to_string_pretty(&depths).unwrap_or_default(),
             ) {
                 notes.push(format!("final_depths.json not written: {e}"));
             }
         }
-        Verdict { checks, notes }
+        Verdict {
+            checks,
+            notes,
+            sections,
+        }
     }
+}
+
+/// The figure file of a seed ensemble's final depths.
+pub const ENSEMBLE_FIGURE: &str = "final_depth.svg";
+
+/// A seed ensemble's final depth against the swept value (K Fig 8b's axes): per engine
+/// the mean over the seeds with +- 1 SE bars and every seed's bed as a small dot, written
+/// as [`ENSEMBLE_FIGURE`] into `out`, and a report section with the same numbers as a
+/// table. Reporting only: the claims judge the same means in their own checks.
+fn ensemble_section(
+    case: &Impact2dCase,
+    native: &[ValueStats],
+    lammps: &[ValueStats],
+    out: &Path,
+) -> Result<crate::report::Section> {
+    use crate::report::svg::{SweepSeries, sweep_with_error_bars};
+    let x: Vec<f64> = native.iter().map(|s| s.x).collect();
+    // A text-valued sweep (friction, packing) is drawn at 0, 1, ...: say which is which.
+    let numeric = native.iter().all(|s| {
+        s.value
+            .split_once('=')
+            .and_then(|(_, t)| t.parse::<f64>().ok())
+            .is_some_and(|v| v == s.x)
+    });
+    let param = case.sweep_parameter.as_deref().unwrap_or("variant");
+    let x_label = if numeric {
+        param.to_string()
+    } else {
+        format!(
+            "{param}: {}",
+            native
+                .iter()
+                .map(|s| format!("{} = {}", s.x, s.value))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    let columns = |st: &[ValueStats]| {
+        (
+            st.iter().map(|s| s.mean).collect::<Vec<f64>>(),
+            st.iter().map(|s| s.se).collect::<Vec<f64>>(),
+            st.iter()
+                .map(|s| s.seeds.iter().map(|p| p.1).collect())
+                .collect::<Vec<Vec<f64>>>(),
+        )
+    };
+    let (na, nb) = (columns(native), columns(lammps));
+    let series = [
+        SweepSeries {
+            label: "native",
+            k: &na.0,
+            se: &na.1,
+            beds: &na.2,
+        },
+        SweepSeries {
+            label: "LAMMPS",
+            k: &nb.0,
+            se: &nb.1,
+            beds: &nb.2,
+        },
+    ];
+    sweep_with_error_bars(
+        &out.join(ENSEMBLE_FIGURE),
+        &format!(
+            "{}: final depth, mean of {} seeds +- 1 SE",
+            case.name,
+            case.seeds.len()
+        ),
+        &x_label,
+        "final depth / d",
+        &x,
+        &series,
+        None,
+    )?;
+    let seeds = |s: &ValueStats| {
+        s.seeds
+            .iter()
+            .map(|(k, y)| format!("{k}: {y:.3}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut body = format!(
+        "Final depth (d) per {param} value: mean over the seeds {:?} +- its standard error (sample sd / sqrt(n)), and each seed's bed.\n\n| value | native | LAMMPS | native per seed | LAMMPS per seed |\n|---|---|---|---|---|\n",
+        case.seeds
+    );
+    for (a, b) in native.iter().zip(lammps) {
+        body += &format!(
+            "| {} | {:.3} +- {:.3} | {:.3} +- {:.3} | {} | {} |\n",
+            a.value,
+            a.mean,
+            a.se,
+            b.mean,
+            b.se,
+            seeds(a),
+            seeds(b)
+        );
+    }
+    Ok(crate::report::Section {
+        title: format!("Seed ensemble: {}", case.name),
+        body,
+        figures: vec![ENSEMBLE_FIGURE.to_string()],
+    })
 }
 
 /// Plots where a person would rather look (K Figs 21-27): F(t) of every variant in both
@@ -730,7 +866,7 @@ impl Beds {
 
 pub fn bed_note(case: &Impact2dCase, k: &BedKey, b: &Bed) -> String {
     let s = &case.scales;
-    let size = if case.sweep_parameter.as_deref() == Some("bed") {
+    let size = if case.sweep_parameter.as_deref() == Some("bed") || case.is_ensemble() {
         format!(
             ", {} disks poured on L = {} d, seed {}",
             k.count,
@@ -1017,4 +1153,46 @@ fn label_dir_str(label: &str) -> String {
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ensemble figure and table: per engine mean +- SE and the seeds, a text sweep's
+    /// axis saying which position is which value.
+    #[test]
+    fn ensemble_section_draws_and_tabulates_means_with_errors() {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/cases/impact2d/ci.toml"
+        ))
+        .unwrap()
+        .replace("seed = 7", "seeds = [1, 2]")
+            + "\n[sweep]\nparameter = \"friction\"\nvalues = [\"static\", \"kinetic\"]\n";
+        let case = Impact2dCase::from_toml_str(&text, Path::new("t.toml")).unwrap();
+        let stats = |shift: f64| {
+            vec![
+                ValueStats::new("friction=static", 0.0, vec![(1, 3.0 + shift), (2, 3.4)]),
+                ValueStats::new("friction=kinetic", 1.0, vec![(1, 5.0), (2, 5.6 + shift)]),
+            ]
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let s = ensemble_section(&case, &stats(0.0), &stats(0.1), dir.path()).unwrap();
+        assert_eq!(s.figures, [ENSEMBLE_FIGURE]);
+        let svg = std::fs::read_to_string(dir.path().join(ENSEMBLE_FIGURE)).unwrap();
+        assert!(
+            svg.contains("<svg")
+                && svg.contains("final depth / d")
+                && svg.contains("0 = friction=static, 1 = friction=kinetic")
+                && svg.contains("LAMMPS"),
+            "{svg}"
+        );
+        assert!(
+            s.body
+                .contains("| friction=static | 3.200 +- 0.200 | 3.250 +- 0.150 | 1: 3.000, 2: 3.400 | 1: 3.100, 2: 3.400 |"),
+            "{}",
+            s.body
+        );
+    }
 }

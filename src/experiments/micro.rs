@@ -336,7 +336,7 @@ impl Experiment for Micro {
         };
         Verdict {
             checks,
-            notes: vec![],
+            ..Verdict::default()
         }
     }
 }

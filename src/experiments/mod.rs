@@ -130,6 +130,9 @@ pub trait Run {
 pub struct Verdict {
     pub checks: Vec<Check>,
     pub notes: Vec<String>,
+    /// Report sections of the case (e.g. a seed ensemble's error-bar figure), figures
+    /// relative to the output directory `checks` was given.
+    pub sections: Vec<crate::report::Section>,
 }
 
 /// Resource estimate of a comparison, made before anything runs.

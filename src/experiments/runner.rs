@@ -17,6 +17,8 @@ pub struct CaseOutcome {
     pub checks: Vec<Check>,
     pub run: Option<CaseRun>,
     pub notes: Vec<String>,
+    /// Report sections of the case, figures relative to the case's output directory.
+    pub sections: Vec<crate::report::Section>,
 }
 
 impl CaseOutcome {
@@ -25,6 +27,7 @@ impl CaseOutcome {
             checks: vec![Check::error(format!("{name}: {what}"), format!("{e:#}"))],
             run: None,
             notes,
+            sections: Vec::new(),
         }
     }
 }
@@ -223,6 +226,7 @@ fn run_units<E: Experiment>(
     let verdict = exp.checks(units, &natives, &refs, out, opts);
     let mut checks = verdict.checks;
     notes.extend(verdict.notes);
+    let sections = verdict.sections;
     let failed_here: Vec<String> = checks
         .iter()
         .filter(|k| k.status == Status::Fail)
@@ -261,6 +265,7 @@ fn run_units<E: Experiment>(
         checks,
         run: Some(run),
         notes,
+        sections,
     }
 }
 

@@ -536,6 +536,10 @@ impl Experiment for Triaxial {
                 c.tolerances.phi_abs_deg,
             ));
         }
-        Verdict { checks, notes }
+        Verdict {
+            checks,
+            notes,
+            ..Verdict::default()
+        }
     }
 }

@@ -112,8 +112,9 @@ pub fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], title: &str) -> Result
     Ok(())
 }
 
-/// One engine's K_phi along a sweep: per point the value, its standard error and the
-/// single beds' values (drawn small, so the scatter a claim must beat is visible).
+/// One engine's quantity along a sweep (K_phi of Feng et al., a seed ensemble's final
+/// depth of Kondic et al.): per point the value, its standard error and the single
+/// beds' values (drawn small, so the scatter a claim must beat is visible).
 pub struct SweepSeries<'a> {
     pub label: &'a str,
     pub k: &'a [f64],
@@ -133,11 +134,26 @@ pub fn k_phi_sweep(
     series: &[SweepSeries<'_>],
     paper: Option<&[f64]>,
 ) -> Result<()> {
-    ensure!(!x.is_empty(), "k_phi_sweep: no points");
+    sweep_with_error_bars(path, title, x_label, "K_phi", x, series, paper)
+}
+
+/// A quantity (`y_label`) against the swept parameter `x`: each series with +- 1 SE bars
+/// and its single beds, and published values where given (`paper`, NaN where none).
+/// Series are offset slightly along x so their bars do not hide each other.
+pub fn sweep_with_error_bars(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    x: &[f64],
+    series: &[SweepSeries<'_>],
+    paper: Option<&[f64]>,
+) -> Result<()> {
+    ensure!(!x.is_empty(), "sweep_with_error_bars: no points");
     for s in series {
         ensure!(
             s.k.len() == x.len() && s.se.len() == x.len() && s.beds.len() == x.len(),
-            "k_phi_sweep: series '{}' has {} points for {} x values",
+            "sweep_with_error_bars: series '{}' has {} points for {} x values",
             s.label,
             s.k.len(),
             x.len()
@@ -146,7 +162,7 @@ pub fn k_phi_sweep(
     if let Some(p) = paper {
         ensure!(
             p.len() == x.len(),
-            "k_phi_sweep: {} paper values for {} x values",
+            "sweep_with_error_bars: {} paper values for {} x values",
             p.len(),
             x.len()
         );
@@ -164,7 +180,7 @@ pub fn k_phi_sweep(
         })
         .chain(paper.into_iter().flatten().copied())
         .collect();
-    let (y0, y1) = range(ys.iter(), "K_phi")?;
+    let (y0, y1) = range(ys.iter(), y_label)?;
     let (x0, x1) = padded(x0 - dx * series.len() as f64, x1 + dx * series.len() as f64);
     let (y0, y1) = padded(y0.min(0.0), y1);
     let root = SVGBackend::new(path, SIZE).into_drawing_area();
@@ -179,7 +195,7 @@ pub fn k_phi_sweep(
     chart
         .configure_mesh()
         .x_desc(x_label)
-        .y_desc("K_phi")
+        .y_desc(y_label)
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 16))
         .draw()

@@ -274,5 +274,6 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             wall_time_reference_s: wall(&mut reference.iter().map(|r| r.provenance.wall_time_s)),
         }),
         notes,
+        sections: v.sections,
     })
 }

@@ -856,7 +856,11 @@ pub fn fdr_checks(
     {
         notes.push(format!("SVG not written: {e:#}"));
     }
-    Verdict { checks, notes }
+    Verdict {
+        checks,
+        notes,
+        ..Verdict::default()
+    }
 }
 
 /// What claims spanning several cases read from this case (`summary.json`).

@@ -200,6 +200,7 @@ pub fn checks(
                 format!("{e:#}"),
             )],
             notes: vec![],
+            ..Verdict::default()
         },
     }
 }
@@ -223,6 +224,7 @@ fn run_checks(
                     "the stress fields need contact snapshots of both engines; recorded LIGGGHTS references hold none (run with a live LIGGGHTS)",
                 )],
                 notes: vec![],
+                ..Verdict::default()
             });
         };
         let fields = out.join(bed_dir_name(u.k)).join("fields");
@@ -560,7 +562,11 @@ fn run_checks(
         out.join("stress.json"),
         serde_json::to_string_pretty(&report)?,
     )?;
-    Ok(Verdict { checks, notes })
+    Ok(Verdict {
+        checks,
+        notes,
+        ..Verdict::default()
+    })
 }
 
 /// `phi_snapshots.csv`: one row per instantaneous snapshot (`kind` = instantaneous) and
