@@ -3,6 +3,7 @@
 
 pub mod coverage;
 pub mod impact2d;
+pub mod interface;
 pub mod malt_points;
 pub mod penetration;
 pub mod stress;
