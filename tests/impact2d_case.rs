@@ -626,3 +626,97 @@ fn seed_ensemble_expands_every_value_per_seed_and_names_its_mistakes() {
         ],
     );
 }
+
+/// K Fig 12's claim and its control: the claim turns on interface tracking (and so
+/// moves the case hash), `[analysis] track_interface` does so without a claim, and bad
+/// parameters, a frozen-floor control without tracking and an unknown or misplaced
+/// perturbation name their field.
+#[test]
+fn interface_claim_and_frozen_floor_control_parse_and_name_their_mistakes() {
+    use granval::case::Gate;
+    use granval::case::impact2d::Claim;
+    let t = ci_text();
+    let sweep = "\n[sweep]\nparameter = \"speed\"\nvalues = [0.7, 1.0]\n";
+    let claim = "[claim]\nkind = \"interface_steadies\"\nmax_ratio = 0.5\nmin_amplitude = 0.05\n";
+    let control = "[[negative_control]]\nname = \"floor\"\nmust_fail = [\"claim\"]\nperturbation = { interface_frozen_floor = true }\n[[negative_control]]\nname = \"floor, s(t)\"\nmust_fail = [\"interface_series\"]\nperturbation = { interface_frozen_floor = true }\n";
+    let ok = format!("{t}{sweep}{claim}{control}");
+    let c = Impact2dCase::from_toml_str(&ok, Path::new("ok.toml")).unwrap();
+    assert!(c.track_interface);
+    assert!(matches!(
+        c.claims[..],
+        [Claim::InterfaceSteadies { max_ratio, min_amplitude }] if max_ratio == 0.5 && min_amplitude == 0.05
+    ));
+    // ci.toml's own control comes first.
+    assert!(c.negative_controls[1].perturbation.interface_frozen_floor);
+    assert_eq!(
+        c.negative_controls[2].must_fail,
+        vec![Gate::InterfaceSeries]
+    );
+    assert_eq!(c.tolerances.interface_rms, 0.1);
+    // Tracking is part of what the runs depend on; the claim's numbers are not.
+    let plain = Impact2dCase::from_toml_str(&format!("{t}{sweep}"), Path::new("ok.toml")).unwrap();
+    assert!(!plain.track_interface);
+    assert_ne!(plain.canonical_hash(), c.canonical_hash());
+    let other =
+        Impact2dCase::from_toml_str(&ok.replace("0.5\nmin", "0.3\nmin"), Path::new("ok.toml"))
+            .unwrap();
+    assert_eq!(other.canonical_hash(), c.canonical_hash());
+    let opt = Impact2dCase::from_toml_str(
+        &format!("{t}{sweep}").replace(
+            "final_window = 200.0",
+            "final_window = 200.0\ntrack_interface = true",
+        ),
+        Path::new("ok.toml"),
+    )
+    .unwrap();
+    assert!(opt.track_interface && opt.claims.is_empty());
+    assert_eq!(opt.canonical_hash(), c.canonical_hash());
+    assert_rejected(
+        &ok,
+        &[
+            (
+                "max_ratio = 0.5",
+                "max_ratio = 1.0",
+                "claim.max_ratio",
+                "must be < 1",
+            ),
+            (
+                "max_ratio = 0.5",
+                "max_ratio = 0.0",
+                "claim.max_ratio",
+                "> 0",
+            ),
+            (
+                "min_amplitude = 0.05",
+                "min_amplitude = -0.05",
+                "claim.min_amplitude",
+                "> 0",
+            ),
+        ],
+    );
+    let e = err(&format!(
+        "{t}{sweep}{}",
+        control.replace("\"claim\"", "\"final_depth\"")
+    ));
+    assert!(
+        e.contains("negative_control[1].perturbation.interface_frozen_floor")
+            && e.contains("does not track"),
+        "{e}"
+    );
+    let e = err(&format!("{ok}[compare]\ninterface_rms = 0.0\n"));
+    assert!(
+        e.contains("compare.interface_rms") && e.contains("> 0"),
+        "{e}"
+    );
+    // Only impact2d cases have an interface to freeze.
+    let micro = std::fs::read_to_string(common::root().join("cases/micro/head-on-e05.toml"))
+        .unwrap()
+        + "\n[[negative_control]]\nname = \"x\"\nmust_fail = [\"position\"]\nperturbation = { interface_frozen_floor = true }\n";
+    let e = granval::case::Case::from_toml_str(&micro, Path::new("bad.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("interface_frozen_floor") && e.contains("only impact2d"),
+        "{e}"
+    );
+}

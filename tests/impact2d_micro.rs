@@ -84,6 +84,7 @@ fn lammps_rows(sys: &System, n: u64, every: u64, name: &str) -> Vec<(u64, u64, [
         snapshot_every: every,
         header: Default::default(),
         fields: Default::default(),
+        tracers: Vec::new(),
     };
     // The record stands in for LAMMPS only if it was made from today's inputs (these
     // records are test fixtures, not sealed cases: the check is done here). Left out:
@@ -353,6 +354,7 @@ fn crashed_or_silent_lammps_is_an_error() {
         snapshot_every: 5,
         header: Default::default(),
         fields: Default::default(),
+        tracers: Vec::new(),
     };
     for (binary, why) in [("false", "exited with"), ("true", "Total wall time")] {
         let dir = tempfile::tempdir().unwrap();

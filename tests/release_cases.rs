@@ -376,7 +376,8 @@ fn fig3a_3d_3g_points_differ_from_the_fig3b_point_only_as_registered() {
 /// Kondic et al. Fig 11 as registered: v = 1.0 on Fig 2 beds of two sizes (6000 and
 /// 10 000 disks at L = 100 d), seeds 1-3 each; the first is the Fig 2 bed itself (the
 /// same bed specification as `fig2-v0.7`, so the same prepared bed); the size claim at
-/// 1 d, the engine gate control and the claim control (the second size at half speed).
+/// 1 d, the engine gate control and the claim control (the second size at half speed);
+/// K Fig 12's claim on the same runs (0.5, 0.05 d) with its frozen-floor controls.
 #[test]
 fn kondic_fig11_case_sweeps_two_sizes_of_three_seeds_from_the_fig2_bed() {
     use granval::case::impact2d::{Claim, Impact2dCase};
@@ -417,15 +418,30 @@ fn kondic_fig11_case_sweeps_two_sizes_of_three_seeds_from_the_fig2_bed() {
     );
     assert_eq!(c.n_steps, fig2.n_steps);
     assert_eq!(c.final_window, fig2.final_window);
-    assert!(matches!(c.claims[..], [Claim::SizeInsensitive { max_spread }] if max_spread == 1.0));
+    assert!(matches!(
+        c.claims[..],
+        [
+            Claim::SizeInsensitive { max_spread },
+            Claim::InterfaceSteadies { max_ratio, min_amplitude }
+        ] if max_spread == 1.0 && max_ratio == 0.5 && min_amplitude == 0.05
+    ));
+    assert!(c.track_interface);
+    assert_eq!(c.tolerances.interface_rms, 0.1);
     let p: Vec<_> = c
         .negative_controls
         .iter()
         .map(|n| (n.perturbation, n.must_fail.clone()))
         .collect();
-    assert_eq!(p.len(), 2);
+    assert_eq!(p.len(), 4);
     assert!(p[0].0.swap_friction_model && p[0].1 == vec![Gate::FinalDepth]);
     assert!(p[1].0.other_size_speed_factor == 0.5 && p[1].1 == vec![Gate::Claim]);
+    // K Fig 12: the frozen floor, once for the claim and once for the s(t) check.
+    let floor = granval::case::Perturbation {
+        interface_frozen_floor: true,
+        ..Default::default()
+    };
+    assert_eq!(p[2], (floor, vec![Gate::Claim]));
+    assert_eq!(p[3], (floor, vec![Gate::InterfaceSeries]));
     let s = granval::experiments::suite::load(&common::root().join("cases"), "release").unwrap();
     assert!(
         s.cases

@@ -338,6 +338,7 @@ mod tests {
             x: [1.0 / 3.0, -2.5e-3],
             v: [0.0, -0.7],
             f: [1e-300, 3.0],
+            interface_y: None,
         }];
         let p = dir.path().join("intruder.csv");
         write_intruder_csv(&p, &s, 0.1, 0.01).unwrap();

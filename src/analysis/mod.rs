@@ -4,6 +4,7 @@ pub mod coarse_grain;
 pub mod fdr;
 pub mod force_network;
 pub mod impact;
+pub mod interface;
 pub mod malt;
 pub mod stress;
 pub mod stress_fields;

@@ -40,6 +40,8 @@ pub enum Gate {
     ForceNetwork,
     /// Impact: affine field and D2_min summaries native vs reference (Kondic Figs 24-27).
     DisplacementField,
+    /// Impact: the interface displacement s(t) native vs reference (Kondic Fig 12).
+    InterfaceSeries,
     /// Stress fields: phi native vs reference, (phi, K_phi) against MALT, unified fit.
     Phi,
     MaltK,
@@ -87,6 +89,11 @@ pub struct Perturbation {
     /// the first size runs as written. A claim that the size does not matter must then
     /// fail.
     pub other_size_speed_factor: f64,
+    /// 2D cases that track the interface (K Fig 12): the native engine tracks the bottom
+    /// row of frozen wall disks instead of the interface tracers, so s(t) = 0 and the
+    /// depth is taken relative to the container. A claim that the oscillations vanish
+    /// relative to the interface must then fail.
+    pub interface_frozen_floor: bool,
     /// Clumps: every principal moment of inertia multiplied by this.
     pub inertia_factor: f64,
     /// Clumps: members use their own sphere mass as contact mass instead of the body
@@ -105,6 +112,7 @@ impl Default for Perturbation {
             swap_friction_model: false,
             sweep_ignored: false,
             other_size_speed_factor: 1.0,
+            interface_frozen_floor: false,
             inertia_factor: 1.0,
             member_sphere_mass: false,
         }
@@ -146,6 +154,8 @@ struct RawPerturbation {
     #[serde(default)]
     sweep_ignored: bool,
     other_size_speed_factor: Option<f64>,
+    #[serde(default)]
+    interface_frozen_floor: bool,
     inertia_factor: Option<f64>,
     #[serde(default)]
     member_sphere_mass: bool,
@@ -273,6 +283,14 @@ pub(crate) fn controls(
             }
             pert.other_size_speed_factor = v;
         }
+        if p.interface_frozen_floor && !gates.contains(&Gate::InterfaceSeries) {
+            return Err(ctx.bad(
+                f("perturbation.interface_frozen_floor"),
+                true,
+                "only impact2d cases track an interface",
+            ));
+        }
+        pert.interface_frozen_floor = p.interface_frozen_floor;
         if let Some(v) = p.inertia_factor {
             let v = finite("inertia_factor", v)?;
             if v <= 0.0 {

@@ -209,6 +209,10 @@ fn one() -> f64 {
 struct AnalysisIn {
     /// Final depth = mean of D(t) over the last `final_window` tau_c of the run.
     final_window: f64,
+    /// Record the interface tracers' height at every intruder sample (K Fig 12) even
+    /// without an `interface_steadies` claim (which implies it).
+    #[serde(default)]
+    track_interface: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -312,6 +316,19 @@ pub enum Claim {
     /// between-size spread is below `max_spread` (d) and below the between-realization
     /// spread (both strictly).
     SizeInsensitive { max_spread: f64 },
+    /// K Sec. III, Fig 12: the long-time oscillations of D(t) are global oscillations of
+    /// the bed; "Fig. 12 shows the depth of the intruder with respect to the
+    /// time-dependent position of the interface, calculated at the same time as the
+    /// intruder's position. The long-time oscillation are not visible anymore." Rule
+    /// (docs/impact2d.md, fixed before any run tracked the interface): the interface
+    /// tracers are the grains whose centre at release lies within 2 d of the surface D
+    /// is measured from and at a periodic horizontal distance >= L/4 from the impact
+    /// point (at least 10, ids fixed at release); s(t) = their centre of mass in y minus
+    /// its value at release; D_rel = D + s. A[X] = max - min of X over the final window
+    /// (the final depth's samples). A variant is tested when A[D] >= `min_amplitude` (d)
+    /// and holds when A[D_rel] <= `max_ratio` x A[D]. The claim fails when a tested
+    /// variant fails, else it is NOT COMPARED when a variant is untested, else it holds.
+    InterfaceSteadies { max_ratio: f64, min_amplitude: f64 },
 }
 
 /// A field summary a `field_order` claim compares.
@@ -418,6 +435,14 @@ pub struct Tolerances {
     /// Affine / D2_min summaries: relative difference (default 0.05).
     #[serde(default = "d_rel")]
     pub field_rel: f64,
+    /// RMS of s_native(t) - s_lammps(t), the interface displacement (K Fig 12), over
+    /// the run, in d (default 0.1; cases that track the interface only).
+    #[serde(default = "d_interface_rms")]
+    pub interface_rms: f64,
+}
+
+fn d_interface_rms() -> f64 {
+    0.1
 }
 
 fn d_rel() -> f64 {
@@ -443,6 +468,7 @@ impl Default for Tolerances {
             force_window: d_force_window(),
             b0_distance: d_rel(),
             field_rel: d_rel(),
+            interface_rms: d_interface_rms(),
         }
     }
 }
@@ -604,6 +630,9 @@ pub struct Impact2dCase {
     pub walls_as_grains: bool,
     /// Bed snapshots during the impact (K Sec. IV), if any.
     pub fields: Option<Fields>,
+    /// Both engines record the interface tracers' height (K Fig 12): an
+    /// `interface_steadies` claim or `[analysis] track_interface`.
+    pub track_interface: bool,
     pub sweep_parameter: Option<String>,
     /// The case without its sweep: beds are prepared with these materials.
     pub base: Variant,
@@ -622,7 +651,17 @@ pub const IMPACT2D_GATES: &[super::Gate] = &[
     super::Gate::IntruderForce,
     super::Gate::ForceNetwork,
     super::Gate::DisplacementField,
+    super::Gate::InterfaceSeries,
 ];
+
+/// The interface tracers of K Fig 12 (docs/impact2d.md): grains whose centre at release
+/// lies within this many d below the surface D is measured from ...
+pub const TRACER_DEPTH: f64 = 2.0;
+/// ... at a periodic horizontal distance from the impact point of at least this
+/// fraction of L ...
+pub const TRACER_MIN_DISTANCE: f64 = 0.25;
+/// ... and at least this many of them.
+pub const MIN_TRACERS: usize = 10;
 
 fn unit_interval(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
     if v.is_finite() && v > 0.0 && v <= 1.0 {
@@ -735,6 +774,11 @@ impl Impact2dCase {
         // the cases written before stay as they were.
         if self.is_ensemble() {
             view["seeds"] = serde_json::json!(self.seeds);
+        }
+        // Added with the interface tracers (K Fig 12), the same way.
+        if self.track_interface {
+            view["interface_tracers"] =
+                serde_json::json!([TRACER_DEPTH, TRACER_MIN_DISTANCE, MIN_TRACERS]);
         }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
@@ -1337,6 +1381,20 @@ impl Impact2dCase {
                         ));
                     }
                 }
+                Claim::InterfaceSteadies {
+                    max_ratio,
+                    min_amplitude,
+                } => {
+                    positive(&ctx, &at("max_ratio"), *max_ratio)?;
+                    positive(&ctx, &at("min_amplitude"), *min_amplitude)?;
+                    if *max_ratio >= 1.0 {
+                        return Err(ctx.bad(
+                            at("max_ratio"),
+                            max_ratio,
+                            "must be < 1: the depth below the interface would be allowed to oscillate as much as D",
+                        ));
+                    }
+                }
                 Claim::Linear { from, r2_min } => {
                     finite(&ctx, &at("from"), *from)?;
                     if !(0.0..=1.0).contains(r2_min) {
@@ -1375,6 +1433,11 @@ impl Impact2dCase {
             }
         }
         let tolerances = raw.compare.unwrap_or_default();
+        positive(&ctx, "compare.interface_rms", tolerances.interface_rms)?;
+        let track_interface = raw.analysis.track_interface
+            || claims
+                .iter()
+                .any(|c| matches!(c, Claim::InterfaceSteadies { .. }));
         positive(&ctx, "compare.final_depth_abs", tolerances.final_depth_abs)?;
         positive(&ctx, "compare.depth_rms", tolerances.depth_rms)?;
         positive(&ctx, "compare.force_rel", tolerances.force_rel)?;
@@ -1408,6 +1471,13 @@ impl Impact2dCase {
                     format!("negative_control[{k}].perturbation.sweep_ignored"),
                     true,
                     "a bed sweep changes the beds themselves: each variant keeps its own bed, so ignoring the sweep would rerun it unchanged (use other_size_speed_factor)",
+                ));
+            }
+            if p.interface_frozen_floor && !track_interface {
+                return Err(ctx.bad(
+                    format!("negative_control[{k}].perturbation.interface_frozen_floor"),
+                    true,
+                    "replaces the interface tracers, which this case does not track (an interface_steadies claim or [analysis] track_interface = true)",
                 ));
             }
             if p.other_size_speed_factor != 1.0
@@ -1448,6 +1518,7 @@ impl Impact2dCase {
             final_window,
             walls_as_grains: w.impact_as_grains,
             fields,
+            track_interface,
             sweep_parameter,
             base,
             variants,

@@ -48,6 +48,10 @@ pub struct VariantObs {
     #[serde(skip)]
     pub force: Vec<(f64, f64)>,
     pub fields: Option<FieldObs>,
+    /// The depth below the moving interface (K Fig 12), in cases that track it; left out
+    /// of `final_depths.json` otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interface: Option<super::interface::InterfaceObs>,
 }
 
 /// The bin width of a case's force claims: its `force_impulsive` claim's, else 1 tau_c.
@@ -509,6 +513,16 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
             }
         }
         Claim::SizeInsensitive { max_spread } => size_insensitive(case, *max_spread, engine, obs),
+        Claim::InterfaceSteadies {
+            max_ratio,
+            min_amplitude,
+        } => {
+            let v: Vec<_> = obs
+                .iter()
+                .map(|o| (o.label.as_str(), o.interface.as_ref()))
+                .collect();
+            super::interface::steadies(case, *max_ratio, *min_amplitude, engine, &v)
+        }
         Claim::Increasing { min_step, of, at } => {
             let (what, unit) = of.describe();
             if obs.len() < 2 {
@@ -1025,6 +1039,7 @@ mod tests {
                 trajectory: Vec::new(),
                 force: Vec::new(),
                 fields: None,
+                interface: None,
             })
             .collect()
     }

@@ -4,6 +4,7 @@
 pub mod coverage;
 pub mod ensemble;
 pub mod impact2d;
+pub mod interface;
 pub mod malt_points;
 pub mod penetration;
 pub mod stress;

@@ -290,7 +290,7 @@ impl Experiment for Impact2d {
             outputs: &[
                 (
                     lammps::INTRUDER_FILE,
-                    "every output_every steps the intruder's centre of mass, velocity and total force (%.17g)",
+                    "every output_every steps the intruder's centre of mass, velocity and total force (%.17g); in cases that track the interface (Kondic et al. Fig 12) an eighth column, the interface tracers' centre of mass in y",
                 ),
                 (
                     lammps::SNAP_FILE,
@@ -367,6 +367,7 @@ impl Experiment for Impact2d {
         }
         let (mut native_obs, mut ref_obs) = (Vec::new(), Vec::new());
         let mut series_svg: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        let mut relative_svg: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
         let mut complete = true;
         for ((u, a), b) in units.iter().zip(native).zip(reference) {
             let v = &u.variant;
@@ -378,6 +379,21 @@ impl Experiment for Impact2d {
                     checks.extend(cmp::cross_check(case, &oa, &ob, rms, "lammps"));
                     checks.extend(cmp::force_cross_check(case, &oa, &ob, "lammps"));
                     checks.extend(cmp::field_cross_checks(case, &oa, &ob, "lammps"));
+                    if case.track_interface {
+                        checks.push(crate::compare::interface::cross_check(
+                            case,
+                            &v.label,
+                            oa.interface.as_ref(),
+                            ob.interface.as_ref(),
+                            "lammps",
+                        ));
+                        for (e, o) in [("native", &oa), ("LAMMPS", &ob)] {
+                            if let Some(i) = &o.interface {
+                                relative_svg
+                                    .push((format!("{e} {}", v.label), i.relative_series.clone()));
+                            }
+                        }
+                    }
                     let scaled = |s: &[(f64, f64)]| {
                         s.iter().map(|p| (p.0 / tau, p.1 / d)).collect::<Vec<_>>()
                     };
@@ -418,6 +434,22 @@ impl Experiment for Impact2d {
                 &format!("{}: D(t), native vs LAMMPS", case.name),
             ) {
                 notes.push(format!("SVG not written: {e:#}"));
+            }
+            if !relative_svg.is_empty() {
+                let refs: Vec<(&str, &[(f64, f64)])> = relative_svg
+                    .iter()
+                    .map(|(l, s)| (l.as_str(), s.as_slice()))
+                    .collect();
+                if let Err(e) = crate::report::svg_impact::depth_overlay(
+                    &out.join("depth-interface.svg"),
+                    &refs,
+                    &format!(
+                        "{}: D_rel(t), depth below the moving interface (K Fig 12)",
+                        case.name
+                    ),
+                ) {
+                    notes.push(format!("SVG not written: {e:#}"));
+                }
             }
             if let Err(e) = field_plots(case, &native_obs, &ref_obs, out) {
                 notes.push(format!("field plots not written: {e:#}"));
@@ -740,6 +772,12 @@ impl Impact2d {
             snapshot_every: c.energy_every,
             header: self.header(u),
             fields: snapshot_steps(c),
+            tracers: u
+                .scene
+                .tracers
+                .iter()
+                .map(|&k| u.scene.sys.disks[k].id)
+                .collect(),
         }
     }
 
@@ -813,8 +851,15 @@ impl Impact2d {
                 format!(
                     "Measured: the penetration depth D(t) of the intruder's lowest point below \
                      the surface and the final depth, the mean over the last {} tau_c (Kondic \
-                     et al. Figs 2, 8); granval compares both with its native engine.",
-                    approx(c.final_window / s.tau_c)
+                     et al. Figs 2, 8); granval compares both with its native engine.{}",
+                    approx(c.final_window / s.tau_c),
+                    if c.track_interface {
+                        " Also the height of the interface (Kondic et al. Fig 12): the centre \
+                         of mass in y of the grains within 2 d of the surface and at least L/4 \
+                         from the impact point, for the depth below the moving interface."
+                    } else {
+                        ""
+                    }
                 ),
             ],
         }
@@ -1132,9 +1177,46 @@ pub fn observe(
                     .collect()
             },
             fields: observe_fields(case, v, run)?,
+            interface: if case.track_interface {
+                Some(observe_interface(case, scene, run, &series)?)
+            } else {
+                None
+            },
         },
         series,
     ))
+}
+
+/// The depth below the moving interface of one run (K Fig 12; docs/impact2d.md rules
+/// 2 and 4): s(t), D_rel(t) and the oscillations of D and D_rel over the final window,
+/// lengths in d, times in tau_c. `depth` is D(t) in m.
+pub fn observe_interface(
+    case: &Impact2dCase,
+    scene: &Scene,
+    run: &ImpactRun,
+    depth: &[(f64, f64)],
+) -> Result<crate::compare::interface::InterfaceObs> {
+    use crate::analysis::interface::{oscillation, relative_depth, shift};
+    let (d, tau) = (case.scales.d, case.scales.tau_c);
+    let scaled = |s: &[(f64, f64)]| s.iter().map(|p| (p.0 / tau, p.1 / d)).collect::<Vec<_>>();
+    // In SI over the final window, so that its samples are exactly the final depth's.
+    let osc = |x: &[(f64, f64)]| -> Result<crate::analysis::interface::Oscillation> {
+        let o = oscillation(x, case.final_window)?;
+        Ok(crate::analysis::interface::Oscillation {
+            amplitude: o.amplitude / d,
+            period: o.period.map(|p| p / tau),
+            ..o
+        })
+    };
+    let s = shift(&run.samples)?;
+    let rel = relative_depth(depth, &s)?;
+    Ok(crate::compare::interface::InterfaceObs {
+        tracers: scene.tracers.len(),
+        depth: osc(depth)?,
+        relative: osc(&rel)?,
+        shift: scaled(&s),
+        relative_series: scaled(&rel),
+    })
 }
 
 /// Directory name of a variant: its label with `=` kept, other odd characters `_`.

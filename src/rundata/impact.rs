@@ -6,7 +6,8 @@ use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
 
-/// The intruder at one output step (SI): centre of mass, velocity, contact force.
+/// The intruder at one output step (SI): centre of mass, velocity, contact force; and,
+/// in cases that track it (K Fig 12), the interface height at the same step.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct IntruderSample {
     pub step: u64,
@@ -14,6 +15,8 @@ pub struct IntruderSample {
     pub x: [f64; 2],
     pub v: [f64; 2],
     pub f: [f64; 2],
+    /// Centre of mass in y of the interface tracers (m); None when not tracked.
+    pub interface_y: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -26,17 +29,36 @@ pub struct EnergySample {
     pub elastic: f64,
 }
 
-/// `intruder.csv`: t, step, x, y, vx, vy, fx, fy, D (SI, full precision).
+/// `intruder.csv`: t, step, x, y, vx, vy, fx, fy, D (SI, full precision); when the
+/// samples carry the interface height (K Fig 12), also `interface_y` and the derived
+/// `interface_s` (its rise since the first sample). Every sample tracks it or none.
 pub fn write_intruder_csv(
     path: &Path,
     s: &[IntruderSample],
     surface: f64,
     bottom_offset: f64,
 ) -> Result<()> {
+    let tracked = s.first().is_some_and(|p| p.interface_y.is_some());
+    if let Some(p) = s.iter().find(|p| p.interface_y.is_some() != tracked) {
+        anyhow::bail!(
+            "{}: the interface height is recorded at some intruder samples but not at step {}",
+            path.display(),
+            p.step
+        );
+    }
+    let y0 = s.first().and_then(|p| p.interface_y).unwrap_or(0.0);
     let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
-    writeln!(w, "t,step,x,y,vx,vy,fx,fy,depth")?;
+    writeln!(
+        w,
+        "t,step,x,y,vx,vy,fx,fy,depth{}",
+        if tracked {
+            ",interface_y,interface_s"
+        } else {
+            ""
+        }
+    )?;
     for p in s {
-        writeln!(
+        write!(
             w,
             "{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
             p.t,
@@ -49,6 +71,10 @@ pub fn write_intruder_csv(
             p.f[1],
             surface - (p.x[1] - bottom_offset)
         )?;
+        match p.interface_y {
+            Some(y) => writeln!(w, ",{y:e},{:e}", y - y0)?,
+            None => writeln!(w)?,
+        }
     }
     Ok(())
 }
@@ -64,6 +90,9 @@ struct IntruderRow {
     vy: f64,
     fx: f64,
     fy: f64,
+    /// Only in the files of cases that track the interface.
+    #[serde(default)]
+    interface_y: Option<f64>,
 }
 
 /// One row of `energy.csv`.
@@ -94,6 +123,7 @@ pub fn read_intruder_csv(path: &Path) -> Result<Vec<IntruderSample>> {
             x: [r.x, r.y],
             v: [r.vx, r.vy],
             f: [r.fx, r.fy],
+            interface_y: r.interface_y,
         })
         .collect())
 }

@@ -36,6 +36,10 @@ pub struct Outputs {
     pub header: Header,
     /// Bed snapshots (K Sec. IV): grain positions and contact forces at chosen steps.
     pub fields: crate::physics::dem2d::impact::SnapshotSteps,
+    /// Atom ids of the interface tracers (K Fig 12): their centre of mass in y is an
+    /// eighth column of the intruder file. Empty: not tracked, and the deck does not
+    /// mention it.
+    pub tracers: Vec<u64>,
 }
 
 /// An equal-style LAMMPS formula whose value is the first of `steps` (sorted, > 0)
@@ -510,10 +514,27 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         ] {
             let _ = writeln!(s, "variable {v} equal {f}");
         }
+        let mut columns = "v_ix v_iy v_ivx v_ivy v_ifx v_ify".to_string();
+        if !out.tracers.is_empty() {
+            comment(
+                &mut s,
+                &format!(
+                    "Kondic et al. Fig 12: the interface height, the centre of mass in y (m, \
+                     mass-weighted) of the {} interface tracers (group iface: the grains whose \
+                     centre lay within 2 d of the surface at release, at least L/4 from the \
+                     impact point), as an eighth column at the same steps. granval turns it \
+                     into the depth below the moving interface.",
+                    out.tracers.len()
+                ),
+            );
+            let _ = writeln!(s, "group iface id {}", id_ranges(out.tracers.clone()));
+            let _ = writeln!(s, "variable sy equal xcm(iface,y)");
+            columns += " v_sy";
+        }
         let n = out.intruder_every;
         let _ = writeln!(
             s,
-            "fix iout all ave/time {n} 1 {n} v_ix v_iy v_ivx v_ivy v_ifx v_ify file {INTRUDER_FILE} format \" %.17g\""
+            "fix iout all ave/time {n} 1 {n} {columns} file {INTRUDER_FILE} format \" %.17g\""
         );
     }
     if out.snapshot_every > 0 {
@@ -655,6 +676,7 @@ mod tests {
                 position_steps: vec![40, 50],
                 contact_steps: vec![50],
             },
+            tracers: Vec::new(),
         };
         let e = write_deck(&sys(vec![g, w, w, w]), &out)
             .unwrap_err()
@@ -684,6 +706,90 @@ mod tests {
                 .unwrap()
                 .contains("pair_style hybrid")
         );
+    }
+
+    /// The interface tracers (K Fig 12) add a group, an `xcm` variable and an eighth
+    /// column to the intruder output, and nothing else; without tracers the deck does
+    /// not mention them (every case that does not track the interface keeps its deck).
+    #[test]
+    fn interface_tracers_add_one_column_to_the_intruder_output() {
+        use crate::case::impact2d::Coeffs;
+        use crate::physics::dem2d::neighbor::Box2;
+        let disk = |id: u64, type_: usize, x: f64, role: Role| crate::physics::dem2d::Disk {
+            id,
+            type_,
+            radius: 0.5,
+            mass: 1.0,
+            x: [x, 1.0],
+            v: [0.0; 2],
+            omega: 0.0,
+            role,
+        };
+        let c = Coeffs {
+            kn: 1e3,
+            kt: 0.0,
+            gamma_n: 10.0,
+            gamma_t: 5.0,
+            mu: 0.5,
+        };
+        let sys = System::new(
+            vec![
+                disk(1, 0, 1.0, Role::Free),
+                disk(2, 0, 2.0, Role::Free),
+                disk(3, 0, 3.0, Role::Free),
+                disk(5, 0, 5.0, Role::Free),
+                disk(6, 1, 6.0, Role::Frozen),
+                disk(7, 2, 8.0, Role::Free),
+            ],
+            None,
+            vec![c; 9],
+            3,
+            Box2 {
+                lo: [0.0, 0.0],
+                hi: [10.0, 10.0],
+                periodic_x: true,
+            },
+            9.81,
+            1e-4,
+            0.1,
+            vec![5],
+        );
+        let plain = Outputs {
+            n_steps: 100,
+            intruder_every: 10,
+            snapshot_every: 50,
+            header: Header::default(),
+            fields: Default::default(),
+            tracers: Vec::new(),
+        };
+        let tracked = Outputs {
+            tracers: vec![5, 1, 2, 3],
+            ..plain.clone()
+        };
+        let (a, b) = (
+            write_deck(&sys, &plain).unwrap(),
+            write_deck(&sys, &tracked).unwrap(),
+        );
+        assert!(!a.contains("iface") && !a.contains("v_sy") && !a.contains("Fig 12"));
+        assert_eq!(a.matches("xcm(").count(), 2, "only the intruder's: {a}");
+        assert!(a.contains(
+            "fix iout all ave/time 10 1 10 v_ix v_iy v_ivx v_ivy v_ifx v_ify file intruder.txt"
+        ));
+        assert!(b.contains("group iface id 1:3 5\nvariable sy equal xcm(iface,y)\n"));
+        assert!(b.contains(
+            "fix iout all ave/time 10 1 10 v_ix v_iy v_ivx v_ivy v_ifx v_ify v_sy file intruder.txt"
+        ));
+        // Commands: the tracked deck is the plain one plus exactly those lines.
+        let commands = |d: &str| -> Vec<String> {
+            crate::engines::deck_text::canonical(d)
+                .lines()
+                .map(str::to_string)
+                .collect()
+        };
+        let (ca, cb) = (commands(&a), commands(&b));
+        let extra: Vec<&String> = cb.iter().filter(|l| !ca.contains(l)).collect();
+        assert_eq!(extra.len(), 3, "{extra:?}");
+        assert_eq!(ca.len() + 2, cb.len());
     }
 
     /// LAMMPS evaluates the formula with `step` the current step: it must give the next

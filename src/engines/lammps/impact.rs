@@ -120,13 +120,15 @@ pub fn read(
     // fcm() is contacts + gravity; the observable is the contact force.
     let weight = scene.intruder_mass * scene.sys.gravity;
     let mut samples = Vec::new();
-    parse::for_each_intruder_line(&dir.join(super::INTRUDER_FILE), |l| {
+    let interface = !out.tracers.is_empty();
+    parse::for_each_intruder_line(&dir.join(super::INTRUDER_FILE), interface, |l| {
         samples.push(IntruderSample {
             step: l.step,
             t: l.step as f64 * dt,
             x: l.x,
             v: l.v,
             f: [l.f[0], l.f[1] + weight],
+            interface_y: l.interface_y,
         });
         Ok(())
     })?;

@@ -130,20 +130,29 @@ pub fn for_each_snapshot(
 }
 
 /// One line of the `fix ave/time` intruder file: step, centre of mass, velocity and
-/// total force (contacts + gravity) of the intruder group.
+/// total force (contacts + gravity) of the intruder group; with interface tracers (K
+/// Fig 12) also their centre of mass in y.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IntruderLine {
     pub step: u64,
     pub x: [f64; 2],
     pub v: [f64; 2],
     pub f: [f64; 2],
+    pub interface_y: Option<f64>,
 }
 
-/// Calls `line` for every data line of the intruder file; returns how many.
+/// Calls `line` for every data line of the intruder file, which has the interface
+/// column if `interface` (and then every line must have it); returns how many.
 pub fn for_each_intruder_line(
     path: &Path,
+    interface: bool,
     mut line: impl FnMut(IntruderLine) -> Result<()>,
 ) -> Result<usize> {
+    let (want, columns) = if interface {
+        (8, "step x y vx vy fx fy y_interface")
+    } else {
+        (7, "step x y vx vy fx fy")
+    };
     let mut n = 0;
     for (k, l) in open(path)?.lines().enumerate() {
         let l = l.with_context(|| format!("{}: line {}", path.display(), k + 1))?;
@@ -152,9 +161,9 @@ pub fn for_each_intruder_line(
             continue;
         }
         let v: Vec<&str> = t.split_whitespace().collect();
-        if v.len() != 7 {
+        if v.len() != want {
             bail!(
-                "{}: line {}: {} fields, expected 7 (step x y vx vy fx fy)",
+                "{}: line {}: {} fields, expected {want} ({columns})",
                 path.display(),
                 k + 1,
                 v.len()
@@ -178,6 +187,7 @@ pub fn for_each_intruder_line(
             x: [num(1)?, num(2)?],
             v: [num(3)?, num(4)?],
             f: [num(5)?, num(6)?],
+            interface_y: if interface { Some(num(7)?) } else { None },
         })?;
         n += 1;
     }
@@ -276,6 +286,38 @@ pub fn for_each_table_frame(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The intruder file has the interface column exactly when asked for: a line of
+    /// the other width is an error naming the file, the line and the columns.
+    #[test]
+    fn intruder_lines_read_the_interface_column_when_tracked() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("intruder.txt");
+        std::fs::write(
+            &p,
+            "# Time-averaged data\n0 1 2 3 4 5 6 0.25\n10 1 2 3 4 5 6 0.5\n",
+        )
+        .unwrap();
+        let mut got = Vec::new();
+        for_each_intruder_line(&p, true, |l| {
+            got.push(l.interface_y);
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(got, vec![Some(0.25), Some(0.5)]);
+        let e = for_each_intruder_line(&p, false, |_| Ok(())).unwrap_err();
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("intruder.txt") && e.contains("line 2") && e.contains("expected 7"),
+            "{e}"
+        );
+        std::fs::write(&p, "0 1 2 3 4 5 6\n").unwrap();
+        let e = format!(
+            "{:#}",
+            for_each_intruder_line(&p, true, |_| Ok(())).unwrap_err()
+        );
+        assert!(e.contains("expected 8") && e.contains("y_interface"), "{e}");
+    }
 
     /// A `dump local` frame reads back row by row; other columns or a cut-off file are
     /// errors naming the file.

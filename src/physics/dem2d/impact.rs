@@ -11,7 +11,9 @@
 use super::bed::{Bed, BedSpec, wall_row};
 use super::neighbor::Box2;
 use super::{Cluster, Disk, Role, System, lammps_mass};
-use crate::case::impact2d::{BedKey, Impact2dCase, IntruderShape, Variant};
+use crate::case::impact2d::{
+    BedKey, Impact2dCase, IntruderShape, MIN_TRACERS, TRACER_DEPTH, TRACER_MIN_DISTANCE, Variant,
+};
 use anyhow::Result;
 
 /// A scene ready to run, plus what the analysis needs to turn the intruder's centre
@@ -24,6 +26,10 @@ pub struct Scene {
     /// Intruder centre of mass minus its lowest point (m).
     pub bottom_offset: f64,
     pub intruder_mass: f64,
+    /// Indices (into `sys.disks`) of the disks whose centre of mass in y is the
+    /// interface height (K Fig 12), recorded at every intruder sample; empty when the
+    /// case does not track the interface.
+    pub tracers: Vec<usize>,
 }
 
 /// Bed preparation inputs for a bed key (packing, count, length, seed): always the
@@ -187,12 +193,74 @@ pub fn build(case: &Impact2dCase, v: &Variant, bed: &Bed) -> Result<Scene> {
     let sys = System::new(
         disks, cluster, coeffs, 3, bx, v.gravity, case.dt, case.skin, intruder,
     );
+    let tracers = if case.track_interface {
+        interface_tracers(&sys, surface, s.d, x_imp, l)
+            .map_err(|e| anyhow::anyhow!("{}: variant {}: {e}", case.source.display(), v.label))?
+    } else {
+        Vec::new()
+    };
     Ok(Scene {
         sys,
         surface,
         bottom_offset,
         intruder_mass,
+        tracers,
     })
+}
+
+/// The interface tracers of K Fig 12 (docs/impact2d.md, rule 1), as indices into
+/// `sys.disks`: grains (type 0, free) whose centre lies at or above `surface -
+/// TRACER_DEPTH d` and at a periodic horizontal distance of at least
+/// `TRACER_MIN_DISTANCE L` from the impact point `x_imp`: the top of the bed on the side
+/// opposite the impact, away from the crater, whose motion is the bed's own. Fewer than
+/// `MIN_TRACERS` is an error.
+pub fn interface_tracers(
+    sys: &System,
+    surface: f64,
+    d: f64,
+    x_imp: f64,
+    length: f64,
+) -> Result<Vec<usize>> {
+    let level = surface - TRACER_DEPTH * d;
+    let t: Vec<usize> = (0..sys.disks.len())
+        .filter(|&k| {
+            let g = &sys.disks[k];
+            let dx = (g.x[0] - x_imp).rem_euclid(length);
+            g.type_ == 0
+                && g.role == Role::Free
+                && !sys.intruder.contains(&k)
+                && g.x[1] >= level
+                && dx.min(length - dx) >= TRACER_MIN_DISTANCE * length
+        })
+        .collect();
+    anyhow::ensure!(
+        t.len() >= MIN_TRACERS,
+        "{} interface tracer(s) (grains with their centre within {TRACER_DEPTH} d of the \
+         surface and at least {TRACER_MIN_DISTANCE} L from the impact point); K Fig 12's \
+         interface needs at least {MIN_TRACERS}",
+        t.len()
+    );
+    Ok(t)
+}
+
+/// The bottom row of frozen wall disks (below `surface`): the tracers of the
+/// `interface_frozen_floor` control, whose height never changes.
+pub fn floor_tracers(sys: &System, surface: f64) -> Vec<usize> {
+    (0..sys.disks.len())
+        .filter(|&k| sys.disks[k].role == Role::Frozen && sys.disks[k].x[1] < surface)
+        .collect()
+}
+
+/// Centre of mass in y of the disks `idx`, summed as LAMMPS' `Group::xcm` sums (mass
+/// times position, then over the group mass); NaN for an empty set.
+pub fn tracer_height(sys: &System, idx: &[usize]) -> f64 {
+    let (mut my, mut m) = (0.0, 0.0);
+    for &k in idx {
+        let g = &sys.disks[k];
+        my += g.x[1] * g.mass;
+        m += g.mass;
+    }
+    my / m
 }
 
 /// Which bed snapshots a run writes (K Sec. IV): the grains' positions at
@@ -273,6 +341,8 @@ pub fn run_native(
                 x,
                 v,
                 f: sys.intruder_contact_force(),
+                interface_y: (!scene.tracers.is_empty())
+                    .then(|| tracer_height(&sys, &scene.tracers)),
             });
             progress(sys.step);
         }
@@ -324,9 +394,13 @@ pub fn with_intruder_speed(scene: &Scene, factor: f64) -> Scene {
 
 /// The scene made wrong on purpose for a negative control (the reference engine always
 /// gets the untouched scene): friction model swapped (k_t = 0.8 k_n <-> 0) and/or
-/// friction coefficients scaled.
+/// friction coefficients scaled; the interface tracked on the frozen floor instead of
+/// the tracers (K Fig 12's control).
 pub fn perturbed(scene: &Scene, pert: &crate::case::Perturbation) -> Scene {
     let mut s = scene.clone();
+    if pert.interface_frozen_floor {
+        s.tracers = floor_tracers(&s.sys, s.surface);
+    }
     for c in &mut s.sys.coeffs {
         if pert.swap_friction_model {
             c.kt = if c.kt > 0.0 { 0.0 } else { 0.8 * c.kn };
@@ -334,4 +408,124 @@ pub fn perturbed(scene: &Scene, pert: &crate::case::Perturbation) -> Scene {
         c.mu *= pert.friction_factor;
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::case::impact2d::Coeffs;
+
+    fn disk(id: u64, type_: usize, x: [f64; 2], role: Role) -> Disk {
+        Disk {
+            id,
+            type_,
+            radius: 0.5,
+            mass: 1.0 + id as f64,
+            x,
+            v: [0.0; 2],
+            omega: 0.0,
+            role,
+        }
+    }
+
+    /// L = 40, d = 1, impact at x = 20, surface at 10: tracers are the grains with
+    /// their centre at y >= 8 and |x - 20| >= 10 across the periodic side.
+    fn system(extra: Vec<Disk>) -> System {
+        let mut disks = vec![
+            disk(1, 1, [5.0, 0.5], Role::Frozen),
+            disk(2, 1, [25.0, 0.5], Role::Frozen),
+            disk(3, 1, [5.0, 30.0], Role::Frozen),
+        ];
+        disks.extend(extra);
+        let c = Coeffs {
+            kn: 1e3,
+            kt: 0.0,
+            gamma_n: 10.0,
+            gamma_t: 5.0,
+            mu: 0.5,
+        };
+        let intruder = disks
+            .iter()
+            .position(|g| g.type_ == 2)
+            .into_iter()
+            .collect();
+        System::new(
+            disks,
+            None,
+            vec![c; 9],
+            3,
+            Box2 {
+                lo: [0.0, 0.0],
+                hi: [40.0, 31.0],
+                periodic_x: true,
+            },
+            9.81,
+            1e-4,
+            0.1,
+            intruder,
+        )
+    }
+
+    /// The rule of docs/impact2d.md on a hand-made bed: depth (y >= surface - 2 d, the
+    /// boundary included), periodic distance >= L/4 on both sides of the impact and
+    /// across x = 0 = L, grains only (no wall disk, not the intruder), at least 10.
+    #[test]
+    fn tracers_are_the_top_grains_opposite_the_impact() {
+        let mut grains = Vec::new();
+        let mut id = 10;
+        let mut push = |x: f64, y: f64, type_: usize, grains: &mut Vec<Disk>| {
+            grains.push(disk(id, type_, [x, y], Role::Free));
+            id += 1;
+        };
+        // Counted: x in [0, 10] or [30, 40), y >= 8.
+        let want = [
+            (0.2, 9.5),
+            (39.9, 9.5),
+            (10.0, 8.0),
+            (30.0, 8.7),
+            (2.0, 9.0),
+            (4.0, 9.0),
+            (6.0, 9.0),
+            (8.0, 9.0),
+            (33.0, 9.0),
+            (36.0, 9.0),
+        ];
+        for &(x, y) in &want {
+            push(x, y, 0, &mut grains);
+        }
+        // Not counted: too deep, too close to the impact, or the intruder.
+        for &(x, y) in &[
+            (2.0, 7.99),
+            (10.01, 9.0),
+            (29.99, 9.0),
+            (20.0, 9.5),
+            (15.0, 9.0),
+        ] {
+            push(x, y, 0, &mut grains);
+        }
+        push(2.0, 12.0, 2, &mut grains);
+        let sys = system(grains.clone());
+        let t = interface_tracers(&sys, 10.0, 1.0, 20.0, 40.0).unwrap();
+        let got: Vec<[f64; 2]> = t.iter().map(|&k| sys.disks[k].x).collect();
+        let want: Vec<[f64; 2]> = want.iter().map(|&(x, y)| [x, y]).collect();
+        assert_eq!(got, want);
+        // The weighted mean y is LAMMPS' xcm: sum m y / sum m.
+        let (my, m) = t.iter().fold((0.0, 0.0), |(a, b), &k| {
+            let g = &sys.disks[k];
+            (a + g.mass * g.x[1], b + g.mass)
+        });
+        assert!((tracer_height(&sys, &t) - my / m).abs() < 1e-12);
+        // The floor: the bottom wall row only, at a constant height.
+        assert_eq!(floor_tracers(&sys, 10.0), vec![0, 1]);
+        assert_eq!(tracer_height(&sys, &floor_tracers(&sys, 10.0)), 0.5);
+        // One grain fewer: 9 tracers are refused, with the count and the rule.
+        grains.remove(0);
+        let e = interface_tracers(&system(grains), 10.0, 1.0, 20.0, 40.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("9 interface tracer(s)") && e.contains("at least 10"),
+            "{e}"
+        );
+    }
 }
