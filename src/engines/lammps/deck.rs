@@ -621,14 +621,14 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
 mod tests {
     use super::*;
 
-    /// A deck that dumps contact forces uses one pair style (`compute pair/local` crashes
-    /// under hybrid) and refuses a system whose pairs differ; it dumps at the listed steps.
-    #[test]
-    fn contact_dumps_need_one_pair_style() {
-        use crate::case::impact2d::Coeffs;
-        use crate::physics::dem2d::neighbor::Box2;
-        use crate::physics::dem2d::{Disk, Role};
-        let disk = |id: u64, type_: usize, x: f64, role: Role| Disk {
+    /// A unit disk at (x, 1) at rest: the hand-made systems of the deck tests.
+    fn disk(
+        id: u64,
+        type_: usize,
+        x: f64,
+        role: crate::physics::dem2d::Role,
+    ) -> crate::physics::dem2d::Disk {
+        crate::physics::dem2d::Disk {
             id,
             type_,
             radius: 0.5,
@@ -637,7 +637,16 @@ mod tests {
             v: [0.0; 2],
             omega: 0.0,
             role,
-        };
+        }
+    }
+
+    /// A deck that dumps contact forces uses one pair style (`compute pair/local` crashes
+    /// under hybrid) and refuses a system whose pairs differ; it dumps at the listed steps.
+    #[test]
+    fn contact_dumps_need_one_pair_style() {
+        use crate::case::impact2d::Coeffs;
+        use crate::physics::dem2d::Role;
+        use crate::physics::dem2d::neighbor::Box2;
         let g = Coeffs {
             kn: 1e3,
             kt: 800.0,
@@ -715,16 +724,6 @@ mod tests {
     fn interface_tracers_add_one_column_to_the_intruder_output() {
         use crate::case::impact2d::Coeffs;
         use crate::physics::dem2d::neighbor::Box2;
-        let disk = |id: u64, type_: usize, x: f64, role: Role| crate::physics::dem2d::Disk {
-            id,
-            type_,
-            radius: 0.5,
-            mass: 1.0,
-            x: [x, 1.0],
-            v: [0.0; 2],
-            omega: 0.0,
-            role,
-        };
         let c = Coeffs {
             kn: 1e3,
             kt: 0.0,
