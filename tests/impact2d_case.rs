@@ -720,3 +720,49 @@ fn interface_claim_and_frozen_floor_control_parse_and_name_their_mistakes() {
         "{e}"
     );
 }
+
+/// A malformed claim is named with its index and serde's reason (a missing or unknown
+/// field, a kind that does not exist), not as a failed match of "one or many".
+#[test]
+fn malformed_claims_name_the_claim_and_the_field() {
+    let t = ci_text();
+    let sweep = "\n[sweep]\nparameter = \"speed\"\nvalues = [0.4, 0.7, 1.0]\n";
+    let one = format!("{t}{sweep}[claim]\nkind = \"increasing\"\nmin_step = 0.5\n");
+    let many = format!(
+        "{t}{sweep}[[claim]]\nkind = \"increasing\"\nmin_step = 0.5\n[[claim]]\nkind = \"linear\"\nfrom = 0.4\nr2_min = 0.9\n"
+    );
+    assert_eq!(
+        Impact2dCase::from_toml_str(&many, Path::new("ok.toml"))
+            .unwrap()
+            .claims
+            .len(),
+        2
+    );
+    assert_rejected(
+        &one,
+        &[
+            (
+                "kind = \"increasing\"\nmin_step = 0.5\n",
+                "kind = \"linear\"\nr2_min = 0.9\n",
+                "claim",
+                "missing field `from`",
+            ),
+            (
+                "min_step = 0.5\n",
+                "min_step = 0.5\nslope = 1\n",
+                "claim",
+                "unknown field `slope`",
+            ),
+            (
+                "\"increasing\"",
+                "\"rising\"",
+                "claim",
+                "unknown variant `rising`",
+            ),
+        ],
+    );
+    assert_rejected(
+        &many,
+        &[("r2_min = 0.9\n", "", "claim[1]", "missing field `r2_min`")],
+    );
+}

@@ -46,7 +46,9 @@ struct File {
     sweep: Option<SweepIn>,
     /// `[claim]` (one) or `[[claim]]` (several).
     #[serde(default)]
-    claim: Option<OneOrMany<Claim>>,
+    /// Kept as TOML until validation: serde's untagged one-or-many would hide which
+    /// field of which claim is wrong behind "did not match any variant".
+    claim: Option<toml::Value>,
     #[serde(default)]
     compare: Option<Tolerances>,
     #[serde(default)]
@@ -221,13 +223,6 @@ struct SweepIn {
     /// speed | e_n | mu | gravity | friction | friction_mu | packing | bed
     parameter: String,
     values: Vec<toml::Value>,
-}
-
-#[derive(Debug, Clone, Deserialize)]
-#[serde(untagged)]
-enum OneOrMany<T> {
-    One(T),
-    Many(Vec<T>),
 }
 
 #[derive(Debug, Clone, Deserialize, serde::Serialize)]
@@ -662,6 +657,33 @@ pub const TRACER_DEPTH: f64 = 2.0;
 pub const TRACER_MIN_DISTANCE: f64 = 0.25;
 /// ... and at least this many of them.
 pub const MIN_TRACERS: usize = 10;
+
+/// `[claim]` (one table) or `[[claim]]` (several), each read on its own so that an
+/// error names the claim and serde's own reason (a missing or unknown field, a bad kind).
+fn parse_claims(ctx: &Ctx, raw: Option<&toml::Value>) -> Result<Vec<Claim>, CaseError> {
+    let tables: Vec<(String, &toml::Value)> = match raw {
+        None => return Ok(vec![]),
+        Some(toml::Value::Array(v)) => v
+            .iter()
+            .enumerate()
+            .map(|(k, c)| (format!("claim[{k}]"), c))
+            .collect(),
+        Some(c) => vec![("claim".to_string(), c)],
+    };
+    tables
+        .into_iter()
+        .map(|(field, c)| {
+            let kind = c.get("kind").and_then(|k| k.as_str()).unwrap_or("(none)");
+            Claim::deserialize(c.clone()).map_err(|e| {
+                ctx.bad(
+                    &field,
+                    format!("kind = {kind}"),
+                    format!("not a valid claim: {}", e.message()),
+                )
+            })
+        })
+        .collect()
+}
 
 fn unit_interval(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
     if v.is_finite() && v > 0.0 && v <= 1.0 {
@@ -1169,11 +1191,7 @@ impl Impact2dCase {
                 }
             }
         }
-        let claims: Vec<Claim> = match raw.claim.clone() {
-            None => vec![],
-            Some(OneOrMany::One(c)) => vec![c],
-            Some(OneOrMany::Many(v)) => v,
-        };
+        let claims = parse_claims(&ctx, raw.claim.as_ref())?;
         if !claims.is_empty() && raw.sweep.is_none() {
             return Err(ctx.bad(
                 "claim",

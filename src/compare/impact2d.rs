@@ -8,6 +8,11 @@ use crate::analysis::force_network::{B0Curves, integral, relative_l1};
 use crate::analysis::impact::{ForceSummary, bins_rms, force_summary};
 use crate::case::impact2d::{Claim, ClaimQuantity, FieldQuantity, Impact2dCase};
 
+/// Why an `increasing` claim fails although every step met min_step: with min_step 0
+/// (and, on an ensemble, zero spread) a step that stays flat or falls meets the bound.
+const FLAT_STEP: &str =
+    "a step does not rise (increasing means strictly rising, whatever min_step)";
+
 /// The bed fields of one run (K Sec. IV), reduced.
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct FieldObs {
@@ -566,6 +571,10 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
                     listing(&value)
                 ),
             )
+            .fail_if(
+                obs.windows(2).any(|w| value(&w[1]) <= value(&w[0])),
+                FLAT_STEP,
+            )
         }
         Claim::EnergyNonIncreasing { max_rise } => {
             // Largest rise of E between consecutive samples, over the impact energy.
@@ -737,6 +746,7 @@ fn ensemble_claim_check(
                 Err(e) => return Check::error_in(name, Gate::Claim, e),
             };
             let (worst, steps) = ensemble::increasing(&stats, *min_step);
+            let rises: Vec<f64> = steps.iter().map(|s| s.rise).collect();
             let steps = stats
                 .windows(2)
                 .zip(&steps)
@@ -767,6 +777,7 @@ fn ensemble_claim_check(
                         .join("; ")
                 ),
             )
+            .fail_if(rises.iter().any(|&r| r <= 0.0), FLAT_STEP)
         }
         Claim::Linear { from, r2_min } => {
             let name = format!(
@@ -1097,6 +1108,43 @@ mod tests {
         );
         assert!(
             !one(&c, &obs(&[0.1, 0.5, 0.9], &[1.0, 1.3, 3.0]))
+                .unwrap()
+                .passed
+        );
+    }
+
+    /// With min_step 0 the bound `y_k + 0 - y_k+1 <= 0` is met by a flat step; the claim
+    /// says "increases", so a flat step fails, alone and on a seed ensemble without
+    /// spread (the sweep-ignored control's identical runs), while a real rise passes.
+    #[test]
+    fn increasing_claim_with_min_step_zero_fails_a_flat_step() {
+        let c = case(
+            "[claim]\nkind = \"increasing\"\nmin_step = 0.0",
+            "[sweep]\nparameter = \"e_n\"\nvalues = [0.1, 0.5, 0.9]",
+        );
+        let k = one(&c, &obs(&[0.1, 0.5, 0.9], &[1.0, 1.0, 2.0])).unwrap();
+        assert!(k.value <= 0.0, "the min_step bound alone is met: {k:?}");
+        assert!(
+            k.status == crate::compare::Status::Fail && k.detail.contains("does not rise"),
+            "{k:?}"
+        );
+        assert!(
+            one(&c, &obs(&[0.1, 0.5, 0.9], &[1.0, 1.01, 2.0]))
+                .unwrap()
+                .passed
+        );
+        let e = ensemble(
+            "[claim]\nkind = \"increasing\"\nmin_step = 0.0",
+            "[sweep]\nparameter = \"friction\"\nvalues = [\"static\", \"kinetic\"]",
+            "[1, 2, 3, 4, 5]",
+        );
+        let k = one(&e, &ensemble_obs(&e, &|_, _| 3.0)).unwrap();
+        assert!(
+            k.value <= 0.0 && k.status == crate::compare::Status::Fail,
+            "{k:?}"
+        );
+        assert!(
+            one(&e, &ensemble_obs(&e, &|i, _| 3.0 + 0.1 * i as f64))
                 .unwrap()
                 .passed
         );

@@ -93,6 +93,18 @@ impl Check {
         Check::with_status(name, gate, metric, value, tolerance, status, detail)
     }
 
+    /// Turns a pass into a fail when the rule has a condition its single metric cannot
+    /// carry (an `increasing` claim with min_step 0 meets `value <= 0` on a flat step,
+    /// which does not increase). Any other verdict is kept.
+    pub fn fail_if(mut self, failed: bool, why: &str) -> Check {
+        if failed && self.status == Status::Pass {
+            self.status = Status::Fail;
+            self.passed = false;
+            self.detail = format!("{}; fails: {why}", self.detail);
+        }
+        self
+    }
+
     /// Passes when `value >= minimum`. NaN never passes.
     pub fn at_least(
         name: impl Into<String>,
