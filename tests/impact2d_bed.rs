@@ -189,7 +189,7 @@ fn bed_sweep_prepares_a_bed_per_key_and_the_control_slows_only_other_sizes() {
         start.elapsed().as_secs_f64()
     );
     // Prepared once per key: asking again takes them from this process's memo.
-    let beds = prepare_beds(&exp.case, false).unwrap();
+    let beds = prepare_beds(&exp.case, false, None).unwrap();
     assert_eq!(beds.beds.len(), 4);
     let layout = |b: &granval::physics::dem2d::bed::Bed| {
         b.grains.iter().map(|g| (g.radius, g.x)).collect::<Vec<_>>()
@@ -253,4 +253,133 @@ fn bed_sweep_prepares_a_bed_per_key_and_the_control_slows_only_other_sizes() {
         let plain = control_scene(&exp.case, u, &Perturbation::default()).unwrap();
         assert_eq!(state(&plain), state(&u.scene));
     }
+}
+
+/// A 2D record carries the beds its reference runs started from (with the first unit
+/// on each bed), so a recorded comparison starts the native runs from them instead of
+/// settling them again; the seal still decides: a bed read from the record is used
+/// only if the scene built from it has the fingerprint the seal holds, so a bed moved
+/// by one ulp in the record makes the comparison an error.
+#[test]
+fn records_carry_their_beds_and_a_changed_bed_is_refused() {
+    use granval::case::impact2d::Impact2dCase;
+    use granval::experiments::impact2d::{Impact2d, prepare_beds};
+    use granval::experiments::{Experiment, Options, RefMode, reference, runner};
+    use granval::physics::dem2d::bed::Bed;
+    use granval::rundata::provenance::EngineKind;
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(common::root().join("cases/impact2d/ci.toml"))
+        .unwrap()
+        .replace("settle_ke = 1e-10", "settle_ke = 1e-6")
+        .replace("name = \"ci\"", "name = \"ci-recorded-beds\"")
+        + "\n[sweep]\nparameter = \"bed\"\nvalues = [{ count = 150, length = 15, seed = 1 }, { count = 150, length = 15, seed = 2 }]\n";
+    let path = tmp.path().join("ci-recorded-beds.toml");
+    std::fs::write(&path, text).unwrap();
+    let exp = Impact2d {
+        case: Impact2dCase::load(&path).unwrap(),
+    };
+    let reference_root = tmp.path().join("reference");
+    let record = reference::record_root(&reference_root, exp.kind(), exp.name());
+    let plain = exp.units(&Options::default()).unwrap();
+    let fingerprints: Vec<_> = plain.iter().map(|u| exp.fingerprint(u).unwrap()).collect();
+    // The bed of each unit's first use goes into the record; the second unit of a bed
+    // (none here: two beds, two units) would carry none.
+    let stored: Vec<_> = plain
+        .iter()
+        .map(|u| u.bed_record.as_ref().map(|(n, _)| n.clone()))
+        .collect();
+    assert!(stored.iter().all(Option::is_some), "{stored:?}");
+    let file_of = |u: usize| {
+        reference::unit_dir(&record, &exp.unit_name(&plain[u])).join(stored[u].as_ref().unwrap())
+    };
+    let one_ulp = |b: &mut Bed| b.grains[7].x[0] = f64::from_bits(b.grains[7].x[0].to_bits() + 1);
+
+    // Without the engine: the loader alone, on bed files written by hand.
+    for (u, p) in plain.iter().enumerate() {
+        std::fs::create_dir_all(file_of(u).parent().unwrap()).unwrap();
+        std::fs::write(
+            file_of(u),
+            serde_json::to_vec(&*p.bed_record.as_ref().unwrap().1).unwrap(),
+        )
+        .unwrap();
+    }
+    let beds = prepare_beds(&exp.case, false, Some(&record)).unwrap();
+    assert_eq!(beds.recorded.len(), 2, "both beds come from the record");
+    let from_record = exp
+        .units(&Options {
+            recorded_inputs: Some(record.clone()),
+            ..Options::default()
+        })
+        .unwrap();
+    for (k, u) in from_record.iter().enumerate() {
+        assert!(
+            u.bed_note
+                .contains("taken from the sealed reference record"),
+            "{}",
+            u.bed_note
+        );
+        assert_eq!(
+            exp.fingerprint(u).unwrap(),
+            fingerprints[k],
+            "the same scene, bit for bit"
+        );
+    }
+    let mut b: Bed = serde_json::from_slice(&std::fs::read(file_of(1)).unwrap()).unwrap();
+    one_ulp(&mut b);
+    std::fs::write(file_of(1), serde_json::to_vec(&b).unwrap()).unwrap();
+    let moved = exp
+        .units(&Options {
+            recorded_inputs: Some(record.clone()),
+            ..Options::default()
+        })
+        .unwrap();
+    assert_eq!(exp.fingerprint(&moved[0]).unwrap(), fingerprints[0]);
+    assert_ne!(
+        exp.fingerprint(&moved[1]).unwrap(),
+        fingerprints[1],
+        "one ulp in the bed must change the scene's fingerprint"
+    );
+    std::fs::remove_dir_all(&record).unwrap();
+
+    // With LAMMPS: recorded by `reference refresh`, compared from the seal.
+    if !common::live(EngineKind::Lammps, "records_carry_their_beds") {
+        return;
+    }
+    let opts = Options {
+        reference_root: reference_root.clone(),
+        ..Options::default()
+    };
+    runner::refresh(&exp, &opts).unwrap();
+    let seal: reference::Seal =
+        serde_json::from_str(&std::fs::read_to_string(record.join(reference::SEAL_FILE)).unwrap())
+            .unwrap();
+    for (u, name) in plain.iter().map(|u| exp.unit_name(u)).enumerate() {
+        let files = &seal.units[&name].files;
+        assert!(
+            files.contains_key(stored[u].as_ref().unwrap()),
+            "{name}: {files:?}"
+        );
+    }
+    let recorded = Options {
+        ref_mode: RefMode::Recorded,
+        ..opts
+    };
+    let compare = |out: &str| runner::compare(&exp, &recorded, &tmp.path().join(out));
+    let r = compare("ok");
+    assert!(
+        r.checks.iter().all(|c| !c.is_error()),
+        "{:?}",
+        r.checks.iter().filter(|c| c.is_error()).collect::<Vec<_>>()
+    );
+    let mut b: Bed = serde_json::from_slice(&std::fs::read(file_of(1)).unwrap()).unwrap();
+    one_ulp(&mut b);
+    std::fs::write(file_of(1), serde_json::to_vec(&b).unwrap()).unwrap();
+    let r = compare("moved");
+    let errors: Vec<_> = r.checks.iter().filter(|c| c.is_error()).collect();
+    assert!(
+        errors
+            .iter()
+            .any(|c| format!("{c:?}").contains("recorded from different engine input")),
+        "{errors:?}"
+    );
 }

@@ -192,7 +192,9 @@ fn swapped_friction_in_the_native_engine_fails_the_cross_check() {
     }
 }
 
-fn claims_pass(name: &str) {
+/// The claims pass in both engines, the depths agree, and each of the `controls`
+/// negative controls the case file declares bites.
+fn claims_pass(name: &str, controls: usize) {
     let checks = run(name);
     for engine in ["claim (native)", "claim (lammps)"] {
         for c in named(&checks, engine) {
@@ -202,11 +204,19 @@ fn claims_pass(name: &str) {
     for c in named(&checks, "final depth native vs") {
         assert!(c.passed, "{c:?}");
     }
+    let declared: Vec<_> = checks
+        .iter()
+        .filter(|c| c.gate == Gate::NegativeControl)
+        .collect();
+    assert_eq!(declared.len(), controls, "{declared:?}");
+    for c in declared {
+        assert!(c.passed, "control did not bite: {c:?}");
+    }
 }
 
 #[test]
 fn static_friction_penetrates_less_than_kinetic() {
-    claims_pass("ci-friction.toml");
+    claims_pass("ci-friction.toml", 1);
 }
 
 #[test]
@@ -222,17 +232,17 @@ fn swapped_friction_breaks_the_friction_claim_in_the_native_engine() {
 
 #[test]
 fn hexagonal_bed_penetrates_less_than_random() {
-    claims_pass("ci-packing.toml");
+    claims_pass("ci-packing.toml", 0);
 }
 
 #[test]
 fn final_depth_grows_with_restitution() {
-    claims_pass("ci-en.toml");
+    claims_pass("ci-en.toml", 1);
 }
 
 #[test]
 fn final_depth_grows_as_gravity_drops() {
-    claims_pass("ci-gravity.toml");
+    claims_pass("ci-gravity.toml", 1);
 }
 
 /// Every speed of the CI-size sweep agrees between the engines. K Fig 8b's linearity

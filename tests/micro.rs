@@ -63,7 +63,7 @@ fn recorded_references_match_live_liggghts() {
         let dir = tempfile::tempdir().unwrap();
         let live = exp
             .run_reference(&(), dir.path(), &common::options())
-            .unwrap();
+            .unwrap_or_else(|e| panic!("{}: live LIGGGHTS run: {e:#}", exp.name()));
         let root = granval::experiments::reference::record_root(
             &common::root().join("reference"),
             "micro",

@@ -293,3 +293,77 @@ fn full_size_d2mm_deck_starts_under_mpirun() {
     assert_eq!(forces.len(), 2, "force every 50 steps over 100 steps");
     assert!((forces[1].z_bottom - forces[0].z_bottom + 50.0 * case.dt * case.speed).abs() < 1e-9);
 }
+
+/// A penetration record carries each bed its LIGGGHTS run started from, so a recorded
+/// comparison takes the beds from there instead of settling them again (at G = 100 MPa
+/// settling costs as much as the run); a bed is used only if the deck built from it
+/// has the fingerprint the seal holds, which one ulp in one grain changes.
+#[test]
+fn records_carry_their_beds_and_a_moved_bed_changes_the_fingerprint() {
+    use granval::experiments::{Experiment, reference};
+    use granval::physics::dem::packing::Bed;
+    let tmp = tempfile::tempdir().unwrap();
+    let case = tiny_case(tmp.path());
+    let exp = Penetration {
+        case: case.clone(),
+        stress: false,
+    };
+    let reference_root = tmp.path().join("reference");
+    let record = reference::record_root(&reference_root, exp.kind(), exp.name());
+    let plain = exp.units(&Options::default()).unwrap();
+    let fingerprints: Vec<_> = plain.iter().map(|u| exp.fingerprint(u).unwrap()).collect();
+    let file_of = |k: usize| {
+        reference::unit_dir(&record, &exp.unit_name(&plain[k]))
+            .join(pen::bed_file_name(&plain[k].case).unwrap())
+    };
+    let recorded_units = || {
+        exp.units(&Options {
+            recorded_inputs: Some(record.clone()),
+            ..Options::default()
+        })
+        .unwrap()
+    };
+    let live = liggghts_or_skip("records_carry_their_beds_and_a_moved_bed_changes_the_fingerprint");
+    if live {
+        let _mpi = common::mpi_lock();
+        runner::refresh(
+            &exp,
+            &Options {
+                reference_root: reference_root.clone(),
+                mpi_procs: 2,
+                ..Options::default()
+            },
+        )
+        .unwrap();
+        let seal: reference::Seal = serde_json::from_str(
+            &std::fs::read_to_string(record.join(reference::SEAL_FILE)).unwrap(),
+        )
+        .unwrap();
+        for (k, u) in plain.iter().enumerate() {
+            let name = file_of(k)
+                .file_name()
+                .unwrap()
+                .to_string_lossy()
+                .into_owned();
+            assert!(seal.units[&exp.unit_name(u)].files.contains_key(&name));
+        }
+    } else {
+        // The loader alone, on bed files written by hand where the record keeps them.
+        for (k, u) in plain.iter().enumerate() {
+            std::fs::create_dir_all(file_of(k).parent().unwrap()).unwrap();
+            std::fs::write(file_of(k), serde_json::to_vec(&u.bed).unwrap()).unwrap();
+        }
+    }
+    for (k, u) in recorded_units().iter().enumerate() {
+        assert!(u.bed_from_record, "bed {k} not read from the record");
+        assert_eq!(exp.fingerprint(u).unwrap(), fingerprints[k], "bed {k}");
+    }
+    let mut b: Bed = serde_json::from_slice(&std::fs::read(file_of(1)).unwrap()).unwrap();
+    let x = &mut b.particles[5].x[2];
+    *x = f64::from_bits(x.to_bits() + 1);
+    std::fs::write(file_of(1), serde_json::to_vec(&b).unwrap()).unwrap();
+    let moved = recorded_units();
+    assert!(moved[1].bed_from_record);
+    assert_eq!(exp.fingerprint(&moved[0]).unwrap(), fingerprints[0]);
+    assert_ne!(exp.fingerprint(&moved[1]).unwrap(), fingerprints[1]);
+}

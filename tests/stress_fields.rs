@@ -346,6 +346,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
     let plan = stress_fields::snapshot_plan(&case, &bed);
     let unit = Unit {
         k: 0,
+        bed_from_record: false,
         bed_hash: bed_hash(&bed),
         case: case.clone(),
         bed: bed.clone(),

@@ -9,9 +9,9 @@ use crate::rundata::provenance::Sha256;
 use serde::{Serialize, de::DeserializeOwned};
 use std::path::{Path, PathBuf};
 
-/// The cache file of a bed of `kind` prepared from `spec` (None: no cache configured).
-pub fn file(kind: &str, spec: &impl Serialize) -> Option<PathBuf> {
-    let dir = std::env::var_os("GRANVAL_BED_CACHE")?;
+/// The file name of a bed of `kind` prepared from `spec`, in the cache and in a
+/// reference record alike: the key changes with the spec and the granval version.
+pub fn name(kind: &str, spec: &impl Serialize) -> Option<String> {
     let key = Sha256::of(
         format!(
             "{} {}",
@@ -20,7 +20,13 @@ pub fn file(kind: &str, spec: &impl Serialize) -> Option<PathBuf> {
         )
         .as_bytes(),
     );
-    Some(PathBuf::from(dir).join(format!("{kind}-bed-{key}.json")))
+    Some(format!("{kind}-bed-{key}.json"))
+}
+
+/// The cache file of a bed of `kind` prepared from `spec` (None: no cache configured).
+pub fn file(kind: &str, spec: &impl Serialize) -> Option<PathBuf> {
+    let dir = std::env::var_os("GRANVAL_BED_CACHE")?;
+    Some(PathBuf::from(dir).join(name(kind, spec)?))
 }
 
 /// The cached bed, if there is a readable one.

@@ -39,6 +39,9 @@ pub struct Unit {
     pub base_scene: Option<Scene>,
     /// How its bed was prepared (for the report).
     pub bed_note: String,
+    /// On the first unit of each bed: the bed and its file name, recorded with the
+    /// reference run so a recorded comparison need not settle it again.
+    pub bed_record: Option<(String, std::sync::Arc<Bed>)>,
 }
 
 /// The series of one run.
@@ -174,17 +177,25 @@ impl Experiment for Impact2d {
     }
 
     fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
-        let beds = prepare_beds(&self.case, opts.progress)?;
+        let beds = prepare_beds(&self.case, opts.progress, opts.recorded_inputs.as_deref())?;
         let wants_base = self
             .case
             .negative_controls
             .iter()
             .any(|c| c.perturbation.sweep_ignored);
+        let mut recorded_keys: Vec<BedKey> = Vec::new();
         self.case
             .variants
             .iter()
             .map(|v| {
                 let key = self.case.bed_of(v);
+                let bed_record = if recorded_keys.contains(&key) {
+                    None
+                } else {
+                    recorded_keys.push(key);
+                    bed_file_name(&self.case, &key)
+                        .map(|n| (n, std::sync::Arc::new(beds.get(&key).clone())))
+                };
                 Ok(Unit {
                     variant: v.clone(),
                     scene: scene_mod::build(&self.case, v, beds.get(&key))?,
@@ -202,7 +213,13 @@ impl Experiment for Impact2d {
                     } else {
                         None
                     },
-                    bed_note: bed_note(&self.case, &key, beds.get(&key)),
+                    bed_note: bed_note(&self.case, &key, beds.get(&key))
+                        + if beds.from_record(&key) {
+                            "; taken from the sealed reference record, where it was stored when the reference run was recorded (not settled again here)"
+                        } else {
+                            ""
+                        },
+                    bed_record,
                 })
             })
             .collect()
@@ -317,6 +334,11 @@ impl Experiment for Impact2d {
         for f in [lammps::DECK_FILE, lammps::DATA_FILE, lammps::LOG_FILE] {
             std::fs::copy(run_dir.join(f), rec.join(f))
                 .with_context(|| format!("copying {f} to {}", rec.display()))?;
+        }
+        if let Some((name, b)) = &u.bed_record {
+            let path = rec.join(name);
+            std::fs::write(&path, serde_json::to_vec(&**b)?)
+                .with_context(|| format!("cannot write {}", path.display()))?;
         }
         write_series(rec, run, &u.scene)
     }
@@ -896,9 +918,15 @@ pub fn control_scene<'a>(
 /// first-use order.
 pub struct Beds {
     pub beds: Vec<(BedKey, Bed)>,
+    /// The keys of the beds read from a reference record rather than prepared.
+    pub recorded: Vec<BedKey>,
 }
 
 impl Beds {
+    pub fn from_record(&self, k: &BedKey) -> bool {
+        self.recorded.contains(k)
+    }
+
     pub fn get(&self, k: &BedKey) -> &Bed {
         &self
             .beds
@@ -941,15 +969,38 @@ type BedSlot = std::sync::Arc<std::sync::Mutex<Option<Bed>>>;
 static BED_MEMO: std::sync::Mutex<std::collections::BTreeMap<String, BedSlot>> =
     std::sync::Mutex::new(std::collections::BTreeMap::new());
 
-/// Opt-in cache of prepared beds (settling a 6000-disk bed to 1e-10 m g d takes
-/// minutes): only when `GRANVAL_BED_CACHE=DIR` is set, one JSON file per bed
-/// specification (sha256 of the spec and the crate version). Preparation is
-/// deterministic, so a hit is the bed that would be prepared; tests never set it.
-pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
+/// The name under which a bed is stored (in the bed cache and in a reference record).
+fn bed_file_name(case: &Impact2dCase, key: &BedKey) -> Option<String> {
+    super::bed_cache::name("impact2d", &scene_mod::bed_spec(case, key))
+}
+
+/// A bed stored in a reference record (`recorded`: the record's root) with the first
+/// unit that uses it. Reading it before the seal is verified is safe: the comparison
+/// goes on only if every unit's scene, built from it, has the fingerprint the seal
+/// holds, i.e. is bit for bit the input the reference engine ran from.
+fn recorded_bed(case: &Impact2dCase, key: &BedKey, recorded: &Path) -> Option<Bed> {
+    let first = case.variants.iter().find(|v| case.bed_of(v) == *key)?;
+    let dir = super::reference::unit_dir(recorded, &label_dir(first));
+    super::bed_cache::load::<Bed>(Some(&dir.join(bed_file_name(case, key)?)))
+}
+
+/// The beds of a case: from the sealed record when the comparison will read one
+/// (`recorded`) and it holds them; else from this process's memo, the opt-in cache
+/// (`GRANVAL_BED_CACHE=DIR`, one JSON file per bed specification: sha256 of the spec
+/// and the crate version; tests never set it) or prepared (settling a 6000-disk bed
+/// to 1e-10 m g d takes minutes). Preparation is deterministic, so a hit is the bed
+/// that would be prepared.
+pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>) -> Result<Beds> {
     let mut beds: Vec<(BedKey, Bed)> = Vec::new();
+    let mut from_record = Vec::new();
     for v in &case.variants {
         let key = case.bed_of(v);
         if beds.iter().any(|b| b.0 == key) {
+            continue;
+        }
+        if let Some(b) = recorded.and_then(|r| recorded_bed(case, &key, r)) {
+            from_record.push(key);
+            beds.push((key, b));
             continue;
         }
         let spec = scene_mod::bed_spec(case, &key);
@@ -998,7 +1049,10 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool) -> Result<Beds> {
         *slot = Some(b.clone());
         beds.push((key, b));
     }
-    Ok(Beds { beds })
+    Ok(Beds {
+        beds,
+        recorded: from_record,
+    })
 }
 
 /// Energies: walls frozen; wall-wall and (cluster) intruder-intruder pairs excluded.

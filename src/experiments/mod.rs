@@ -80,6 +80,11 @@ pub struct Options {
     /// Stress analysis: also the estimator study of docs/stress.md (null window,
     /// Janssen, convergence): one extra run per bed in each engine.
     pub study: bool,
+    /// Set by the runner, not the command line: the sealed record the comparison will
+    /// read its reference from. An experiment may take inputs it prepared at
+    /// recording (the 2D beds) from there instead of preparing them again; the seal's
+    /// fingerprints then prove they are the inputs the reference engine ran from.
+    pub recorded_inputs: Option<PathBuf>,
 }
 
 impl Default for Options {
@@ -99,6 +104,7 @@ impl Default for Options {
             reuse: false,
             gate_theory: true,
             study: false,
+            recorded_inputs: None,
         }
     }
 }

@@ -88,7 +88,14 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
     if let Err(e) = std::fs::copy(exp.source(), out.join("case.toml")) {
         return CaseOutcome::error(&name, "output directory", e.into(), vec![]);
     }
-    let units = match exp.units(opts) {
+    let root = reference::record_root(&opts.reference_root, exp.kind(), &name);
+    // Without a live engine the reference is the record: inputs it holds (prepared at
+    // recording) need not be prepared again; verify() below checks them.
+    let unit_opts = Options {
+        recorded_inputs: live.is_none().then(|| root.clone()),
+        ..opts.clone()
+    };
+    let units = match exp.units(&unit_opts) {
         Ok(u) => u,
         Err(e) => return CaseOutcome::error(&name, "preparation", e, vec![]),
     };
@@ -107,7 +114,6 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
                 Ok(f) => f,
                 Err(e) => return CaseOutcome::error(&name, "reference input", e, vec![]),
             };
-            let root = reference::record_root(&opts.reference_root, exp.kind(), &name);
             match reference::verify(
                 &root,
                 exp.source(),

@@ -32,15 +32,31 @@ pub fn binner(case: &PenetrationCase, bed: &Bed) -> Result<FdrBinner> {
     )
 }
 
+/// The name under which the bed of `case` (with its seed) is stored, in the bed cache
+/// and in a reference record: the whole settling case is the key, safe if more than
+/// the bed needs.
+pub fn bed_file_name(case: &PenetrationCase) -> Option<String> {
+    crate::experiments::bed_cache::name(
+        "penetration",
+        &crate::case::ValidatedCase::canonical_hash(&case.settling_case()).to_string(),
+    )
+}
+
+/// The bed of `case` as stored with its recorded reference run (`unit_dir`: the
+/// unit's directory in the record). Read before the seal is verified, which is safe:
+/// the comparison goes on only if the deck built from it has the fingerprint the seal
+/// holds, i.e. the LIGGGHTS run started from exactly this bed.
+pub fn recorded_bed(case: &PenetrationCase, unit_dir: &std::path::Path) -> Option<Bed> {
+    crate::experiments::bed_cache::load::<Bed>(Some(&unit_dir.join(bed_file_name(case)?)))
+}
+
 /// Prepares the bed natively (pour + settle to the case's KE criterion).
 pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
     // With the pairs of [[interactions]]: the penetration's own act on the settled bed.
+    let cache = bed_file_name(case)
+        .zip(std::env::var_os("GRANVAL_BED_CACHE"))
+        .map(|(n, d)| std::path::PathBuf::from(d).join(n));
     let case = &case.settling_case();
-    // The whole case (with this bed's seed) is the key: safe, if more than the bed needs.
-    let cache = crate::experiments::bed_cache::file(
-        "penetration",
-        &crate::case::ValidatedCase::canonical_hash(case).to_string(),
-    );
     if let Some(b) = crate::experiments::bed_cache::load::<Bed>(cache.as_deref()) {
         return Ok(b);
     }

@@ -224,6 +224,7 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
         reference.push(reduce_liggghts_dir(&ck, &bed, &bdir)?);
         let u = Unit {
             k,
+            bed_from_record: false,
             bed_hash: bed_hash(&bed),
             case: ck,
             bed,

@@ -53,6 +53,9 @@ pub struct Unit {
     pub case: PenetrationCase,
     pub bed: Bed,
     pub bed_hash: Sha256,
+    /// The bed was read from the sealed record (stored there when the reference run was
+    /// recorded) instead of being settled again.
+    pub bed_from_record: bool,
     /// Snapshot steps (stress option).
     pub plan: Option<SnapshotPlan>,
     /// Snapshot steps of the estimator study's extra run (`granval stress --study`).
@@ -481,8 +484,15 @@ impl Experiment for Penetration {
         (0..self.case.ensemble_beds)
             .map(|k| {
                 let ck = self.case.realisation(k);
-                let bed = prepare_bed(&ck, opts.progress)
-                    .with_context(|| format!("preparing bed {k} (seed {})", ck.seed))?;
+                let recorded = opts.recorded_inputs.as_ref().and_then(|r| {
+                    bed::recorded_bed(&ck, &super::reference::unit_dir(r, &bed_dir_name(k)))
+                });
+                let bed_from_record = recorded.is_some();
+                let bed = match recorded {
+                    Some(b) => b,
+                    None => prepare_bed(&ck, opts.progress)
+                        .with_context(|| format!("preparing bed {k} (seed {})", ck.seed))?,
+                };
                 let plan = self
                     .stress
                     .then(|| crate::analysis::stress_fields::snapshot_plan(&ck, &bed));
@@ -490,6 +500,7 @@ impl Experiment for Penetration {
                     .then(|| crate::analysis::stress_fields::study_plan(&ck, &bed));
                 Ok(Unit {
                     k,
+                    bed_from_record,
                     bed_hash: bed::bed_hash(&bed),
                     case: ck,
                     bed,
@@ -593,6 +604,13 @@ impl Experiment for Penetration {
         {
             std::fs::copy(run_dir.join(f), rec.join(f))
                 .with_context(|| format!("copying {f} into {}", rec.display()))?;
+        }
+        // The bed as granval prepared it, so a recorded comparison need not settle it
+        // again (the deck's fingerprint in the seal covers it).
+        if let Some(name) = bed::bed_file_name(&u.case) {
+            let path = rec.join(name);
+            std::fs::write(&path, serde_json::to_vec(&u.bed)?)
+                .with_context(|| format!("cannot write {}", path.display()))?;
         }
         let mut p = run.run.provenance.clone();
         p.notes.retain(|n| !n.starts_with("run directory"));
@@ -764,10 +782,15 @@ pub fn fdr_checks(
         .iter()
         .map(|u| {
             format!(
-                "bed {}: {} (sha256 {})",
+                "bed {}: {} (sha256 {}){}",
                 u.k,
                 packing::bed_note(&u.case, &u.bed),
-                u.bed_hash
+                u.bed_hash,
+                if u.bed_from_record {
+                    "; taken from the sealed reference record, where it was stored when the reference run was recorded (not settled again here)"
+                } else {
+                    ""
+                }
             )
         })
         .collect();
