@@ -25,9 +25,16 @@ pub fn name(kind: &str, spec: &impl Serialize) -> Option<String> {
 
 /// The cache file of a bed of `kind` prepared from `spec` (None: no cache configured).
 pub fn file(kind: &str, spec: &impl Serialize) -> Option<PathBuf> {
-    let dir = std::env::var_os("GRANVAL_BED_CACHE")?;
-    Some(PathBuf::from(dir).join(name(kind, spec)?))
+    in_cache(&name(kind, spec)?)
 }
+
+/// Where the bed stored as `name` lives in the cache (None: no cache configured).
+pub fn in_cache(name: &str) -> Option<PathBuf> {
+    Some(PathBuf::from(std::env::var_os("GRANVAL_BED_CACHE")?).join(name))
+}
+
+/// Appended to the note of a bed read from a reference record.
+pub const FROM_RECORD_NOTE: &str = "; taken from the sealed reference record, where it was stored when the reference run was recorded (not settled again here)";
 
 /// The cached bed, if there is a readable one.
 pub fn load<T: DeserializeOwned>(file: Option<&Path>) -> Option<T> {

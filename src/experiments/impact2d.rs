@@ -215,7 +215,7 @@ impl Experiment for Impact2d {
                     },
                     bed_note: bed_note(&self.case, &key, beds.get(&key))
                         + if beds.from_record(&key) {
-                            "; taken from the sealed reference record, where it was stored when the reference run was recorded (not settled again here)"
+                            super::bed_cache::FROM_RECORD_NOTE
                         } else {
                             ""
                         },

@@ -53,9 +53,7 @@ pub fn recorded_bed(case: &PenetrationCase, unit_dir: &std::path::Path) -> Optio
 /// Prepares the bed natively (pour + settle to the case's KE criterion).
 pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
     // With the pairs of [[interactions]]: the penetration's own act on the settled bed.
-    let cache = bed_file_name(case)
-        .zip(std::env::var_os("GRANVAL_BED_CACHE"))
-        .map(|(n, d)| std::path::PathBuf::from(d).join(n));
+    let cache = bed_file_name(case).and_then(|n| crate::experiments::bed_cache::in_cache(&n));
     let case = &case.settling_case();
     if let Some(b) = crate::experiments::bed_cache::load::<Bed>(cache.as_deref()) {
         return Ok(b);

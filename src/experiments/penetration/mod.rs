@@ -787,7 +787,7 @@ pub fn fdr_checks(
                 packing::bed_note(&u.case, &u.bed),
                 u.bed_hash,
                 if u.bed_from_record {
-                    "; taken from the sealed reference record, where it was stored when the reference run was recorded (not settled again here)"
+                    crate::experiments::bed_cache::FROM_RECORD_NOTE
                 } else {
                     ""
                 }
