@@ -454,7 +454,25 @@ fn bed_sweep_and_size_claim_parse_and_name_their_mistakes() {
                 "negative_control[1].perturbation.sweep_ignored",
                 "bed sweep",
             ),
+            (
+                "other_size_speed_factor = 0.5",
+                "packing_ignored = true",
+                "negative_control[1].perturbation.packing_ignored",
+                "sweep] of `packing`",
+            ),
         ],
+    );
+    // `packing_ignored` is the packing sweep's control.
+    let packing = "\n[sweep]\nparameter = \"packing\"\nvalues = [\"hexagonal\", \"random\"]\n";
+    let ignored = "[[negative_control]]\nname = \"one bed\"\nmust_fail = [\"claim\"]\nperturbation = { packing_ignored = true }\n";
+    let c = Impact2dCase::from_toml_str(&format!("{t}{packing}{ignored}"), Path::new("ok.toml"))
+        .unwrap();
+    assert!(
+        c.negative_controls
+            .last()
+            .unwrap()
+            .perturbation
+            .packing_ignored
     );
     // The claim and the slowing control need a bed sweep.
     let speed = "\n[sweep]\nparameter = \"speed\"\nvalues = [0.4, 0.7]\n";

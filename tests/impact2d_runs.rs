@@ -232,7 +232,7 @@ fn swapped_friction_breaks_the_friction_claim_in_the_native_engine() {
 
 #[test]
 fn hexagonal_bed_penetrates_less_than_random() {
-    claims_pass("ci-packing.toml", 0);
+    claims_pass("ci-packing.toml", 1);
 }
 
 #[test]

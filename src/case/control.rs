@@ -84,6 +84,11 @@ pub struct Perturbation {
     /// 2D sweeps: every variant runs with the base case's parameters, i.e. the swept
     /// parameter is not applied; a claim over the sweep must then fail.
     pub sweep_ignored: bool,
+    /// 2D `packing` sweeps: every variant runs the first variant's scene (its bed, i.e.
+    /// its packing), so the preparation the sweep varies is ignored; a claim over the
+    /// packings must then fail. (`sweep_ignored` cannot do this: a packing is a bed, and
+    /// each variant keeps its own.)
+    pub packing_ignored: bool,
     /// 2D `bed` sweeps (K Fig 11): the intruder's impact speed multiplied by this in
     /// every variant whose bed size (count, length) differs from the first variant's;
     /// the first size runs as written. A claim that the size does not matter must then
@@ -111,6 +116,7 @@ impl Default for Perturbation {
             pair_friction: None,
             swap_friction_model: false,
             sweep_ignored: false,
+            packing_ignored: false,
             other_size_speed_factor: 1.0,
             interface_frozen_floor: false,
             inertia_factor: 1.0,
@@ -153,6 +159,8 @@ struct RawPerturbation {
     swap_friction_model: bool,
     #[serde(default)]
     sweep_ignored: bool,
+    #[serde(default)]
+    packing_ignored: bool,
     other_size_speed_factor: Option<f64>,
     #[serde(default)]
     interface_frozen_floor: bool,
@@ -265,6 +273,14 @@ pub(crate) fn controls(
             ));
         }
         pert.sweep_ignored = p.sweep_ignored;
+        if p.packing_ignored && !gates.contains(&Gate::Claim) {
+            return Err(ctx.bad(
+                f("perturbation.packing_ignored"),
+                true,
+                "only impact2d cases have a packing sweep to ignore",
+            ));
+        }
+        pert.packing_ignored = p.packing_ignored;
         if let Some(v) = p.other_size_speed_factor {
             if !gates.contains(&Gate::Claim) {
                 return Err(ctx.bad(

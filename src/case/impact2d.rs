@@ -1491,6 +1491,13 @@ impl Impact2dCase {
                     "a bed sweep changes the beds themselves: each variant keeps its own bed, so ignoring the sweep would rerun it unchanged (use other_size_speed_factor)",
                 ));
             }
+            if p.packing_ignored && raw.sweep.as_ref().is_none_or(|w| w.parameter != "packing") {
+                return Err(ctx.bad(
+                    format!("negative_control[{k}].perturbation.packing_ignored"),
+                    true,
+                    "runs every variant on the first variant's bed: needs a [sweep] of `packing`",
+                ));
+            }
             if p.interface_frozen_floor && !track_interface {
                 return Err(ctx.bad(
                     format!("negative_control[{k}].perturbation.interface_frozen_floor"),

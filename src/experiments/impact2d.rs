@@ -37,6 +37,8 @@ pub struct Unit {
     pub scene: Scene,
     /// The base case on the same bed, for a `sweep_ignored` negative control.
     pub base_scene: Option<Scene>,
+    /// The first variant's scene, for a `packing_ignored` negative control.
+    pub first_scene: Option<std::sync::Arc<Scene>>,
     /// How its bed was prepared (for the report).
     pub bed_note: String,
     /// On the first unit of each bed: the bed and its file name, recorded with the
@@ -183,6 +185,23 @@ impl Experiment for Impact2d {
             .negative_controls
             .iter()
             .any(|c| c.perturbation.sweep_ignored);
+        let first_scene = match self.case.variants.first() {
+            Some(v0)
+                if self
+                    .case
+                    .negative_controls
+                    .iter()
+                    .any(|c| c.perturbation.packing_ignored) =>
+            {
+                let key = self.case.bed_of(v0);
+                Some(std::sync::Arc::new(scene_mod::build(
+                    &self.case,
+                    v0,
+                    beds.get(&key),
+                )?))
+            }
+            _ => None,
+        };
         let mut recorded_keys: Vec<BedKey> = Vec::new();
         self.case
             .variants
@@ -213,6 +232,7 @@ impl Experiment for Impact2d {
                     } else {
                         None
                     },
+                    first_scene: first_scene.clone(),
                     bed_note: bed_note(&self.case, &key, beds.get(&key))
                         + if beds.from_record(&key) {
                             super::bed_cache::FROM_RECORD_NOTE
@@ -252,7 +272,7 @@ impl Experiment for Impact2d {
         )?;
         bar.finish_and_clear();
         let run = ImpactRun {
-            samples,
+            samples: in_unit_frame(samples, scene, &u.scene),
             energy,
             fields,
             provenance,
@@ -891,7 +911,8 @@ impl Impact2d {
 /// The scene the native engine starts from for unit `u` under `pert` (before
 /// [`scene_mod::perturbed`] changes the coefficients): the base case's for
 /// `sweep_ignored`, the intruder slowed by `other_size_speed_factor` in the variants of
-/// another size than the first (K Fig 11's control), else the unit's own.
+/// another size than the first (K Fig 11's control), the first variant's for
+/// `packing_ignored`, else the unit's own.
 pub fn control_scene<'a>(
     case: &Impact2dCase,
     u: &'a Unit,
@@ -905,6 +926,11 @@ pub fn control_scene<'a>(
                 .context("a sweep_ignored control needs the base scene")?,
         ));
     }
+    if pert.packing_ignored {
+        return Ok(Cow::Borrowed(u.first_scene.as_deref().context(
+            "a packing_ignored control needs the first variant's scene",
+        )?));
+    }
     if pert.other_size_speed_factor != 1.0 && case.is_other_size(&u.variant) {
         return Ok(Cow::Owned(scene_mod::with_intruder_speed(
             &u.scene,
@@ -912,6 +938,27 @@ pub fn control_scene<'a>(
         )));
     }
     Ok(Cow::Borrowed(&u.scene))
+}
+
+/// Heights of a run on `ran` moved into the frame of `unit`, whose surface the analysis
+/// measures depth from: a `packing_ignored` control runs another variant's bed, whose
+/// surface lies elsewhere, and its depth must be the depth below the bed it ran on.
+/// The identity whenever the two surfaces agree (every other run).
+fn in_unit_frame(
+    mut samples: Vec<IntruderSample>,
+    ran: &Scene,
+    unit: &Scene,
+) -> Vec<IntruderSample> {
+    let shift = unit.surface - ran.surface;
+    if shift != 0.0 {
+        for p in &mut samples {
+            p.x[1] += shift;
+            if let Some(y) = &mut p.interface_y {
+                *y += shift;
+            }
+        }
+    }
+    samples
 }
 
 /// The beds a case needs, one per distinct bed (packing, count, length, seed), in

@@ -103,8 +103,13 @@ impl Report {
 
     pub fn markdown(&self, title: &str) -> String {
         let mut s = String::new();
-        let verdict = if self.errored {
+        // An undecidable gate (NOT COMPARED) exits 2 like an error, but a reader should
+        // not take a suite that ran to the end for a crash: the heading says which.
+        let has = |st: Status| self.checks.iter().filter(|c| c.status == st).count();
+        let verdict = if has(Status::Error) > 0 {
             "ERROR"
+        } else if self.errored {
+            "INCOMPLETE"
         } else if self.passed {
             "PASS"
         } else if self.checks.is_empty() {
@@ -114,6 +119,16 @@ impl Report {
             "FAIL"
         };
         let _ = writeln!(s, "# {title}: {verdict}\n");
+        let _ = writeln!(
+            s,
+            "{} checks: {} pass, {} FAIL, {} NOT COMPARED, {} ERROR (exit {}).\n",
+            self.checks.len(),
+            has(Status::Pass),
+            has(Status::Fail),
+            has(Status::NotCompared),
+            has(Status::Error),
+            self.exit_code()
+        );
         if !self.notes.is_empty() {
             for n in &self.notes {
                 let _ = writeln!(s, "> {n}");
@@ -242,5 +257,29 @@ mod tests {
         assert_eq!(back.checks[1].status, Status::NotCompared);
         assert_eq!(back.checks[2].value, 0.5);
         assert_eq!(serde_json::to_string_pretty(&back).unwrap(), text);
+    }
+
+    /// The heading tells an engine error from a gate the data could not decide (both
+    /// exit 2), and the tally under it counts every verdict.
+    #[test]
+    fn heading_separates_errors_from_undecided_gates() {
+        let pass = || Check::at_most("d", Gate::KPhi, "|x|", 0.5, 1.0, "");
+        let fail = || Check::at_most("f", Gate::KPhi, "|x|", 2.0, 1.0, "");
+        let undecided = || Check::not_compared("k", Gate::KPhi, "one bed");
+        let heading = |checks: Vec<Check>| {
+            let r = Report::new(checks, Vec::new(), Vec::new());
+            let md = r.markdown("t");
+            (md.lines().next().unwrap().to_string(), md, r.exit_code())
+        };
+        let (h, md, code) = heading(vec![pass(), fail(), undecided()]);
+        assert_eq!((h.as_str(), code), ("# t: INCOMPLETE", 2));
+        assert!(md.contains("3 checks: 1 pass, 1 FAIL, 1 NOT COMPARED, 0 ERROR (exit 2)."));
+        let (h, _, code) = heading(vec![undecided(), Check::error("engine", "exit 1")]);
+        assert_eq!((h.as_str(), code), ("# t: ERROR", 2));
+        let (h, _, code) = heading(vec![pass(), fail()]);
+        assert_eq!((h.as_str(), code), ("# t: FAIL", 1));
+        let (h, md, code) = heading(vec![pass()]);
+        assert_eq!((h.as_str(), code), ("# t: PASS", 0));
+        assert!(md.contains("1 checks: 1 pass, 0 FAIL, 0 NOT COMPARED, 0 ERROR (exit 0)."));
     }
 }
