@@ -265,22 +265,26 @@ pub(crate) fn controls(
             pert.pair_friction = Some((a - 1, b - 1, v));
         }
         pert.swap_friction_model = p.swap_friction_model;
-        if p.sweep_ignored && !gates.contains(&Gate::Claim) {
-            return Err(ctx.bad(
-                f("perturbation.sweep_ignored"),
-                true,
-                "only impact2d cases have a sweep to ignore",
-            ));
-        }
-        pert.sweep_ignored = p.sweep_ignored;
-        if p.packing_ignored && !gates.contains(&Gate::Claim) {
-            return Err(ctx.bad(
-                f("perturbation.packing_ignored"),
-                true,
-                "only impact2d cases have a packing sweep to ignore",
-            ));
-        }
-        pert.packing_ignored = p.packing_ignored;
+        // A switch set on a case kind without the gate it perturbs is refused.
+        let switch = |name: &str, set: bool, needs: Gate, why: &str| {
+            if set && !gates.contains(&needs) {
+                Err(ctx.bad(f(&format!("perturbation.{name}")), true, why))
+            } else {
+                Ok(set)
+            }
+        };
+        pert.sweep_ignored = switch(
+            "sweep_ignored",
+            p.sweep_ignored,
+            Gate::Claim,
+            "only impact2d cases have a sweep to ignore",
+        )?;
+        pert.packing_ignored = switch(
+            "packing_ignored",
+            p.packing_ignored,
+            Gate::Claim,
+            "only impact2d cases have a packing sweep to ignore",
+        )?;
         if let Some(v) = p.other_size_speed_factor {
             if !gates.contains(&Gate::Claim) {
                 return Err(ctx.bad(
@@ -299,14 +303,12 @@ pub(crate) fn controls(
             }
             pert.other_size_speed_factor = v;
         }
-        if p.interface_frozen_floor && !gates.contains(&Gate::InterfaceSeries) {
-            return Err(ctx.bad(
-                f("perturbation.interface_frozen_floor"),
-                true,
-                "only impact2d cases track an interface",
-            ));
-        }
-        pert.interface_frozen_floor = p.interface_frozen_floor;
+        pert.interface_frozen_floor = switch(
+            "interface_frozen_floor",
+            p.interface_frozen_floor,
+            Gate::InterfaceSeries,
+            "only impact2d cases track an interface",
+        )?;
         if let Some(v) = p.inertia_factor {
             let v = finite("inertia_factor", v)?;
             if v <= 0.0 {
