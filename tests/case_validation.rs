@@ -147,3 +147,32 @@ fn particle_outside_domain() {
     let m = err(&base().replacen("x = [-1.2e-3, 0.0, 0.0]", "x = [-0.5, 0.0, 0.0]", 1));
     assert_mentions(&m, &["particles[0].x", "domain"]);
 }
+
+/// The impact2d-only switches of a control (a sweep, a packing sweep, an interface to
+/// freeze) are refused on a penetration case, which has none of those gates, with the
+/// field and the reason, instead of being accepted and perturbing nothing.
+#[test]
+fn impact2d_switches_are_refused_on_a_penetration_case() {
+    let ci = std::fs::read_to_string(common::root().join("cases/penetration/ci.toml")).unwrap();
+    for (switch, reason) in [
+        ("sweep_ignored", "sweep to ignore"),
+        ("packing_ignored", "packing sweep to ignore"),
+        ("interface_frozen_floor", "only impact2d"),
+    ] {
+        let text = format!(
+            "{ci}\n[[negative_control]]\nname = \"x\"\nmust_fail = [\"k_phi\"]\nperturbation = {{ {switch} = true }}\n"
+        );
+        let e = match granval::case::AnyCase::from_toml_str(&text, Path::new("p.toml")) {
+            Ok(_) => panic!("{switch} accepted on a penetration case"),
+            Err(e) => e.to_string(),
+        };
+        assert_mentions(
+            &e,
+            &[
+                "p.toml",
+                &format!("negative_control[1].perturbation.{switch}"),
+                reason,
+            ],
+        );
+    }
+}
