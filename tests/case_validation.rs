@@ -155,7 +155,7 @@ fn particle_outside_domain() {
 fn impact2d_switches_are_refused_on_a_penetration_case() {
     let ci = std::fs::read_to_string(common::root().join("cases/penetration/ci.toml")).unwrap();
     for (switch, reason) in [
-        ("sweep_ignored", "sweep to ignore"),
+        ("sweep_ignored", "cases have a sweep to ignore"),
         ("packing_ignored", "packing sweep to ignore"),
         ("interface_frozen_floor", "only impact2d"),
     ] {
