@@ -564,6 +564,70 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
     assert_eq!(v2.phi_deg.to_bits(), again.phi_deg.to_bits());
     assert_eq!(stress_v2::paired_sd(&v2, &again), Some(0.0));
     assert!((v2.phi_deg - normal2.phi_deg).abs() > 1.0);
+
+    // Against a recorded reference (force curves, no snapshots; the native FDR stands in
+    // for the record's here, this is a test of the logic): the native phi is still judged
+    // against a published angle, the engine gate and the reference's own stress checks are
+    // NOT COMPARED, and the phi gate is listed as not evaluated for the controls.
+    use granval::compare::Gate;
+    use granval::experiments::penetration::{RefRun, stress::NO_RECORDED_SNAPSHOTS};
+    let published = |phi_deg: f64| {
+        let mut c = case.clone();
+        c.published_phi = Some(granval::case::penetration::PublishedPhi {
+            phi_deg,
+            abs_deg: 2.0,
+            source: "test".into(),
+        });
+        c
+    };
+    let record = RefRun {
+        run: native.run.clone(),
+        snapshots: None,
+        study_snapshots: None,
+    };
+    let out = tempfile::tempdir().unwrap();
+    let verdict = |case: &PenetrationCase| {
+        granval::experiments::penetration::stress::checks(
+            case,
+            std::slice::from_ref(&unit),
+            std::slice::from_ref(&native),
+            std::slice::from_ref(&record),
+            out.path(),
+            &Options::default(),
+        )
+    };
+    let near = verdict(&published(full.phi_deg));
+    let far = verdict(&published(full.phi_deg + 10.0));
+    let named = |v: &granval::experiments::Verdict, part: &str| -> Status {
+        let hits: Vec<_> = v.checks.iter().filter(|c| c.name.contains(part)).collect();
+        assert_eq!(hits.len(), 1, "{part}: {:#?}", v.checks);
+        hits[0].status
+    };
+    // The gated estimator is v1 in the tiny case; its native phi is `full.phi_deg`.
+    assert_eq!(named(&near, "phi v1 vs published (native)"), Status::Pass);
+    assert_eq!(named(&far, "phi v1 vs published (native)"), Status::Fail);
+    for v in [&near, &far] {
+        assert_eq!(named(v, "phi v1 native vs liggghts"), Status::NotCompared);
+        assert_eq!(
+            named(v, "phi v1 vs published (liggghts)"),
+            Status::NotCompared
+        );
+        assert_eq!(
+            named(v, "negative control \"tangential forces dropped\""),
+            Status::NotCompared
+        );
+        assert_eq!(
+            v.unevaluated,
+            vec![(Gate::Phi, NO_RECORDED_SNAPSHOTS.to_string())]
+        );
+        assert!(
+            !v.checks
+                .iter()
+                .any(|c| c.gate == Gate::Phi && c.status != Status::NotCompared)
+        );
+    }
+    let points = granval::compare::malt_points::MaltPoints::read(out.path()).unwrap();
+    assert_eq!(points.engines.keys().collect::<Vec<_>>(), vec!["native"]);
 }
 
 fn point(f: &stress_fields::EngineFields) -> EnginePoint {

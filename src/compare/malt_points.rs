@@ -13,20 +13,28 @@ use std::path::Path;
 /// File name of a stress run's points inside its output directory.
 pub const MALT_POINTS_FILE: &str = "malt_points.json";
 
-/// One engine's point of one stress run.
+/// One engine's point of one stress run. A value that could not be computed is NaN,
+/// written as `null`, and read back as NaN (else the suite would drop the whole point).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct MaltPoint {
     /// Estimator v1 (window phi pooled over beds and depths) and its sd over windows.
+    #[serde(deserialize_with = "super::nan_from_null")]
     pub phi_v1_deg: f64,
+    #[serde(deserialize_with = "super::nan_from_null")]
     pub phi_v1_sd_deg: f64,
     /// Estimator v2 (pooled regime-C field, docs/stress.md rule 2) and its bootstrap sd;
     /// NaN when it could not be computed.
+    #[serde(deserialize_with = "super::nan_from_null")]
     pub phi_v2_deg: f64,
+    #[serde(deserialize_with = "super::nan_from_null")]
     pub phi_v2_sd_deg: f64,
     /// K_phi of the ensemble-mean FDR on the case's fit range and its regression SE.
+    #[serde(deserialize_with = "super::nan_from_null")]
     pub k_phi: f64,
+    #[serde(deserialize_with = "super::nan_from_null")]
     pub k_phi_se: f64,
     /// Mean packing fraction of the beds.
+    #[serde(deserialize_with = "super::nan_from_null")]
     pub psi: f64,
 }
 
@@ -213,6 +221,13 @@ mod tests {
         assert!(t.contains(&format!("{:+.2}", 29.0 - pk)), "{t}");
         assert!(t.contains("triaxial = 28.00 +- 0.50"), "{t}");
         assert!(MaltPoints::read(&dir.path().join("none")).is_err());
+        // v2 not computed: NaN is written as null and read back as NaN, the point kept.
+        let mut q = points();
+        q.engines.get_mut("native").unwrap().phi_v2_deg = f64::NAN;
+        q.write(dir.path()).unwrap();
+        let back = MaltPoints::read(dir.path()).unwrap();
+        assert!(back.engines["native"].phi_v2_deg.is_nan());
+        assert_eq!(back.engines["native"].k_phi, 31.0);
         let a = IndependentAngles {
             case: "t".into(),
             canonical_hash: "h".into(),

@@ -50,7 +50,7 @@ pub struct Check {
 
 /// serde_json writes a non-finite f64 as `null`; read `null` back as NaN so that every
 /// report.json granval writes can be read again.
-fn nan_from_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+pub(crate) fn nan_from_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 

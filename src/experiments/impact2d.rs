@@ -528,6 +528,7 @@ impl Experiment for Impact2d {
             checks,
             notes,
             sections,
+            ..Verdict::default()
         }
     }
 }

@@ -139,6 +139,11 @@ pub struct Verdict {
     /// Report sections of the case (e.g. a seed ensemble's error-bar figure), figures
     /// relative to the output directory `checks` was given.
     pub sections: Vec<crate::report::Section>,
+    /// Gates this verdict cannot evaluate at all in this mode, with the reason (the
+    /// stress gate native vs reference against a record, which holds no snapshots). A
+    /// negative control is not asked to make them fail: it could not, and a control that
+    /// fails for that would make every such run fail.
+    pub unevaluated: Vec<(crate::compare::Gate, String)>,
 }
 
 /// Resource estimate of a comparison, made before anything runs.

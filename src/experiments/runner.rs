@@ -319,8 +319,39 @@ fn negative_control<E: Experiment>(
         }
     }
     let verdict = exp.checks(units, &natives, refs, dir, opts);
-    let (missing, summary) = unbitten(&c.must_fail, &verdict.checks, failed_here);
+    control_check(label, c, &verdict, failed_here)
+}
+
+/// The control's check from the verdict of its wrong-physics runs. The gates the
+/// verdict could not evaluate in this mode are left out, named in the detail; a control
+/// none of whose gates was evaluated is NOT COMPARED, never a pass.
+fn control_check(
+    label: String,
+    c: &NegativeControl,
+    verdict: &super::Verdict,
+    failed_here: &[String],
+) -> Check {
+    let (asked, skipped): (Vec<Gate>, Vec<Gate>) = c
+        .must_fail
+        .iter()
+        .partition(|g| !verdict.unevaluated.iter().any(|(u, _)| u == *g));
+    let (missing, mut summary) = unbitten(&asked, &verdict.checks, failed_here);
+    for g in &skipped {
+        let why = verdict
+            .unevaluated
+            .iter()
+            .find(|(u, _)| u == g)
+            .map_or("", |(_, w)| w.as_str());
+        summary.push(format!("{}: not evaluated here ({why})", g.key()));
+    }
     let detail = format!("perturbation {:?}; {}", c.perturbation, summary.join(" | "));
+    if asked.is_empty() {
+        return Check::not_compared(
+            label,
+            Gate::NegativeControl,
+            format!("none of its gates is evaluated here: {detail}"),
+        );
+    }
     Check::control(label, &missing, detail)
 }
 
@@ -604,6 +635,52 @@ mod tests {
         let control = vec![fail("claim (lammps)"), fail("claim (native)")];
         let (missing, _) = unbitten(&[Gate::Claim], &control, &["claim (lammps)".into()]);
         assert!(missing.is_empty());
+    }
+
+    /// Against a record without snapshots the phi gate is not evaluated: the control is
+    /// judged on its other gates (and still fails if they pass), and a control with no
+    /// evaluated gate is NOT COMPARED, never a pass.
+    #[test]
+    fn a_control_skips_only_the_gates_its_verdict_could_not_evaluate() {
+        let control = |must_fail: Vec<Gate>| NegativeControl {
+            name: "mu_gg = 0.5".into(),
+            perturbation: Default::default(),
+            must_fail,
+        };
+        let verdict = |checks: Vec<Check>| super::super::Verdict {
+            checks,
+            unevaluated: vec![(Gate::Phi, "no snapshots".into())],
+            ..Default::default()
+        };
+        let k_fails = verdict(vec![
+            Check::failed("k", Gate::KPhi, "m", 1.0, ""),
+            Check::not_compared("phi", Gate::Phi, "no snapshots"),
+        ]);
+        let c = control_check(
+            "c".into(),
+            &control(vec![Gate::KPhi, Gate::Phi]),
+            &k_fails,
+            &[],
+        );
+        assert_eq!(c.status, Status::Pass);
+        assert!(c.detail.contains("phi: not evaluated here (no snapshots)"));
+        let k_passes = verdict(vec![Check::at_most("k", Gate::KPhi, "m", 0.0, 1.0, "")]);
+        let c = control_check(
+            "c".into(),
+            &control(vec![Gate::KPhi, Gate::Phi]),
+            &k_passes,
+            &[],
+        );
+        assert_eq!(c.status, Status::Fail);
+        let c = control_check("c".into(), &control(vec![Gate::Phi]), &k_fails, &[]);
+        assert_eq!(c.status, Status::NotCompared);
+        // Evaluated gates are judged as before: a phi gate that ran and passed is unbitten.
+        let ran = super::super::Verdict {
+            checks: vec![Check::at_most("phi", Gate::Phi, "m", 0.0, 1.0, "")],
+            ..Default::default()
+        };
+        let c = control_check("c".into(), &control(vec![Gate::Phi]), &ran, &[]);
+        assert_eq!(c.status, Status::Fail);
     }
 
     /// Cases whose names differ after a dot record into different directories.

@@ -629,11 +629,27 @@ pub fn malt_verdict(
             continue;
         };
         let hash = crate::case::ValidatedCase::canonical_hash(&pc).to_string();
+        let mut unreadable = Vec::new();
         let found = dirs.iter().find_map(|d| {
             [d.join(&pc.name), d.to_path_buf()]
                 .into_iter()
-                .find_map(|c| MaltPoints::read(&c).ok().filter(|m| m.case == pc.name))
+                .find_map(|c| match MaltPoints::read(&c) {
+                    Ok(m) => Some(m).filter(|m| m.case == pc.name),
+                    Err(e) => {
+                        if c.join(crate::compare::malt_points::MALT_POINTS_FILE)
+                            .exists()
+                        {
+                            unreadable.push(format!("{e:#}"));
+                        }
+                        None
+                    }
+                })
         });
+        if found.is_none() {
+            for e in unreadable {
+                notes.push(format!("MALT verdict: {e}; left out"));
+            }
+        }
         match found {
             Some(m) if m.canonical_hash == hash => points.push(m),
             Some(_) => notes.push(format!(

@@ -7,7 +7,9 @@
 //! With the stress option (`granval stress`, or a suite entry with `stress = true`)
 //! both engines also take contact snapshots at the same steps; [`stress`] turns them
 //! into the stress fields, phi and the MALT checks. Snapshots are never recorded under
-//! `reference/`, so the stress checks need a live LIGGGHTS.
+//! `reference/` (several GB per run): against a record, only what the native snapshots
+//! decide alone is checked (the native phi against a published value, the native MALT
+//! distances); the phi gate native vs LIGGGHTS needs a live LIGGGHTS.
 //!
 //! Output layout of `compare`: `OUT/bed-K/liggghts/` (the LIGGGHTS deck directory of
 //! bed K with its outputs), `OUT/bed-K/native/` (force.csv, provenance.json, snapshots),
@@ -712,6 +714,7 @@ impl Experiment for Penetration {
             let s = stress::checks(&self.case, units, native, reference, out, opts);
             v.checks.extend(s.checks);
             v.notes.extend(s.notes);
+            v.unevaluated.extend(s.unevaluated);
         }
         v
     }

@@ -214,6 +214,10 @@ fn run_checks(
     opts: &Options,
 ) -> Result<Verdict> {
     let width = opts.kernel_width.unwrap_or(DEFAULT_WIDTH_OVER_D);
+    let all_native = native.iter().all(|n| n.snapshots.is_some());
+    if all_native && reference.iter().all(|r| r.snapshots.is_none()) {
+        return native_only_checks(case, units, native, reference, out, opts, width);
+    }
     let mut beds = Vec::with_capacity(units.len());
     for ((u, n), r) in units.iter().zip(native).zip(reference) {
         let (Some(ns), Some(ls)) = (&n.snapshots, &r.snapshots) else {
@@ -258,19 +262,7 @@ fn run_checks(
     }
     // Rule 3 (docs/stress.md): the K_phi fit range both engines share; it also picks
     // v2's regime-C snapshots.
-    let range = super::fit_range_of(
-        case,
-        units,
-        &native.iter().map(|r| &r.run).collect::<Vec<_>>(),
-        &reference.iter().map(|r| &r.run).collect::<Vec<_>>(),
-    );
-    let h_max = super::k_phi_fit_end(case, &range);
-    let origin = format!(
-        "mean FDR of the {} bed(s) of this run, fitted on h in [{:.3}, {:.3}] (rule 3)",
-        beds.len(),
-        range.h_start,
-        range.h_end
-    );
+    let (range, h_max, origin) = fit_range(case, units, native, reference);
     let nfdr = mean_fdr(
         case,
         &native.iter().map(|r| r.run.fdr.clone()).collect::<Vec<_>>(),
@@ -312,17 +304,6 @@ fn run_checks(
         checks.extend(published_phi_check(case, engine, "v1", p.phi_deg));
     }
     // Estimator v2 on rule 3's regime-C snapshots of every bed.
-    let v2_beds = |dirs: &[&Path]| -> Result<Vec<BedSnapshots>> {
-        dirs.iter()
-            .map(|d| {
-                let (ks, _) = snapshots_in_range(d, range.h_start, range.h_end)?;
-                Ok(BedSnapshots {
-                    dir: d.to_path_buf(),
-                    ks,
-                })
-            })
-            .collect()
-    };
     let ndirs: Vec<&Path> = native
         .iter()
         .filter_map(|r| r.snapshots.as_deref())
@@ -333,12 +314,7 @@ fn run_checks(
         .collect();
     let t = std::time::Instant::now();
     let v2 = |engine: &str, dirs: &[&Path], forces: Forces| -> Result<PhiV2> {
-        anyhow::ensure!(
-            range.h_end.is_finite(),
-            "rule 3 gave no end of regime C: {}",
-            range.text()
-        );
-        stress_v2::estimate(engine, &v2_beds(dirs)?, forces, width)
+        v2_on_range(engine, dirs, &range, forces, width)
     };
     let nv2 = v2("native", &ndirs, Forces::Full);
     let lv2 = v2("liggghts", &ldirs, Forces::Full);
@@ -539,7 +515,7 @@ fn run_checks(
         k_err: 0.15,
     });
     k_phi_plane(&out.join("k_phi.svg"), &curve, &points, &[])?;
-    malt_points(case, units, (&np1, &nv2), (&lp1, &lv2), v2_gated).write(out)?;
+    malt_points(case, units, (&np1, &nv2), Some((&lp1, &lv2)), v2_gated).write(out)?;
     write_phi_csv(&out.join("phi_snapshots.csv"), &beds)?;
     let analysis_wall_s: f64 = beds.iter().map(|b| b.analysis_wall_s).sum();
     notes.push(format!("wall time: field analysis {analysis_wall_s:.1} s"));
@@ -565,6 +541,188 @@ fn run_checks(
     Ok(Verdict {
         checks,
         notes,
+        ..Verdict::default()
+    })
+}
+
+/// Rule 3's K_phi fit range (docs/stress.md) from both engines' FDRs, the end of the
+/// mean-FDR fit it gives, and the fit's origin for the report.
+fn fit_range(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: &[NativeRun],
+    reference: &[RefRun],
+) -> (crate::compare::penetration::FitRange, f64, String) {
+    let range = super::fit_range_of(
+        case,
+        units,
+        &native.iter().map(|r| &r.run).collect::<Vec<_>>(),
+        &reference.iter().map(|r| &r.run).collect::<Vec<_>>(),
+    );
+    let h_max = super::k_phi_fit_end(case, &range);
+    let origin = format!(
+        "mean FDR of the {} bed(s) of this run, fitted on h in [{:.3}, {:.3}] (rule 3)",
+        units.len(),
+        range.h_start,
+        range.h_end
+    );
+    (range, h_max, origin)
+}
+
+/// Estimator v2 of one engine on the snapshots of every bed whose depth lies in rule
+/// 3's regime-C range.
+fn v2_on_range(
+    engine: &str,
+    dirs: &[&Path],
+    range: &crate::compare::penetration::FitRange,
+    forces: Forces,
+    width: f64,
+) -> Result<PhiV2> {
+    anyhow::ensure!(
+        range.h_end.is_finite(),
+        "rule 3 gave no end of regime C: {}",
+        range.text()
+    );
+    let beds = dirs
+        .iter()
+        .map(|d| {
+            let (ks, _) = snapshots_in_range(d, range.h_start, range.h_end)?;
+            Ok(BedSnapshots {
+                dir: d.to_path_buf(),
+                ks,
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    stress_v2::estimate(engine, &beds, forces, width)
+}
+
+/// Why a recorded reference gives the stress checks nothing to compare with.
+pub const NO_RECORDED_SNAPSHOTS: &str = "the recorded LIGGGHTS reference holds no contact snapshots (several GB per run, never recorded under reference/): run with a live LIGGGHTS";
+
+/// The stress checks against a recorded reference, which holds the LIGGGHTS force
+/// curves but no snapshots: what the native snapshots decide alone is still decided —
+/// the native phi of the gated estimator against the published value and the native
+/// MALT distances, on rule 3's fit range of both engines' FDRs — while the phi gate
+/// native vs LIGGGHTS and LIGGGHTS's own stress checks are NOT COMPARED. The phi gate
+/// is listed as unevaluated, so a negative control is not asked to make it fail.
+fn native_only_checks(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: &[NativeRun],
+    reference: &[RefRun],
+    out: &Path,
+    opts: &Options,
+    width: f64,
+) -> Result<Verdict> {
+    let (range, h_max, origin) = fit_range(case, units, native, reference);
+    let nfdr = mean_fdr(
+        case,
+        &native.iter().map(|r| r.run.fdr.clone()).collect::<Vec<_>>(),
+        &origin,
+        h_max,
+    )?;
+    let dirs: Vec<&Path> = native
+        .iter()
+        .filter_map(|r| r.snapshots.as_deref())
+        .collect();
+    let mut fields = Vec::with_capacity(dirs.len());
+    for (u, dir) in units.iter().zip(&dirs) {
+        let fdir = out.join(bed_dir_name(u.k)).join("fields").join("native");
+        let mut w = |wi: usize, f: &crate::analysis::stress_fields::WindowFields| {
+            crate::report::stress::write_outputs(&fdir, wi, f)
+        };
+        fields.push(
+            analyse_engine("native", dir, Forces::Full, width, Some(&mut w))
+                .with_context(|| format!("bed {}", u.k))?,
+        );
+    }
+    let per_bed: Vec<&EngineFields> = fields.iter().collect();
+    let nv2 = v2_on_range("native", &dirs, &range, Forces::Full, width);
+    let np1 = engine_point(&per_bed, &nfdr);
+    let np2 = engine_point_with(
+        &per_bed,
+        &nfdr,
+        Some(
+            nv2.as_ref()
+                .map_or((f64::NAN, f64::NAN), |v| (v.phi_deg, v.sd_deg)),
+        ),
+    );
+    let v2_gated = case.phi_estimator == PhiEstimator::V2;
+    let (gated, np, other, onp) = if v2_gated {
+        ("v2", &np2, "v1", &np1)
+    } else {
+        ("v1", &np1, "v2", &np2)
+    };
+    let mut notes = vec![format!(
+        "stress fields of the native engine only: {NO_RECORDED_SNAPSHOTS}. Native phi {gated} (gated) {:.2} +- {:.2} deg, phi {other} (reported) {:.2} +- {:.2} deg, over {} beds; kernel width w = {width} d",
+        np.phi_deg,
+        np.phi_std_deg,
+        onp.phi_deg,
+        onp.phi_std_deg,
+        units.len()
+    )];
+    if let Err(e) = &nv2 {
+        notes.push(format!("native phi v2 not computed: {e:#}"));
+    }
+    let mut checks = vec![Check::not_compared(
+        format!("{}: phi {gated} native vs liggghts", case.name),
+        Gate::Phi,
+        NO_RECORDED_SNAPSHOTS,
+    )];
+    checks.extend(published_phi_check(case, "native", gated, np.phi_deg));
+    if case.published_phi.is_some() {
+        checks.push(Check::not_compared(
+            format!("{}: phi {gated} vs published (liggghts)", case.name),
+            Gate::Published,
+            NO_RECORDED_SNAPSHOTS,
+        ));
+    }
+    let report = |notes: &mut Vec<String>, why: &str, c: &Check| {
+        notes.push(format!(
+            "REPORTED, not gated ({why}): {} = {:.4} against {}; {}",
+            c.name, c.value, c.tolerance, c.detail
+        ));
+    };
+    for c in published_phi_check(case, "native", other, onp.phi_deg)
+        .into_iter()
+        .chain(malt_checks(&case.name, &case.tolerances, onp))
+    {
+        report(&mut notes, "the other estimator", &c);
+    }
+    match (&range.not_compared, case.k_phi_range == KPhiRange::Rule3) {
+        (Some(why), true) => checks.push(Check::not_compared(
+            format!("{}: native MALT distance in K", case.name),
+            Gate::MaltK,
+            why.clone(),
+        )),
+        _ => {
+            for c in malt_checks(&case.name, &case.tolerances, np) {
+                if opts.gate_theory || !matches!(c.gate, Gate::MaltK | Gate::MaltPhi) {
+                    checks.push(c);
+                } else {
+                    report(&mut notes, "theory is gated in the release suite", &c);
+                }
+            }
+        }
+    }
+    let frictionless = case.pairs.friction.iter().all(|&m| m == 0.0);
+    if frictionless {
+        notes.push("negative control \"tangential forces dropped\" not applicable: every friction coefficient is 0".into());
+    } else {
+        checks.push(Check::not_compared(
+            format!(
+                "{}: negative control \"tangential forces dropped\"",
+                case.name
+            ),
+            Gate::NegativeControl,
+            format!("it controls the phi gate native vs LIGGGHTS, which is not evaluated: {NO_RECORDED_SNAPSHOTS}"),
+        ));
+    }
+    malt_points(case, units, (&np1, &nv2), None, v2_gated).write(out)?;
+    Ok(Verdict {
+        checks,
+        notes,
+        unevaluated: vec![(Gate::Phi, NO_RECORDED_SNAPSHOTS.to_string())],
         ..Verdict::default()
     })
 }
@@ -696,7 +854,7 @@ fn malt_points(
     case: &PenetrationCase,
     units: &[Unit],
     native: (&EnginePoint, &Result<PhiV2>),
-    liggghts: (&EnginePoint, &Result<PhiV2>),
+    liggghts: Option<(&EnginePoint, &Result<PhiV2>)>,
     v2_gated: bool,
 ) -> crate::compare::malt_points::MaltPoints {
     use crate::compare::malt_points::{MaltPoint, MaltPoints, Scale};
@@ -721,11 +879,8 @@ fn malt_points(
             beds: units.len(),
             frictionless: case.pairs.friction.iter().all(|&m| m == 0.0),
         },
-        engines: [
-            ("native".to_string(), point(native)),
-            ("liggghts".to_string(), point(liggghts)),
-        ]
-        .into_iter()
-        .collect(),
+        engines: std::iter::once(("native".to_string(), point(native)))
+            .chain(liggghts.map(|l| ("liggghts".to_string(), point(l))))
+            .collect(),
     }
 }
