@@ -558,3 +558,49 @@ fn kondic_five_seed_cases_are_the_fig2_bed_on_seeds_1_to_5_sharing_fig11_beds() 
         assert!(s.cases.iter().any(|e| e.path.ends_with(rel)), "{rel}");
     }
 }
+
+/// Every case of the release suite has a sealed LIGGGHTS/LAMMPS record under
+/// `reference/release/<kind>/<case>/` made from this very case (its canonical hash), so
+/// `check --suite release` without the engines re-runs only the native side. The two
+/// paper-scale stress cases are the named exception: their LIGGGHTS runs take 1-2 h each
+/// and were run live only (docs/release.md); a new case without a record fails here.
+#[test]
+fn every_release_case_has_a_record_of_its_own_version() {
+    const LIVE_ONLY: [&str; 2] = ["feng-table2-mid", "feng-table4-mono-1bed"];
+    let root = common::root();
+    let suite = granval::experiments::suite::load(&root.join("cases"), "release").unwrap();
+    let mut recorded = 0;
+    for e in &suite.cases {
+        let c = AnyCase::load(&e.path).unwrap_or_else(|err| panic!("{err}"));
+        let (kind, hash) = match &c {
+            AnyCase::Penetration(p) => ("penetration", p.canonical_hash()),
+            AnyCase::Impact2d(p) => ("impact2d", p.canonical_hash()),
+            AnyCase::Triaxial(p) => ("triaxial", p.canonical_hash()),
+            AnyCase::Micro(p) => ("micro", p.canonical_hash()),
+        };
+        let seal = root
+            .join("reference/release")
+            .join(kind)
+            .join(c.name())
+            .join("seal.json");
+        let stem = e.path.file_stem().unwrap().to_string_lossy().to_string();
+        let Ok(text) = std::fs::read_to_string(&seal) else {
+            assert!(
+                LIVE_ONLY.contains(&stem.as_str()),
+                "{}: no record at {}",
+                e.path.display(),
+                seal.display()
+            );
+            continue;
+        };
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(
+            v["case_sha256"].as_str().unwrap(),
+            hash.to_string(),
+            "{}: sealed for another version of the case",
+            seal.display()
+        );
+        recorded += 1;
+    }
+    assert_eq!(recorded, suite.cases.len() - LIVE_ONLY.len());
+}
