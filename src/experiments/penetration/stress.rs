@@ -225,7 +225,7 @@ fn run_checks(
                 checks: vec![Check::not_compared(
                     format!("{}: phi", case.name),
                     Gate::Phi,
-                    "the stress fields need contact snapshots of both engines; recorded LIGGGHTS references hold none (run with a live LIGGGHTS)",
+                    "the stress fields need contact snapshots of both engines for every bed, and some bed has only one engine's",
                 )],
                 notes: vec![],
                 ..Verdict::default()
@@ -263,40 +263,12 @@ fn run_checks(
     // Rule 3 (docs/stress.md): the K_phi fit range both engines share; it also picks
     // v2's regime-C snapshots.
     let (range, h_max, origin) = fit_range(case, units, native, reference);
-    let nfdr = mean_fdr(
-        case,
-        &native.iter().map(|r| r.run.fdr.clone()).collect::<Vec<_>>(),
-        &origin,
-        h_max,
-    )?;
-    let lfdr = mean_fdr(
-        case,
-        &reference
-            .iter()
-            .map(|r| r.run.fdr.clone())
-            .collect::<Vec<_>>(),
-        &origin,
-        h_max,
-    )?;
+    let nfdr = mean_fdr_of(case, native.iter().map(|r| &r.run), &origin, h_max)?;
+    let lfdr = mean_fdr_of(case, reference.iter().map(|r| &r.run), &origin, h_max)?;
     let pick = |f: fn(&BedStress) -> &EngineFields| beds.iter().map(f).collect::<Vec<_>>();
     // The case gates one estimator (`analysis.phi_estimator`) and reports the other.
     let v2_gated = case.phi_estimator == PhiEstimator::V2;
     let mut checks = Vec::new();
-    let report = |notes: &mut Vec<String>, why: &str, c: &Check| {
-        notes.push(format!(
-            "REPORTED, not gated ({why}): {} = {:.4} against {} -> would {}; {}",
-            c.name,
-            c.value,
-            c.tolerance,
-            match c.status {
-                Status::Pass => "pass",
-                Status::Fail => "FAIL",
-                Status::NotCompared => "be NOT COMPARED",
-                Status::Error => "be an ERROR",
-            },
-            c.detail
-        ));
-    };
     let np1 = engine_point(&pick(|b| &b.native), &nfdr);
     let lp1 = engine_point(&pick(|b| &b.liggghts), &lfdr);
     let v1 = phi_check(&case.name, &case.tolerances, &np1, &lp1);
@@ -596,6 +568,38 @@ fn v2_on_range(
     stress_v2::estimate(engine, &beds, forces, width)
 }
 
+/// A check computed but not gated here, as a report note: what it would have said.
+fn report(notes: &mut Vec<String>, why: &str, c: &Check) {
+    notes.push(format!(
+        "REPORTED, not gated ({why}): {} = {:.4} against {} -> would {}; {}",
+        c.name,
+        c.value,
+        c.tolerance,
+        match c.status {
+            Status::Pass => "pass",
+            Status::Fail => "FAIL",
+            Status::NotCompared => "be NOT COMPARED",
+            Status::Error => "be an ERROR",
+        },
+        c.detail
+    ));
+}
+
+/// The ensemble-mean FDR of one engine's runs on the fit range (`h_max`, its origin).
+fn mean_fdr_of<'a>(
+    case: &PenetrationCase,
+    runs: impl Iterator<Item = &'a super::EngineRun>,
+    origin: &str,
+    h_max: f64,
+) -> Result<FdrObservables> {
+    mean_fdr(
+        case,
+        &runs.map(|r| r.fdr.clone()).collect::<Vec<_>>(),
+        origin,
+        h_max,
+    )
+}
+
 /// Why a recorded reference gives the stress checks nothing to compare with.
 pub const NO_RECORDED_SNAPSHOTS: &str = "the recorded LIGGGHTS reference holds no contact snapshots (several GB per run, never recorded under reference/): run with a live LIGGGHTS";
 
@@ -615,12 +619,7 @@ fn native_only_checks(
     width: f64,
 ) -> Result<Verdict> {
     let (range, h_max, origin) = fit_range(case, units, native, reference);
-    let nfdr = mean_fdr(
-        case,
-        &native.iter().map(|r| r.run.fdr.clone()).collect::<Vec<_>>(),
-        &origin,
-        h_max,
-    )?;
+    let nfdr = mean_fdr_of(case, native.iter().map(|r| &r.run), &origin, h_max)?;
     let dirs: Vec<&Path> = native
         .iter()
         .filter_map(|r| r.snapshots.as_deref())
@@ -677,12 +676,6 @@ fn native_only_checks(
             NO_RECORDED_SNAPSHOTS,
         ));
     }
-    let report = |notes: &mut Vec<String>, why: &str, c: &Check| {
-        notes.push(format!(
-            "REPORTED, not gated ({why}): {} = {:.4} against {}; {}",
-            c.name, c.value, c.tolerance, c.detail
-        ));
-    };
     for c in published_phi_check(case, "native", other, onp.phi_deg)
         .into_iter()
         .chain(malt_checks(&case.name, &case.tolerances, onp))
