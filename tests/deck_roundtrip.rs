@@ -209,7 +209,10 @@ fn micro_deck_run_by_hand_analyzes_as_compare() {
         EngineKind::Liggghts,
         "micro_deck_run_by_hand_analyzes_as_compare",
     ) {
-        eprintln!("SKIPPED: the round trip needs LIGGGHTS run by hand");
+        common::engineless(
+            "micro_deck_run_by_hand_analyzes_as_compare",
+            "SKIPPED: the round trip needs LIGGGHTS run by hand",
+        );
         return;
     }
     round_trip(
@@ -228,7 +231,10 @@ fn impact2d_deck_run_by_hand_under_mpirun_analyzes_as_compare() {
         EngineKind::Lammps,
         "impact2d_deck_run_by_hand_under_mpirun_analyzes_as_compare",
     ) {
-        eprintln!("SKIPPED: the round trip needs LAMMPS run by hand");
+        common::engineless(
+            "impact2d_deck_run_by_hand_under_mpirun_analyzes_as_compare",
+            "SKIPPED: the round trip needs LAMMPS run by hand",
+        );
         return;
     }
     // cases/impact2d/ci.toml at a third of its grains and run time, without its

@@ -124,7 +124,10 @@ fn native_runs_record_the_interface_and_the_control_freezes_it() {
 #[test]
 fn lammps_records_the_same_interface() {
     if !common::live(EngineKind::Lammps, "impact2d_interface") {
-        eprintln!("[impact2d_interface] no lmp: no record of this tiny case, nothing to compare");
+        common::engineless(
+            "impact2d_interface",
+            "SKIPPED: no lmp, and no record of this tiny case: nothing to compare",
+        );
         return;
     }
     // The runner copies the case file next to its outputs: it must exist.

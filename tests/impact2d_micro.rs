@@ -137,9 +137,12 @@ fn lammps_rows(sys: &System, n: u64, every: u64, name: &str) -> Vec<(u64, u64, [
             !common::require_live(),
             "[{name}] LAMMPS is not installed but GRANVAL_REQUIRE_LIVE=1"
         );
-        eprintln!(
-            "[{name}] reference: FALLBACK to recorded {} (lmp not installed)",
-            rec.display()
+        common::engineless(
+            name,
+            &format!(
+                "reference: FALLBACK to recorded {} (lmp not installed)",
+                rec.display()
+            ),
         );
         rec.join(lammps::SNAP_FILE)
     };

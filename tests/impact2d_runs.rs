@@ -337,8 +337,9 @@ fn seed_ensemble_runs_each_value_on_each_seed_and_its_control_bites() {
             !common::require_live(),
             "GRANVAL_REQUIRE_LIVE=1 but LAMMPS is not installed"
         );
-        eprintln!(
-            "[tiny-ensemble] LAMMPS is not installed and this test-only case has no record: NATIVE SIDE ONLY (claim and control on the native runs)"
+        common::engineless(
+            "tiny-ensemble",
+            "LAMMPS is not installed and this test-only case has no record: NATIVE SIDE ONLY (claim and control on the native runs)",
         );
         let units = exp.units(&common::options()).unwrap();
         let ignored = Perturbation {

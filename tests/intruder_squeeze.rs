@@ -232,15 +232,11 @@ fn compare(nat: &Snapshot, lig: &(Vec<Grain>, Vec<Contact>), mu: f64) -> Mismatc
 }
 
 fn liggghts_or_skip(test: &str) -> bool {
-    if granval::engines::liggghts::installed_version("liggghts").is_some() {
-        return true;
-    }
-    assert!(
-        !common::require_live(),
-        "{test}: LIGGGHTS is required (GRANVAL_REQUIRE_LIVE=1) but not installed"
-    );
-    eprintln!("{test}: LIGGGHTS not installed, live comparison skipped (no recorded fallback)");
-    false
+    common::live_or_skip(
+        granval::rundata::provenance::EngineKind::Liggghts,
+        test,
+        "live comparison skipped (no recorded fallback)",
+    )
 }
 
 /// The squeeze agrees to round-off at every compared step: positions to 1e-12 m, every

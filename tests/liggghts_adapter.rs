@@ -1,6 +1,8 @@
 //! LIGGGHTS adapter: deck/data text, refusal of values LIGGGHTS would refuse, the dump
 //! parser, and (when `liggghts` is installed) live runs, including runs that must fail.
 
+mod common;
+
 use granval::case::Case;
 use granval::engines::deck_text::{canonical, same_input};
 use granval::engines::liggghts::{self, Liggghts};
@@ -90,13 +92,13 @@ fn case(toml: &str) -> Case {
 }
 
 fn live() -> Option<String> {
-    let v = liggghts::installed_version("liggghts");
-    if v.is_none() {
-        eprintln!(
-            "SKIPPED: liggghts is not installed (installed_version(\"liggghts\") is None); live LIGGGHTS test not run"
-        );
-    }
-    v
+    common::live_or_skip(
+        granval::rundata::provenance::EngineKind::Liggghts,
+        "liggghts_adapter",
+        "live LIGGGHTS test not run",
+    )
+    .then(|| liggghts::installed_version("liggghts"))
+    .flatten()
 }
 
 #[test]

@@ -349,7 +349,7 @@ fn invalid_geometry_is_refused() {
 fn liggghts_or_skip(test: &str) -> bool {
     let live = common::live(granval::rundata::provenance::EngineKind::Liggghts, test);
     if !live {
-        eprintln!("SKIPPED {test}: `liggghts` is not installed or does not run");
+        common::engineless(test, "SKIPPED: `liggghts` is not installed or does not run");
     }
     live
 }

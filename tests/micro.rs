@@ -55,7 +55,10 @@ fn every_micro_case_matches_liggghts() {
 #[test]
 fn recorded_references_match_live_liggghts() {
     if !common::live(EngineKind::Liggghts, "records vs live") {
-        eprintln!("SKIPPED: cannot re-check reference/ without a live LIGGGHTS");
+        common::engineless(
+            "records vs live",
+            "SKIPPED: cannot re-check reference/ without a live LIGGGHTS",
+        );
         return;
     }
     for case in common::micro_cases() {
@@ -99,7 +102,7 @@ fn caught(pert: Perturbation) -> Vec<String> {
         let exp = Micro { case };
         let opts = common::options();
         let dir = tempfile::tempdir().unwrap();
-        let live = granval::experiments::reference::installed(EngineKind::Liggghts).is_some();
+        let live = common::live(EngineKind::Liggghts, &exp.case.name);
         let reference = if live {
             exp.run_reference(&(), &dir.path().join("ref"), &opts)
                 .unwrap()

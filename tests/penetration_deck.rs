@@ -19,7 +19,7 @@ use common::root;
 fn liggghts_or_skip(test: &str) -> bool {
     let live = common::live(EngineKind::Liggghts, test);
     if !live {
-        eprintln!("SKIPPED {test}: `liggghts` is not installed");
+        common::engineless(test, "SKIPPED: `liggghts` is not installed");
     }
     live
 }

@@ -654,8 +654,11 @@ fn point(f: &stress_fields::EngineFields) -> EnginePoint {
 /// differences to micrometres within a few hundred steps.)
 #[test]
 fn liggghts_snapshot_matches_native_contacts() {
-    if granval::engines::liggghts::installed_version("liggghts").is_none() {
-        eprintln!("LIGGGHTS not installed: live snapshot round trip skipped");
+    if !common::live_or_skip(
+        granval::rundata::provenance::EngineKind::Liggghts,
+        "liggghts_snapshot_matches_native_contacts",
+        "live snapshot round trip skipped",
+    ) {
         return;
     }
     use granval::physics::dem::intruder::FlatCylinder;
@@ -1009,7 +1012,7 @@ fn stress_run() -> Option<&'static StressRun> {
             granval::rundata::provenance::EngineKind::Liggghts,
             "stress end to end",
         ) {
-            eprintln!("LIGGGHTS not installed: stress pipeline end to end skipped");
+            common::engineless("stress end to end", "SKIPPED: stress pipeline end to end");
             return None;
         }
         let _mpi = common::mpi_lock();

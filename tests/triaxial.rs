@@ -103,12 +103,11 @@ fn a_tiny_sample_compacts_and_shears_with_sensible_stresses() {
 /// where it crossed the diagonal: a 5 % jump of one wall force at step 283.)
 #[test]
 fn the_liggghts_deck_runs_and_agrees_with_the_native_run_at_first() {
-    if granval::engines::liggghts::installed_version("liggghts").is_none() {
-        assert!(
-            !common::require_live(),
-            "LIGGGHTS is required (GRANVAL_REQUIRE_LIVE=1) but not installed"
-        );
-        eprintln!("LIGGGHTS not installed: live triaxial deck skipped");
+    if !common::live_or_skip(
+        granval::rundata::provenance::EngineKind::Liggghts,
+        "the_liggghts_deck_runs_and_agrees_with_the_native_run_at_first",
+        "live triaxial deck skipped",
+    ) {
         return;
     }
     let c = tiny_case();

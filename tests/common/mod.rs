@@ -47,6 +47,40 @@ pub fn require_live() -> bool {
     std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1")
 }
 
+/// Says that `test` ran without a live reference engine (`what`: FALLBACK to records,
+/// SKIPPED, NATIVE SIDE ONLY ...): on stderr, and as a line appended to the file
+/// GRANVAL_TEST_ENGINELESS_LOG names, so `.ci/run` can count what ran without engines.
+pub fn engineless(test: &str, what: &str) {
+    eprintln!("[{test}] {what}");
+    if let Some(p) = std::env::var_os("GRANVAL_TEST_ENGINELESS_LOG") {
+        use std::io::Write;
+        if let Ok(mut f) = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(p)
+        {
+            let _ = writeln!(f, "[{test}] {what}");
+        }
+    }
+}
+
+/// A test that needs a live engine and has no recorded path: panics when live engines
+/// are required (CI), else says it was skipped. Returns whether the engine is live.
+pub fn live_or_skip(engine: EngineKind, test: &str, what_is_skipped: &str) -> bool {
+    let live = reference::installed(engine).is_some();
+    if !live {
+        assert!(
+            !require_live(),
+            "[{test}] GRANVAL_REQUIRE_LIVE=1 but {engine} is not installed"
+        );
+        engineless(
+            test,
+            &format!("SKIPPED: {engine} is not installed; {what_is_skipped}"),
+        );
+    }
+    live
+}
+
 /// Whether `engine` runs live here; panics when live engines are required but missing,
 /// and says loudly when a test falls back to the recorded references.
 pub fn live(engine: EngineKind, test: &str) -> bool {
@@ -56,8 +90,9 @@ pub fn live(engine: EngineKind, test: &str) -> bool {
             !require_live(),
             "GRANVAL_REQUIRE_LIVE=1 but {engine} is not installed"
         );
-        eprintln!(
-            "[{test}] FALLBACK: {engine} is not installed; using the sealed recorded references"
+        engineless(
+            test,
+            &format!("FALLBACK: {engine} is not installed; using the sealed recorded references"),
         );
     } else {
         eprintln!("[{test}] reference: LIVE {engine}");
