@@ -423,6 +423,10 @@ fn real_main() -> Result<ExitCode> {
             r.notes.extend(figure_notes);
             r.sections.extend(claim_sections);
             r.sections.extend(malt_section);
+            if !s.expectations.is_empty() {
+                // The release gate: every verdict as registered (docs/statistics.md).
+                r.apply_gate(&s.expectations, only.is_empty() && !claims_only);
+            }
             r.notes.push(format!(
                 "suite {suite}: {} ({} case(s), {:.0} s)",
                 s.description,

@@ -232,11 +232,11 @@ pub enum Claim {
     /// tau_c for a time) (K: static < kinetic friction, hexagonal < random, grows with
     /// e_n; Fig 9: deeper and later for smaller g).
     ///
-    /// On a seed ensemble (`[bed] seeds`, registered before any ensemble run): per sweep
-    /// value the mean of `of` over the seeds and its standard error SE = sample sd /
-    /// sqrt(n); passes iff every step of the means rises by at least max(`min_step`,
-    /// 2 SE_c), SE_c = sqrt(SE_k^2 + SE_k+1^2), else fails. The detail lists mean +- SE
-    /// per value and each seed's value.
+    /// On a seed ensemble (`[bed] seeds`): per step the per-seed rises (the same seeds
+    /// at every value), a one-sided test that they exceed `min_step` (docs/statistics.md,
+    /// "Rises"): passes when every step passes, fails when one step falls short at the
+    /// Bonferroni level of the steps, else INCONCLUSIVE. The detail lists mean +- SE per
+    /// value and each seed's value.
     Increasing {
         #[serde(default)]
         min_step: f64,

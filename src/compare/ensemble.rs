@@ -1,10 +1,12 @@
 //! A seed ensemble along a sweep (Kondic et al.'s claims on several beds, `[bed] seeds`
 //! of an impact2d case): per swept value the mean of a quantity over the seeds and its
-//! standard error, and the `increasing` rule on those means (docs/impact2d.md, "Seed
+//! standard error, and the `increasing` rule on the per-seed differences (docs/impact2d.md, "Seed
 //! ensembles", registered before any ensemble run). Plain numbers in, plain numbers out:
 //! the impact2d checks and the report's error-bar figure both read these.
 
+use super::{Comparison, Rule};
 use crate::analysis::stress_fields::mean_std;
+use crate::numerics::stats::Estimate;
 
 /// One swept value of an ensemble: the quantity on each seed's bed, its mean and its
 /// standard error SE = sample sd (n - 1) / sqrt(n).
@@ -56,40 +58,35 @@ impl ValueStats {
     }
 }
 
-/// One step of the `increasing` rule: the rise of the means and what it needed,
-/// max(min_step, 2 SE_c) with SE_c = sqrt(SE_k^2 + SE_k+1^2).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Step {
-    pub rise: f64,
-    pub combined_se: f64,
-    pub needed: f64,
-}
-
-/// The `increasing` rule on a seed ensemble: each step of the means must rise by at
-/// least max(`min_step`, 2 combined SE). Returns max over steps of (needed - rise),
-/// which is <= 0 iff the claim holds (NaN, never passing, if a mean or SE is not
-/// finite), and the steps.
-pub fn increasing(stats: &[ValueStats], min_step: f64) -> (f64, Vec<Step>) {
-    let steps: Vec<Step> = stats
+/// The `increasing` rule on a seed ensemble (docs/statistics.md, "Rises"): one
+/// comparison per step of the sweep, the per-seed differences of the later value minus
+/// the earlier one (the seeds are the same beds at every value, so the bed-to-bed
+/// scatter cancels in the pair), a one-sided test that the rise exceeds `min_step`, its
+/// failure decided at the Bonferroni level of all the steps. A step with fewer than two
+/// seeds in common has no estimate and stays INCONCLUSIVE.
+pub fn increasing(stats: &[ValueStats], min_step: f64) -> Vec<Comparison> {
+    let m = stats.len().saturating_sub(1);
+    stats
         .windows(2)
         .map(|w| {
-            let combined_se = w[0].se.hypot(w[1].se);
-            Step {
-                rise: w[1].mean - w[0].mean,
-                combined_se,
-                needed: min_step.max(2.0 * combined_se),
+            let (a, b): (Vec<f64>, Vec<f64>) = w[1]
+                .seeds
+                .iter()
+                .filter_map(|(seed, y)| {
+                    w[0].seeds
+                        .iter()
+                        .find(|(s0, _)| s0 == seed)
+                        .map(|(_, y0)| (*y0, *y))
+                })
+                .unzip();
+            Comparison {
+                what: format!("{} -> {}, per seed", w[0].value, w[1].value),
+                estimate: Estimate::paired(&b, &a),
+                rule: Rule::Exceeds { delta: min_step },
+                m,
             }
         })
-        .collect();
-    let mut worst = f64::NEG_INFINITY;
-    for s in &steps {
-        let short = s.needed - s.rise;
-        if !(short.is_finite() && s.combined_se.is_finite()) {
-            return (f64::NAN, steps);
-        }
-        worst = worst.max(short);
-    }
-    (worst, steps)
+        .collect()
 }
 
 #[cfg(test)]
@@ -118,31 +115,37 @@ mod tests {
     }
 
     #[test]
-    fn increasing_needs_the_larger_of_min_step_and_two_combined_se() {
+    fn increasing_is_a_paired_one_sided_test_per_step() {
+        use crate::compare::Check;
+        use crate::compare::{Gate, Status};
+        let decide = |stats: &[ValueStats], min_step: f64| {
+            Check::decided("c", Gate::Claim, "m", &increasing(stats, min_step), "").status
+        };
         let shifted =
             |a: &ValueStats, d: f64| v(1.0, &a.seeds.iter().map(|s| s.1 + d).collect::<Vec<_>>());
-        // Quiet seeds: SE = sqrt(0.025 / 5) = 0.0707 per value, 2 SE_c = 0.2 < min_step
-        // 0.5, so 0.5 is needed: a rise of 0.6 passes, 0.4 fails (below min_step).
-        let a = v(0.0, &[1.0, 1.2, 1.1, 0.9, 1.3]);
-        let (w, steps) = increasing(&[a.clone(), shifted(&a, 0.6)], 0.5);
-        assert!(
-            (steps[0].combined_se - 0.2 / 2.0).abs() < 1e-12,
-            "{steps:?}"
-        );
-        assert_eq!(steps[0].needed, 0.5);
-        assert!((w + 0.1).abs() < 1e-12, "{w}");
-        assert!(increasing(&[a.clone(), shifted(&a, 0.4)], 0.5).0 > 0.0);
-        // Noisy seeds: SE = 0.707 per value, 2 SE_c = 2.0 > min_step: a rise of 1.5 is
-        // within the noise and fails, 2.5 passes.
+        // Seeds with a large bed-to-bed scatter, each moved by the same 0.6: the pairs
+        // resolve the rise beyond min_step 0.5 although the means' SEs (0.71) do not.
         let n = v(0.0, &[0.0, 2.0, 1.0, -1.0, 3.0]);
-        let (w, steps) = increasing(&[n.clone(), shifted(&n, 1.5)], 0.5);
-        assert!((steps[0].needed - 2.0).abs() < 1e-12, "{steps:?}");
-        assert!((w - 0.5).abs() < 1e-12, "{w}");
-        assert!(increasing(&[n.clone(), shifted(&n, 2.5)], 0.5).0 <= 0.0);
-        // Every step counts: the worst one decides.
-        let three = [a.clone(), shifted(&a, 0.6), shifted(&a, 0.9)];
-        assert!((increasing(&three, 0.5).0 - 0.2).abs() < 1e-12);
-        // A value with one seed has no SE: never a pass.
-        assert!(increasing(&[a, v(1.0, &[9.0])], 0.0).0.is_nan());
+        let mut moved = shifted(&n, 0.6);
+        moved.seeds[0].1 += 0.01;
+        assert_eq!(decide(&[n.clone(), moved], 0.5), Status::Pass);
+        // Moved by 0.3 +- 0.01: a resolved shortfall below min_step fails.
+        let mut short = shifted(&n, 0.3);
+        short.seeds[1].1 -= 0.01;
+        assert_eq!(decide(&[n.clone(), short], 0.5), Status::Fail);
+        // Per-seed changes of +2, -1, +1, 0, +1.5: mean 0.7 with sd 1.2: undecided.
+        let m = v(
+            1.0,
+            &n.seeds
+                .iter()
+                .zip([2.0, -1.0, 1.0, 0.0, 1.5])
+                .map(|(s, d)| s.1 + d)
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(decide(&[n.clone(), m], 0.5), Status::Inconclusive);
+        // Every step counts: a flat step (the same runs) fails the claim.
+        assert_eq!(decide(&[n.clone(), n.clone()], 0.0), Status::Fail);
+        // A value with one seed: no estimate, never a pass.
+        assert_eq!(decide(&[n, v(1.0, &[9.0])], 0.0), Status::Inconclusive);
     }
 }

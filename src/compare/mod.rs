@@ -3,6 +3,7 @@
 
 pub mod coverage;
 pub mod ensemble;
+pub mod expect;
 pub mod impact2d;
 pub mod interface;
 pub mod malt_points;
@@ -12,18 +13,127 @@ pub mod sweep;
 pub mod trajectory;
 pub mod triaxial;
 
+use crate::numerics::stats::{self, Decision, Estimate};
 use serde::{Deserialize, Serialize};
 
 /// The verdict of one check. Only `Pass` lets a run exit 0: a check that could not be
-/// evaluated (`NotCompared`: too little data to mean anything) or whose inputs failed
-/// (`Error`: a crashed engine, a corrupt reference) is never a pass.
+/// evaluated (`NotCompared`: too little data to mean anything), whose data decide
+/// neither way (`Inconclusive`: the interval of docs/statistics.md straddles the margin)
+/// or whose inputs failed (`Error`: a crashed engine, a corrupt reference) is never a
+/// pass.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
     Pass,
     Fail,
     NotCompared,
+    Inconclusive,
     Error,
+}
+
+impl Status {
+    /// How reports print it.
+    pub fn label(self) -> &'static str {
+        match self {
+            Status::Pass => "pass",
+            Status::Fail => "FAIL",
+            Status::NotCompared => "NOT COMPARED",
+            Status::Inconclusive => "INCONCLUSIVE",
+            Status::Error => "ERROR",
+        }
+    }
+
+    /// Neither a pass nor a physics failure: the run exits 2.
+    pub fn undecided(self) -> bool {
+        matches!(
+            self,
+            Status::NotCompared | Status::Inconclusive | Status::Error
+        )
+    }
+}
+
+/// The rule of a statistical gate (docs/statistics.md, "Decision rules").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Rule {
+    /// Equivalence by two one-sided tests within +-`margin`.
+    Equivalence { margin: f64 },
+    /// A one-sided test that the effect exceeds `delta`.
+    Exceeds { delta: f64 },
+}
+
+/// One comparison of a statistical gate: what it is about, its estimate over beds
+/// (None: fewer than two beds, or a value that is not finite) and the comparisons it
+/// shares its claim with (`m`, for the Bonferroni level of a failure).
+#[derive(Debug, Clone)]
+pub struct Comparison {
+    pub what: String,
+    pub estimate: Option<Estimate>,
+    pub rule: Rule,
+    pub m: usize,
+}
+
+impl Comparison {
+    pub fn decision(&self) -> Decision {
+        match (&self.estimate, self.rule) {
+            (None, _) => Decision::Inconclusive,
+            (Some(e), Rule::Equivalence { margin }) => stats::equivalence(e, margin, self.m),
+            (Some(e), Rule::Exceeds { delta }) => stats::exceeds(e, delta, self.m),
+        }
+    }
+
+    /// `what: 0.0123 [90 % interval -0.010, 0.034] over 5 beds (sd 0.021), margin +-0.0953:
+    /// INCONCLUSIVE, about 14 beds would decide it at this sd`.
+    pub fn describe(&self) -> String {
+        let d = self.decision();
+        let rule = match self.rule {
+            Rule::Equivalence { margin } => format!("margin +-{margin:.4}"),
+            Rule::Exceeds { delta } => format!("must exceed {delta:.4}"),
+        };
+        let Some(e) = &self.estimate else {
+            return format!(
+                "{}: {rule}: INCONCLUSIVE (one bed, or no finite value: no bed-to-bed variance)",
+                self.what
+            );
+        };
+        let (l, u) = e.decision_interval();
+        let level = if self.m > 1 {
+            let (fl, fu) = e.failure_interval(self.m);
+            format!(
+                "; failure decided on the Bonferroni interval [{fl:.4}, {fu:.4}] of {} comparisons",
+                self.m
+            )
+        } else {
+            String::new()
+        };
+        let need = match d {
+            Decision::Inconclusive => {
+                let n = match self.rule {
+                    Rule::Equivalence { margin } => {
+                        stats::beds_to_pass_equivalence(e.sd, e.value, margin)
+                    }
+                    Rule::Exceeds { delta } => stats::beds_to_resolve(e.sd, e.value - delta),
+                };
+                match n {
+                    Some(n) => format!(", about {n} beds would decide it at this sd"),
+                    None => ", no bed count decides it at this difference and sd".to_string(),
+                }
+            }
+            _ => String::new(),
+        };
+        format!(
+            "{}: {:.4} [90 % interval {l:.4}, {u:.4}] over {} beds (sd {:.4}, {} degrees of freedom), {rule}{level}: {}{need}",
+            self.what,
+            e.value,
+            e.n,
+            e.sd,
+            e.df,
+            match d {
+                Decision::Pass => "PASS",
+                Decision::Fail => "FAIL",
+                Decision::Inconclusive => "INCONCLUSIVE",
+            }
+        )
+    }
 }
 
 pub use crate::case::Gate;
@@ -214,6 +324,54 @@ impl Check {
         } else {
             Check::not_compared(name, gate, format!("{}; {detail}", unresolved.into()))
         }
+    }
+
+    /// A statistical gate (docs/statistics.md): the comparisons the claim needs, combined
+    /// as [`stats::all_of`] (PASS when each passes, FAIL when one fails at its Bonferroni
+    /// level, INCONCLUSIVE otherwise). `value` and `tolerance` of the check are those of
+    /// the comparison that decided it (the first failing one, else the first undecided,
+    /// else the one closest to its threshold).
+    pub fn decided(
+        name: impl Into<String>,
+        gate: Gate,
+        metric: impl Into<String>,
+        parts: &[Comparison],
+        detail: impl Into<String>,
+    ) -> Check {
+        let decisions: Vec<Decision> = parts.iter().map(Comparison::decision).collect();
+        let verdict = stats::all_of(&decisions);
+        let status = match verdict {
+            Decision::Pass => Status::Pass,
+            Decision::Fail => Status::Fail,
+            Decision::Inconclusive => Status::Inconclusive,
+        };
+        let key = decisions
+            .iter()
+            .position(|d| *d == Decision::Fail)
+            .or_else(|| decisions.iter().position(|d| *d != Decision::Pass))
+            .unwrap_or(0);
+        let (value, tolerance) = parts
+            .get(key)
+            .map(|c| {
+                let t = match c.rule {
+                    Rule::Equivalence { margin } => margin,
+                    Rule::Exceeds { delta } => delta,
+                };
+                (c.estimate.map_or(f64::NAN, |e| e.value), t)
+            })
+            .unwrap_or((f64::NAN, f64::NAN));
+        let parts_text = parts
+            .iter()
+            .map(Comparison::describe)
+            .collect::<Vec<_>>()
+            .join("; ");
+        let detail = detail.into();
+        let detail = if detail.is_empty() {
+            parts_text
+        } else {
+            format!("{parts_text}; {detail}")
+        };
+        Check::with_status(name, gate, metric, value, tolerance, status, detail)
     }
 
     pub fn is_error(&self) -> bool {

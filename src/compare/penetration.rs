@@ -1,9 +1,10 @@
 //! Penetration comparison (Feng et al. Sec. 3): two force-depth relations from the same bed,
 //! reduced to K_phi, the FDR distance and the regime boundaries, each a gated check.
 
-use super::Check;
+use super::{Check, Comparison, Rule};
 use crate::analysis::fdr::{self, Fdr, LinearFit, RegimeBoundaries, TwoSegment};
 use crate::case::penetration::PenetrationCase;
+use crate::numerics::stats::Estimate;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
@@ -26,6 +27,9 @@ pub struct Observables {
     pub regime_c: Result<TwoSegment, String>,
     /// K_phi and R^2 of each member fitted alone (one entry for a single run).
     pub members: Vec<(f64, f64)>,
+    /// Each member's own FDR (h >= 0), in bed order: what per-bed statistics of the
+    /// force read (docs/statistics.md: the bed is the replicate).
+    pub member_fdrs: Vec<Fdr>,
 }
 
 impl Observables {
@@ -93,6 +97,7 @@ pub fn observables_in(case: &PenetrationCase, fdr: &Fdr, h_max: f64) -> Result<O
     let g = grain_resolution(case);
     Ok(Observables {
         members: vec![(fit.k_phi, fit.r2)],
+        member_fdrs: vec![fdr.clone()],
         resolved: resolved_boundaries(case, &fdr),
         regime_c: fdr::two_segment_fit(&fdr, case.fit_h_min, g, g).map_err(|e| format!("{e:#}")),
         fdr,
@@ -140,6 +145,7 @@ pub fn ensemble_in(case: &PenetrationCase, members: &[&Fdr], h_max: f64) -> Resu
     let mean = fdr::ensemble_mean(members, case.h_bin)?;
     let mut obs = observables_in(case, &mean, h_max)?;
     obs.members = per;
+    obs.member_fdrs = members.iter().map(|m| m.contact_only()).collect();
     Ok(obs)
 }
 
@@ -338,28 +344,23 @@ pub fn fit_range(case: &PenetrationCase, bed_height: f64, engines: &[(&str, &Fdr
     out
 }
 
-/// Bed by bed relative difference of K_phi, K_test,k / K_ref,k - 1: (mean, sample sd,
-/// standard error sd / sqrt(beds), beds); None with fewer than two beds.
-pub fn paired_k(test: &Observables, reference: &Observables) -> Option<(f64, f64, f64, usize)> {
-    let d: Vec<f64> = test
-        .members
-        .iter()
-        .zip(&reference.members)
-        .map(|(a, b)| a.0 / b.0 - 1.0)
-        .collect();
-    let n = d.len();
-    if n < 2 || test.members.len() != reference.members.len() {
-        return None;
-    }
-    let m = d.iter().sum::<f64>() / n as f64;
-    let sd = (d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
-    Some((m, sd, sd / (n as f64).sqrt(), n))
+/// Bed by bed ln(K_test,k / K_ref,k), the per-bed statistic of the engine gate
+/// (docs/statistics.md: ratios on the log scale, paired over the same beds); None when
+/// the ensembles do not pair bed for bed.
+pub fn paired_log_k(test: &Observables, reference: &Observables) -> Option<Vec<f64>> {
+    (test.members.len() == reference.members.len()).then(|| {
+        test.members
+            .iter()
+            .zip(&reference.members)
+            .map(|(a, b)| (a.0 / b.0).ln())
+            .collect()
+    })
 }
 
-/// The K_phi gate on rule 3's range: |K_test / K_ref - 1| of the mean FDRs against
-/// `k_phi_rel`, NOT COMPARED without a floor-free regime C or with one bed; otherwise
-/// with the bed-by-bed standard error ([`Check::at_most_resolved`]: NOT COMPARED when the
-/// beds resolve neither a pass nor a failure).
+/// The K_phi gate on rule 3's range: the engines' K_phi agree within `k_phi_rel`, an
+/// equivalence test (docs/statistics.md) on the bed-by-bed ln(K_test / K_ref) with the
+/// margin ln(1 + k_phi_rel). One bed is INCONCLUSIVE; no floor-free regime C is NOT
+/// COMPARED. The mean FDRs' K_phi are reported beside it.
 pub fn k_phi_check(
     case: &PenetrationCase,
     range: &FitRange,
@@ -368,10 +369,10 @@ pub fn k_phi_check(
 ) -> Check {
     let tol = case.tolerances.k_phi_rel;
     let name = format!("{}: K_phi", case.name);
-    let paired = paired_k(test, reference);
+    let logs = paired_log_k(test, reference);
     let open = case.k_phi_range == crate::case::penetration::KPhiRange::Open;
     let detail = format!(
-        "K_test = {:.3} +- {:.3} (regression SE; R^2 {:.4}; {}), K_ref = {:.3} +- {:.3} (R^2 {:.4}; {}), mean FDRs fitted on h in [{:.3}, {:.3}]; bed by bed K_test / K_ref - 1: {}; {}",
+        "mean FDRs: K_test = {:.3} +- {:.3} (regression SE; R^2 {:.4}; {}), K_ref = {:.3} +- {:.3} (R^2 {:.4}; {}), fitted on h in [{:.3}, {:.3}], K_test / K_ref - 1 = {:+.4}; {}",
         test.fit.k_phi,
         test.fit.se_k,
         test.fit.r2,
@@ -382,54 +383,34 @@ pub fn k_phi_check(
         reference.members_text(),
         test.fit.h_lo,
         test.fit.h_hi,
-        match paired {
-            Some((m, sd, se, n)) =>
-                format!("{m:+.4} +- {se:.4} (mean +- standard error over {n} beds, sd {sd:.4})"),
-            None => "one bed, no standard error".into(),
-        },
+        test.fit.k_phi / reference.fit.k_phi - 1.0,
         range.text()
     );
-    if open {
-        // `analysis.k_phi_range = "open"`: the fit to the final depth, no standard-error
-        // rule; rule 3's range and the bed-by-bed error are reported in the detail.
-        return Check::at_most(
-            name,
-            crate::compare::Gate::KPhi,
-            "|K_test / K_ref - 1|",
-            (test.fit.k_phi / reference.fit.k_phi - 1.0).abs(),
-            tol,
-            format!("open fit range (rule 3 reported, not applied); {detail}"),
-        );
-    }
-    if let Some(why) = &range.not_compared {
+    if let Some(why) = range.not_compared.as_ref().filter(|_| !open) {
         return Check::not_compared(name, crate::compare::Gate::KPhi, format!("{why}; {detail}"));
     }
-    match paired {
-        None => Check::not_compared(
-            name,
-            crate::compare::Gate::KPhi,
-            format!(
-                "one bed per engine: no bed-by-bed standard error, so the gate cannot resolve its tolerance {tol} (rule 3); {detail}"
-            ),
-        ),
-        Some((_, _, se, _)) => {
-            let value = (test.fit.k_phi / reference.fit.k_phi - 1.0).abs();
-            Check::at_most_resolved(
-                name,
-                crate::compare::Gate::KPhi,
-                "|K_test / K_ref - 1|",
-                value,
-                se,
-                tol,
-                detail,
-                format!(
-                    "2 x standard error {:.4} > tolerance {tol} and |K_test / K_ref - 1| - 2 x standard error = {:.4} <= tolerance: too few beds to resolve it (rule 3, amendment A); |K_test / K_ref - 1| = {value:.4}",
-                    2.0 * se,
-                    value - 2.0 * se
-                ),
-            )
-        }
-    }
+    let comparison = Comparison {
+        what: "bed by bed ln(K_test / K_ref)".into(),
+        estimate: logs.as_deref().and_then(Estimate::mean),
+        rule: Rule::Equivalence {
+            margin: (1.0 + tol).ln(),
+        },
+        m: 1,
+    };
+    let detail = if open {
+        // `analysis.k_phi_range = "open"`: every bed fitted to its final depth; rule 3's
+        // range is reported, not applied.
+        format!("open fit range (rule 3 reported, not applied); {detail}")
+    } else {
+        detail
+    };
+    Check::decided(
+        name,
+        crate::compare::Gate::KPhi,
+        "ln(K_test / K_ref), mean over beds",
+        &[comparison],
+        detail,
+    )
 }
 
 /// Coverage of the steady-state fit of one engine's mean FDR: enough points in

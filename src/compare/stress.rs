@@ -1,11 +1,12 @@
 //! Stress-field checks: phi native vs reference, each engine's (phi, K_phi) point
 //! against the MALT curve (eq 10), and the unified FDR fit (eqs 13-15).
 
-use super::Check;
 use super::penetration::Observables;
+use super::{Check, Comparison, Rule};
 use crate::analysis::malt;
 use crate::analysis::stress_fields::{EngineFields, mean_std};
 use crate::case::penetration::{PenetrationCase, Tolerances};
+use crate::numerics::stats::Estimate;
 use anyhow::Result;
 use serde::Serialize;
 
@@ -222,10 +223,11 @@ pub fn engine_point_with(
     }
 }
 
-/// Estimator v2's gate (docs/stress.md rule 2): |phi_v2,test - phi_v2,ref| against
-/// `phi_abs_deg`, with the paired bootstrap sd of the difference as its standard error
-/// ([`Check::at_most_resolved`]: NOT COMPARED when the data resolve neither a pass nor a
-/// failure).
+/// Estimator v2's gate (docs/stress.md rule 2), judged as docs/statistics.md judges an
+/// agreement: an equivalence test of phi_v2,test - phi_v2,ref within +-`phi_abs_deg`,
+/// its standard error the paired bootstrap sd of the difference (beds and snapshots
+/// resampled together) with beds - 1 degrees of freedom. One bed is INCONCLUSIVE: its
+/// bootstrap resamples snapshots only and knows nothing of the next bed.
 pub fn phi_v2_check(
     case: &str,
     tol: &Tolerances,
@@ -263,19 +265,29 @@ pub fn phi_v2_check(
         reference.gamma_max_r,
         reference.gamma_max_depth,
     );
-    let diff = (test.phi_deg - reference.phi_deg).abs();
-    Check::at_most_resolved(
+    let diff = test.phi_deg - reference.phi_deg;
+    let estimate = sd
+        .filter(|s| s.is_finite() && test.n_beds >= 2)
+        .map(|se| Estimate {
+            value: diff,
+            se,
+            df: (test.n_beds - 1) as f64,
+            n: test.n_beds,
+            sd: se * (test.n_beds as f64).sqrt(),
+        });
+    Check::decided(
         name,
         crate::compare::Gate::Phi,
-        "|phi_v2,test - phi_v2,ref| (deg), estimator v2 (docs/stress.md rule 2)",
-        diff,
-        sd.unwrap_or(f64::NAN),
-        tol.phi_abs_deg,
+        "phi_v2,test - phi_v2,ref (deg), estimator v2 (docs/stress.md rule 2)",
+        &[Comparison {
+            what: "phi v2 difference (deg; SE the paired bootstrap sd)".into(),
+            estimate,
+            rule: Rule::Equivalence {
+                margin: tol.phi_abs_deg,
+            },
+            m: 1,
+        }],
         detail,
-        format!(
-            "2 x paired bootstrap sd > tolerance {} deg and |difference| - 2 sd <= tolerance: the data cannot resolve it (rule 2, amendment A); |difference| = {diff:.2} deg",
-            tol.phi_abs_deg
-        ),
     )
 }
 

@@ -383,7 +383,7 @@ fn unbitten(
             of_gate
                 .iter()
                 .map(|k| match k.status {
-                    Status::NotCompared | Status::Error => format!(
+                    Status::NotCompared | Status::Inconclusive | Status::Error => format!(
                         "{:?}: {}",
                         k.status,
                         k.detail.chars().take(400).collect::<String>()

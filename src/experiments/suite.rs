@@ -16,10 +16,17 @@
 //! cases = ["release/a.toml", "release/b.toml"]   # in order along the claim
 //! kind = "increasing"          # or ratio_at_least, independent (compare::sweep::SweepClaim)
 //! quantity = "k_phi"
-//! min_step_se = 2.0
 //! [[claim.negative_control]]   # the claim on wrong native physics must fail
 //! name = "mu_gg ignored"
 //! kind = "sweep_ignored"       # or case_control (compare::sweep::ClaimControl)
+//!
+//! [[expect]]                   # a registered finding the release gate expects
+//! check = "K_phi rises with mu_gg (native)"
+//! verdict = "fail"             # pass | fail | inconclusive | not_compared
+//! value = 0.012                # optional: pinned value and interval
+//! interval = [-0.01, 0.03]
+//! reason = "..."
+//! found = "2026-11-26"
 //! ```
 
 use anyhow::{Context, Result, bail, ensure};
@@ -38,6 +45,9 @@ struct File {
     cases: Vec<Entry>,
     #[serde(default, rename = "claim")]
     claims: Vec<ClaimEntry>,
+    /// Registered expectations of the release gate (docs/statistics.md).
+    #[serde(default, rename = "expect")]
+    expectations: Vec<crate::compare::expect::Expectation>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -123,6 +133,8 @@ pub struct Suite {
     pub description: String,
     pub cases: Vec<SuiteCase>,
     pub claims: Vec<SuiteClaim>,
+    /// `[[expect]]`: the verdicts the release gate expects where they are not a pass.
+    pub expectations: Vec<crate::compare::expect::Expectation>,
     reference: Option<PathBuf>,
 }
 
@@ -287,11 +299,24 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
             paper_k_phi: c.paper_k_phi,
         });
     }
+    for (k, e) in f.expectations.iter().enumerate() {
+        e.validate().map_err(|why| {
+            anyhow::anyhow!("{}: expect[{k}] ({}): {why}", path.display(), e.check)
+        })?;
+        if let Some(j) = f.expectations[..k].iter().position(|o| o.check == e.check) {
+            bail!(
+                "{}: expect[{k}] and expect[{j}] both name the check \"{}\"",
+                path.display(),
+                e.check
+            );
+        }
+    }
     Ok(Suite {
         name: name.to_string(),
         description: f.description,
         cases,
         claims,
+        expectations: f.expectations,
         reference,
     })
 }
@@ -767,15 +792,23 @@ mod tests {
     fn claims_parse_and_name_their_mistakes() {
         let d = tempfile::tempdir().unwrap();
         let ok = format!(
-            "{HEAD}[[claim]]\nname = \"n\"\nsource = \"s\"\ncases = [\"release/a.toml\", \"release/b.toml\"]\nkind = \"increasing\"\nquantity = \"k_phi\"\nmin_step_se = 2.0\n"
+            "{HEAD}[[claim]]\nname = \"n\"\nsource = \"s\"\ncases = [\"release/a.toml\", \"release/b.toml\"]\nkind = \"ratio_at_least\"\nquantity = \"k_phi\"\nratio = 2.0\n"
         );
         write(d.path(), &ok);
         let s = load(d.path(), "s").unwrap();
         assert_eq!(s.claims.len(), 1);
         assert_eq!(s.reference_root(Path::new("r")), Path::new("r/release"));
         // A misspelt field is an error, not a silently defaulted one.
-        write(d.path(), &ok.replace("min_step_se", "min_step_sd"));
+        write(d.path(), &ok.replace("ratio = ", "ration = "));
         assert!(load(d.path(), "s").is_err());
+        // The retired standard-error multiple is refused with its reason.
+        write(
+            d.path(),
+            &ok.replace("ratio_at_least", "increasing")
+                .replace("ratio = 2.0", "min_step_se = 2.0"),
+        );
+        let e = format!("{:#}", load(d.path(), "s").unwrap_err());
+        assert!(e.contains("retired"), "{e}");
         // A claim over a case the suite does not run cannot be evaluated: refused.
         write(
             d.path(),
@@ -818,6 +851,7 @@ mod tests {
                 k_phi_se_regression: 0.1,
                 k_phi_beds: vec![p_level; 3],
                 p: h.iter().map(|x| p_level * x).collect(),
+                bed_fdrs: vec![(h.clone(), h.iter().map(|x| p_level * x).collect()); 3],
                 h,
                 psi: 0.6,
             };
@@ -927,6 +961,7 @@ mod tests {
                 k_phi_beds: vec![k - 3.0, k, k + 3.0],
                 h: vec![1.0, 2.0],
                 p: vec![k, 2.0 * k],
+                bed_fdrs: Vec::new(),
                 psi: 0.6,
             };
             let dir = out.path().join(&c.name).join(sub);

@@ -1,7 +1,9 @@
 //! General numerics with no physics in them: 3-vectors, quadrature, root finding,
-//! minimisation. The bottom layer: it imports nothing from the crate.
+//! minimisation, the decision statistics of docs/statistics.md. The bottom layer: it
+//! imports nothing from the crate.
 
 pub mod minimize;
 pub mod quadrature;
 pub mod roots;
+pub mod stats;
 pub mod vec3;

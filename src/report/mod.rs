@@ -11,6 +11,7 @@ pub mod svg_impact;
 pub mod svg_triaxial;
 pub mod vtk;
 
+use crate::compare::expect::{Expectation, GateOutcome, release_gate};
 use crate::compare::{Check, Status};
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
@@ -49,6 +50,10 @@ pub struct Report {
     /// report directory.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sections: Vec<Section>,
+    /// The release gate of a suite with registered expectations (docs/statistics.md):
+    /// when present, it decides the exit code; the checks' verdicts are unchanged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gate: Option<GateOutcome>,
 }
 
 /// A titled part of `report.md` after the checks.
@@ -64,9 +69,7 @@ pub struct Section {
 
 impl Report {
     pub fn new(checks: Vec<Check>, runs: Vec<CaseRun>, notes: Vec<String>) -> Report {
-        let errored = checks
-            .iter()
-            .any(|c| matches!(c.status, Status::Error | Status::NotCompared));
+        let errored = checks.iter().any(|c| c.status.undecided());
         let passed =
             !errored && !checks.is_empty() && checks.iter().all(|c| c.status == Status::Pass);
         Report {
@@ -76,11 +79,22 @@ impl Report {
             notes,
             errored,
             sections: Vec::new(),
+            gate: None,
         }
     }
 
-    /// 0 all passed, 1 some check failed, 2 something errored or could not be compared.
+    /// Judges the checks against a suite's registered expectations (`complete`: the
+    /// whole suite ran) and lets that gate decide the exit code.
+    pub fn apply_gate(&mut self, expectations: &[Expectation], complete: bool) {
+        self.gate = Some(release_gate(&self.checks, expectations, complete));
+    }
+
+    /// 0 all passed, 1 some check failed, 2 something errored or could not be decided;
+    /// with a release gate, the gate's code (every verdict as registered: 0).
     pub fn exit_code(&self) -> i32 {
+        if let Some(g) = &self.gate {
+            return g.exit_code;
+        }
         if self.errored {
             2
         } else if self.passed {
@@ -121,14 +135,24 @@ impl Report {
         let _ = writeln!(s, "# {title}: {verdict}\n");
         let _ = writeln!(
             s,
-            "{} checks: {} pass, {} FAIL, {} NOT COMPARED, {} ERROR (exit {}).\n",
+            "{} checks: {} pass, {} FAIL, {} INCONCLUSIVE, {} NOT COMPARED, {} ERROR (exit {}).\n",
             self.checks.len(),
             has(Status::Pass),
             has(Status::Fail),
+            has(Status::Inconclusive),
             has(Status::NotCompared),
             has(Status::Error),
             self.exit_code()
         );
+        if let Some(g) = &self.gate {
+            let expected = g.rows.iter().filter(|r| r.holds).count();
+            let changed = g.rows.len() - expected;
+            let _ = writeln!(
+                s,
+                "Release gate: **{}** ({expected} registered finding(s) as expected, {changed} change(s); docs/statistics.md). Every verdict below is the check's own.\n",
+                if g.passed() { "PASS" } else { "FAIL" }
+            );
+        }
         if !self.notes.is_empty() {
             for n in &self.notes {
                 let _ = writeln!(s, "> {n}");
@@ -149,13 +173,30 @@ impl Report {
                 c.value,
                 c.tolerance,
                 match c.status {
-                    Status::Pass => "pass",
-                    Status::Fail => "**FAIL**",
-                    Status::NotCompared => "**NOT COMPARED**",
-                    Status::Error => "**ERROR**",
+                    Status::Pass => "pass".to_string(),
+                    st => format!("**{}**", st.label()),
                 },
                 c.detail.replace('|', "/").replace('\n', " ")
             );
+        }
+        if let Some(g) = &self.gate
+            && !g.rows.is_empty()
+        {
+            let _ = writeln!(
+                s,
+                "\n## Release gate\n\n| check | registered | this run | as registered | why |\n|---|---|---|---|---|"
+            );
+            for r in &g.rows {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} | {} |",
+                    r.check.replace('|', "/"),
+                    r.expected.label(),
+                    r.got.map_or("not run", |st| st.label()),
+                    if r.holds { "yes" } else { "**NO**" },
+                    r.why.replace('|', "/").replace('\n', " ")
+                );
+            }
         }
         for sec in &self.sections {
             let _ = writeln!(s, "\n## {}\n\n{}", sec.title, sec.body.trim_end());
@@ -198,7 +239,7 @@ impl Report {
             esc(title),
             self.checks.len(),
             count(Status::Fail),
-            count(Status::Error) + count(Status::NotCompared)
+            count(Status::Error) + count(Status::NotCompared) + count(Status::Inconclusive)
         );
         for c in &self.checks {
             let _ = write!(
@@ -218,7 +259,7 @@ impl Report {
                         esc(&c.detail)
                     );
                 }
-                Status::Error | Status::NotCompared => {
+                Status::Error | Status::NotCompared | Status::Inconclusive => {
                     let _ = write!(
                         s,
                         "<error message=\"{}\">{}</error>",
@@ -273,13 +314,17 @@ mod tests {
         };
         let (h, md, code) = heading(vec![pass(), fail(), undecided()]);
         assert_eq!((h.as_str(), code), ("# t: INCOMPLETE", 2));
-        assert!(md.contains("3 checks: 1 pass, 1 FAIL, 1 NOT COMPARED, 0 ERROR (exit 2)."));
+        assert!(md.contains(
+            "3 checks: 1 pass, 1 FAIL, 0 INCONCLUSIVE, 1 NOT COMPARED, 0 ERROR (exit 2)."
+        ));
         let (h, _, code) = heading(vec![undecided(), Check::error("engine", "exit 1")]);
         assert_eq!((h.as_str(), code), ("# t: ERROR", 2));
         let (h, _, code) = heading(vec![pass(), fail()]);
         assert_eq!((h.as_str(), code), ("# t: FAIL", 1));
         let (h, md, code) = heading(vec![pass()]);
         assert_eq!((h.as_str(), code), ("# t: PASS", 0));
-        assert!(md.contains("1 checks: 1 pass, 0 FAIL, 0 NOT COMPARED, 0 ERROR (exit 0)."));
+        assert!(md.contains(
+            "1 checks: 1 pass, 0 FAIL, 0 INCONCLUSIVE, 0 NOT COMPARED, 0 ERROR (exit 0)."
+        ));
     }
 }

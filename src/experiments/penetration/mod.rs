@@ -909,6 +909,11 @@ fn summary(
                     k_phi_beds: o.members.iter().map(|m| m.0).collect(),
                     h: o.fdr.h.clone(),
                     p: o.fdr.p.clone(),
+                    bed_fdrs: o
+                        .member_fdrs
+                        .iter()
+                        .map(|f| (f.h.clone(), f.p.clone()))
+                        .collect(),
                     psi,
                 },
             );

@@ -579,6 +579,7 @@ fn report(notes: &mut Vec<String>, why: &str, c: &Check) {
             Status::Pass => "pass",
             Status::Fail => "FAIL",
             Status::NotCompared => "be NOT COMPARED",
+            Status::Inconclusive => "be INCONCLUSIVE",
             Status::Error => "be an ERROR",
         },
         c.detail
