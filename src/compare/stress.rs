@@ -291,7 +291,7 @@ pub fn phi_v2_check(
     )
 }
 
-/// A published phi (e.g. 9 +- 1 deg for frictionless grains, Feng et al. Sec. 4)
+/// A published phi (e.g. 9 +- 1 deg for frictionless grains, Feng et al. Sec. 5)
 /// against one engine's phi by one estimator.
 pub fn published_phi_check(
     case: &PenetrationCase,
