@@ -172,6 +172,19 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
     },
+    /// The chaos baseline (docs/statistics.md): every bed of a penetration case runs
+    /// natively twice, as prepared and with one grain moved by one ulp; writes
+    /// OUT/chaos.json with each bed's K_phi pair and the chaos spread of ln K_phi.
+    Chaos {
+        case: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+        /// The family of cases this one stands for (e.g. "spheres, CI scale").
+        #[arg(long)]
+        family: String,
+        #[command(flatten)]
+        common: Common,
+    },
     /// Coarse-graining throughput: N contacts onto a G^3 grid (all fields).
     CgBench {
         #[arg(long, default_value_t = 1_000_000)]
@@ -412,10 +425,15 @@ fn real_main() -> Result<ExitCode> {
             let (claim_checks, claim_notes) =
                 suite::evaluate_claims(&s, &dirs, claims_only || !only.is_empty());
             let (malt_notes, malt_section) = suite::malt_verdict(&s, &dirs, &report);
+            let (chaos_notes, chaos_section) = suite::chaos_section(&s, &dirs);
             outcomes.push(CaseOutcome {
                 checks: claim_checks,
                 run: None,
-                notes: claim_notes.into_iter().chain(malt_notes).collect(),
+                notes: claim_notes
+                    .into_iter()
+                    .chain(malt_notes)
+                    .chain(chaos_notes)
+                    .collect(),
                 ..CaseOutcome::default()
             });
             let (figure_notes, claim_sections) = suite::claim_sections(&s, &dirs, &report);
@@ -423,6 +441,7 @@ fn real_main() -> Result<ExitCode> {
             r.notes.extend(figure_notes);
             r.sections.extend(claim_sections);
             r.sections.extend(malt_section);
+            r.sections.extend(chaos_section);
             if !s.expectations.is_empty() {
                 // The release gate: every verdict as registered (docs/statistics.md).
                 r.apply_gate(&s.expectations, only.is_empty() && !claims_only);
@@ -648,6 +667,39 @@ fn real_main() -> Result<ExitCode> {
                 &out,
                 &format!("{}: stress fields and MALT", exp.name()),
             )
+        }
+        Cmd::Chaos {
+            case,
+            out,
+            family,
+            common,
+        } => {
+            let AnyCase::Penetration(pc) = load(&case)? else {
+                bail!(
+                    "{}: `granval chaos` takes a penetration case",
+                    case.display()
+                );
+            };
+            fresh_dir(&out, common.force)?;
+            let exp = granval::experiments::penetration::Penetration {
+                case: pc,
+                stress: false,
+            };
+            let r =
+                granval::experiments::chaos::penetration(&exp, &family, &options(&common), &out)?;
+            r.write(&out)?;
+            let (s, n) = r.spread();
+            println!(
+                "{}: chaos spread of ln K_phi s_c = {s:.4} over {n} beds (per bed: {}); {}",
+                r.case,
+                r.log_ratio
+                    .iter()
+                    .map(|c| format!("{c:+.4}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                out.join(granval::experiments::chaos::CHAOS_FILE).display()
+            );
+            Ok(ExitCode::SUCCESS)
         }
         Cmd::CgBench { contacts, grid } => {
             let t = granval::analysis::cg_bench::time_cg(contacts, grid)?;

@@ -104,6 +104,10 @@ pub struct Perturbation {
     /// Clumps: members use their own sphere mass as contact mass instead of the body
     /// mass LIGGGHTS gives them (particleToInsert_multisphere.cpp:203).
     pub member_sphere_mass: bool,
+    /// Not a control: the chaos baseline's replica (docs/statistics.md), the bed's first
+    /// grain (lowest id) moved by one unit in the last place of its x coordinate. No case
+    /// file can set it; `granval chaos` does.
+    pub nudge_one_ulp: bool,
 }
 
 impl Default for Perturbation {
@@ -121,6 +125,7 @@ impl Default for Perturbation {
             interface_frozen_floor: false,
             inertia_factor: 1.0,
             member_sphere_mass: false,
+            nudge_one_ulp: false,
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Turns two runs (or a run and a published/theoretical value) into named metrics with
 //! tolerances and a verdict each. Nothing here knows which engine produced what.
 
+pub mod chaos;
 pub mod coverage;
 pub mod ensemble;
 pub mod expect;

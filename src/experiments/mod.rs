@@ -9,6 +9,7 @@
 //! which a recorded reference must match.
 
 pub mod bed_cache;
+pub mod chaos;
 pub mod impact2d;
 pub mod micro;
 pub mod penetration;

@@ -48,6 +48,20 @@ struct File {
     /// Registered expectations of the release gate (docs/statistics.md).
     #[serde(default, rename = "expect")]
     expectations: Vec<crate::compare::expect::Expectation>,
+    /// Families of cases for the engine agreement against chaos (docs/statistics.md).
+    #[serde(default, rename = "family")]
+    families: Vec<FamilyEntry>,
+}
+
+/// `[[family]]`: cases whose engine differences are pooled and judged against the chaos
+/// spread of their chaos records (`granval chaos`), paths relative to the repository
+/// (the parent of the cases directory).
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FamilyEntry {
+    pub name: String,
+    pub cases: Vec<String>,
+    pub chaos: Vec<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -135,7 +149,18 @@ pub struct Suite {
     pub claims: Vec<SuiteClaim>,
     /// `[[expect]]`: the verdicts the release gate expects where they are not a pass.
     pub expectations: Vec<crate::compare::expect::Expectation>,
+    /// `[[family]]`: the families of the engine agreement against chaos, with their case
+    /// files and chaos records resolved to paths.
+    pub families: Vec<Family>,
     reference: Option<PathBuf>,
+}
+
+/// A resolved `[[family]]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Family {
+    pub name: String,
+    pub cases: Vec<PathBuf>,
+    pub chaos: Vec<PathBuf>,
 }
 
 impl Suite {
@@ -311,12 +336,34 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
             );
         }
     }
+    let repo = cases_root.parent().unwrap_or(Path::new("."));
+    let mut families = Vec::new();
+    for (k, fam) in f.families.into_iter().enumerate() {
+        let mut fcases = Vec::new();
+        for c in &fam.cases {
+            let p = cases_root.join(c);
+            ensure!(
+                cases.iter().any(|e| e.path == p),
+                "{}: family[{k}] ({}): {c} is not a case of this suite",
+                path.display(),
+                fam.name
+            );
+            fcases.push(p);
+        }
+        let chaos = fam.chaos.iter().map(|c| repo.join(c)).collect();
+        families.push(Family {
+            name: fam.name,
+            cases: fcases,
+            chaos,
+        });
+    }
     Ok(Suite {
         name: name.to_string(),
         description: f.description,
         cases,
         claims,
         expectations: f.expectations,
+        families,
         reference,
     })
 }
@@ -641,6 +688,89 @@ fn claim_figures(
 /// point exists, the figure `malt_verdict.svg` written into `out`. A run of another
 /// version of a case (canonical hash) is named in a note and left out. Reporting only:
 /// every gate stays in its case.
+/// "Engine agreement against chaos" (docs/statistics.md): per family, the per-bed
+/// ln(K_native / K_liggghts) of every bed pair in the summaries found in `dirs` (each
+/// case version and bed once) against the family's chaos records. Reporting only.
+pub fn chaos_section(
+    suite: &Suite,
+    dirs: &[PathBuf],
+) -> (Vec<String>, Option<crate::report::Section>) {
+    use crate::compare::chaos::family_agreement;
+    use crate::experiments::chaos::ChaosRecord;
+    let (mut notes, mut rows) = (Vec::new(), Vec::new());
+    for fam in &suite.families {
+        let mut seen = std::collections::BTreeSet::new();
+        let mut logs = Vec::new();
+        for p in &fam.cases {
+            let Ok(pc) = penetration_case(p) else {
+                continue;
+            };
+            let Some((_, s)) = find_summary(dirs, &pc.name) else {
+                continue;
+            };
+            let (Some(n), Some(r)) = (s.engines.get("native"), s.engines.get("liggghts")) else {
+                continue;
+            };
+            for (k, (a, b)) in n.k_phi_beds.iter().zip(&r.k_phi_beds).enumerate() {
+                let bed = s
+                    .bed_hashes
+                    .get(k)
+                    .cloned()
+                    .unwrap_or_else(|| k.to_string());
+                if seen.insert((s.canonical_hash.clone(), bed)) {
+                    logs.push((a / b).ln());
+                }
+            }
+        }
+        let mut chaos = Vec::new();
+        for c in &fam.chaos {
+            match ChaosRecord::read(c) {
+                Ok(r) => chaos.extend(r.log_ratio),
+                Err(e) => notes.push(format!("family {:?}: {e:#}", fam.name)),
+            }
+        }
+        if logs.is_empty() {
+            notes.push(format!(
+                "family {:?}: no summary of its cases here; not in the chaos section",
+                fam.name
+            ));
+            continue;
+        }
+        rows.push(family_agreement(&fam.name, &logs, &chaos));
+    }
+    if rows.is_empty() {
+        return (notes, None);
+    }
+    let mut body = String::from(
+        "Per family, every bed pair native / LIGGGHTS of the cases that ran (each case version and bed once), against the chaos spread s_c of one engine against itself (two native runs of one bed, one ulp apart; `granval chaos`).\n\n| family | bed pairs | mean ln(K_n / K_L) | 95 % interval | sd per bed | chaos s_c (df) | F (p) | z vs chaos | verdict |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in &rows {
+        body.push_str(&format!(
+            "| {} | {} | {:+.4} | [{:+.4}, {:+.4}] | {:.4} | {:.4} ({}) | {:.2} ({:.3}) | {:+.2} | {} |\n",
+            r.family,
+            r.n_pairs,
+            r.mean_log,
+            r.interval95.0,
+            r.interval95.1,
+            r.sd_engines,
+            r.chaos_sd,
+            r.chaos_df,
+            r.f_ratio,
+            r.f_p,
+            r.z_chaos,
+            r.verdict
+        ));
+    }
+    (
+        notes,
+        Some(crate::report::Section {
+            title: "Engine agreement against chaos".into(),
+            body,
+            figures: Vec::new(),
+        }),
+    )
+}
+
 pub fn malt_verdict(
     suite: &Suite,
     dirs: &[PathBuf],

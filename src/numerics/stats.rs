@@ -37,6 +37,19 @@ pub fn f_upper_p(f: f64, d1: f64, d2: f64) -> f64 {
     }
 }
 
+/// sqrt(mean x^2) and its degrees of freedom (the number of values): the spread of
+/// values whose expected mean is zero, such as the log ratios of two runs of the same
+/// physics (the chaos baseline of docs/statistics.md). NaN and 0 for no values.
+pub fn root_mean_square(x: &[f64]) -> (f64, usize) {
+    if x.is_empty() {
+        return (f64::NAN, 0);
+    }
+    (
+        (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt(),
+        x.len(),
+    )
+}
+
 /// An estimate over beds: its value, standard error, degrees of freedom, the number of
 /// beds it rests on and the per-bed standard deviation the planning numbers use.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -398,6 +411,14 @@ mod tests {
         assert!(beds_to_resolve(0.1, 0.5).unwrap() <= 3);
         assert!(minimal_detectable_effect(0.15, 5) > minimal_detectable_effect(0.15, 20));
         assert!(minimal_detectable_effect(0.15, 1).is_infinite());
+    }
+
+    #[test]
+    fn root_mean_square_has_as_many_degrees_of_freedom_as_values() {
+        let (s, n) = root_mean_square(&[0.1, -0.1, 0.2, -0.2]);
+        assert!((s - 0.025f64.sqrt()).abs() < 1e-15);
+        assert_eq!(n, 4);
+        assert!(root_mean_square(&[]).0.is_nan());
     }
 
     #[test]

@@ -110,6 +110,13 @@ fn native_run(
     progress: bool,
     reuse: bool,
 ) -> Result<EngineRun> {
+    let nudged;
+    let bed = if role.perturbation().nudge_one_ulp {
+        nudged = bed.nudged_one_ulp();
+        &nudged
+    } else {
+        bed
+    };
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     if reuse && let Some(run) = reuse_native(case, bed, plan, dir)? {
         return Ok(run);

@@ -33,6 +33,22 @@ pub struct Bed {
     pub ke_at_end_of_pour: f64,
 }
 
+impl Bed {
+    /// The same bed with its first grain (the lowest id; the first body of a clump bed)
+    /// moved by one unit in the last place of its x coordinate: the chaos baseline's
+    /// replica of docs/statistics.md, a perturbation of the size by which two engines'
+    /// summation orders differ.
+    pub fn nudged_one_ulp(&self) -> Bed {
+        let mut b = self.clone();
+        if let Some(p) = b.particles.iter_mut().min_by_key(|p| p.id) {
+            p.x[0] = p.x[0].next_up();
+        } else if let Some(c) = b.bodies.iter_mut().min_by_key(|c| c.id) {
+            c.x[0] = c.x[0].next_up();
+        }
+        b
+    }
+}
+
 fn draw_diameters(d: &Diameter, n: usize, seed: u64) -> Result<Vec<f64>> {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let mut out = Vec::with_capacity(n);
