@@ -71,7 +71,14 @@ pub fn penetration(
     out: &Path,
 ) -> Result<ChaosRecord> {
     let case = &exp.case;
-    let units = exp.units(opts)?;
+    // Beds a record holds (the ones its reference runs started from) are read, not
+    // settled again; their hashes go into the record either way.
+    let root = super::reference::record_root(&opts.reference_root, exp.kind(), exp.name());
+    let unit_opts = Options {
+        recorded_inputs: root.is_dir().then_some(root),
+        ..opts.clone()
+    };
+    let units = exp.units(&unit_opts)?;
     ensure!(
         units.len() >= 2,
         "{}: a chaos spread needs at least two beds ([ensemble] beds = {})",
