@@ -155,6 +155,10 @@ pub fn release_gate(checks: &[Check], expectations: &[Expectation], complete: bo
             }
         }
     }
+    if checks.is_empty() {
+        // A gate over nothing gated nothing: exit 1, as a report without checks does.
+        raise(1);
+    }
     GateOutcome {
         rows,
         exit_code: exit,
@@ -232,6 +236,8 @@ mod tests {
         assert_eq!(g.exit_code, 1);
         // ... but may be absent from a subset.
         assert_eq!(release_gate(&[pass("a")], &e, false).exit_code, 0);
+        // A run that checked nothing passes no gate.
+        assert_eq!(release_gate(&[], &e, false).exit_code, 1);
         // An error is never expected and always exits 2.
         let g = release_gate(&[Check::error("b", "crash")], &e, true);
         assert_eq!(g.exit_code, 2);

@@ -108,14 +108,22 @@ impl Comparison {
         };
         let need = match d {
             Decision::Inconclusive => {
+                // At the measured difference and sd: the beds that would pass an
+                // equivalence inside its margin or fail one outside it, or resolve a
+                // one-sided test either way.
                 let n = match self.rule {
-                    Rule::Equivalence { margin } => {
+                    Rule::Equivalence { margin } if e.value.abs() < margin => {
                         stats::beds_to_pass_equivalence(e.sd, e.value, margin)
+                    }
+                    Rule::Equivalence { margin } => {
+                        stats::beds_to_resolve(e.sd, e.value.abs() - margin)
                     }
                     Rule::Exceeds { delta } => stats::beds_to_resolve(e.sd, e.value - delta),
                 };
                 match n {
-                    Some(n) => format!(", about {n} beds would decide it at this sd"),
+                    Some(n) => {
+                        format!(", about {n} beds would decide it at this difference and sd")
+                    }
                     None => ", no bed count decides it at this difference and sd".to_string(),
                 }
             }
