@@ -173,7 +173,7 @@ enum Cmd {
         common: Common,
     },
     /// The chaos baseline (docs/statistics.md): every bed of a penetration case runs
-    /// natively twice, as prepared and with one grain moved by one ulp; writes
+    /// natively twice, as prepared and with every grain moved by one ulp; writes
     /// OUT/chaos.json with each bed's K_phi pair and the chaos spread of ln K_phi.
     Chaos {
         case: PathBuf,

@@ -104,9 +104,9 @@ pub struct Perturbation {
     /// Clumps: members use their own sphere mass as contact mass instead of the body
     /// mass LIGGGHTS gives them (particleToInsert_multisphere.cpp:203).
     pub member_sphere_mass: bool,
-    /// Not a control: the chaos baseline's replica (docs/statistics.md), the bed's first
-    /// grain (lowest id) moved by one unit in the last place of its x coordinate. No case
-    /// file can set it; `granval chaos` does.
+    /// Not a control: the chaos baseline's replica (docs/statistics.md), every grain of
+    /// the bed moved by one unit in the last place of its x coordinate. No case file can
+    /// set it; `granval chaos` does.
     pub nudge_one_ulp: bool,
 }
 

@@ -1,6 +1,6 @@
 //! The chaos baseline of docs/statistics.md: how far one engine drifts from itself. Every
-//! bed of a penetration case runs natively twice, as prepared and with its first grain
-//! moved by one unit in the last place of x, and the two runs are reduced exactly as the
+//! bed of a penetration case runs natively twice, as prepared and with every grain moved
+//! by one unit in the last place of x, and the two runs are reduced exactly as the
 //! engine gate reduces a native and a reference run (rule 3's common fit range, each bed
 //! fitted alone on it). The per-bed log ratios c_k = ln(K_k / K'_k) are what two runs of
 //! the same physics do to each other; an engine difference is evidence of different

@@ -34,15 +34,17 @@ pub struct Bed {
 }
 
 impl Bed {
-    /// The same bed with its first grain (the lowest id; the first body of a clump bed)
-    /// moved by one unit in the last place of its x coordinate: the chaos baseline's
-    /// replica of docs/statistics.md, a perturbation of the size by which two engines'
-    /// summation orders differ.
+    /// The same bed with every grain (every body of a clump bed) moved by one unit in the
+    /// last place of its x coordinate: the chaos baseline's replica of docs/statistics.md,
+    /// round-off everywhere, as two engines' summation orders differ everywhere. (One
+    /// grain is not enough: a bottom-layer grain's one ulp is rounded away in the static
+    /// bed and the intruder's force history stays bit-identical.)
     pub fn nudged_one_ulp(&self) -> Bed {
         let mut b = self.clone();
-        if let Some(p) = b.particles.iter_mut().min_by_key(|p| p.id) {
+        for p in &mut b.particles {
             p.x[0] = p.x[0].next_up();
-        } else if let Some(c) = b.bodies.iter_mut().min_by_key(|c| c.id) {
+        }
+        for c in &mut b.bodies {
             c.x[0] = c.x[0].next_up();
         }
         b
