@@ -445,7 +445,6 @@ pub struct PenetrationCase {
 pub const PENETRATION_GATES: &[Gate] = &[
     Gate::KPhi,
     Gate::FdrDistance,
-    Gate::RegimeBoundaries,
     Gate::QuasiStatic,
     Gate::Published,
     Gate::Phi,

@@ -866,7 +866,7 @@ pub fn fdr_checks(
     }
     if let (Some(Ok(a)), Some(Ok(b))) = (&native_o, &reference) {
         checks.extend(cp::compare(case, &range, a, b));
-        notes.extend(cp::boundaries_not_compared(a, b));
+        notes.extend(cp::boundary_notes(case, a, b));
     }
     if let (Some(v2), Some(Ok(a)), false) =
         (case.quasi_static_speed, &native_o, native_slow.is_empty())
