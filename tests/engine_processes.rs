@@ -268,11 +268,13 @@ fn sighup_ends_the_engine_and_its_children_and_exits_129() {
     signal_ends_engine(libc::SIGHUP, 129, "SIGHUP");
 }
 
-/// granval killed outright runs no handler: the engine ends by its parent-death signal.
+/// granval killed outright runs no handler: the engine's direct child ends by its
+/// parent-death signal, and its own child (which that signal does not reach) by the
+/// watchdog.
 #[test]
-fn sigkill_of_granval_ends_the_engine() {
+fn sigkill_of_granval_ends_the_engine_and_its_children() {
     let s = Scratch::new();
-    s.fake_liggghts("echo running; exec sleep 300", false);
+    s.fake_liggghts(SLEEPS_WITH_CHILD, false);
     let report = s.path("report");
     let mut g = s
         .granval(&[
@@ -285,7 +287,7 @@ fn sigkill_of_granval_ends_the_engine() {
         ])
         .spawn()
         .unwrap();
-    let engine = wait_for_engine(&mut g, &["sleep"], Duration::from_secs(60));
+    let engine = wait_for_engine(&mut g, &["liggghts", "sleep"], Duration::from_secs(60));
     unsafe {
         libc::kill(g.id() as i32, libc::SIGKILL);
     }

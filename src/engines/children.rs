@@ -10,10 +10,16 @@
 //!   forwards it to its ranks and cleans up) and to every live process of the session,
 //!   then SIGKILL to whatever is still alive after a grace period.
 //! * The engine gets a **parent-death signal** (`prctl(PR_SET_PDEATHSIG, SIGTERM)`), so
-//!   a granval killed outright (SIGKILL, no handler runs) still ends it: measured,
-//!   mpirun receiving that SIGTERM ends both ranks of an `-np 2` LIGGGHTS run within a
-//!   second. Linux sends it when the *thread* that started the child ends; the thread
-//!   that starts an engine waits for it in the same call, so it outlives the run.
+//!   a granval killed outright (SIGKILL, no handler runs) still ends its direct child.
+//!   Linux sends it when the *thread* that started the child ends; the thread that starts
+//!   an engine waits for it in the same call, so it outlives the run. That alone is not
+//!   enough: mpirun receiving it ended both ranks of an `-np 2` LIGGGHTS run in our
+//!   measurements, but left both ranks of an `-np 2 sleep` running with ppid 1 in about
+//!   half of the trials, and a wrapper script that neither execs nor forwards signals
+//!   leaves its child. So each engine also gets a **watchdog** ([`WATCHDOG`]): a small
+//!   `sh` in a session of its own that notices when granval is gone (its parent pid
+//!   changes) and then ends every process of the engine's session as [`end_session`]
+//!   does. granval ends the watchdog when the engine's session ends.
 //! * SIGINT, SIGTERM and SIGHUP to granval ([`exit_on_signals`], installed by the
 //!   binary): every live engine session is ended, every temporary directory granval
 //!   registered ([`OwnedDir`]) is removed, one line says so, and granval exits with the
@@ -29,8 +35,16 @@ use std::time::{Duration, Instant};
 /// How long an engine has to end after SIGTERM before it gets SIGKILL.
 pub const GRACE: Duration = Duration::from_secs(5);
 
-/// Live engine sessions: (session id = the leader's pid, the program started).
-static SESSIONS: Mutex<Vec<(i32, String)>> = Mutex::new(Vec::new());
+/// A live engine session: its id (the leader's pid), the program started, the pid of
+/// its watchdog if one could be started.
+struct Entry {
+    sid: i32,
+    program: String,
+    watchdog: Option<i32>,
+}
+
+/// Live engine sessions.
+static SESSIONS: Mutex<Vec<Entry>> = Mutex::new(Vec::new());
 /// Directories granval created for itself and removes on exit, a signal included.
 static OWNED_DIRS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 /// Set by the signal thread before it ends anything: no new engine starts after it,
@@ -61,9 +75,10 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 /// A live engine session, ended when dropped (normally after its leader was reaped, to
-/// end whatever it left behind).
+/// end whatever it left behind), its watchdog with it.
 pub struct Session {
     sid: i32,
+    watchdog: Option<std::process::Child>,
 }
 
 impl Session {
@@ -78,8 +93,68 @@ impl Drop for Session {
         if !session_members(self.sid).is_empty() {
             end_session(self.sid, GRACE);
         }
-        lock(&SESSIONS).retain(|(s, _)| *s != self.sid);
+        if let Some(w) = &mut self.watchdog {
+            let _ = w.kill();
+            let _ = w.wait();
+        }
+        lock(&SESSIONS).retain(|e| e.sid != self.sid);
     }
+}
+
+/// The watchdog of one engine session (`sh -c WATCHDOG watchdog GRANVAL_PID SID`): once a
+/// second it reads its own parent pid from /proc; when that is no longer granval's
+/// (granval died and it was re-parented), it ends the session as [`end_session`] does:
+/// SIGTERM to the leader's group and to each live member, SIGKILL to those left after 5
+/// s. Members are read from /proc/PID/stat with the fields counted after the last `) `,
+/// so a command name with spaces cannot shift them; zombies are not members.
+pub const WATCHDOG: &str = r#"g=$1 s=$2
+while :; do
+  read -r _ _ _ pp _ < /proc/$$/stat || exit 0
+  [ "$pp" = "$g" ] || break
+  sleep 1
+done
+members() {
+  for f in /proc/[0-9]*/stat; do
+    { read -r l < "$f"; } 2>/dev/null || continue
+    set -- ${l##*) }
+    if [ "$4" = "$s" ] && [ "$1" != Z ]; then p=${f#/proc/}; echo "${p%/stat}"; fi
+  done
+}
+kill -TERM -"$s" 2>/dev/null
+for p in $(members); do kill -TERM "$p" 2>/dev/null; done
+i=0
+while [ $i -lt 50 ]; do
+  [ -z "$(members)" ] && exit 0
+  sleep 0.1
+  i=$((i+1))
+done
+kill -KILL -"$s" 2>/dev/null
+for p in $(members); do kill -KILL "$p" 2>/dev/null; done
+"#;
+
+/// Starts the watchdog of session `sid` in a session of its own (a Ctrl-C or hangup of
+/// the terminal does not reach it); `None` when it cannot start (the parent-death signal
+/// still covers the direct child).
+fn start_watchdog(parent: i32, sid: i32) -> Option<std::process::Child> {
+    use std::os::unix::process::CommandExt;
+    use std::process::Stdio;
+    let mut cmd = std::process::Command::new("/bin/sh");
+    cmd.args(["-c", WATCHDOG, "granval-watchdog"])
+        .arg(parent.to_string())
+        .arg(sid.to_string())
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    // SAFETY: setsid is async-signal-safe and allocates nothing.
+    unsafe {
+        cmd.pre_exec(|| {
+            if libc::setsid() < 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    cmd.spawn().ok()
 }
 
 /// Spawns `cmd` as the leader of a new session with the parent-death signal set, and
@@ -122,8 +197,13 @@ pub fn spawn(cmd: &mut std::process::Command) -> std::io::Result<(std::process::
     let child = cmd.spawn()?;
     let sid = child.id() as i32;
     let program = cmd.get_program().to_string_lossy().into_owned();
-    sessions.push((sid, program));
-    Ok((child, Session { sid }))
+    let watchdog = start_watchdog(parent, sid);
+    sessions.push(Entry {
+        sid,
+        program,
+        watchdog: watchdog.as_ref().map(|w| w.id() as i32),
+    });
+    Ok((child, Session { sid, watchdog }))
 }
 
 /// The live (not zombie) processes of session `sid`, from /proc.
@@ -282,10 +362,19 @@ fn clean_up(sig: i32) -> String {
     // Held to the exit: no engine starts any more.
     let sessions = lock(&SESSIONS);
     let mut ended = Vec::new();
-    for (sid, program) in sessions.iter() {
-        let n = session_members(*sid).len();
-        end_session(*sid, GRACE);
-        ended.push(format!("{program} (session {sid}, {n} process(es))"));
+    for e in sessions.iter() {
+        let n = session_members(e.sid).len();
+        end_session(e.sid, GRACE);
+        if let Some(w) = e.watchdog {
+            // SAFETY: kill(2) of our own child by pid.
+            unsafe {
+                libc::kill(w, libc::SIGKILL);
+            }
+        }
+        ended.push(format!(
+            "{} (session {}, {n} process(es))",
+            e.program, e.sid
+        ));
     }
     let dirs = lock(&OWNED_DIRS);
     let mut removed = 0;
@@ -371,5 +460,52 @@ mod tests {
         drop(d);
         assert!(!p.exists());
         assert!(!lock(&OWNED_DIRS).contains(&p));
+    }
+
+    /// The watchdog script on its own: started by a stand-in for granval that then
+    /// exits, it ends the whole target session (a shell and its child).
+    #[test]
+    fn the_watchdog_ends_the_session_when_its_parent_is_gone() {
+        use std::os::unix::process::CommandExt;
+        let mut target = std::process::Command::new("sh");
+        target.args(["-c", "sleep 300 & wait"]);
+        unsafe {
+            target.pre_exec(|| {
+                libc::setsid();
+                Ok(())
+            });
+        }
+        let mut target = target.spawn().unwrap();
+        let sid = target.id() as i32;
+        let t = Instant::now();
+        while session_members(sid).len() < 2 && t.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let members = session_members(sid);
+        assert_eq!(members.len(), 2);
+        // The stand-in starts the watchdog with its own pid and exits after 0.5 s.
+        let status = std::process::Command::new("sh")
+            .args([
+                "-c",
+                "/bin/sh -c \"$1\" granval-watchdog $$ \"$2\" & sleep 0.5",
+                "stand-in",
+                WATCHDOG,
+                &sid.to_string(),
+            ])
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let t = Instant::now();
+        while !session_members(sid).is_empty() && t.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let left = session_members(sid);
+        for pid in &left {
+            unsafe {
+                libc::kill(*pid, libc::SIGKILL);
+            }
+        }
+        assert!(left.is_empty(), "the watchdog left {left:?}");
+        assert_eq!(target.wait().unwrap().signal(), Some(libc::SIGTERM));
     }
 }
