@@ -10,6 +10,7 @@ use crate::case::Case;
 use crate::case::Perturbation;
 use crate::engines::liggghts::{self, Liggghts};
 use crate::physics::dem::Simulation;
+use crate::rundata::provenance::EngineKind;
 use anyhow::{Context, Result};
 use std::path::Path;
 use std::time::Instant;
@@ -225,7 +226,7 @@ pub fn measure_packing(case: &Case, steps: u64, reps: usize) -> Result<BenchResu
     let mut case = case.clone();
     case.n_steps = steps;
     case.output_every = steps;
-    let version = liggghts::installed_version("liggghts");
+    let version = crate::experiments::reference::probe(EngineKind::Liggghts)?;
     let mut r = BenchResult {
         n: case.particles.len(),
         steps,
@@ -352,7 +353,7 @@ pub fn run_penetration(case_path: &Path, steps: u64, reps: usize) -> Result<Pene
     );
     let mut deck = crate::experiments::penetration::bed::liggghts_deck(&case, &bed)?;
     deck.n_steps = steps;
-    let have_liggghts = liggghts::installed_version("liggghts").is_some();
+    let have_liggghts = crate::experiments::reference::probe(EngineKind::Liggghts)?.is_some();
     let mut r = PenetrationBench {
         grains,
         steps,
@@ -385,7 +386,7 @@ pub fn run_penetration(case_path: &Path, steps: u64, reps: usize) -> Result<Pene
                 &deck,
                 dir.path(),
                 2,
-                std::time::Duration::from_secs(4 * 3600),
+                &crate::engines::process::Limits::derived(grains as f64 * steps as f64, None, None),
             )
             .context("LIGGGHTS penetration bench run")?;
             let log = std::fs::read_to_string(dir.path().join("log.liggghts"))?;

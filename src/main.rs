@@ -228,6 +228,21 @@ struct Common {
     /// Run even if the estimated steps, output or memory exceed the limits.
     #[arg(long)]
     allow_large: bool,
+    #[command(flatten)]
+    engine: EngineLimits,
+}
+
+/// How long a reference engine may run (flattened into every command that runs one).
+#[derive(clap::Args)]
+struct EngineLimits {
+    /// End a reference-engine run (an error) after DURATION, e.g. 90m, 4h, 600s.
+    /// Default: from the case's estimated particle-steps (`granval validate` prints it).
+    #[arg(long, value_name = "DURATION", value_parser = granval::engines::process::parse_duration)]
+    engine_timeout: Option<std::time::Duration>,
+    /// End a reference-engine run as stalled when no file in its run directory grew for
+    /// DURATION. Default: a tenth of the timeout, at least 10 min.
+    #[arg(long, value_name = "DURATION", value_parser = granval::engines::process::parse_duration)]
+    engine_stall: Option<std::time::Duration>,
 }
 
 #[derive(Subcommand)]
@@ -245,6 +260,8 @@ enum RefCmd {
         /// Only this case file (any case file; it is recorded where `--suite` records).
         #[arg(long)]
         only: Option<PathBuf>,
+        #[command(flatten)]
+        engine: EngineLimits,
     },
 }
 
@@ -254,6 +271,8 @@ fn options(c: &Common) -> Options {
         mpi_procs: usize::from(c.np),
         progress: true,
         allow_large: c.allow_large,
+        engine_timeout: c.engine.engine_timeout,
+        engine_stall: c.engine.engine_stall,
         ..Options::default()
     };
     if let Some(m) = c.reference_mode {
@@ -461,6 +480,7 @@ fn real_main() -> Result<ExitCode> {
                     cases,
                     reference,
                     only,
+                    engine,
                 },
         } => {
             let s = suite::load(&cases, &suite)?;
@@ -475,6 +495,8 @@ fn real_main() -> Result<ExitCode> {
                 reference_root: reference,
                 mpi_procs: 1,
                 progress: true,
+                engine_timeout: engine.engine_timeout,
+                engine_stall: engine.engine_stall,
                 ..Options::default()
             };
             for p in paths {
@@ -742,7 +764,16 @@ fn real_main() -> Result<ExitCode> {
 }
 
 fn main() -> ExitCode {
-    match real_main() {
+    use granval::engines::children;
+    // SIGINT/SIGTERM/SIGHUP end the engines and remove granval's temporary directories.
+    if let Err(e) = children::exit_on_signals() {
+        eprintln!("error: {e:#}");
+        return ExitCode::from(2);
+    }
+    let result = real_main();
+    // A signal's cleanup owns the exit (its code and its one line).
+    children::wait_if_interrupted();
+    match result {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");

@@ -152,7 +152,10 @@ fn liggghts_starts_from_the_native_bodies() {
             &deck,
             d.path(),
             np,
-            std::time::Duration::from_secs(600),
+            &granval::engines::process::Limits::fixed(
+                std::time::Duration::from_secs(600),
+                "the test's limit",
+            ),
         )
         .unwrap();
         assert_eq!(samples.len(), 200 / c.force_every as usize);

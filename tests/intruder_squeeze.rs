@@ -132,7 +132,10 @@ fn liggghts(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Vec<(Vec<Grain>, V
         &deck,
         dir,
         1,
-        std::time::Duration::from_secs(600),
+        &granval::engines::process::Limits::fixed(
+            std::time::Duration::from_secs(600),
+            "the test's limit",
+        ),
         &STEPS,
     )
     .unwrap();

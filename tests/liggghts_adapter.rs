@@ -616,7 +616,10 @@ fn live_timeout_kills_the_run() {
         let err = run(
             &Liggghts {
                 mpi_procs: np,
-                timeout: Duration::from_secs(1),
+                limits: granval::engines::process::Limits::fixed(
+                    Duration::from_secs(1),
+                    "--engine-timeout 1.0 s",
+                ),
                 ..Liggghts::default()
             },
             &c,
@@ -625,7 +628,10 @@ fn live_timeout_kills_the_run() {
         .expect_err("must time out");
         let msg = format!("{err:#}");
         println!("np={np}: {msg}");
-        assert!(msg.contains("timed out"), "{msg}");
+        assert!(
+            msg.contains("LIGGGHTS ran for 1.0 s, the limit (--engine-timeout 1.0 s); its processes were ended"),
+            "{msg}"
+        );
         assert!(t0.elapsed() < Duration::from_secs(10), "killed promptly");
     }
 }

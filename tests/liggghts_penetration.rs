@@ -411,8 +411,13 @@ fn live(units: Units, e: f64, label: &str) -> Option<(PenetrationDeck, Vec<Force
         (Some(tmp), p)
     };
     let t0 = Instant::now();
-    let (s, prov) = penetration::run(&d, &dir, 1, Duration::from_secs(300))
-        .unwrap_or_else(|err| panic!("{label}: {err:#}"));
+    let (s, prov) = penetration::run(
+        &d,
+        &dir,
+        1,
+        &granval::engines::process::Limits::fixed(Duration::from_secs(300), "the test's limit"),
+    )
+    .unwrap_or_else(|err| panic!("{label}: {err:#}"));
     let wall = t0.elapsed().as_secs_f64();
     eprintln!(
         "{label}: {} grains, {} steps: LIGGGHTS wall {:.2} s (total {wall:.2} s); {}; notes {:?}",
@@ -492,7 +497,13 @@ fn live_missing_stl_and_broken_deck_are_errors() {
     std::fs::remove_file(dir.path().join(STL_FILE)).unwrap();
     let e = format!(
         "{:#}",
-        penetration::run_existing(&d, dir.path(), 1, Duration::from_secs(120)).unwrap_err()
+        penetration::run_existing(
+            &d,
+            dir.path(),
+            1,
+            &granval::engines::process::Limits::fixed(Duration::from_secs(120), "the test's limit")
+        )
+        .unwrap_err()
     );
     eprintln!("missing STL: {e}");
     assert!(e.contains("ERROR"), "{e}");
@@ -508,7 +519,13 @@ fn live_missing_stl_and_broken_deck_are_errors() {
     .unwrap();
     let e = format!(
         "{:#}",
-        penetration::run_existing(&d, dir.path(), 1, Duration::from_secs(120)).unwrap_err()
+        penetration::run_existing(
+            &d,
+            dir.path(),
+            1,
+            &granval::engines::process::Limits::fixed(Duration::from_secs(120), "the test's limit")
+        )
+        .unwrap_err()
     );
     assert!(e.contains("ERROR"), "{e}");
 
@@ -522,7 +539,13 @@ fn live_missing_stl_and_broken_deck_are_errors() {
     .unwrap();
     let e = format!(
         "{:#}",
-        penetration::run_existing(&d, dir.path(), 1, Duration::from_secs(120)).unwrap_err()
+        penetration::run_existing(
+            &d,
+            dir.path(),
+            1,
+            &granval::engines::process::Limits::fixed(Duration::from_secs(120), "the test's limit")
+        )
+        .unwrap_err()
     );
     assert!(e.contains("ERROR"), "{e}");
 
@@ -531,5 +554,13 @@ fn live_missing_stl_and_broken_deck_are_errors() {
     let data_path = dir.path().join(DATA_FILE);
     let data = std::fs::read_to_string(&data_path).unwrap();
     std::fs::write(&data_path, data.replacen(" atoms", "0 atoms", 1)).unwrap();
-    assert!(penetration::run_existing(&d, dir.path(), 1, Duration::from_secs(120)).is_err());
+    assert!(
+        penetration::run_existing(
+            &d,
+            dir.path(),
+            1,
+            &granval::engines::process::Limits::fixed(Duration::from_secs(120), "the test's limit")
+        )
+        .is_err()
+    );
 }

@@ -693,7 +693,10 @@ fn liggghts_snapshot_matches_native_contacts() {
         &deck,
         dir.path(),
         1,
-        std::time::Duration::from_secs(600),
+        &granval::engines::process::Limits::fixed(
+            std::time::Duration::from_secs(600),
+            "the test's limit",
+        ),
         &[0],
     )
     .unwrap();

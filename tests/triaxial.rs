@@ -122,8 +122,16 @@ fn the_liggghts_deck_runs_and_agrees_with_the_native_run_at_first() {
     let mut d = liggghts_deck(&c, &u);
     d.n_steps = steps;
     let dir = tempfile::tempdir().unwrap();
-    let (lig, prov) = lt::run(&d, dir.path(), 1, std::time::Duration::from_secs(600))
-        .unwrap_or_else(|e| panic!("{e:#}"));
+    let (lig, prov) = lt::run(
+        &d,
+        dir.path(),
+        1,
+        &granval::engines::process::Limits::fixed(
+            std::time::Duration::from_secs(600),
+            "the test's limit",
+        ),
+    )
+    .unwrap_or_else(|e| panic!("{e:#}"));
     assert!(prov.version.contains("LIGGGHTS"), "{}", prov.version);
     let nat = native(steps);
     assert_eq!(lig.len(), nat.len());

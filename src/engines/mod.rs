@@ -3,6 +3,7 @@
 //! Engine-specific code (deck syntax, dump formats, units) stops at these adapters; no
 //! adapter analyses or compares anything.
 
+pub mod children;
 pub mod deck_text;
 pub mod lammps;
 pub mod liggghts;

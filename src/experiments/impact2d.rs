@@ -288,6 +288,7 @@ impl Experiment for Impact2d {
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<ImpactRun> {
         let lmp = Lammps {
             mpi_procs: opts.mpi_procs,
+            limits: super::engine_limits(self, opts),
             ..Lammps::default()
         };
         let r = lammps::impact::run(

@@ -226,6 +226,7 @@ impl Experiment for Micro {
     fn run_reference(&self, _unit: &(), dir: &Path, opts: &Options) -> Result<MicroRun> {
         let lig = Liggghts {
             mpi_procs: opts.mpi_procs,
+            limits: super::engine_limits(self, opts),
             ..Liggghts::default()
         };
         let provenance = liggghts::micro(&lig, &self.case, dir)?;

@@ -20,6 +20,7 @@ pub mod triaxial;
 
 use crate::case::{NegativeControl, Perturbation, ValidatedCase};
 use crate::compare::Check;
+use crate::engines::process::Limits;
 use crate::rundata::provenance::{EngineKind, Provenance, Sha256};
 use anyhow::Result;
 use std::path::{Path, PathBuf};
@@ -86,6 +87,11 @@ pub struct Options {
     /// recording (the 2D beds) from there instead of preparing them again; the seal's
     /// fingerprints then prove they are the inputs the reference engine ran from.
     pub recorded_inputs: Option<PathBuf>,
+    /// `--engine-timeout`: how long one reference-engine run may take; `None`: derived
+    /// from the estimate ([`engine_limits`]).
+    pub engine_timeout: Option<std::time::Duration>,
+    /// `--engine-stall`: how long a reference engine may write nothing; `None`: derived.
+    pub engine_stall: Option<std::time::Duration>,
 }
 
 impl Default for Options {
@@ -106,6 +112,8 @@ impl Default for Options {
             gate_theory: true,
             study: false,
             recorded_inputs: None,
+            engine_timeout: None,
+            engine_stall: None,
         }
     }
 }
@@ -197,6 +205,17 @@ impl Derived {
 /// (order of magnitude; contacts per grain change it).
 pub const NATIVE_PARTICLE_STEPS_PER_S: f64 = 3e6;
 
+/// The limits of one reference-engine run of `exp`: `--engine-timeout` and
+/// `--engine-stall` when given, else derived from the estimated particle-steps of the
+/// whole comparison ([`crate::engines::process::Limits::derived`]).
+pub fn engine_limits<E: Experiment + ?Sized>(exp: &E, opts: &Options) -> Limits {
+    Limits::derived(
+        exp.estimate().particle_steps,
+        opts.engine_timeout,
+        opts.engine_stall,
+    )
+}
+
 /// The lines `granval validate` prints for any case: its own [`Experiment::derived`],
 /// then the resource estimate, the estimated native run time and whether the limits
 /// refuse it.
@@ -214,6 +233,16 @@ pub fn validation_summary<E: Experiment>(exp: &E) -> Vec<Derived> {
         human_time(t),
         format!(
             "at about {NATIVE_PARTICLE_STEPS_PER_S:.0e} particle-steps/s on one core; the reference engine takes the same order"
+        ),
+    ));
+    let limits = engine_limits(exp, &Options::default());
+    v.push(Derived::new(
+        "engine timeout",
+        crate::engines::process::fmt_duration(limits.timeout),
+        format!(
+            "{}; the run is also ended when no output grows for {}",
+            limits.timeout_origin,
+            crate::engines::process::fmt_duration(limits.stall)
         ),
     ));
     v.push(Derived::new(

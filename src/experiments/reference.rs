@@ -52,14 +52,36 @@ impl Source {
     }
 }
 
-/// The installed reference engine's banner, if any.
+/// The banner of the installed reference engine when it works, `None` otherwise (a
+/// missing one, or one that fails its probe: [`probe`] tells them apart).
 pub fn installed(engine: EngineKind) -> Option<String> {
-    match engine {
-        EngineKind::Liggghts => crate::engines::liggghts::installed_version("liggghts"),
+    probe(engine).ok().flatten()
+}
+
+/// Whether the reference engine runs here: its banner, `None` when no executable of
+/// that name exists (the recorded reference may stand in), an error when one exists
+/// but hangs, fails, prints no banner or is the wrong version. That is never a reason
+/// to fall back to the record: the user has an engine and it does not work, so a
+/// RECORDED pass would hide it.
+pub fn probe(engine: EngineKind) -> Result<Option<String>> {
+    use crate::engines::process::Probe;
+    let (found, binary) = match engine {
+        EngineKind::Liggghts => (
+            crate::engines::liggghts::probe("liggghts"),
+            "liggghts".to_string(),
+        ),
         EngineKind::Lammps => {
-            crate::engines::lammps::installed_version(&crate::engines::lammps::binary())
+            let b = crate::engines::lammps::binary();
+            (crate::engines::lammps::probe(&b), b)
         }
-        EngineKind::Native => None,
+        EngineKind::Native => return Ok(None),
+    };
+    match found {
+        Probe::Absent => Ok(None),
+        Probe::Found(banner) => Ok(Some(banner)),
+        Probe::Broken(why) => bail!(
+            "{why}. granval does not fall back to the recorded {engine} reference while an executable named `{binary}` is there and does not work: fix it, take it off PATH, or pass --reference-mode recorded"
+        ),
     }
 }
 

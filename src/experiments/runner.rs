@@ -7,6 +7,7 @@ use super::reference::{self, RefMode, Source};
 use super::{Experiment, Options, Role, Run};
 use crate::case::NegativeControl;
 use crate::compare::{Check, Gate, Status};
+use crate::engines::children::OwnedDir;
 use crate::report::CaseRun;
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
@@ -51,13 +52,13 @@ pub fn resolve<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<String>>
     let engine = exp.reference_engine();
     match opts.ref_mode {
         RefMode::Recorded => Ok(None),
-        RefMode::Live => match reference::installed(engine) {
+        RefMode::Live => match reference::probe(engine)? {
             Some(v) => Ok(Some(v)),
             None => bail!(
                 "{engine} is not installed but live engines are required (GRANVAL_REQUIRE_LIVE=1 / --reference live)"
             ),
         },
-        RefMode::Auto => Ok(reference::installed(engine)),
+        RefMode::Auto => reference::probe(engine),
     }
 }
 
@@ -448,7 +449,7 @@ pub fn run_one<E: Experiment>(
 /// returned line by line. The new record replaces the old one only when complete.
 pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
     let engine = exp.reference_engine();
-    let version = reference::installed(engine).with_context(|| {
+    let version = reference::probe(engine)?.with_context(|| {
         format!("reference refresh needs a live {engine}: it records what the real engine computes")
     })?;
     let name = exp.name();
@@ -472,7 +473,10 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         std::fs::remove_dir_all(&fresh)
             .with_context(|| format!("cannot clear {}", fresh.display()))?;
     }
-    let scratch = tempfile::tempdir()?;
+    // Both are granval's own: removed on an error or a signal, so an interrupted
+    // refresh leaves neither a half record nor its engine runs behind.
+    let _recording = OwnedDir::adopt(&fresh);
+    let scratch = OwnedDir::temp()?;
     let mut lines = vec![format!("using {version}")];
     for (u, n) in units.iter().zip(&names) {
         let run_dir = unit_out(scratch.path(), n).join("run");

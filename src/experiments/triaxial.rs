@@ -22,12 +22,9 @@ use crate::rundata::triaxial::{WallRecord, write_csv};
 use anyhow::{Context, Result, ensure};
 use std::io::Write as _;
 use std::path::Path;
-use std::time::Duration;
 
 pub const PROVENANCE_FILE: &str = "provenance.json";
 pub const WALLS_CSV: &str = "walls.csv";
-/// LIGGGHTS triaxial runs are killed after this long.
-pub const LIGGGHTS_TIMEOUT: Duration = Duration::from_secs(3 * 3600);
 
 pub struct Triaxial {
     pub case: TriaxialCase,
@@ -317,7 +314,12 @@ impl Experiment for Triaxial {
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<TriaxialRun> {
         let d = liggghts_deck(&self.case, u);
-        let (records, mut provenance) = lt::run(&d, dir, opts.mpi_procs.max(1), LIGGGHTS_TIMEOUT)?;
+        let (records, mut provenance) = lt::run(
+            &d,
+            dir,
+            opts.mpi_procs.max(1),
+            &super::engine_limits(self, opts),
+        )?;
         provenance.notes.push(u.sample.note());
         provenance
             .notes

@@ -84,7 +84,10 @@ pub fn live_or_skip(engine: EngineKind, test: &str, what_is_skipped: &str) -> bo
 /// Whether `engine` runs live here; panics when live engines are required but missing,
 /// and says loudly when a test falls back to the recorded references.
 pub fn live(engine: EngineKind, test: &str) -> bool {
-    let live = reference::installed(engine).is_some();
+    // An engine that is there but fails its probe is an error, not a quiet fallback.
+    let live = reference::probe(engine)
+        .unwrap_or_else(|e| panic!("[{test}] {e:#}"))
+        .is_some();
     if !live {
         assert!(
             !require_live(),

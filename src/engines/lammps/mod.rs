@@ -15,7 +15,6 @@ use crate::physics::dem2d::System;
 use crate::rundata::provenance::Sha256;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 pub use deck::{DATA_FILE, DECK_FILE, INTRUDER_FILE, Outputs, SNAP_FILE};
 
@@ -38,7 +37,8 @@ pub struct Lammps {
     pub binary: String,
     /// 1: plain `lmp`; N > 1: `mpirun --allow-run-as-root -np N lmp`.
     pub mpi_procs: usize,
-    pub timeout: Duration,
+    /// How long the run may take and stay silent (the run is an error past either).
+    pub limits: process::Limits,
 }
 
 /// The LAMMPS executable: `GRANVAL_LMP` if set (a different build, or a missing one to
@@ -52,7 +52,7 @@ impl Default for Lammps {
         Lammps {
             binary: binary(),
             mpi_procs: 1,
-            timeout: Duration::from_secs(3600),
+            limits: process::Limits::derived(0.0, None, None),
         }
     }
 }
@@ -69,9 +69,20 @@ pub struct Finished {
     pub warnings: Vec<String>,
 }
 
-/// The banner of an installed `binary`, or `None` if it is missing or does not run.
+/// The version probe of `binary` ([`process::probe`]): its banner when it runs and
+/// prints one, broken when it hangs, fails or prints none, absent when there is no such
+/// executable.
+pub fn probe(binary: &str) -> process::Probe {
+    process::probe(binary, VERSION_PREFIX, |_| Ok(()))
+}
+
+/// The banner of `binary` when it works, `None` otherwise (missing or broken alike;
+/// [`probe`] tells them apart).
 pub fn installed_version(binary: &str) -> Option<String> {
-    process::installed_banner(binary, VERSION_PREFIX)
+    match probe(binary) {
+        process::Probe::Found(banner) => Some(banner),
+        _ => None,
+    }
 }
 
 /// Writes the deck and data file for `sys` into `dir` (what `granval deck` leaves and
@@ -138,12 +149,12 @@ impl Lammps {
             dir,
             &dir.join(PROCESS_STDOUT_FILE),
             &dir.join(STDERR_FILE),
-            self.timeout,
+            &self.limits,
         )
         .with_context(|| format!("LAMMPS failed to start in {}", dir.display()))?;
         let what = "LAMMPS run";
         let tr = Transcript::read(TRANSCRIPT, dir);
-        tr.check_exit(&fin, self.timeout, what, &command, dir)?;
+        tr.check_exit(&fin, &self.limits, what, &command, dir)?;
         let fail = |reason: String| tr.failure(what, &command, dir, &reason);
         let log = &tr.log;
         if !log.contains("Total wall time") {

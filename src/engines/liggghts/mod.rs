@@ -29,7 +29,6 @@ use crate::engines::process::{self, Transcript, TranscriptFiles};
 use crate::rundata::provenance::{EngineKind, Provenance, Sha256, now_utc};
 use anyhow::{Context, Result, bail};
 use std::path::Path;
-use std::time::Duration;
 
 pub const DECK_FILE: &str = "in.granval";
 pub const DATA_FILE: &str = "data.granval";
@@ -56,8 +55,8 @@ pub struct Liggghts {
     pub binary: String,
     /// 1: plain `liggghts -in`; N > 1: `mpirun --allow-run-as-root -np N liggghts -in`.
     pub mpi_procs: usize,
-    /// The process is killed (and the run is an error) after this long.
-    pub timeout: Duration,
+    /// How long the run may take and stay silent (the run is an error past either).
+    pub limits: process::Limits,
 }
 
 impl Default for Liggghts {
@@ -65,7 +64,7 @@ impl Default for Liggghts {
         Liggghts {
             binary: "liggghts".to_string(),
             mpi_procs: 1,
-            timeout: Duration::from_secs(30 * 60),
+            limits: process::Limits::derived(0.0, None, None),
         }
     }
 }
@@ -80,10 +79,45 @@ impl Liggghts {
     }
 }
 
-/// The version banner (e.g. `LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, compiled ...)`) if
-/// `binary` is installed and runs; `None` otherwise (well under a second).
+/// The version probe of `binary` ([`process::probe`]): its banner (e.g. `LIGGGHTS
+/// (Version LIGGGHTS-PUBLIC 3.8.0, compiled ...)`) when it is LIGGGHTS 3.x, broken when
+/// it is another version (granval's decks are LIGGGHTS 3.8 syntax), absent when there
+/// is no such executable.
+pub fn probe(binary: &str) -> process::Probe {
+    process::probe(
+        binary,
+        VERSION_PREFIX,
+        |banner| match banner_major_version(banner) {
+            Some(3) => Ok(()),
+            Some(v) => Err(format!(
+                "is LIGGGHTS {v}.x ({banner}); granval's decks are written for LIGGGHTS 3.x"
+            )),
+            None => Err(format!(
+                "no version number in its banner ({banner}); granval's decks are written for LIGGGHTS 3.x"
+            )),
+        },
+    )
+}
+
+/// The banner of `binary` when it is a working LIGGGHTS 3.x, `None` otherwise (missing
+/// or broken alike; [`probe`] tells them apart).
 pub fn installed_version(binary: &str) -> Option<String> {
-    process::installed_banner(binary, VERSION_PREFIX)
+    match probe(binary) {
+        process::Probe::Found(banner) => Some(banner),
+        _ => None,
+    }
+}
+
+/// The major version in a banner such as `LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, ...`:
+/// the first word after `Version` that starts with a digit.
+fn banner_major_version(banner: &str) -> Option<u32> {
+    let rest = banner.split_once("Version")?.1;
+    rest.split(|c: char| c.is_whitespace() || c == ',' || c == '-')
+        .find(|w| w.starts_with(|c: char| c.is_ascii_digit()))?
+        .split('.')
+        .next()?
+        .parse()
+        .ok()
 }
 
 /// Runs a micro case in LIGGGHTS in `dir` (deck, data file, dump, log, transcript all
@@ -115,7 +149,7 @@ pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
         dir,
         &dir.join(STDOUT_FILE),
         &dir.join(STDERR_FILE),
-        lig.timeout,
+        &lig.limits,
     )
     .with_context(|| {
         format!(
@@ -126,7 +160,7 @@ pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
 
     let tr = Transcript::read(TRANSCRIPT, dir);
     let what = format!("LIGGGHTS run of case {}", case.source.display());
-    tr.check_exit(&fin, lig.timeout, &what, &command, dir)?;
+    tr.check_exit(&fin, &lig.limits, &what, &command, dir)?;
     let fail = |reason: String| tr.failure(&what, &command, dir, &reason);
     let dump_path = dir.join(if case.clumps.is_empty() {
         DUMP_FILE
@@ -299,4 +333,20 @@ fn check_dump(case: &Case, dump_path: &Path) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::banner_major_version;
+
+    #[test]
+    fn major_version_of_a_banner() {
+        let b = "LIGGGHTS (Version LIGGGHTS-PUBLIC 3.8.0, compiled 2022-01-26-19:42:32 by buildd, git commit unknown)";
+        assert_eq!(banner_major_version(b), Some(3));
+        assert_eq!(
+            banner_major_version("LIGGGHTS (Version LIGGGHTS-PUBLIC 4.1.0)"),
+            Some(4)
+        );
+        assert_eq!(banner_major_version("LIGGGHTS (Version unknown)"), None);
+    }
 }

@@ -42,7 +42,6 @@ use anyhow::{Context, Result, bail};
 use std::fmt::Write as _;
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 pub const DECK_FILE: &str = "in.penetration";
 pub const DATA_FILE: &str = "data.bed";
@@ -1023,15 +1022,7 @@ pub fn for_each_force_sample(
 /// Whether coreutils' `stdbuf` runs here (checked once).
 fn have_stdbuf() -> bool {
     static HAVE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *HAVE.get_or_init(|| {
-        std::process::Command::new("stdbuf")
-            .arg("--version")
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .status()
-            .map(|s| s.success())
-            .unwrap_or(false)
-    })
+    *HAVE.get_or_init(|| process::succeeds(&["stdbuf".into(), "--version".into()]))
 }
 
 /// `liggghts -in in.penetration -log log.liggghts`, under `mpirun` when `mpi_procs > 1`,
@@ -1052,9 +1043,9 @@ pub fn run(
     d: &PenetrationDeck,
     dir: &Path,
     mpi_procs: usize,
-    timeout: Duration,
+    limits: &process::Limits,
 ) -> Result<(Vec<ForceSample>, Provenance)> {
-    run_with_snapshots(d, dir, mpi_procs, timeout, &[])
+    run_with_snapshots(d, dir, mpi_procs, limits, &[])
 }
 
 /// [`run`] with contact snapshots at `snapshot_steps`, left in `dir` for
@@ -1063,7 +1054,7 @@ pub fn run_with_snapshots(
     d: &PenetrationDeck,
     dir: &Path,
     mpi_procs: usize,
-    timeout: Duration,
+    limits: &process::Limits,
     snapshot_steps: &[u64],
 ) -> Result<(Vec<ForceSample>, Provenance)> {
     if dir.exists() {
@@ -1076,7 +1067,7 @@ pub fn run_with_snapshots(
         }
     }
     let files = write_deck_dir_with_snapshots(d, dir, snapshot_steps)?;
-    let (samples, mut prov) = run_existing(d, dir, mpi_procs, timeout)?;
+    let (samples, mut prov) = run_existing(d, dir, mpi_procs, limits)?;
     prov.notes
         .insert(2, format!("intruder STL: {} segments", files.stl_segments));
     Ok((samples, prov))
@@ -1088,32 +1079,32 @@ pub fn run_streaming(
     d: &PenetrationDeck,
     dir: &Path,
     mpi_procs: usize,
-    timeout: Duration,
+    limits: &process::Limits,
     progress: impl FnMut(u64),
     visit: impl FnMut(&ForceSample) -> Result<()>,
 ) -> Result<Provenance> {
     let files = write_deck_dir(d, dir)?;
-    let mut prov = execute(d, dir, mpi_procs, timeout, progress, visit)?;
+    let mut prov = execute(d, dir, mpi_procs, limits, progress, visit)?;
     prov.notes
         .insert(2, format!("intruder STL: {} segments", files.stl_segments));
     Ok(prov)
 }
 
 /// Runs LIGGGHTS on the deck directory `dir` as it is on disk (written by
-/// [`write_deck_dir`] for `d`, possibly edited by hand), killed after `timeout`; the
+/// [`write_deck_dir`] for `d`, possibly edited by hand), ended at its `limits`; the
 /// samples are collected in memory (see [`execute`] for the streaming form).
 pub fn run_existing(
     d: &PenetrationDeck,
     dir: &Path,
     mpi_procs: usize,
-    timeout: Duration,
+    limits: &process::Limits,
 ) -> Result<(Vec<ForceSample>, Provenance)> {
     let mut out = Vec::new();
     let prov = execute(
         d,
         dir,
         mpi_procs,
-        timeout,
+        limits,
         |_| {},
         |s| {
             out.push(*s);
@@ -1197,13 +1188,13 @@ impl LogFollower {
 }
 
 /// Runs LIGGGHTS in `dir` and hands the checked outputs to [`read_outputs`]. Refuses
-/// failed runs (non-zero exit, any `ERROR` line, timeout, missing/short force file) with
+/// failed runs (non-zero exit, any `ERROR` line, a limit reached, missing/short force file) with
 /// the log tail.
 pub fn execute(
     d: &PenetrationDeck,
     dir: &Path,
     mpi_procs: usize,
-    timeout: Duration,
+    limits: &process::Limits,
     mut progress: impl FnMut(u64),
     visit: impl FnMut(&ForceSample) -> Result<()>,
 ) -> Result<Provenance> {
@@ -1220,7 +1211,7 @@ pub fn execute(
         dir,
         &dir.join(STDOUT_FILE),
         &dir.join(STDERR_FILE),
-        timeout,
+        limits,
         || {
             if let Some(step) = follower.poll() {
                 progress(step)
@@ -1230,7 +1221,7 @@ pub fn execute(
     .context("LIGGGHTS penetration run failed to start")?;
     let what = "LIGGGHTS penetration run";
     let tr = Transcript::read(TRANSCRIPT, dir);
-    tr.check_exit(&fin, timeout, what, &command, dir)?;
+    tr.check_exit(&fin, limits, what, &command, dir)?;
     let fail = |reason: String| tr.failure(what, &command, dir, &reason);
     let mut prov = read_outputs(d, dir, visit).map_err(|e| fail(format!("{e:#}")))?;
     prov.command = command;

@@ -33,7 +33,6 @@ use crate::rundata::triaxial::WallRecord;
 use anyhow::{Context, Result, bail};
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::Duration;
 
 pub const DECK_FILE: &str = "in.triaxial";
 pub const DATA_FILE: &str = "data.sample";
@@ -514,12 +513,12 @@ pub fn read_outputs(d: &TriaxialDeck, dir: &Path) -> Result<(Vec<WallRecord>, Pr
 }
 
 /// Writes the deck directory and runs LIGGGHTS in it (`mpirun -np N` when N > 1), killed
-/// after `timeout`; a crash, an `ERROR` line or a short output is an error.
+/// at its `limits`; a crash, an `ERROR` line or a short output is an error.
 pub fn run(
     d: &TriaxialDeck,
     dir: &Path,
     mpi_procs: usize,
-    timeout: Duration,
+    limits: &process::Limits,
 ) -> Result<(Vec<WallRecord>, Provenance)> {
     write_deck_dir(d, dir)?;
     process::remove_stale(dir, &[WALLS_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE])?;
@@ -531,12 +530,12 @@ pub fn run(
         dir,
         &dir.join(STDOUT_FILE),
         &dir.join(STDERR_FILE),
-        timeout,
+        limits,
     )
     .context("LIGGGHTS triaxial run failed to start")?;
     let what = "LIGGGHTS triaxial run";
     let tr = Transcript::read(TRANSCRIPT, dir);
-    tr.check_exit(&fin, timeout, what, &command, dir)?;
+    tr.check_exit(&fin, limits, what, &command, dir)?;
     let (records, mut prov) =
         read_outputs(d, dir).map_err(|e| tr.failure(what, &command, dir, &format!("{e:#}")))?;
     prov.command = command;

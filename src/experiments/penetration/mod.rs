@@ -33,14 +33,11 @@ use crate::rundata::provenance::{
 use anyhow::{Context, Result, ensure};
 use bed::{EngineRun, binner, liggghts_deck, prepare_bed};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 pub const PROVENANCE_FILE: &str = "provenance.json";
 pub const FORCE_CSV: &str = "force.csv";
 /// Where a run keeps its contact snapshots (stress option).
 pub const SNAPSHOT_DIR: &str = "snapshots";
-/// LIGGGHTS penetration runs are killed after this long.
-pub const LIGGGHTS_TIMEOUT: Duration = Duration::from_secs(4 * 3600);
 
 pub struct Penetration {
     pub case: PenetrationCase,
@@ -256,6 +253,7 @@ fn liggghts_run(
     plan: Option<&SnapshotPlan>,
     dir: &Path,
     opts: &Options,
+    limits: &crate::engines::process::Limits,
 ) -> Result<RefRun> {
     let deck = liggghts_deck(&u.case, &u.bed)?;
     std::fs::create_dir_all(dir)?;
@@ -297,13 +295,12 @@ fn liggghts_run(
             &deck,
             dir,
             np,
-            LIGGGHTS_TIMEOUT,
+            limits,
             |step| bar.set_position(step),
             |s| b.push(s.z_bottom, s.f[2]),
         )?,
         Some(plan) => {
-            let (samples, prov) =
-                lp::run_with_snapshots(&deck, dir, np, LIGGGHTS_TIMEOUT, &plan.steps)?;
+            let (samples, prov) = lp::run_with_snapshots(&deck, dir, np, limits, &plan.steps)?;
             for s in &samples {
                 b.push(s.z_bottom, s.f[2])?;
             }
@@ -583,10 +580,11 @@ impl Experiment for Penetration {
     }
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<RefRun> {
-        let mut main = liggghts_run(u, u.plan.as_ref(), dir, opts)?;
+        let limits = super::engine_limits(self, opts);
+        let mut main = liggghts_run(u, u.plan.as_ref(), dir, opts, &limits)?;
         if let Some(sp) = &u.study_plan {
             let sdir = dir.join(STUDY_DIR);
-            let study = liggghts_run(u, Some(sp), &sdir, opts)
+            let study = liggghts_run(u, Some(sp), &sdir, opts, &limits)
                 .with_context(|| format!("bed {}: estimator-study run", u.k))?;
             main.study_snapshots = study.snapshots;
         }
