@@ -61,12 +61,15 @@ fn binner_applies_eq5_and_memory_does_not_grow_with_samples() {
     assert!(FdrBinner::new(&scales, surface, 0.0).is_err());
 }
 
-/// Sec. 3's quasi-static check compares the native K_phi at two speeds: it passes for
-/// the same force-depth relation and fails for one whose K_phi really differs (the
+/// Sec. 3's quasi-static check compares the native K_phi at two speeds bed by bed
+/// (docs/statistics.md: an equivalence test on the per-bed ln K(v2)/K(v1)): it passes
+/// for the same force-depth relation, fails for one whose K_phi really differs (the
 /// check's own negative control; `granval check --suite ci` runs the check itself on
-/// the CI case, where a control run has no second speed to fail it with).
+/// the CI case, where a control run has no second speed to fail it with) and is
+/// INCONCLUSIVE on one bed, which has no bed-to-bed variance.
 #[test]
 fn quasi_static_check_catches_a_different_k_phi() {
+    use granval::compare::Status;
     let tmp = tempfile::tempdir().unwrap();
     let case = tiny_case(tmp.path());
     let fdr_of = |k: f64| {
@@ -74,19 +77,41 @@ fn quasi_static_check_catches_a_different_k_phi() {
         let p = h.iter().map(|h| k * h + 3.0).collect();
         fdr::Fdr::new(h, p).unwrap()
     };
-    let obs = |k: f64| {
-        granval::compare::penetration::ensemble(&case, &[&fdr_of(k)])
-            .unwrap_or_else(|e| panic!("{e:#}"))
+    // Four beds whose K_phi scatter by about 1 %, as the CI beds do.
+    let beds = [20.0, 20.2, 19.8, 20.1];
+    let obs = |ratios: &[f64]| {
+        let fdrs: Vec<fdr::Fdr> = beds
+            .iter()
+            .zip(ratios)
+            .map(|(k, r)| fdr_of(k * r))
+            .collect();
+        let refs: Vec<&fdr::Fdr> = fdrs.iter().collect();
+        granval::compare::penetration::ensemble(&case, &refs).unwrap_or_else(|e| panic!("{e:#}"))
     };
-    let (fast, same, wrong) = (obs(20.0), obs(20.0 * 1.02), obs(20.0 * 0.79));
+    let fast = obs(&[1.0; 4]);
+    let same = obs(&[1.02, 1.025, 1.015, 1.02]);
+    let wrong = obs(&[0.79, 0.80, 0.78, 0.79]);
     let ok = granval::compare::penetration::quasi_static(&case, &fast, &same, case.speed / 2.0);
-    assert!(ok.passed, "{ok:?}");
+    assert_eq!(ok.status, Status::Pass, "{ok:?}");
     let bad = granval::compare::penetration::quasi_static(&case, &fast, &wrong, case.speed);
     assert!(
-        !bad.passed && bad.gate == granval::compare::Gate::QuasiStatic,
+        bad.status == Status::Fail && bad.gate == granval::compare::Gate::QuasiStatic,
         "{bad:?}"
     );
-    assert!((bad.value - 0.21).abs() < 1e-6, "{bad:?}");
+    let expected = [0.79f64, 0.80, 0.78, 0.79]
+        .iter()
+        .map(|r| r.ln())
+        .sum::<f64>()
+        / 4.0;
+    assert!((bad.value - expected).abs() < 1e-6, "{bad:?}");
+    // One bed: no bed-to-bed variance, so no verdict either way.
+    let one = |r: f64| {
+        granval::compare::penetration::ensemble(&case, &[&fdr_of(20.0 * r)])
+            .unwrap_or_else(|e| panic!("{e:#}"))
+    };
+    let single =
+        granval::compare::penetration::quasi_static(&case, &one(1.0), &one(0.79), case.speed);
+    assert_eq!(single.status, Status::Inconclusive, "{single:?}");
 }
 
 #[test]

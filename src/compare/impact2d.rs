@@ -338,11 +338,69 @@ pub fn claim_checks(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Ve
     }
     case.claims
         .iter()
-        .flat_map(|c| match c {
-            Claim::FieldOrder { .. } => field_order_checks(case, c, engine, obs),
-            _ => vec![claim_check(case, c, engine, obs)],
+        .flat_map(|c| {
+            let compares = compares_conditions(c);
+            single_bed_rule(case, c, engine, obs)
+                .into_iter()
+                .map(move |k| if compares { one_bed(k) } else { k })
         })
         .collect()
+}
+
+/// A claim's rule on one bed, as registered: the verdict of a property of every run, and
+/// what a comparison between conditions would say if one bed could decide it.
+fn single_bed_rule(
+    case: &Impact2dCase,
+    claim: &Claim,
+    engine: &str,
+    obs: &[VariantObs],
+) -> Vec<Check> {
+    match claim {
+        Claim::FieldOrder { .. } => field_order_checks(case, claim, engine, obs),
+        _ => vec![claim_check(case, claim, engine, obs)],
+    }
+}
+
+/// Whether a claim compares measured quantities between conditions (kind 3 of
+/// docs/statistics.md, "Three kinds of check") rather than stating a property of every
+/// run (energy, the impulsive force, the interface: kind 2). The size claim runs on
+/// several seeds and is judged over them.
+fn compares_conditions(c: &Claim) -> bool {
+    matches!(
+        c,
+        Claim::Increasing { .. }
+            | Claim::Linear { .. }
+            | Claim::VelocityExponent { .. }
+            | Claim::ForceSimilar { .. }
+            | Claim::FieldOrder { .. }
+    )
+}
+
+/// A comparison between conditions on one bed (one seed): no bed-to-bed variance, so
+/// INCONCLUSIVE whatever the single-bed rule says (docs/statistics.md, "One bed"); the
+/// value and what the old rule would have said stay in the report. An error or NOT
+/// COMPARED is kept as it is.
+fn one_bed(k: Check) -> Check {
+    if !matches!(k.status, super::Status::Pass | super::Status::Fail) {
+        return k;
+    }
+    let detail = format!(
+        "one bed (one seed): a comparison between conditions has no bed-to-bed variance, so it is not resolved (docs/statistics.md); the single-bed rule gives {} ({} = {:.4}, threshold {}); {}",
+        k.status.label(),
+        k.metric,
+        k.value,
+        k.tolerance,
+        k.detail
+    );
+    Check::with_status(
+        k.name,
+        k.gate,
+        k.metric,
+        k.value,
+        k.tolerance,
+        super::Status::Inconclusive,
+        detail,
+    )
 }
 
 /// A `field_order` claim: one check per field time (B0) or one (affine, D2_min).
@@ -782,26 +840,55 @@ fn ensemble_claim_check(
             }
             let x: Vec<f64> = fit.iter().map(|s| s.x).collect();
             let y: Vec<f64> = fit.iter().map(|s| s.mean).collect();
-            match crate::analysis::impact::linear_r2(&x, &y) {
-                Ok((a, b, r2)) => Check::at_most(
-                    name,
-                    Gate::Claim,
-                    "1 - R^2 of the least-squares line through the means",
-                    // A falling line is no support for "grows linearly".
-                    if b > 0.0 { 1.0 - r2 } else { f64::INFINITY },
-                    1.0 - r2_min,
-                    format!(
-                        "mean D = {a:.3} + {b:.3} x (slope {b:.3} d per unit of {param}, must be > 0; R^2 {r2:.4} over {} values); final depth (d), mean +- SE over seeds: {}",
-                        fit.len(),
-                        stats
-                            .iter()
-                            .map(|s| s.describe())
-                            .collect::<Vec<_>>()
-                            .join("; ")
-                    ),
+            // Per seed, the least-squares slope over the values >= from; the claim's
+            // slope is the mean of those (the seeds are the beds).
+            let seeds: Vec<u64> = fit[0].seeds.iter().map(|s| s.0).collect();
+            let slopes: Vec<f64> = seeds
+                .iter()
+                .filter_map(|seed| {
+                    let ys: Option<Vec<f64>> = fit
+                        .iter()
+                        .map(|v| v.seeds.iter().find(|s| s.0 == *seed).map(|s| s.1))
+                        .collect();
+                    crate::numerics::stats::Estimate::slope(&x, &ys?).map(|e| e.value)
+                })
+                .collect();
+            let means_line = crate::analysis::impact::linear_r2(&x, &y)
+                .map(|(a, b, r2)| format!("mean D = {a:.3} + {b:.3} x, R^2 {r2:.4} (reported, never gated: docs/statistics.md)"))
+                .unwrap_or_else(|e| format!("no line through the means: {e:#}"));
+            Check::decided(
+                name,
+                Gate::Claim,
+                "per-seed slope of the final depth (d per unit), must exceed 0; linearity needs a registered curvature margin",
+                &[
+                    super::Comparison {
+                        what: format!("per-seed slope over {param} >= {from}"),
+                        estimate: crate::numerics::stats::Estimate::mean(&slopes),
+                        rule: super::Rule::Exceeds { delta: 0.0 },
+                        m: 1,
+                    },
+                    // The straightness half of the claim: docs/statistics.md judges it by
+                    // the curvature against a registered margin; this claim registered
+                    // none (its r2_min on the means is no such margin), so it cannot be
+                    // decided.
+                    super::Comparison {
+                        what: format!(
+                            "curvature over {param} >= {from}: no registered curvature margin (r2_min = {r2_min} on the means is reported only)"
+                        ),
+                        estimate: None,
+                        rule: super::Rule::Equivalence { margin: f64::NAN },
+                        m: 1,
+                    },
+                ],
+                format!(
+                    "{means_line}; final depth (d), mean +- SE over seeds: {}",
+                    stats
+                        .iter()
+                        .map(|s| s.describe())
+                        .collect::<Vec<_>>()
+                        .join("; ")
                 ),
-                Err(e) => Check::error_in(name, Gate::Claim, format!("{e:#}")),
-            }
+            )
         }
         _ => Check::error_in(
             format!("{}: claim ({engine})", case.name),
@@ -838,7 +925,7 @@ fn size_insensitive(
     obs: &[VariantObs],
 ) -> Check {
     let name = format!(
-        "{}: claim ({engine}): final depth varies between sizes by < {max_spread} d and by less than between realizations",
+        "{}: claim ({engine}): final depth equivalent between sizes within {max_spread} d",
         case.name
     );
     let d = case.scales.d;
@@ -886,21 +973,25 @@ fn size_insensitive(
         );
     }
     let (between, within) = size_spreads(&groups);
-    let bound = max_spread.min(within);
-    let status = if between < bound {
-        super::Status::Pass
-    } else {
-        super::Status::Fail
-    };
-    Check::with_status(
+    let m = groups.len() * (groups.len() - 1) / 2;
+    let mut parts = Vec::with_capacity(m);
+    for a in 0..groups.len() {
+        for b in a + 1..groups.len() {
+            parts.push(super::Comparison {
+                what: format!("size {} - size {} (d, Welch over the seeds)", b + 1, a + 1),
+                estimate: crate::numerics::stats::Estimate::welch(&groups[b], &groups[a]),
+                rule: super::Rule::Equivalence { margin: max_spread },
+                m,
+            });
+        }
+    }
+    Check::decided(
         name,
         Gate::Claim,
-        "between-size spread of the mean final depth (d), must be < min(max_spread, between-realization spread)",
-        between,
-        bound,
-        status,
+        "difference of two sizes' mean final depths (d)",
+        &parts,
         format!(
-            "between sizes {between:.3} d (max - min of the size means), between realizations {within:.3} d (mean over sizes of max - min), registered max_spread {max_spread} d; final depths (d): {}",
+            "between sizes {between:.3} d (max - min of the size means), between realizations {within:.3} d (mean over sizes of max - min; reported), registered max_spread {max_spread} d; final depths (d): {}",
             per_size.join("; ")
         ),
     )
@@ -1003,6 +1094,7 @@ fn energy_lost(o: &VariantObs, t: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::compare::Status;
     use std::path::Path;
 
     fn case(claim: &str, sweep: &str) -> Impact2dCase {
@@ -1065,10 +1157,45 @@ mod tests {
         assert_eq!(k.status, crate::compare::Status::NotCompared, "{k:?}");
     }
 
+    /// The claims' checks as registered on one bed (the rule one_bed reports), or an
+    /// ensemble's checks.
+    fn rules(c: &Impact2dCase, obs: &[VariantObs]) -> Vec<Check> {
+        if c.is_ensemble() {
+            return claim_checks(c, "x", obs);
+        }
+        c.claims
+            .iter()
+            .flat_map(|k| single_bed_rule(c, k, "x", obs))
+            .collect()
+    }
+
     fn one(c: &Impact2dCase, obs: &[VariantObs]) -> Option<Check> {
-        let mut v = claim_checks(c, "x", obs);
+        let mut v = rules(c, obs);
         assert!(v.len() <= 1);
         v.pop()
+    }
+
+    /// On one bed a comparison between conditions is INCONCLUSIVE whatever its rule
+    /// says (the rule is kept in the detail); a property of every run keeps its verdict.
+    #[test]
+    fn one_bed_decides_properties_of_runs_but_not_comparisons() {
+        let c = case(
+            "[[claim]]\nkind = \"increasing\"\nmin_step = 0.5\n[[claim]]\nkind = \"energy_non_increasing\"\nmax_rise = 0.01",
+            "[sweep]\nparameter = \"e_n\"\nvalues = [0.1, 0.5]",
+        );
+        let mut o = obs(&[0.1, 0.5], &[1.0, 3.0]);
+        o[0].energy = vec![(0.0, 10.0), (50.0, 8.0)];
+        o[1].energy = vec![(0.0, 10.0), (50.0, 5.0)];
+        let v = claim_checks(&c, "x", &o);
+        assert_eq!(v[0].status, Status::Inconclusive, "{v:?}");
+        assert!(
+            v[0].detail.contains("one bed") && v[0].detail.contains("rule gives pass"),
+            "{}",
+            v[0].detail
+        );
+        assert_eq!(v[1].status, Status::Pass, "{v:?}");
+        o[1].energy[1].1 = 12.0;
+        assert_eq!(claim_checks(&c, "x", &o)[1].status, Status::Fail);
     }
 
     #[test]
@@ -1142,13 +1269,13 @@ mod tests {
         for (k, t) in [40.0, 60.0, 62.0].into_iter().enumerate() {
             o[k].t_max_depth = t;
         }
-        let v = claim_checks(&c, "x", &o);
+        let v = rules(&c, &o);
         assert_eq!(v.len(), 2);
         assert!(v[0].passed, "depths rise by 2 d per step");
         assert!(!v[1].passed, "the last delay is 2 tau_c < 5");
         assert!((v[1].value - 3.0).abs() < 1e-12, "{}", v[1].value);
         o[2].t_max_depth = 70.0;
-        assert!(claim_checks(&c, "x", &o).iter().all(|k| k.passed));
+        assert!(rules(&c, &o).iter().all(|k| k.passed));
     }
 
     /// Energy claims: the loss at a time rises with friction; a rise of E fails.
@@ -1161,11 +1288,11 @@ mod tests {
         let mut o = obs(&[0.0, 0.5], &[5.0, 4.0]);
         o[0].energy = vec![(0.0, 10.0), (50.0, 8.0), (100.0, 7.0)];
         o[1].energy = vec![(0.0, 10.0), (50.0, 5.0), (100.0, 4.0)];
-        let v = claim_checks(&c, "x", &o);
+        let v = rules(&c, &o);
         assert!(v[0].passed && v[1].passed, "{v:?}");
         // E rises from 5 to 7.5 (2.5 impact energies); the loss by t = 100 drops to 2.5.
         o[1].energy[2].1 = 7.5;
-        let v = claim_checks(&c, "x", &o);
+        let v = rules(&c, &o);
         assert!(!v[0].passed, "loss 2.5 < 3 with friction");
         assert!(
             !v[1].passed && (v[1].value - 2.5).abs() < 1e-12,
@@ -1197,17 +1324,17 @@ mod tests {
         let mut o = obs(&[0.0, 0.5], &[17.0, 10.0]);
         o[0].force = series(&sharp(1.0));
         o[1].force = series(&sharp(1.05));
-        let v = claim_checks(&c, "x", &o);
+        let v = rules(&c, &o);
         assert!(v[0].passed && v[1].passed, "{v:?}");
         // A force that builds up over 30 tau_c is not "very large immediately".
         o[1].force = series(&|s: f64| 30.0 * s.min(30.0));
-        let v = claim_checks(&c, "x", &o);
+        let v = rules(&c, &o);
         assert!(!v[0].passed, "{:?}", v[0]);
         // Equal depths: the premise "the depths differ significantly" fails.
         let mut same = obs(&[0.0, 0.5], &[10.0, 10.0]);
         same[0].force = series(&sharp(1.0));
         same[1].force = series(&sharp(1.0));
-        let v = claim_checks(&c, "x", &same);
+        let v = rules(&c, &same);
         assert!(
             !v[1].passed && v[1].detail.contains("premise"),
             "{:?}",
@@ -1249,23 +1376,25 @@ mod tests {
             with("friction=kinetic", [0.10, 0.10]),
             with("friction=static", [0.12, 0.105]),
         ];
-        let v = claim_checks(&c, "x", &o);
+        let v = rules(&c, &o);
         assert_eq!(v.len(), 2);
         assert!(v[0].passed && !v[1].passed, "{v:?}");
         assert!((v[0].value - 1.2).abs() < 1e-12);
         let big = vec![o[0].clone(), with("friction=static", [0.4, 0.4])];
-        assert!(claim_checks(&c, "x", &big).iter().all(|k| !k.passed));
+        assert!(rules(&c, &big).iter().all(|k| !k.passed));
         let x = field_cross_checks(&c, &o[1], &o[1], "lammps");
         assert!(x.len() == 4 && x.iter().all(|k| k.passed), "{x:?}");
         let x = field_cross_checks(&c, &o[1], &with("friction=static", [0.12, 0.115]), "lammps");
         assert!(x.iter().filter(|k| !k.passed).count() == 2, "{x:?}");
     }
 
-    /// K Fig 11's rule on synthetic final depths (two sizes, three seeds each): sizes
-    /// closer than the seeds pass; a size 1 d or more off fails; sizes within 1 d but
-    /// farther apart than the seeds fail; equal depths everywhere (nothing varies) fail.
+    /// K Fig 11's rule on synthetic final depths (two sizes, three seeds each), as an
+    /// equivalence of the sizes' means within 1 d (Welch over the seeds): close, quiet
+    /// sizes pass; sizes 3 d apart fail; sizes 0.2 d apart with seeds scattered by 2 d are
+    /// INCONCLUSIVE (three seeds cannot tell); equal depths everywhere pass (nothing varies,
+    /// and the control of the claim is a half-speed size, which moves it).
     #[test]
-    fn size_insensitive_claim_compares_sizes_with_realizations() {
+    fn size_insensitive_claim_is_an_equivalence_of_the_sizes() {
         let c = case(
             "[claim]\nkind = \"size_insensitive\"\nmax_spread = 1.0",
             "[sweep]\nparameter = \"bed\"\nvalues = [{ count = 450, length = 30, seed = 1 }, { count = 450, length = 30, seed = 2 }, { count = 450, length = 30, seed = 3 }, { count = 600, length = 30, seed = 1 }, { count = 600, length = 30, seed = 2 }, { count = 600, length = 30, seed = 3 }]",
@@ -1277,19 +1406,16 @@ mod tests {
             }
             o
         };
-        // Means 5.0 and 5.2: between sizes 0.2; between seeds (1.0 + 0.6) / 2 = 0.8.
-        let k = one(&c, &with([4.5, 5.0, 5.5, 4.9, 5.2, 5.5])).unwrap();
-        assert!(k.passed, "{k:?}");
-        assert!((k.value - 0.2).abs() < 1e-12 && (k.tolerance - 0.8).abs() < 1e-12);
-        assert!(k.detail.contains("seed 2: 5.200"), "{}", k.detail);
-        // Means 5.0 and 6.2 with seeds 2 d apart: between sizes 1.2 >= 1 d fails.
-        let k = one(&c, &with([4.0, 5.0, 6.0, 5.2, 6.2, 7.2])).unwrap();
-        assert!(!k.passed && (k.value - 1.2).abs() < 1e-12, "{k:?}");
-        // Means 5.0 and 5.5 (< 1 d) but seeds only 0.2 apart: fails the second part.
-        let k = one(&c, &with([4.9, 5.0, 5.1, 5.4, 5.5, 5.6])).unwrap();
-        assert!(!k.passed && (k.tolerance - 0.2).abs() < 1e-12, "{k:?}");
+        let k = one(&c, &with([4.9, 5.0, 5.1, 5.0, 5.1, 5.2])).unwrap();
+        assert_eq!(k.status, Status::Pass, "{k:?}");
+        assert!((k.value - 0.1).abs() < 1e-12, "{}", k.value);
+        assert!(k.detail.contains("seed 2: 5.100"), "{}", k.detail);
+        let k = one(&c, &with([4.9, 5.0, 5.1, 7.9, 8.0, 8.1])).unwrap();
+        assert_eq!(k.status, Status::Fail, "{k:?}");
+        let k = one(&c, &with([4.0, 5.0, 6.0, 4.2, 5.2, 6.2])).unwrap();
+        assert_eq!(k.status, Status::Inconclusive, "{k:?}");
         let k = one(&c, &with([5.0; 6])).unwrap();
-        assert!(!k.passed, "equal spreads (0 = 0) must not pass: {k:?}");
+        assert_eq!(k.status, Status::Pass, "{k:?}");
         // A variant without a result is an error, not a smaller group.
         let k = one(&c, &with([5.0; 6])[..5]).unwrap();
         assert!(k.is_error(), "{k:?}");
@@ -1333,7 +1459,6 @@ mod tests {
     /// missing run is an error.
     #[test]
     fn increasing_claim_on_a_seed_ensemble_is_a_paired_one_sided_test() {
-        use crate::compare::Status;
         let c = ensemble(
             "[claim]\nkind = \"increasing\"\nmin_step = 0.5",
             "[sweep]\nparameter = \"friction\"\nvalues = [\"static\", \"kinetic\"]",
@@ -1387,9 +1512,10 @@ mod tests {
         );
     }
 
-    /// The ensemble `linear` rule (K Fig 8b): R^2 of the line through the per-value means
-    /// over values >= from; seeds scattered about a line pass, curved means fail, equal
-    /// means (every value at one speed: the sweep ignored) fail on the zero slope.
+    /// The ensemble `linear` rule (K Fig 8b) under statistics v1: the per-seed slope must
+    /// exceed 0 (a one-sided test over the seeds) and linearity itself has no registered
+    /// curvature margin, so the best verdict is INCONCLUSIVE; R^2 of the means is
+    /// reported. Equal depths at every speed (the sweep ignored) fail on the slope.
     #[test]
     fn linear_claim_on_a_seed_ensemble_fits_the_means() {
         let c = ensemble(
@@ -1405,9 +1531,10 @@ mod tests {
             &ensemble_obs(&c, &|i, j| 5.0 + 8.0 * xs[i] + scatter[j]),
         )
         .unwrap();
-        assert!(k.passed && k.value < 1e-12, "{k:?}");
+        assert_eq!(k.status, Status::Inconclusive, "{k:?}");
         assert!(
-            k.detail.contains("slope 8.000")
+            k.detail.contains("must exceed 0.0000: PASS")
+                && k.detail.contains("mean D = 5.000 + 8.000 x")
                 && k.detail
                     .contains("speed=0.7: 10.600 +- 0.208 (seed 3: 11.000, seed 1: 10.300"),
             "{}",
@@ -1417,10 +1544,7 @@ mod tests {
         let k = one(&c, &ensemble_obs(&c, &|i, j| curved[i] + scatter[j])).unwrap();
         assert!(!k.passed, "{k:?}");
         let k = one(&c, &ensemble_obs(&c, &|_, j| 10.0 + scatter[j])).unwrap();
-        assert!(
-            !k.passed && k.status == crate::compare::Status::Fail,
-            "{k:?}"
-        );
+        assert_eq!(k.status, Status::Fail, "{k:?}");
     }
 
     #[test]

@@ -87,12 +87,13 @@ impl Comparison {
     pub fn describe(&self) -> String {
         let d = self.decision();
         let rule = match self.rule {
+            Rule::Equivalence { margin } if margin.is_nan() => "no registered margin".into(),
             Rule::Equivalence { margin } => format!("margin +-{margin:.4}"),
             Rule::Exceeds { delta } => format!("must exceed {delta:.4}"),
         };
         let Some(e) = &self.estimate else {
             return format!(
-                "{}: {rule}: INCONCLUSIVE (one bed, or no finite value: no bed-to-bed variance)",
+                "{}: {rule}: INCONCLUSIVE (no estimate: one bed, a value that is not finite, or nothing registered to judge it by)",
                 self.what
             );
         };
@@ -174,7 +175,7 @@ pub(crate) fn nan_from_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f6
 }
 
 impl Check {
-    fn with_status(
+    pub(crate) fn with_status(
         name: impl Into<String>,
         gate: Gate,
         metric: impl Into<String>,

@@ -122,6 +122,9 @@ impl Report {
         let has = |st: Status| self.checks.iter().filter(|c| c.status == st).count();
         let verdict = if has(Status::Error) > 0 {
             "ERROR"
+        } else if self.errored && has(Status::NotCompared) == 0 && has(Status::Inconclusive) > 0 {
+            // Every gate was decided or under-resolved: the data could not tell.
+            "INCONCLUSIVE"
         } else if self.errored {
             "INCOMPLETE"
         } else if self.passed {
@@ -317,6 +320,21 @@ mod tests {
         assert!(md.contains(
             "3 checks: 1 pass, 1 FAIL, 0 INCONCLUSIVE, 1 NOT COMPARED, 0 ERROR (exit 2)."
         ));
+        let unresolved = || {
+            Check::with_status(
+                "u",
+                Gate::KPhi,
+                "x",
+                0.1,
+                0.2,
+                Status::Inconclusive,
+                "one bed",
+            )
+        };
+        let (h, _, code) = heading(vec![pass(), unresolved()]);
+        assert_eq!((h.as_str(), code), ("# t: INCONCLUSIVE", 2));
+        let (h, _, code) = heading(vec![unresolved(), undecided()]);
+        assert_eq!((h.as_str(), code), ("# t: INCOMPLETE", 2));
         let (h, _, code) = heading(vec![undecided(), Check::error("engine", "exit 1")]);
         assert_eq!((h.as_str(), code), ("# t: ERROR", 2));
         let (h, _, code) = heading(vec![pass(), fail()]);
