@@ -15,6 +15,7 @@ pub use error::CaseError;
 mod control;
 
 pub use control::{Gate, NegativeControl, Perturbation};
+pub use validate::RESERVED_NAMES;
 
 use std::path::{Path, PathBuf};
 
