@@ -326,6 +326,8 @@ fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
 
 fn real_main() -> Result<ExitCode> {
     let cli = Cli::parse();
+    // A switch that is not one (GRANVAL_REQUIRE_LIVE=ture) is refused before anything.
+    granval::experiments::env_flags::require_live()?;
     match cli.cmd {
         Cmd::Run {
             case,

@@ -9,6 +9,7 @@
 //! which a recorded reference must match.
 
 pub mod bed_cache;
+pub mod env_flags;
 pub mod impact2d;
 pub mod micro;
 pub mod penetration;
@@ -91,7 +92,9 @@ impl Default for Options {
     fn default() -> Self {
         Options {
             reference_root: PathBuf::from("reference"),
-            ref_mode: if std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1") {
+            // A value that is not a switch counts as on here, the strict reading (the
+            // binary refuses it with exit 2 before any run).
+            ref_mode: if env_flags::require_live().unwrap_or(true) {
                 RefMode::Live
             } else {
                 RefMode::Auto
