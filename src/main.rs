@@ -8,7 +8,7 @@ use granval::case::AnyCase;
 use granval::experiments::runner::{self, CaseOutcome};
 use granval::experiments::{Experiment, Options, RefMode, suite};
 use granval::report::Report;
-use granval::with_experiment;
+use granval::{out, outln, with_experiment};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -276,8 +276,8 @@ fn fresh_dir(dir: &Path, force: bool) -> Result<()> {
 
 fn finish(report: &Report, dir: &Path, title: &str) -> Result<ExitCode> {
     report.write(dir, title)?;
-    print!("{}", report.markdown(title));
-    println!("\nreport written to {}", dir.display());
+    out!("{}", report.markdown(title));
+    outln!("\nreport written to {}", dir.display());
     Ok(ExitCode::from(report.exit_code() as u8))
 }
 
@@ -353,7 +353,7 @@ fn real_main() -> Result<ExitCode> {
             let lines =
                 with_experiment!(c, false, |exp| runner::run_one(&exp, native, &opts, &out))?;
             for l in lines {
-                println!("{l}");
+                outln!("{l}");
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -460,7 +460,7 @@ fn real_main() -> Result<ExitCode> {
                 let c = load(&p)?;
                 let lines = with_experiment!(c, false, |exp| runner::refresh(&exp, &opts))?;
                 for l in lines {
-                    println!("{l}");
+                    outln!("{l}");
                 }
             }
             Ok(ExitCode::SUCCESS)
@@ -477,19 +477,19 @@ fn real_main() -> Result<ExitCode> {
                 exp.name().to_string(),
                 granval::experiments::validation_summary(&exp)
             ));
-            println!(
+            outln!(
                 "{}: valid {kind} case `{name}` (reference engine {engine})",
                 case.display()
             );
             let w = lines.iter().map(|l| l.label.len()).max().unwrap_or(0);
             for l in &lines {
                 if l.comment.is_empty() {
-                    println!("  {:<w$}  {}", l.label, l.value);
+                    outln!("  {:<w$}  {}", l.label, l.value);
                 } else {
-                    println!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
+                    outln!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
                 }
             }
-            println!(
+            outln!(
                 "next: granval deck {} -o DIR   (the {engine} input to read or run), granval compare {} --report OUT",
                 case.display(),
                 case.display()
@@ -530,9 +530,9 @@ fn real_main() -> Result<ExitCode> {
                 c => with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?,
             };
             for d in &dirs {
-                println!("{}", d.display());
+                outln!("{}", d.display());
             }
-            println!(
+            outln!(
                 "{} deck director{} written",
                 dirs.len(),
                 if dirs.len() == 1 { "y" } else { "ies" }
@@ -584,9 +584,7 @@ fn real_main() -> Result<ExitCode> {
                         || c.gate == granval::compare::Gate::Published
                 })
             {
-                println!(
-                    "--no-native: LIGGGHTS observables only, nothing compared between engines"
-                );
+                outln!("--no-native: LIGGGHTS observables only, nothing compared between engines");
             }
             Ok(code)
         }
@@ -649,7 +647,7 @@ fn real_main() -> Result<ExitCode> {
         }
         Cmd::CgBench { contacts, grid } => {
             let t = granval::analysis::cg_bench::time_cg(contacts, grid)?;
-            println!(
+            outln!(
                 "coarse graining: {} contacts, {} grains onto {} points ({grid}^3), {} threads: setup {:.3} s, fields {:.3} s, total {:.3} s",
                 t.n_contacts,
                 t.n_grains,
@@ -665,18 +663,19 @@ fn real_main() -> Result<ExitCode> {
             use granval::analysis::malt;
             if let Some(phi) = phi {
                 let q = malt::k_phi_deg(phi)?;
-                println!(
+                outln!(
                     "K_phi({phi} deg) = {:.9} (quadrature error estimate {:.1e})",
-                    q.value, q.abs_err
+                    q.value,
+                    q.abs_err
                 );
             }
             if let Some(k) = k {
-                println!("phi(K = {k}) = {:.6} deg", malt::phi_of_k(k)?.to_degrees());
+                outln!("phi(K = {k}) = {:.6} deg", malt::phi_of_k(k)?.to_degrees());
             }
             if table {
-                println!("phi_deg,K");
+                outln!("phi_deg,K");
                 for (p, kv) in malt::table(45.0, 0.5)? {
-                    println!("{p},{kv:.9}");
+                    outln!("{p},{kv:.9}");
                 }
             }
             if phi.is_none() && k.is_none() && !table {
@@ -688,11 +687,20 @@ fn real_main() -> Result<ExitCode> {
 }
 
 fn main() -> ExitCode {
-    match real_main() {
+    let code = match real_main() {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::from(2)
         }
+    };
+    // A closed pipe stops the printing quietly; any other failure to write stdout (a
+    // full disk under a redirection) is an error.
+    match granval::report::console::failure() {
+        Some(e) => {
+            eprintln!("error: cannot write to standard output: {e}");
+            ExitCode::from(2)
+        }
+        None => code,
     }
 }

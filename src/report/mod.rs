@@ -2,6 +2,7 @@
 //! people) and `report.junit.xml` (for CI dashboards). The exit code follows from
 //! [`Report::exit_code`].
 
+pub mod console;
 pub mod field_svg;
 pub mod plot;
 pub mod progress;
