@@ -5,6 +5,7 @@
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use granval::case::AnyCase;
+use granval::experiments::output_dir::{self, OutputDir, Protected};
 use granval::experiments::runner::{self, CaseOutcome};
 use granval::experiments::{Experiment, Options, RefMode, suite};
 use granval::report::Report;
@@ -252,26 +253,24 @@ fn options(c: &Common) -> Options {
     o
 }
 
-/// Makes `dir` a fresh, empty output directory: an existing non-empty one is refused
-/// (its old files would sit next to the new ones) unless `force` clears it.
-fn fresh_dir(dir: &Path, force: bool) -> Result<()> {
-    if dir.exists() {
-        let non_empty = std::fs::read_dir(dir)
-            .with_context(|| format!("cannot read {}", dir.display()))?
-            .next()
-            .is_some();
-        if non_empty {
-            if !force {
-                bail!(
-                    "{} is not empty: outputs go into a fresh directory; pass --force to clear it",
-                    dir.display()
-                );
-            }
-            std::fs::remove_dir_all(dir)
-                .with_context(|| format!("cannot clear {}", dir.display()))?;
-        }
-    }
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))
+/// Claims `dir` as this command's output directory (`flag` names the option in errors):
+/// new, empty, or (with `force`) one granval created, never where `protected` says it
+/// must not be (`experiments::output_dir`); locked until the returned guard is dropped.
+fn claim(dir: &Path, flag: &str, force: bool, protected: &Protected) -> Result<OutputDir> {
+    output_dir::claim(dir, flag, force, protected, &command_line())
+}
+
+/// This command as typed, for the output directory's marker and lock.
+fn command_line() -> String {
+    std::env::args_os()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// What every output directory keeps away from: the reference store.
+fn protected(common: &Common) -> Protected {
+    Protected::default().store(&common.reference, "the reference store")
 }
 
 fn finish(report: &Report, dir: &Path, title: &str) -> Result<ExitCode> {
@@ -348,7 +347,12 @@ fn real_main() -> Result<ExitCode> {
             if let Some(w) = wrong {
                 bail!("{}: --engine does not fit this case ({w})", case.display());
             }
-            fresh_dir(&out, common.force)?;
+            let _out = claim(
+                &out,
+                "--out",
+                common.force,
+                &protected(&common).input(&case),
+            )?;
             let native = engine == EngineName::Native;
             let lines =
                 with_experiment!(c, false, |exp| runner::run_one(&exp, native, &opts, &out))?;
@@ -362,7 +366,12 @@ fn real_main() -> Result<ExitCode> {
             report,
             common,
         } => {
-            fresh_dir(&report, common.force)?;
+            let _out = claim(
+                &report,
+                "--report",
+                common.force,
+                &protected(&common).input(&case),
+            )?;
             let o = compare_one(&case, false, &options(&common), &report);
             finish(
                 &report_of(vec![o]),
@@ -391,7 +400,16 @@ fn real_main() -> Result<ExitCode> {
                 }
                 entries.retain(|e| only.contains(&e.path));
             }
-            fresh_dir(&report, common.force)?;
+            let mut keep = protected(&common)
+                .input(suite::manifest(&cases, &suite))
+                .input(&cases);
+            for e in &s.cases {
+                keep = keep.input(&e.path);
+            }
+            for r in &runs {
+                keep = keep.store(r, "the --runs directory");
+            }
+            let _out = claim(&report, "--report", common.force, &keep)?;
             let mut opts = options(&common);
             opts.reference_root = s.reference_root(&opts.reference_root);
             let started = std::time::Instant::now();
@@ -522,7 +540,7 @@ fn real_main() -> Result<ExitCode> {
                     e.name()
                 );
             }
-            fresh_dir(&out, common.force)?;
+            let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
             let dirs = match c {
                 AnyCase::Penetration(c) => {
                     granval::experiments::penetration::deck_dir::write(&c, &out, bed, true)?
@@ -545,8 +563,15 @@ fn real_main() -> Result<ExitCode> {
             no_native,
             common,
         } => {
-            fresh_dir(&report, common.force)?;
             let case_file = dir.join("case.toml");
+            let _out = claim(
+                &report,
+                "--report",
+                common.force,
+                &protected(&common)
+                    .input(&case_file)
+                    .store(&dir, "the deck directory being analysed"),
+            )?;
             let c = load(&case_file).with_context(|| {
                 format!(
                     "{}: not a `granval deck` directory (it holds case.toml)",
@@ -631,9 +656,12 @@ fn real_main() -> Result<ExitCode> {
                     case.display()
                 );
             };
-            if !reuse {
-                fresh_dir(&out, common.force)?;
-            }
+            let keep = protected(&common).input(&case);
+            let _out = if reuse {
+                output_dir::reuse(&out, "--out", &keep, &command_line())?
+            } else {
+                claim(&out, "--out", common.force, &keep)?
+            };
             let exp = granval::experiments::penetration::Penetration {
                 case: pc,
                 stress: true,

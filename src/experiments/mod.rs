@@ -12,6 +12,7 @@ pub mod bed_cache;
 pub mod env_flags;
 pub mod impact2d;
 pub mod micro;
+pub mod output_dir;
 pub mod penetration;
 pub mod reference;
 pub mod runner;
