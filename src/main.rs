@@ -310,6 +310,48 @@ fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOut
     }
 }
 
+/// The suite's entries `--only` names, matched by the file they name (`./cases/x.toml`,
+/// an absolute path and `cases/x.toml` are one case); a name given twice is an error.
+fn only_entries(s: &suite::Suite, only: &[PathBuf]) -> Result<Vec<suite::SuiteCase>> {
+    let real = |p: &Path| std::fs::canonicalize(p).ok();
+    let mut picked: Vec<(usize, &Path)> = Vec::new();
+    for o in only {
+        let Some(r) = real(o) else {
+            bail!("--only {}: no such case file", o.display());
+        };
+        let Some(k) = s
+            .cases
+            .iter()
+            .position(|e| real(&e.path) == Some(r.clone()))
+        else {
+            bail!(
+                "--only {}: not a case of suite {} (its cases: {})",
+                o.display(),
+                s.name,
+                s.cases
+                    .iter()
+                    .map(|e| e.path.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        };
+        if let Some((_, first)) = picked.iter().find(|(j, _)| *j == k) {
+            bail!(
+                "--only {} and --only {} name the same case file {}: give each case once",
+                first.display(),
+                o.display(),
+                s.cases[k].path.display()
+            );
+        }
+        picked.push((k, o));
+    }
+    picked.sort_by_key(|(k, _)| *k);
+    Ok(picked
+        .into_iter()
+        .map(|(k, _)| s.cases[k].clone())
+        .collect())
+}
+
 fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
     let (mut checks, mut runs, mut notes, mut sections) = (vec![], vec![], vec![], vec![]);
     for o in outcomes {
@@ -393,12 +435,15 @@ fn real_main() -> Result<ExitCode> {
             if claims_only {
                 entries.clear();
             } else if !only.is_empty() {
-                for o in &only {
-                    if !entries.iter().any(|e| &e.path == o) {
-                        bail!("--only {}: not a case of suite {suite}", o.display());
-                    }
+                entries = only_entries(&s, &only)?;
+            }
+            for r in &runs {
+                if !r.is_dir() {
+                    bail!(
+                        "--runs {}: no such directory (an earlier output directory of check, compare or stress)",
+                        r.display()
+                    );
                 }
-                entries.retain(|e| only.contains(&e.path));
             }
             let mut keep = protected(&common)
                 .input(suite::manifest(&cases, &suite))
