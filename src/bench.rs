@@ -155,22 +155,22 @@ impl BenchResult {
     pub fn print(&self) {
         let ps = self.n as f64 * self.steps as f64;
         let (t1, t2) = (best(&self.native_1), best(&self.native_2));
-        println!(
+        crate::outln!(
             "native 1 thread : {:>10.3e} particle-steps/s ({t1:.2} s; all: {})",
             ps / t1,
             fmt_times(&self.native_1)
         );
-        println!(
+        crate::outln!(
             "native 2 threads: {:>10.3e} particle-steps/s ({t2:.2} s; all: {})",
             ps / t2,
             fmt_times(&self.native_2),
         );
-        println!(
+        crate::outln!(
             "ratio native(2 threads) / native(1 thread) = {:.2} (per round: {})",
             self.scaling_2(),
             round_ratios(&self.native_1, &self.native_2)
         );
-        println!(
+        crate::outln!(
             "native memory   : {:.0} bytes per particle in the engine's arrays; process peak RSS {:.1} MB",
             self.native_bytes,
             peak_rss_bytes().unwrap_or(f64::NAN) / 1e6
@@ -178,27 +178,27 @@ impl BenchResult {
         match (&self.liggghts_1, &self.liggghts_version) {
             (Some(vl), Some(v)) => {
                 let tl = best(vl);
-                println!(
+                crate::outln!(
                     "liggghts 1 proc : {:>10.3e} particle-steps/s ({tl:.2} s loop time; all: {}; {v})",
                     ps / tl,
                     fmt_times(vl)
                 );
                 if let Some(b) = self.liggghts_bytes {
-                    println!(
+                    crate::outln!(
                         "liggghts memory : {b:.0} bytes per particle (its own 'Memory usage per processor' estimate)"
                     );
                 }
-                println!(
+                crate::outln!(
                     "ratio native(1 thread) / liggghts(1 proc) = {:.2} (per round: {})",
                     tl / t1,
                     round_ratios(vl, &self.native_1)
                 );
-                println!(
+                crate::outln!(
                     "ratio native(2 threads) / liggghts(1 proc) = {:.2}",
                     tl / t2
                 );
             }
-            _ => println!("LIGGGHTS not installed: no ratio measured"),
+            _ => crate::outln!("LIGGGHTS not installed: no ratio measured"),
         }
     }
 }
@@ -208,12 +208,12 @@ impl BenchResult {
 pub fn run(n: usize, steps: u64, reps: usize) -> Result<()> {
     let t0 = Instant::now();
     let (case, ke_ratio) = settled_packing(n, 1, 0.15)?;
-    println!(
+    crate::outln!(
         "packing: {n} spheres settled natively in {:.1} s (KE now / peak KE = {ke_ratio:.1e}), dt = {:.3e} s",
         t0.elapsed().as_secs_f64(),
         case.dt
     );
-    println!(
+    crate::outln!(
         "timing {steps} steps per engine, {reps} repetitions (native 1 thread, 2 threads, LIGGGHTS in turn), best reported"
     );
     measure_packing(&case, steps, reps)?.print();
@@ -283,12 +283,12 @@ impl PenetrationBench {
     pub fn print(&self) {
         let ps = self.grains as f64 * self.steps as f64;
         let t2 = best(&self.native_2);
-        println!(
+        crate::outln!(
             "native 2 threads : {:>10.3e} particle-steps/s ({t2:.2} s; all: {})",
             ps / t2,
             fmt_times(&self.native_2)
         );
-        println!(
+        crate::outln!(
             "native memory    : {:.0} bytes per particle in the engine's arrays; process peak RSS {:.1} MB",
             self.native_bytes,
             peak_rss_bytes().unwrap_or(f64::NAN) / 1e6
@@ -296,23 +296,23 @@ impl PenetrationBench {
         match &self.liggghts_np2 {
             Some(vl) => {
                 let tl = best(vl);
-                println!(
+                crate::outln!(
                     "liggghts np 2    : {:>10.3e} particle-steps/s ({tl:.2} s loop time; all: {})",
                     ps / tl,
                     fmt_times(vl)
                 );
                 if let Some(b) = self.liggghts_bytes {
-                    println!(
+                    crate::outln!(
                         "liggghts memory  : {b:.0} bytes per particle (its own 'Memory usage per processor' estimate, both ranks)"
                     );
                 }
-                println!(
+                crate::outln!(
                     "ratio native(2 threads) / liggghts(np 2) = {:.2} (per round: {})",
                     tl / t2,
                     round_ratios(vl, &self.native_2)
                 );
             }
-            None => println!("LIGGGHTS not installed: no ratio measured"),
+            None => crate::outln!("LIGGGHTS not installed: no ratio measured"),
         }
     }
 }
@@ -335,7 +335,7 @@ pub fn run_penetration(case_path: &Path, steps: u64, reps: usize) -> Result<Pene
     let preparation = t0.elapsed().as_secs_f64();
     let steps = steps.min(dem::penetration::n_steps(&case, &bed));
     let grains = bed.spheres(&case).len();
-    println!(
+    crate::outln!(
         "{} (prepared in {preparation:.1} s, 2 threads){}",
         dem::packing::bed_note(&case, &bed),
         if bed.bodies.is_empty() {
@@ -348,7 +348,7 @@ pub fn run_penetration(case_path: &Path, steps: u64, reps: usize) -> Result<Pene
             )
         }
     );
-    println!(
+    crate::outln!(
         "timing {steps} penetration steps, {reps} repetitions (native 2 threads, LIGGGHTS np 2 in turn), best reported"
     );
     let mut deck = crate::experiments::penetration::bed::liggghts_deck(&case, &bed)?;

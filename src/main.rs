@@ -5,10 +5,11 @@
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use granval::case::AnyCase;
+use granval::experiments::output_dir::{self, OutputDir, Protected};
 use granval::experiments::runner::{self, CaseOutcome};
 use granval::experiments::{Experiment, Options, RefMode, suite};
 use granval::report::Report;
-use granval::with_experiment;
+use granval::{out, outln, with_experiment};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -284,32 +285,30 @@ fn options(c: &Common) -> Options {
     o
 }
 
-/// Makes `dir` a fresh, empty output directory: an existing non-empty one is refused
-/// (its old files would sit next to the new ones) unless `force` clears it.
-fn fresh_dir(dir: &Path, force: bool) -> Result<()> {
-    if dir.exists() {
-        let non_empty = std::fs::read_dir(dir)
-            .with_context(|| format!("cannot read {}", dir.display()))?
-            .next()
-            .is_some();
-        if non_empty {
-            if !force {
-                bail!(
-                    "{} is not empty: outputs go into a fresh directory; pass --force to clear it",
-                    dir.display()
-                );
-            }
-            std::fs::remove_dir_all(dir)
-                .with_context(|| format!("cannot clear {}", dir.display()))?;
-        }
-    }
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))
+/// Claims `dir` as this command's output directory (`flag` names the option in errors):
+/// new, empty, or (with `force`) one granval created, never where `protected` says it
+/// must not be (`experiments::output_dir`); locked until the returned guard is dropped.
+fn claim(dir: &Path, flag: &str, force: bool, protected: &Protected) -> Result<OutputDir> {
+    output_dir::claim(dir, flag, force, protected, &command_line())
+}
+
+/// This command as typed, for the output directory's marker and lock.
+fn command_line() -> String {
+    std::env::args_os()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// What every output directory keeps away from: the reference store.
+fn protected(common: &Common) -> Protected {
+    Protected::default().store(&common.reference, "the reference store")
 }
 
 fn finish(report: &Report, dir: &Path, title: &str) -> Result<ExitCode> {
     report.write(dir, title)?;
-    print!("{}", report.markdown(title));
-    println!("\nreport written to {}", dir.display());
+    out!("{}", report.markdown(title));
+    outln!("\nreport written to {}", dir.display());
     Ok(ExitCode::from(report.exit_code() as u8))
 }
 
@@ -343,6 +342,48 @@ fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOut
     }
 }
 
+/// The suite's entries `--only` names, matched by the file they name (`./cases/x.toml`,
+/// an absolute path and `cases/x.toml` are one case); a name given twice is an error.
+fn only_entries(s: &suite::Suite, only: &[PathBuf]) -> Result<Vec<suite::SuiteCase>> {
+    let real = |p: &Path| std::fs::canonicalize(p).ok();
+    let mut picked: Vec<(usize, &Path)> = Vec::new();
+    for o in only {
+        let Some(r) = real(o) else {
+            bail!("--only {}: no such case file", o.display());
+        };
+        let Some(k) = s
+            .cases
+            .iter()
+            .position(|e| real(&e.path) == Some(r.clone()))
+        else {
+            bail!(
+                "--only {}: not a case of suite {} (its cases: {})",
+                o.display(),
+                s.name,
+                s.cases
+                    .iter()
+                    .map(|e| e.path.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        };
+        if let Some((_, first)) = picked.iter().find(|(j, _)| *j == k) {
+            bail!(
+                "--only {} and --only {} name the same case file {}: give each case once",
+                first.display(),
+                o.display(),
+                s.cases[k].path.display()
+            );
+        }
+        picked.push((k, o));
+    }
+    picked.sort_by_key(|(k, _)| *k);
+    Ok(picked
+        .into_iter()
+        .map(|(k, _)| s.cases[k].clone())
+        .collect())
+}
+
 fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
     let (mut checks, mut runs, mut notes, mut sections) = (vec![], vec![], vec![], vec![]);
     for o in outcomes {
@@ -358,6 +399,8 @@ fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
 
 fn real_main() -> Result<ExitCode> {
     let cli = Cli::parse();
+    // A switch that is not one (GRANVAL_REQUIRE_LIVE=ture) is refused before anything.
+    granval::experiments::env_flags::require_live()?;
     match cli.cmd {
         Cmd::Run {
             case,
@@ -378,12 +421,17 @@ fn real_main() -> Result<ExitCode> {
             if let Some(w) = wrong {
                 bail!("{}: --engine does not fit this case ({w})", case.display());
             }
-            fresh_dir(&out, common.force)?;
+            let _out = claim(
+                &out,
+                "--out",
+                common.force,
+                &protected(&common).input(&case),
+            )?;
             let native = engine == EngineName::Native;
             let lines =
                 with_experiment!(c, false, |exp| runner::run_one(&exp, native, &opts, &out))?;
             for l in lines {
-                println!("{l}");
+                outln!("{l}");
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -392,7 +440,12 @@ fn real_main() -> Result<ExitCode> {
             report,
             common,
         } => {
-            fresh_dir(&report, common.force)?;
+            let _out = claim(
+                &report,
+                "--report",
+                common.force,
+                &protected(&common).input(&case),
+            )?;
             let o = compare_one(&case, false, &options(&common), &report);
             finish(
                 &report_of(vec![o]),
@@ -414,14 +467,26 @@ fn real_main() -> Result<ExitCode> {
             if claims_only {
                 entries.clear();
             } else if !only.is_empty() {
-                for o in &only {
-                    if !entries.iter().any(|e| &e.path == o) {
-                        bail!("--only {}: not a case of suite {suite}", o.display());
-                    }
-                }
-                entries.retain(|e| only.contains(&e.path));
+                entries = only_entries(&s, &only)?;
             }
-            fresh_dir(&report, common.force)?;
+            for r in &runs {
+                if !r.is_dir() {
+                    bail!(
+                        "--runs {}: no such directory (an earlier output directory of check, compare or stress)",
+                        r.display()
+                    );
+                }
+            }
+            let mut keep = protected(&common)
+                .input(suite::manifest(&cases, &suite))
+                .input(&cases);
+            for e in &s.cases {
+                keep = keep.input(&e.path);
+            }
+            for r in &runs {
+                keep = keep.store(r, "the --runs directory");
+            }
+            let _out = claim(&report, "--report", common.force, &keep)?;
             let mut opts = options(&common);
             opts.reference_root = s.reference_root(&opts.reference_root);
             let started = std::time::Instant::now();
@@ -503,7 +568,7 @@ fn real_main() -> Result<ExitCode> {
                 let c = load(&p)?;
                 let lines = with_experiment!(c, false, |exp| runner::refresh(&exp, &opts))?;
                 for l in lines {
-                    println!("{l}");
+                    outln!("{l}");
                 }
             }
             Ok(ExitCode::SUCCESS)
@@ -520,19 +585,19 @@ fn real_main() -> Result<ExitCode> {
                 exp.name().to_string(),
                 granval::experiments::validation_summary(&exp)
             ));
-            println!(
+            outln!(
                 "{}: valid {kind} case `{name}` (reference engine {engine})",
                 case.display()
             );
             let w = lines.iter().map(|l| l.label.len()).max().unwrap_or(0);
             for l in &lines {
                 if l.comment.is_empty() {
-                    println!("  {:<w$}  {}", l.label, l.value);
+                    outln!("  {:<w$}  {}", l.label, l.value);
                 } else {
-                    println!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
+                    outln!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
                 }
             }
-            println!(
+            outln!(
                 "next: granval deck {} -o DIR   (the {engine} input to read or run), granval compare {} --report OUT",
                 case.display(),
                 case.display()
@@ -565,7 +630,7 @@ fn real_main() -> Result<ExitCode> {
                     e.name()
                 );
             }
-            fresh_dir(&out, common.force)?;
+            let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
             let dirs = match c {
                 AnyCase::Penetration(c) => {
                     granval::experiments::penetration::deck_dir::write(&c, &out, bed, true)?
@@ -573,9 +638,9 @@ fn real_main() -> Result<ExitCode> {
                 c => with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?,
             };
             for d in &dirs {
-                println!("{}", d.display());
+                outln!("{}", d.display());
             }
-            println!(
+            outln!(
                 "{} deck director{} written",
                 dirs.len(),
                 if dirs.len() == 1 { "y" } else { "ies" }
@@ -588,8 +653,15 @@ fn real_main() -> Result<ExitCode> {
             no_native,
             common,
         } => {
-            fresh_dir(&report, common.force)?;
             let case_file = dir.join("case.toml");
+            let _out = claim(
+                &report,
+                "--report",
+                common.force,
+                &protected(&common)
+                    .input(&case_file)
+                    .store(&dir, "the deck directory being analysed"),
+            )?;
             let c = load(&case_file).with_context(|| {
                 format!(
                     "{}: not a `granval deck` directory (it holds case.toml)",
@@ -627,9 +699,7 @@ fn real_main() -> Result<ExitCode> {
                         || c.gate == granval::compare::Gate::Published
                 })
             {
-                println!(
-                    "--no-native: LIGGGHTS observables only, nothing compared between engines"
-                );
+                outln!("--no-native: LIGGGHTS observables only, nothing compared between engines");
             }
             Ok(code)
         }
@@ -676,9 +746,12 @@ fn real_main() -> Result<ExitCode> {
                     case.display()
                 );
             };
-            if !reuse {
-                fresh_dir(&out, common.force)?;
-            }
+            let keep = protected(&common).input(&case);
+            let _out = if reuse {
+                output_dir::reuse(&out, "--out", &keep, &command_line())?
+            } else {
+                claim(&out, "--out", common.force, &keep)?
+            };
             let exp = granval::experiments::penetration::Penetration {
                 case: pc,
                 stress: true,
@@ -702,7 +775,7 @@ fn real_main() -> Result<ExitCode> {
                     case.display()
                 );
             };
-            fresh_dir(&out, common.force)?;
+            let _out = claim(&out, "--out", common.force, &protected(&common).input(&case))?;
             let exp = granval::experiments::penetration::Penetration {
                 case: pc,
                 stress: false,
@@ -711,7 +784,7 @@ fn real_main() -> Result<ExitCode> {
                 granval::experiments::chaos::penetration(&exp, &family, &options(&common), &out)?;
             r.write(&out)?;
             let (s, n) = r.spread();
-            println!(
+            outln!(
                 "{}: chaos spread of ln K_phi s_c = {s:.4} over {n} beds (per bed: {}); {}",
                 r.case,
                 r.log_ratio
@@ -725,7 +798,7 @@ fn real_main() -> Result<ExitCode> {
         }
         Cmd::CgBench { contacts, grid } => {
             let t = granval::analysis::cg_bench::time_cg(contacts, grid)?;
-            println!(
+            outln!(
                 "coarse graining: {} contacts, {} grains onto {} points ({grid}^3), {} threads: setup {:.3} s, fields {:.3} s, total {:.3} s",
                 t.n_contacts,
                 t.n_grains,
@@ -741,18 +814,19 @@ fn real_main() -> Result<ExitCode> {
             use granval::analysis::malt;
             if let Some(phi) = phi {
                 let q = malt::k_phi_deg(phi)?;
-                println!(
+                outln!(
                     "K_phi({phi} deg) = {:.9} (quadrature error estimate {:.1e})",
-                    q.value, q.abs_err
+                    q.value,
+                    q.abs_err
                 );
             }
             if let Some(k) = k {
-                println!("phi(K = {k}) = {:.6} deg", malt::phi_of_k(k)?.to_degrees());
+                outln!("phi(K = {k}) = {:.6} deg", malt::phi_of_k(k)?.to_degrees());
             }
             if table {
-                println!("phi_deg,K");
+                outln!("phi_deg,K");
                 for (p, kv) in malt::table(45.0, 0.5)? {
-                    println!("{p},{kv:.9}");
+                    outln!("{p},{kv:.9}");
                 }
             }
             if phi.is_none() && k.is_none() && !table {
@@ -773,11 +847,20 @@ fn main() -> ExitCode {
     let result = real_main();
     // A signal's cleanup owns the exit (its code and its one line).
     children::wait_if_interrupted();
-    match result {
+    let code = match result {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::from(2)
         }
+    };
+    // A closed pipe stops the printing quietly; any other failure to write stdout (a
+    // full disk under a redirection) is an error.
+    match granval::report::console::failure() {
+        Some(e) => {
+            eprintln!("error: cannot write to standard output: {e}");
+            ExitCode::from(2)
+        }
+        None => code,
     }
 }

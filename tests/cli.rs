@@ -148,36 +148,57 @@ fn require_live_refuses_fallback() {
 }
 
 /// Outputs go into a fresh directory: a non-empty one is refused (exit 2, nothing
-/// written) unless `--force` clears it.
+/// written); `--force` clears it only when granval created it (its marker), and a
+/// directory granval did not create is refused even with `--force`, its files kept.
 #[test]
 fn non_empty_output_directory_is_refused_unless_forced() {
-    let out = tempfile::tempdir().unwrap();
-    let stale = out.path().join("stale.txt");
+    let foreign = tempfile::tempdir().unwrap();
+    let mine = foreign.path().join("notes.txt");
+    std::fs::write(&mine, "not granval's").unwrap();
+    for force in [false, true] {
+        let mut c = granval();
+        c.args(["compare", "cases/micro/spin.toml", "--report"])
+            .arg(foreign.path());
+        if force {
+            c.arg("--force");
+        }
+        let st = c.output().unwrap();
+        let err = String::from_utf8_lossy(&st.stderr);
+        assert_eq!(st.status.code(), Some(2), "{err}");
+        assert!(err.contains("not created by granval"), "{err}");
+        assert!(mine.exists() && !foreign.path().join("report.json").exists());
+    }
+
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("report");
+    let compare = |force: bool| {
+        let mut c = granval();
+        c.args(["compare", "cases/micro/spin.toml", "--report"])
+            .arg(&out);
+        if force {
+            c.arg("--force");
+        }
+        c.output().unwrap()
+    };
+    assert_eq!(compare(false).status.code(), Some(0));
+    let stale = out.join("stale.txt");
     std::fs::write(&stale, "from an earlier run").unwrap();
-    let st = granval()
-        .args(["compare", "cases/micro/spin.toml", "--report"])
-        .arg(out.path())
-        .output()
-        .unwrap();
+    let st = compare(false);
     let err = String::from_utf8_lossy(&st.stderr);
     assert_eq!(st.status.code(), Some(2), "{err}");
     assert!(
         err.contains("not empty") && err.contains("--force"),
         "{err}"
     );
-    assert!(stale.exists() && !out.path().join("report.json").exists());
-    let st = granval()
-        .args(["compare", "cases/micro/spin.toml", "--force", "--report"])
-        .arg(out.path())
-        .output()
-        .unwrap();
+    assert!(stale.exists());
+    let st = compare(true);
     assert_eq!(
         st.status.code(),
         Some(0),
         "{}",
         String::from_utf8_lossy(&st.stderr)
     );
-    assert!(!stale.exists() && out.path().join("report.json").exists());
+    assert!(!stale.exists() && out.join("report.json").exists());
 }
 
 /// `--reference-mode recorded` uses the sealed record even with LIGGGHTS installed, and

@@ -128,7 +128,9 @@ fn lammps_rows(sys: &System, n: u64, every: u64, name: &str) -> Vec<(u64, u64, [
             .run(sys, &outputs, &dir)
             .unwrap_or_else(|e| panic!("{e:#}"));
         eprintln!("[{name}] reference: LIVE {}", fin.version);
-        if std::env::var("GRANVAL_RECORD").is_ok_and(|v| v == "1") {
+        if granval::experiments::env_flags::flag("GRANVAL_RECORD")
+            .unwrap_or_else(|e| panic!("{e:#}"))
+        {
             record(&dir, &rec, &fin);
         }
         dir.join(lammps::SNAP_FILE)

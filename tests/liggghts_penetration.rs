@@ -402,7 +402,9 @@ fn live(units: Units, e: f64, label: &str) -> Option<(PenetrationDeck, Vec<Force
     let d = deck(units, e);
     let tmp = tempfile::tempdir().unwrap();
     // GRANVAL_KEEP_RUNS=1 keeps the run directories for inspection.
-    let (_guard, dir) = if std::env::var_os("GRANVAL_KEEP_RUNS").is_some() {
+    let (_guard, dir) = if granval::experiments::env_flags::flag("GRANVAL_KEEP_RUNS")
+        .unwrap_or_else(|e| panic!("{e:#}"))
+    {
         let p = tmp.keep();
         eprintln!("{label}: run directory kept at {}", p.display());
         (None, p)

@@ -228,7 +228,14 @@ fn a_case_name_that_is_a_path_is_refused() {
 fn a_used_output_directory_is_refused_unless_forced() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("out");
-    std::fs::create_dir_all(&out).unwrap();
+    // An earlier run's directory (granval's marker in it), with stale outputs.
+    let o = run(&[
+        "run",
+        "cases/micro/spin.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    expect(&o, 0, &[]);
     std::fs::write(out.join("particles.csv"), "stale").unwrap();
     std::fs::write(out.join("force.csv"), "stale from another run").unwrap();
     let o = run(&[

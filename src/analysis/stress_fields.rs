@@ -86,8 +86,11 @@ impl SnapshotPlan {
     pub fn read(dir: &Path) -> Result<SnapshotPlan> {
         let p = dir.join(PLAN_FILE);
         if p.exists() {
-            let text = std::fs::read_to_string(&p)
-                .with_context(|| format!("cannot read {}", p.display()))?;
+            let text = crate::rundata::fsio::read_to_string(
+                &p,
+                crate::rundata::fsio::MAX_RECORD_JSON,
+                "a snapshot plan (JSON)",
+            )?;
             let plan: SnapshotPlan = serde_json::from_str(&text)
                 .with_context(|| format!("{}: not a snapshot plan", p.display()))?;
             let mut all: Vec<u64> = plan.windows.iter().flat_map(|w| w.steps.clone()).collect();

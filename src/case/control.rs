@@ -337,3 +337,253 @@ pub(crate) fn controls(
     }
     Ok(out)
 }
+
+/// What a case gives a perturbation to act on, so a control that would change nothing
+/// (restitution 1.0 shifted up and capped at 1; friction scaled where every friction is
+/// 0; inertia of clumps where there are none) is refused as "not applicable" when the
+/// case is read, instead of running the case's own physics and reporting that "the
+/// control did not bite".
+pub(crate) struct Targets<'a> {
+    /// Pair coefficients the 3D native engine perturbs (`Simulation::from_case_perturbed`),
+    /// with the materials' Poisson ratios and whether a rolling model is on; `None`: the
+    /// 2D engine, which perturbs friction and the friction model only
+    /// (`physics::dem2d::impact::perturbed`).
+    pub spheres: Option<(&'a super::PairTable, &'a [super::Material], bool)>,
+    /// The case has rigid clumps (inertia and contact-mass perturbations need them).
+    pub clumps: bool,
+}
+
+/// Refuses every perturbation field of `controls` that would leave the native physics
+/// of the case unchanged or outside its physical range, naming the field and why.
+pub(crate) fn check_applicable(
+    ctx: &Ctx,
+    controls: &[NegativeControl],
+    t: &Targets,
+) -> Result<(), CaseError> {
+    for (k, c) in controls.iter().enumerate() {
+        let p = &c.perturbation;
+        let f = |n: &str| format!("negative_control[{k}].perturbation.{n}");
+        let na = |field: &str, value: f64, why: String| {
+            ctx.bad(f(field), value, format!("not applicable: {why}"))
+        };
+        let two_d = "the 2D engine perturbs only friction (friction_factor, pair_friction, swap_friction_model) and the sweep, packing, size and interface switches";
+        if p.restitution_shift != 0.0 {
+            let Some((pairs, _, _)) = t.spheres else {
+                return Err(na("restitution_shift", p.restitution_shift, two_d.into()));
+            };
+            let shifted: Vec<f64> = pairs
+                .restitution
+                .iter()
+                .map(|e| (e + p.restitution_shift).min(1.0))
+                .collect();
+            if shifted.iter().zip(&pairs.restitution).all(|(s, e)| s == e) {
+                return Err(na(
+                    "restitution_shift",
+                    p.restitution_shift,
+                    format!(
+                        "every restitution coefficient of the case ({:?}) is already 1 and a shifted one is capped at 1, so the control would run the case's own physics; shift down or perturb something else",
+                        pairs.restitution
+                    ),
+                ));
+            }
+            if let Some(s) = shifted.iter().find(|s| **s <= 0.0) {
+                return Err(na(
+                    "restitution_shift",
+                    p.restitution_shift,
+                    format!("a shifted restitution coefficient would be {s}, not in (0, 1]"),
+                ));
+            }
+        }
+        if p.poisson_shift != 0.0 {
+            let Some((_, materials, _)) = t.spheres else {
+                return Err(na("poisson_shift", p.poisson_shift, two_d.into()));
+            };
+            if let Some(m) = materials.iter().find(|m| {
+                let nu = m.poisson_ratio + p.poisson_shift;
+                !(nu > -1.0 && nu < 0.5)
+            }) {
+                return Err(na(
+                    "poisson_shift",
+                    p.poisson_shift,
+                    format!(
+                        "a Poisson ratio of {} would become {}, outside (-1, 0.5)",
+                        m.poisson_ratio,
+                        m.poisson_ratio + p.poisson_shift
+                    ),
+                ));
+            }
+        }
+        if p.friction_factor != 1.0
+            && let Some((pairs, _, _)) = t.spheres
+            && pairs.friction.iter().all(|m| *m == 0.0)
+        {
+            return Err(na(
+                "friction_factor",
+                p.friction_factor,
+                "every sliding friction coefficient of the case is 0, so scaling it changes nothing".into(),
+            ));
+        }
+        if let Some((a, b, v)) = p.pair_friction
+            && let Some((pairs, _, _)) = t.spheres
+            && pairs.friction[pairs.idx(a, b)] == v
+        {
+            return Err(na(
+                "pair_friction.value",
+                v,
+                format!(
+                    "types [{}, {}] already have sliding friction {v}",
+                    a + 1,
+                    b + 1
+                ),
+            ));
+        }
+        if p.rolling_friction_factor != 1.0
+            && let Some((pairs, _, rolling)) = t.spheres
+        {
+            if !rolling {
+                return Err(na(
+                    "rolling_friction_factor",
+                    p.rolling_friction_factor,
+                    "the case has no rolling friction model (models.rolling = \"none\")".into(),
+                ));
+            }
+            if pairs.rolling_friction.iter().all(|m| *m == 0.0) {
+                return Err(na(
+                    "rolling_friction_factor",
+                    p.rolling_friction_factor,
+                    "every rolling friction coefficient of the case is 0, so scaling it changes nothing".into(),
+                ));
+            }
+        }
+        if p.swap_friction_model && t.spheres.is_some() {
+            return Err(ctx.bad(
+                f("swap_friction_model"),
+                true,
+                "not applicable: only the 2D engine has a static and a kinetic friction model to swap",
+            ));
+        }
+        if (p.inertia_factor != 1.0 || p.member_sphere_mass) && !t.clumps {
+            let (field, value) = if p.inertia_factor != 1.0 {
+                ("inertia_factor", p.inertia_factor)
+            } else {
+                ("member_sphere_mass", 1.0)
+            };
+            return Err(na(
+                field,
+                value,
+                "the case has no rigid clumps, whose inertia and contact mass this perturbs".into(),
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod applicable_tests {
+    use super::*;
+    use crate::case::{Material, PairTable};
+
+    fn pairs(e: f64, mu: f64) -> PairTable {
+        PairTable {
+            n_types: 1,
+            restitution: vec![e],
+            friction: vec![mu],
+            rolling_friction: vec![0.0],
+        }
+    }
+
+    fn control(p: Perturbation) -> NegativeControl {
+        NegativeControl {
+            name: "c".into(),
+            perturbation: p,
+            must_fail: vec![Gate::Velocity],
+        }
+    }
+
+    fn check(p: Perturbation, table: &PairTable) -> Result<(), String> {
+        let m = [Material {
+            youngs_modulus: 1e7,
+            shear_modulus: 1e7 / 2.6,
+            poisson_ratio: 0.3,
+        }];
+        check_applicable(
+            &Ctx {
+                file: "c.toml".into(),
+            },
+            &[control(p)],
+            &Targets {
+                spheres: Some((table, &m, false)),
+                clumps: false,
+            },
+        )
+        .map_err(|e| e.to_string())
+    }
+
+    /// e = 1.0 + 0.05 is capped back to 1: the control is not applicable, said when the
+    /// case is read; e = 0.9 + 0.05 changes the physics and is accepted.
+    #[test]
+    fn a_clamped_restitution_shift_is_not_applicable() {
+        let up = Perturbation {
+            restitution_shift: 0.05,
+            ..Perturbation::default()
+        };
+        let e = check(up, &pairs(1.0, 0.5)).unwrap_err();
+        assert!(
+            e.contains("negative_control[0].perturbation.restitution_shift")
+                && e.contains("not applicable")
+                && e.contains("capped at 1"),
+            "{e}"
+        );
+        assert!(check(up, &pairs(0.9, 0.5)).is_ok());
+        let down = Perturbation {
+            restitution_shift: -0.95,
+            ..Perturbation::default()
+        };
+        assert!(
+            check(down, &pairs(0.9, 0.5))
+                .unwrap_err()
+                .contains("not in (0, 1]")
+        );
+    }
+
+    #[test]
+    fn perturbations_of_absent_physics_are_not_applicable() {
+        let fric = Perturbation {
+            friction_factor: 2.0,
+            ..Perturbation::default()
+        };
+        assert!(
+            check(fric, &pairs(0.5, 0.0))
+                .unwrap_err()
+                .contains("not applicable")
+        );
+        assert!(check(fric, &pairs(0.5, 0.3)).is_ok());
+        let roll = Perturbation {
+            rolling_friction_factor: 2.0,
+            ..Perturbation::default()
+        };
+        assert!(
+            check(roll, &pairs(0.5, 0.3))
+                .unwrap_err()
+                .contains("no rolling")
+        );
+        let inertia = Perturbation {
+            inertia_factor: 2.0,
+            ..Perturbation::default()
+        };
+        assert!(
+            check(inertia, &pairs(0.5, 0.3))
+                .unwrap_err()
+                .contains("no rigid clumps")
+        );
+        let nu = Perturbation {
+            poisson_shift: 0.3,
+            ..Perturbation::default()
+        };
+        assert!(
+            check(nu, &pairs(0.5, 0.3))
+                .unwrap_err()
+                .contains("outside (-1, 0.5)")
+        );
+    }
+}

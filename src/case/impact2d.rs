@@ -1469,6 +1469,14 @@ impl Impact2dCase {
         // Wall disks are type 2, the intruder type 3 (a pair_friction control names them).
         let negative_controls =
             super::control::controls(&ctx, &raw.negative_control, 3, IMPACT2D_GATES)?;
+        super::control::check_applicable(
+            &ctx,
+            &negative_controls,
+            &super::control::Targets {
+                spheres: None,
+                clumps: false,
+            },
+        )?;
         if raw.sweep.is_none()
             && let Some(k) = negative_controls
                 .iter()

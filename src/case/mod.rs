@@ -15,6 +15,7 @@ pub use error::CaseError;
 mod control;
 
 pub use control::{Gate, NegativeControl, Perturbation};
+pub use validate::RESERVED_NAMES;
 
 use std::path::{Path, PathBuf};
 
@@ -51,11 +52,20 @@ pub(crate) use validated_case;
 
 validated_case!(Case);
 
-/// The text of a case file, or the error naming it.
+/// The text of a case file, or the error naming it: a regular file of at most
+/// [`MAX_CASE_FILE`](crate::rundata::fsio::MAX_CASE_FILE) (`granval validate /dev/zero`
+/// is an error, not a read without end).
 pub(crate) fn read_case_file(path: &Path) -> Result<String, CaseError> {
-    std::fs::read_to_string(path).map_err(|error| CaseError::Io {
-        file: path.to_path_buf(),
-        error,
+    use crate::rundata::fsio;
+    fsio::read_to_string(path, fsio::MAX_CASE_FILE, "a case file (TOML text)").map_err(|e| {
+        let reason = e.reason();
+        CaseError::Io {
+            file: path.to_path_buf(),
+            error: match e.problem {
+                fsio::Problem::Io(error) => error,
+                _ => std::io::Error::other(reason),
+            },
+        }
     })
 }
 

@@ -869,6 +869,14 @@ impl PenetrationCase {
 
         let negative_controls =
             super::control::controls(&ctx, &raw.negative_control, n_types, PENETRATION_GATES)?;
+        super::control::check_applicable(
+            &ctx,
+            &negative_controls,
+            &super::control::Targets {
+                spheres: Some((&pairs, &materials, rolling != super::RollingModel::None)),
+                clumps: clump.is_some(),
+            },
+        )?;
         Ok(PenetrationCase {
             negative_controls,
             name: raw.case.name,

@@ -392,6 +392,18 @@ impl TriaxialCase {
                 TRIAXIAL_GATES,
             )?,
         };
+        super::control::check_applicable(
+            &ctx,
+            &case.negative_controls,
+            &super::control::Targets {
+                spheres: Some((
+                    &case.pairs,
+                    &case.materials,
+                    case.rolling != super::RollingModel::None,
+                )),
+                clumps: false,
+            },
+        )?;
         let (side, n) = case.lattice_box();
         let spacing = side / n as f64;
         if spacing <= diameter {

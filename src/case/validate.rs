@@ -47,9 +47,35 @@ pub(super) fn parse_kind<T: serde::de::DeserializeOwned>(
     Ok((raw, ctx))
 }
 
+/// Names of what granval writes beside the case directories of a report or deck
+/// directory (the report files, the claim figures, the deck's README and case file, a
+/// summary): a case may not be named like one, or its directory and that file would
+/// clash ("Is a directory" at the end of a run). Compared without case, for file
+/// systems that ignore it.
+pub const RESERVED_NAMES: [&str; 8] = [
+    "report.json",
+    "report.md",
+    "report.junit.xml",
+    "claims",
+    "malt_verdict.svg",
+    "case.toml",
+    "README.txt",
+    "summary.json",
+];
+
 /// Case names become directory names under `--report` and `reference/`: only
-/// `[A-Za-z0-9._-]`, not starting with a dot, so a name can never climb out of them.
+/// `[A-Za-z0-9._-]`, not starting with a dot, so a name can never climb out of them,
+/// and none of [`RESERVED_NAMES`].
 pub(super) fn case_name(ctx: &Ctx, name: &str) -> Result<(), CaseError> {
+    if let Some(r) = RESERVED_NAMES.iter().find(|r| r.eq_ignore_ascii_case(name)) {
+        return Err(ctx.bad(
+            "case.name",
+            name,
+            format!(
+                "{r} is a file granval writes beside the case directories of a report; name the case otherwise"
+            ),
+        ));
+    }
     let ok = !name.is_empty()
         && name.len() <= 100
         && !name.starts_with('.')
@@ -548,6 +574,14 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             &MICRO_GATES[..3]
         } else {
             MICRO_GATES
+        },
+    )?;
+    super::control::check_applicable(
+        &ctx,
+        &negative_controls,
+        &super::control::Targets {
+            spheres: Some((&pairs, &materials, rolling != RollingModel::None)),
+            clumps: !clumps.is_empty(),
         },
     )?;
 

@@ -71,8 +71,11 @@ impl MaltPoints {
 
     pub fn read(dir: &Path) -> Result<MaltPoints> {
         let p = dir.join(MALT_POINTS_FILE);
-        let text =
-            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?;
+        let text = crate::rundata::fsio::read_to_string(
+            &p,
+            crate::rundata::fsio::MAX_RECORD_JSON,
+            "a stress run's MALT points (JSON)",
+        )?;
         serde_json::from_str(&text)
             .with_context(|| format!("{}: not a stress run's MALT points", p.display()))
     }
@@ -107,8 +110,11 @@ impl IndependentAngles {
 
     pub fn read(dir: &Path) -> Result<IndependentAngles> {
         let p = dir.join(ANGLES_FILE);
-        let text =
-            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?;
+        let text = crate::rundata::fsio::read_to_string(
+            &p,
+            crate::rundata::fsio::MAX_RECORD_JSON,
+            "a run's independent angles (JSON)",
+        )?;
         serde_json::from_str(&text)
             .with_context(|| format!("{}: not a run's independent angles", p.display()))
     }

@@ -103,8 +103,11 @@ impl CaseSummary {
 
     pub fn read(dir: &Path) -> Result<CaseSummary> {
         let p = dir.join(SUMMARY_FILE);
-        let text =
-            std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()))?;
+        let text = crate::rundata::fsio::read_to_string(
+            &p,
+            crate::rundata::fsio::MAX_RECORD_JSON,
+            "a case summary (JSON)",
+        )?;
         serde_json::from_str(&text).with_context(|| format!("{}: not a case summary", p.display()))
     }
 }

@@ -220,12 +220,13 @@ pub fn check_same_input(
     skip_first: bool,
 ) -> anyhow::Result<()> {
     let path = dir.join(name);
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        anyhow::anyhow!(
-            "cannot read {}: {e} (a deck directory holds every input `granval deck` wrote)",
-            path.display()
-        )
-    })?;
+    // What the file should hold is `expected` up to comments and number notation: four
+    // times its size (and 1 MiB for a small one) is generous, and bounds the read.
+    let max = 4 * expected.len() as u64 + crate::rundata::fsio::MIB;
+    let text = crate::rundata::fsio::read_to_string(&path, max, &format!("the input {name}"))
+        .map_err(|e| {
+            anyhow::anyhow!("{e} (a deck directory holds every input `granval deck` wrote)")
+        })?;
     let body = |t: &str| -> String {
         if skip_first {
             t.split_once('\n').map(|(_, b)| b).unwrap_or("").to_string()

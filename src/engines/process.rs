@@ -406,9 +406,11 @@ pub fn remove_stale(dir: &Path, names: &[&str]) -> Result<()> {
     Ok(())
 }
 
-/// A file's text, invalid UTF-8 replaced, empty when it is missing.
+/// A file's text, invalid UTF-8 replaced, empty when it is missing (or not a regular
+/// file within the bound of an engine's output).
 fn read_lossy(path: &Path) -> String {
-    std::fs::read(path)
+    use crate::rundata::fsio;
+    fsio::read(path, fsio::max_engine_output(), "an engine's output")
         .map(|b| String::from_utf8_lossy(&b).into_owned())
         .unwrap_or_default()
 }

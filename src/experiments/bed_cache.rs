@@ -38,7 +38,12 @@ pub const FROM_RECORD_NOTE: &str = "; taken from the sealed reference record, wh
 
 /// The cached bed, if there is a readable one.
 pub fn load<T: DeserializeOwned>(file: Option<&Path>) -> Option<T> {
-    serde_json::from_slice(&std::fs::read(file?).ok()?).ok()
+    let bytes = crate::rundata::fsio::read(
+        file?,
+        crate::rundata::fsio::MAX_RECORD_JSON,
+        "a prepared bed (JSON)",
+    );
+    serde_json::from_slice(&bytes.ok()?).ok()
 }
 
 /// Stores a bed; a failure only costs the next run a preparation.

@@ -312,7 +312,11 @@ impl Experiment for Impact2d {
         let out = self.outputs(u);
         let fin = lammps::finished(&u.scene.sys, &out, dir)?;
         let series = lammps::impact::read(&u.scene, &out, &energy_model(&u.scene), dir)?;
-        let procs = lammps_procs(&std::fs::read_to_string(dir.join(lammps::LOG_FILE))?);
+        let procs = lammps_procs(&crate::rundata::fsio::read_to_string(
+            &dir.join(lammps::LOG_FILE),
+            crate::rundata::fsio::max_engine_output(),
+            "a LAMMPS log",
+        )?);
         Ok(self.lammps_run(u, series, &fin, procs))
     }
 

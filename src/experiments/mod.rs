@@ -10,8 +10,10 @@
 
 pub mod bed_cache;
 pub mod chaos;
+pub mod env_flags;
 pub mod impact2d;
 pub mod micro;
+pub mod output_dir;
 pub mod penetration;
 pub mod reference;
 pub mod runner;
@@ -98,7 +100,9 @@ impl Default for Options {
     fn default() -> Self {
         Options {
             reference_root: PathBuf::from("reference"),
-            ref_mode: if std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1") {
+            // A value that is not a switch counts as on here, the strict reading (the
+            // binary refuses it with exit 2 before any run).
+            ref_mode: if env_flags::require_live().unwrap_or(true) {
                 RefMode::Live
             } else {
                 RefMode::Auto

@@ -165,11 +165,20 @@ pub fn verify(
 ) -> Result<Verified> {
     let hint = rerecord_hint(case_file);
     let path = root.join(SEAL_FILE);
-    let text = std::fs::read_to_string(&path).with_context(|| {
-        format!(
-            "{}: no sealed reference record for this case ({hint})",
-            path.display()
-        )
+    let text = crate::rundata::fsio::read_to_string(
+        &path,
+        crate::rundata::fsio::MAX_RECORD_JSON,
+        "a seal (JSON)",
+    )
+    .map_err(|e| {
+        if e.is_not_found() {
+            anyhow::anyhow!(
+                "{}: no sealed reference record for this case ({hint})",
+                path.display()
+            )
+        } else {
+            anyhow::anyhow!("{e} ({hint})")
+        }
     })?;
     let seal: Seal = serde_json::from_str(&text)
         .with_context(|| format!("{}: not a seal ({hint})", path.display()))?;
@@ -207,8 +216,15 @@ pub fn verify(
         let dir = unit_dir(root, name);
         for (file, want) in &u.files {
             let p = dir.join(file);
-            let got = Sha256::of_file(&p)
-                .with_context(|| format!("{}: sealed file missing ({hint})", p.display()))?;
+            let got = Sha256::of_file(&p).map_err(|e| {
+                if p.exists() {
+                    anyhow::anyhow!(
+                        "{e:#}: a sealed file must be the regular file recorded ({hint})"
+                    )
+                } else {
+                    anyhow::anyhow!("{}: sealed file missing ({hint})", p.display())
+                }
+            })?;
             if &got != want {
                 bail!(
                     "{}: content differs from the seal (sha256 {got}, sealed {want}): the recorded reference was modified; {hint}",

@@ -55,7 +55,7 @@ pub fn resolve<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<String>>
         RefMode::Live => match reference::probe(engine)? {
             Some(v) => Ok(Some(v)),
             None => bail!(
-                "{engine} is not installed but live engines are required (GRANVAL_REQUIRE_LIVE=1 / --reference live)"
+                "{engine} is not installed but live engines are required (GRANVAL_REQUIRE_LIVE / --reference-mode live / --require-live)"
             ),
         },
         RefMode::Auto => reference::probe(engine),

@@ -195,11 +195,26 @@ pub fn names(cases_root: &Path) -> Vec<String> {
 }
 
 pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
+    // A suite is named, not a path: `--suite ../../x` must not read any TOML on disk.
+    ensure!(
+        !name.is_empty()
+            && !name.starts_with('.')
+            && name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "._-".contains(c)),
+        "--suite {name:?}: a suite is a plain name of a file in {} (suites here: {})",
+        cases_root.join("suites").display(),
+        names(cases_root).join(", ")
+    );
     let path = manifest(cases_root, name);
-    let text = std::fs::read_to_string(&path).with_context(|| {
+    let text = crate::rundata::fsio::read_to_string(
+        &path,
+        crate::rundata::fsio::MAX_CASE_FILE,
+        "a suite file (TOML text)",
+    )
+    .with_context(|| {
         format!(
-            "suite {name:?}: cannot read {} (suites here: {})",
-            path.display(),
+            "suite {name:?} (suites here: {})",
             names(cases_root).join(", ")
         )
     })?;
@@ -219,6 +234,8 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         }
     };
     let mut cases = Vec::new();
+    // (entry index, canonical path, entry's path) of every case file taken so far.
+    let mut listed: Vec<(usize, PathBuf, String)> = Vec::new();
     for (k, e) in f.cases.iter().enumerate() {
         let expanded = if let Some(dir) = e.path.strip_suffix("/*.toml") {
             let d = cases_root.join(dir);
@@ -254,6 +271,22 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
                     p.display()
                 );
             }
+            // One case file listed twice would run twice into one output directory.
+            let real = std::fs::canonicalize(&p).unwrap_or_else(|_| p.clone());
+            if let Some((j, first)) = listed
+                .iter()
+                .find(|(_, r, _)| *r == real)
+                .map(|(j, _, f)| (*j, f))
+            {
+                bail!(
+                    "{}: case[{j}].path = {:?} and case[{k}].path = {:?} both name {}: list each case file once",
+                    path.display(),
+                    first,
+                    e.path,
+                    p.display()
+                );
+            }
+            listed.push((k, real, e.path.clone()));
             cases.push(SuiteCase {
                 path: p,
                 stress: e.stress,

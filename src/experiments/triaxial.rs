@@ -143,8 +143,11 @@ impl Triaxial {
         let d = liggghts_deck(&self.case, u);
         let (records, mut provenance) = lt::read_outputs(&d, dir)
             .with_context(|| format!("LIGGGHTS run in {}", dir.display()))?;
-        if let Ok(on_disk) = std::fs::read_to_string(dir.join(lt::DECK_FILE))
-            && !crate::engines::deck_text::same_input(&on_disk, &lt::deck_text(&d)?)
+        if let Ok(on_disk) = crate::rundata::fsio::read_to_string(
+            &dir.join(lt::DECK_FILE),
+            crate::rundata::fsio::max_engine_output(),
+            "a LIGGGHTS deck",
+        ) && !crate::engines::deck_text::same_input(&on_disk, &lt::deck_text(&d)?)
         {
             provenance.notes.push(format!(
                 "{} differs from the deck granval writes for this case and sample (edited by hand?)",

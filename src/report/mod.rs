@@ -2,6 +2,7 @@
 //! people) and `report.junit.xml` (for CI dashboards). The exit code follows from
 //! [`Report::exit_code`].
 
+pub mod console;
 pub mod field_svg;
 pub mod plot;
 pub mod progress;
@@ -17,6 +18,11 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::Path;
+
+/// The report files of a report directory.
+pub const JSON_FILE: &str = "report.json";
+pub const MARKDOWN_FILE: &str = "report.md";
+pub const JUNIT_FILE: &str = "report.junit.xml";
 
 /// How one case was run: which engines, and whether the reference was live or recorded.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -104,15 +110,19 @@ impl Report {
         }
     }
 
+    /// Writes the three report files, each whole or not at all (a temporary file renamed
+    /// into place: a full disk or a crash leaves no truncated report); `report.json`, the
+    /// machine interface, last, so its presence means the others are complete. An error
+    /// names the file that could not be written.
     pub fn write(&self, dir: &Path, title: &str) -> Result<()> {
+        use crate::rundata::fsio::write_atomic;
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        std::fs::write(
-            dir.join("report.json"),
-            serde_json::to_string_pretty(self)? + "\n",
-        )?;
-        std::fs::write(dir.join("report.md"), self.markdown(title))?;
-        std::fs::write(dir.join("report.junit.xml"), self.junit(title))?;
-        Ok(())
+        write_atomic(&dir.join(MARKDOWN_FILE), self.markdown(title).as_bytes())?;
+        write_atomic(&dir.join(JUNIT_FILE), self.junit(title).as_bytes())?;
+        write_atomic(
+            &dir.join(JSON_FILE),
+            (serde_json::to_string_pretty(self)? + "\n").as_bytes(),
+        )
     }
 
     pub fn markdown(&self, title: &str) -> String {

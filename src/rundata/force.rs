@@ -33,8 +33,7 @@ pub fn write_force_csv(path: &Path, samples: &[ForceSample]) -> Result<()> {
 
 /// Reads a `force.csv` written by [`write_force_csv`].
 pub fn read_force_csv(path: &Path) -> Result<Vec<ForceSample>> {
-    let mut r =
-        csv::Reader::from_path(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut r = csv::Reader::from_reader(super::fsio::open_engine_output(path, "a force CSV")?);
     let mut out = Vec::new();
     for (k, rec) in r.records().enumerate() {
         let rec = rec.with_context(|| format!("{}: record {}", path.display(), k + 2))?;

@@ -100,7 +100,7 @@ pub fn write_particles_csv(path: &Path, frames: &[Frame]) -> Result<()> {
 pub struct CsvFrames {
     path: std::path::PathBuf,
     dt: f64,
-    records: csv::StringRecordsIntoIter<std::fs::File>,
+    records: csv::StringRecordsIntoIter<super::fsio::Bounded>,
     line: usize,
     pending: Option<(f64, ParticleState)>,
     done: bool,
@@ -108,8 +108,8 @@ pub struct CsvFrames {
 
 impl CsvFrames {
     pub fn open(path: &Path, dt: f64) -> Result<CsvFrames> {
-        let mut r = csv::Reader::from_path(path)
-            .with_context(|| format!("cannot open {}", path.display()))?;
+        let mut r =
+            csv::Reader::from_reader(super::fsio::open_engine_output(path, "a particle CSV")?);
         let header: Vec<String> = r.headers()?.iter().map(str::to_string).collect();
         if header != CSV_HEADER {
             anyhow::bail!(
@@ -272,15 +272,14 @@ impl JsonlFrameWriter {
 /// `frames.jsonl` read back one frame at a time.
 pub struct JsonlFrames {
     path: std::path::PathBuf,
-    lines: std::io::Lines<std::io::BufReader<std::fs::File>>,
+    lines: std::io::Lines<std::io::BufReader<super::fsio::Bounded>>,
     no: usize,
 }
 
 impl JsonlFrames {
     pub fn open(path: &Path) -> Result<JsonlFrames> {
         use std::io::BufRead;
-        let f =
-            std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+        let f = super::fsio::open_engine_output(path, "a frames file (JSON lines)")?;
         Ok(JsonlFrames {
             path: path.to_path_buf(),
             lines: std::io::BufReader::new(f).lines(),

@@ -107,8 +107,10 @@ struct EnergyRow {
 
 /// Every row of a headed CSV file; an error names the file (csv names line and field).
 fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
-    let mut r =
-        csv::Reader::from_path(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut r = csv::Reader::from_reader(super::fsio::open_engine_output(
+        path,
+        "an impact-series CSV",
+    )?);
     r.deserialize()
         .map(|row| row.with_context(|| format!("{}", path.display())))
         .collect()

@@ -4,6 +4,7 @@
 
 pub mod force;
 pub mod frames;
+pub mod fsio;
 pub mod impact;
 pub mod provenance;
 pub mod snapshot;

@@ -45,12 +45,16 @@ impl Sha256 {
         Sha256(sha256_hex(bytes))
     }
 
-    /// Digest of a file, read in chunks.
+    /// Digest of a file, streamed in chunks. The file must be a regular file (checked
+    /// before it is opened: a FIFO in a record would block, `/dev/zero` never end) and
+    /// is read up to the size its metadata gave: a file that grows while it is hashed is
+    /// an error, not an endless read.
     pub fn of_file(path: &Path) -> Result<Sha256> {
         use sha2::Digest;
         use std::io::Read;
-        let mut f =
-            std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+        let what = "a file granval hashes";
+        let size = super::fsio::check_regular(path, u64::MAX, what)?;
+        let mut f = super::fsio::open_unlined(path, size, what)?;
         let mut h = sha2::Sha256::new();
         let mut buf = vec![0u8; 1 << 16];
         loop {
@@ -122,8 +126,11 @@ pub fn write_provenance(path: &Path, p: &Provenance) -> Result<()> {
 }
 
 pub fn read_provenance(path: &Path) -> Result<Provenance> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = super::fsio::read_to_string(
+        path,
+        super::fsio::MAX_RECORD_JSON,
+        "a provenance record (JSON)",
+    )?;
     serde_json::from_str(&text)
         .with_context(|| format!("{}: not a provenance record", path.display()))
 }

@@ -227,7 +227,7 @@ fn parse_id(path: &Path, lineno: usize, col: &str, t: &str) -> Result<u64> {
 /// Opens a CSV, checks its header and returns the remaining lines with 1-based numbers;
 /// a read error ends the iteration with that error (never silently).
 fn lines(path: &Path, header: &str) -> Result<impl Iterator<Item = Result<(usize, String)>>> {
-    let f = std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let f = super::fsio::open_engine_output(path, "a snapshot CSV")?;
     let mut it = std::io::BufReader::new(f).lines();
     match it.next() {
         Some(Ok(h)) if h.trim() == header => {}
@@ -248,9 +248,11 @@ fn lines(path: &Path, header: &str) -> Result<impl Iterator<Item = Result<(usize
 /// The meta file of snapshot number `k` in `dir` (without its grains and contacts).
 pub fn read_meta(dir: &Path, k: usize) -> Result<SnapshotMeta> {
     let mp = meta_path(dir, k);
-    serde_json::from_str(
-        &std::fs::read_to_string(&mp).with_context(|| format!("cannot read {}", mp.display()))?,
-    )
+    serde_json::from_str(&super::fsio::read_to_string(
+        &mp,
+        super::fsio::MAX_RECORD_JSON,
+        "a snapshot meta file (JSON)",
+    )?)
     .with_context(|| format!("{}: not a snapshot meta file", mp.display()))
 }
 

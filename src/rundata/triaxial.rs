@@ -51,8 +51,7 @@ pub fn write_csv(path: &Path, records: &[WallRecord]) -> Result<()> {
 
 /// Reads a `walls.csv` written by [`write_csv`]; errors name file, line and column.
 pub fn read_csv(path: &Path) -> Result<Vec<WallRecord>> {
-    let mut r =
-        csv::Reader::from_path(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut r = csv::Reader::from_reader(super::fsio::open_engine_output(path, "a walls CSV")?);
     let header: Vec<String> = r.headers()?.iter().map(str::to_string).collect();
     if header.join(",") != HEADER {
         bail!(

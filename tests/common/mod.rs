@@ -42,9 +42,10 @@ pub fn options() -> Options {
     }
 }
 
-/// GRANVAL_REQUIRE_LIVE=1: reference engines must run live, no recorded fallback.
+/// GRANVAL_REQUIRE_LIVE (1/true/yes/on): reference engines must run live, no recorded
+/// fallback. A value that is not a switch fails the test, as it fails the binary.
 pub fn require_live() -> bool {
-    std::env::var("GRANVAL_REQUIRE_LIVE").is_ok_and(|v| v == "1")
+    granval::experiments::env_flags::require_live().unwrap_or_else(|e| panic!("{e:#}"))
 }
 
 /// Says that `test` ran without a live reference engine (`what`: FALLBACK to records,

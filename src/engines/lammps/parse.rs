@@ -22,9 +22,9 @@ pub const SNAP_COLUMNS: [&str; 11] = [
     "id", "type", "radius", "mass", "x", "y", "vx", "vy", "omegaz", "fx", "fy",
 ];
 
-fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>> {
+fn open(path: &Path) -> Result<std::io::BufReader<crate::rundata::fsio::Bounded>> {
     Ok(std::io::BufReader::new(
-        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?,
+        crate::rundata::fsio::open_engine_output(path, "a LAMMPS output")?,
     ))
 }
 
@@ -37,22 +37,28 @@ pub fn for_each_snapshot(
     let mut lines = open(path)?.lines().enumerate();
     let mut atoms: Vec<SnapAtom> = Vec::new();
     let mut n_frames = 0;
+    // Set at the end of the file: only there may the frames end; a read error is an error.
+    let eof = std::cell::Cell::new(false);
     let mut next = |what: &str| -> Result<(usize, String)> {
         match lines.next() {
             Some((k, l)) => Ok((
                 k + 1,
                 l.with_context(|| format!("{}: line {}", path.display(), k + 1))?,
             )),
-            None => bail!(
-                "{}: truncated: end of file while expecting {what}",
-                path.display()
-            ),
+            None => {
+                eof.set(true);
+                bail!(
+                    "{}: truncated: end of file while expecting {what}",
+                    path.display()
+                )
+            }
         }
     };
     loop {
         let (ln, head) = match next("ITEM: TIMESTEP") {
             Ok(x) => x,
-            Err(_) => break,
+            Err(_) if eof.get() => break,
+            Err(e) => return Err(e),
         };
         if head.trim() != "ITEM: TIMESTEP" {
             bail!(

@@ -64,8 +64,7 @@ pub fn bodies_text(bodies: &[Clump]) -> String {
 
 /// Reads a [`bodies_text`] file back (every body of template 0).
 pub fn parse_bodies(path: &Path) -> Result<Vec<Clump>> {
-    let file =
-        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let file = crate::rundata::fsio::open_engine_output(path, "a clump body list")?;
     let mut out = Vec::new();
     for (k, line) in std::io::BufReader::new(file).lines().enumerate() {
         let no = k + 1;

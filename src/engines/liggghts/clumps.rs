@@ -458,17 +458,21 @@ pub fn clump_frames(case: &Case, dir: &Path) -> Result<Vec<Frame>> {
 /// `dump local` of the body computes: (LIGGGHTS step, bodies with case ids, sorted).
 /// LIGGGHTS body k (insertion order) is `ids[k - 1]`; every step must hold them all.
 pub(super) fn read_body_dump(ids: &[u64], path: &Path) -> Result<Vec<(u64, Vec<BodyState>)>> {
-    let file =
-        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let file = crate::rundata::fsio::open_engine_output(path, "a LIGGGHTS body dump")?;
     let mut lines = BufReader::new(file).lines().enumerate();
     let mut out = Vec::new();
+    // Set at the end of the file: only there may the steps end; a read error is an error.
+    let eof = std::cell::Cell::new(false);
     let mut next = |what: &str| -> Result<(usize, String)> {
         match lines.next() {
             Some((no, l)) => Ok((
                 no + 1,
                 l.with_context(|| format!("{}: line {}: read error", path.display(), no + 1))?,
             )),
-            None => bail!("{}: file ends where {what} was expected", path.display()),
+            None => {
+                eof.set(true);
+                bail!("{}: file ends where {what} was expected", path.display())
+            }
         }
     };
     let want = [
@@ -479,7 +483,8 @@ pub(super) fn read_body_dump(ids: &[u64], path: &Path) -> Result<Vec<(u64, Vec<B
     loop {
         let (no, l) = match next("ITEM: TIMESTEP") {
             Ok(x) => x,
-            Err(_) => break,
+            Err(_) if eof.get() => break,
+            Err(e) => return Err(e),
         };
         if l.trim().is_empty() {
             continue;

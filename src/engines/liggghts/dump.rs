@@ -73,15 +73,14 @@ fn parse_num<T: std::str::FromStr>(path: &Path, line: usize, what: &str, s: &str
 pub struct DumpFrames {
     path: std::path::PathBuf,
     dt: f64,
-    lines: Lines<BufReader<std::fs::File>>,
+    lines: Lines<BufReader<crate::rundata::fsio::Bounded>>,
     pending: Option<String>,
     done: bool,
 }
 
 impl DumpFrames {
     pub fn open(path: &Path, dt: f64) -> Result<DumpFrames> {
-        let file = std::fs::File::open(path)
-            .with_context(|| format!("cannot open dump file {}", path.display()))?;
+        let file = crate::rundata::fsio::open_engine_output(path, "a LIGGGHTS dump")?;
         Ok(DumpFrames {
             path: path.to_path_buf(),
             dt,

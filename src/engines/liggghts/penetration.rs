@@ -956,8 +956,7 @@ pub fn for_each_force_sample(
     units: Units,
     mut visit: impl FnMut(&ForceSample) -> Result<()>,
 ) -> Result<()> {
-    let file =
-        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let file = crate::rundata::fsio::open_engine_output(path, "a LIGGGHTS log (thermo lines)")?;
     let mut reader = std::io::BufReader::new(file);
     let (l, fo) = (units.length(), units.force());
     let mut line = String::new();
@@ -1145,7 +1144,15 @@ fn input_hash(dir: &Path) -> Sha256 {
         STL_FILE,
     ]
     .iter()
-    .filter_map(|name| std::fs::read_to_string(dir.join(name)).ok())
+    .filter_map(|name| {
+        let p = dir.join(name);
+        crate::rundata::fsio::read_to_string(
+            &p,
+            crate::rundata::fsio::max_engine_output(),
+            "a LIGGGHTS input",
+        )
+        .ok()
+    })
     .collect();
     deck_text::fingerprint(&texts.iter().map(String::as_str).collect::<Vec<_>>())
 }
@@ -1360,8 +1367,7 @@ pub fn read_outputs(
 /// `granval analyze` knows the exact grains a deck directory started from. Errors name
 /// the file, line and what is wrong; every atom needs a `Velocities` line.
 pub fn parse_data_file(path: &Path, units: Units) -> Result<Vec<Particle>> {
-    let file =
-        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let file = crate::rundata::fsio::open_engine_output(path, "a LIGGGHTS data file")?;
     let (l, v, rho) = (units.length(), units.velocity(), units.density());
     let mut particles: Vec<Particle> = Vec::new();
     let mut index = std::collections::HashMap::new();
@@ -1453,12 +1459,14 @@ pub fn parse_data_file(path: &Path, units: Units) -> Result<Vec<Particle>> {
 /// Reads the settled bed a [`Settle`] deck wrote (`write_dump ... id type radius x y z vx
 /// vy vz`), SI out; angular velocities are not needed by the analysis and set to zero.
 pub fn parse_bed_dump(path: &Path, units: Units, density: f64) -> Result<Vec<Particle>> {
-    let file = std::fs::File::open(path).with_context(|| {
-        format!(
-            "cannot open {} (the settled bed; did the deck reach `label settled`?)",
-            path.display()
-        )
-    })?;
+    let file = crate::rundata::fsio::open_engine_output(path, "a settled-bed dump").with_context(
+        || {
+            format!(
+                "the settled bed {}: did the deck reach `label settled`?",
+                path.display()
+            )
+        },
+    )?;
     let (l, v) = (units.length(), units.velocity());
     let mut out = Vec::new();
     let mut in_atoms = false;

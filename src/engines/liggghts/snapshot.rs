@@ -147,10 +147,9 @@ pub struct DumpReader<R> {
     line: String,
 }
 
-impl DumpReader<std::io::BufReader<std::fs::File>> {
+impl DumpReader<std::io::BufReader<crate::rundata::fsio::Bounded>> {
     pub fn open(path: &Path) -> Result<Self> {
-        let f =
-            std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+        let f = crate::rundata::fsio::open_engine_output(path, "a LIGGGHTS contact dump")?;
         Ok(DumpReader::new(std::io::BufReader::new(f), path))
     }
 }

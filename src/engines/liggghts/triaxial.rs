@@ -406,8 +406,11 @@ pub fn write_deck_dir(d: &TriaxialDeck, dir: &Path) -> Result<()> {
 
 /// Parses `walls.txt` (SI); errors name the file and line.
 pub fn parse_walls(path: &Path) -> Result<Vec<WallRecord>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = crate::rundata::fsio::read_to_string(
+        path,
+        crate::rundata::fsio::max_engine_output(),
+        "the walls of a triaxial run",
+    )?;
     let mut out = Vec::new();
     for (k, line) in text.lines().enumerate() {
         let t = line.trim();
@@ -485,7 +488,15 @@ pub fn read_outputs(d: &TriaxialDeck, dir: &Path) -> Result<(Vec<WallRecord>, Pr
     let texts: Vec<String> = std::iter::once(DECK_FILE)
         .chain(std::iter::once(DATA_FILE))
         .chain(STL_FILES)
-        .filter_map(|n| std::fs::read_to_string(dir.join(n)).ok())
+        .filter_map(|n| {
+            let p = dir.join(n);
+            crate::rundata::fsio::read_to_string(
+                &p,
+                crate::rundata::fsio::max_engine_output(),
+                "a LIGGGHTS input",
+            )
+            .ok()
+        })
         .collect();
     Ok((
         records,

@@ -225,8 +225,11 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
     let mut b = binner(case, bed)?;
     let mut provenance = lp::read_outputs(&deck, dir, |s| b.push(s.z_bottom, s.f[2]))
         .with_context(|| format!("LIGGGHTS run in {}", dir.display()))?;
-    if let Ok(on_disk) = std::fs::read_to_string(dir.join(lp::DECK_FILE))
-        && !crate::engines::deck_text::same_input(&on_disk, &lp::deck_text(&deck)?)
+    if let Ok(on_disk) = crate::rundata::fsio::read_to_string(
+        &dir.join(lp::DECK_FILE),
+        crate::rundata::fsio::max_engine_output(),
+        "a LIGGGHTS deck",
+    ) && !crate::engines::deck_text::same_input(&on_disk, &lp::deck_text(&deck)?)
         && !on_disk.contains(crate::engines::liggghts::snapshot::PAIR_PREFIX)
     {
         provenance.notes.push(format!(
@@ -268,7 +271,12 @@ fn liggghts_run(
             .exists()
     {
         check_reused_plan(plan, &dir.join(SNAPSHOT_DIR)).with_context(|| format!("bed {}", u.k))?;
-        let on_disk = std::fs::read_to_string(dir.join(lp::DECK_FILE)).unwrap_or_default();
+        let on_disk = crate::rundata::fsio::read_to_string(
+            &dir.join(lp::DECK_FILE),
+            crate::rundata::fsio::max_engine_output(),
+            "a LIGGGHTS deck",
+        )
+        .unwrap_or_default();
         ensure!(
             crate::engines::deck_text::same_input(
                 &on_disk,
