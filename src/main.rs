@@ -264,6 +264,20 @@ enum RefCmd {
         #[command(flatten)]
         engine: EngineLimits,
     },
+    /// Check the records of a suite against their seals without running anything: the
+    /// case, each unit's engine input and every sealed file (beds from the bed store,
+    /// data files written again from the beds). Records that hold no beds settle them.
+    Verify {
+        #[arg(long, default_value = "micro")]
+        suite: String,
+        #[arg(long, default_value = "cases")]
+        cases: PathBuf,
+        #[arg(long, default_value = "reference")]
+        reference: PathBuf,
+        /// Only this case file.
+        #[arg(long)]
+        only: Option<PathBuf>,
+    },
 }
 
 fn options(c: &Common) -> Options {
@@ -571,6 +585,53 @@ fn real_main() -> Result<ExitCode> {
                     outln!("{l}");
                 }
             }
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Reference {
+            cmd:
+                RefCmd::Verify {
+                    suite,
+                    cases,
+                    reference,
+                    only,
+                },
+        } => {
+            let s = suite::load(&cases, &suite)?;
+            let opts = Options {
+                reference_root: s.reference_root(&reference),
+                progress: true,
+                ..Options::default()
+            };
+            let paths: Vec<PathBuf> = match only {
+                Some(p) => vec![p],
+                None => s.cases.into_iter().map(|e| e.path).collect(),
+            };
+            let (mut verified, mut failed) = (0, 0);
+            for p in &paths {
+                let c = load(p)?;
+                match with_experiment!(c, false, |exp| runner::verify_record(&exp, &opts)) {
+                    Ok(Some(line)) => {
+                        verified += 1;
+                        println!("{line}");
+                    }
+                    Ok(None) => println!(
+                        "{}: no record under {}",
+                        p.display(),
+                        opts.reference_root.display()
+                    ),
+                    Err(e) => {
+                        failed += 1;
+                        eprintln!("error: {}: {e:#}", p.display());
+                    }
+                }
+            }
+            if failed > 0 || verified == 0 {
+                bail!(
+                    "{failed} of {} record(s) did not verify, {verified} did",
+                    paths.len()
+                );
+            }
+            println!("{verified} record(s) verified");
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Validate { case } => {

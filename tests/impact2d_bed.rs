@@ -371,8 +371,35 @@ fn records_carry_their_beds_and_a_changed_bed_is_refused() {
         "{:?}",
         r.checks.iter().filter(|c| c.is_error()).collect::<Vec<_>>()
     );
-    let mut b: Bed = serde_json::from_slice(&std::fs::read(file_of(1)).unwrap()).unwrap();
+    // The record is lean: the beds are in the bed store, found through the seal, and
+    // LAMMPS' data file is left out (written again from the scene when verified).
+    for (u, name) in plain.iter().map(|u| exp.unit_name(u)).enumerate() {
+        let dir = reference::unit_dir(&record, &name);
+        assert!(!dir.join(stored[u].as_ref().unwrap()).exists(), "{name}");
+        assert!(
+            !dir.join(granval::engines::lammps::DATA_FILE).exists(),
+            "{name}"
+        );
+        assert!(
+            seal.units[&name]
+                .files
+                .contains_key(granval::engines::lammps::DATA_FILE)
+        );
+    }
+    let kept = granval::experiments::record_store::recorded_bed_file(
+        &record,
+        &exp.unit_name(&plain[1]),
+        stored[1].as_ref().unwrap(),
+    )
+    .unwrap();
+    assert!(
+        kept.starts_with(reference_root.join("beds")),
+        "{}",
+        kept.display()
+    );
+    let mut b: Bed = serde_json::from_slice(&std::fs::read(kept).unwrap()).unwrap();
     one_ulp(&mut b);
+    // A bed in the unit's directory is read before the store's.
     std::fs::write(file_of(1), serde_json::to_vec(&b).unwrap()).unwrap();
     let r = compare("moved");
     let errors: Vec<_> = r.checks.iter().filter(|c| c.is_error()).collect();

@@ -78,6 +78,7 @@ fn recorded_references_match_live_liggghts() {
             &exp.canonical_hash(),
             EngineKind::Liggghts,
             &[(String::new(), exp.fingerprint(&()).unwrap())],
+            &granval::experiments::record_store::nothing_regenerable,
         )
         .unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
         let rec = exp.read_record(&(), "", &seal).unwrap();
@@ -118,6 +119,7 @@ fn caught(pert: Perturbation) -> Vec<String> {
                 &exp.canonical_hash(),
                 EngineKind::Liggghts,
                 &[(String::new(), exp.fingerprint(&()).unwrap())],
+                &granval::experiments::record_store::nothing_regenerable,
             )
             .unwrap();
             exp.read_record(&(), "", &seal).unwrap()

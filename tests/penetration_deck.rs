@@ -322,10 +322,12 @@ fn full_size_d2mm_deck_starts_under_mpirun() {
 /// A penetration record carries each bed its LIGGGHTS run started from, so a recorded
 /// comparison takes the beds from there instead of settling them again (at G = 100 MPa
 /// settling costs as much as the run); a bed is used only if the deck built from it
-/// has the fingerprint the seal holds, which one ulp in one grain changes.
+/// has the fingerprint the seal holds, which one ulp in one grain changes. The record
+/// is lean: each bed is in the bed store under its sealed sha256, and `data.bed` is
+/// left out and written again from the bed when the record is verified.
 #[test]
 fn records_carry_their_beds_and_a_moved_bed_changes_the_fingerprint() {
-    use granval::experiments::{Experiment, reference};
+    use granval::experiments::{Experiment, record_store, reference};
     use granval::physics::dem::packing::Bed;
     let tmp = tempfile::tempdir().unwrap();
     let case = tiny_case(tmp.path());
@@ -370,8 +372,37 @@ fn records_carry_their_beds_and_a_moved_bed_changes_the_fingerprint() {
                 .unwrap()
                 .to_string_lossy()
                 .into_owned();
-            assert!(seal.units[&exp.unit_name(u)].files.contains_key(&name));
+            let unit = exp.unit_name(u);
+            let files = &seal.units[&unit].files;
+            assert!(files.contains_key(&name) && files.contains_key("data.bed"));
+            let dir = reference::unit_dir(&record, &unit);
+            assert!(
+                !dir.join("data.bed").exists() && !dir.join(&name).exists(),
+                "{}: the record is lean",
+                dir.display()
+            );
+            assert_eq!(
+                record_store::recorded_bed_file(&record, &unit, &name),
+                Some(
+                    reference_root
+                        .join("beds")
+                        .join(format!("{}.json", files[&name].hex()))
+                )
+            );
         }
+        let verified = runner::verify_record(
+            &exp,
+            &Options {
+                reference_root: reference_root.clone(),
+                ..Options::default()
+            },
+        )
+        .unwrap()
+        .unwrap();
+        assert!(
+            verified.contains("2 bed(s) from the bed store, 2 written again"),
+            "{verified}"
+        );
     } else {
         // The loader alone, on bed files written by hand where the record keeps them.
         for (k, u) in plain.iter().enumerate() {
@@ -383,7 +414,15 @@ fn records_carry_their_beds_and_a_moved_bed_changes_the_fingerprint() {
         assert!(u.bed_from_record, "bed {k} not read from the record");
         assert_eq!(exp.fingerprint(u).unwrap(), fingerprints[k], "bed {k}");
     }
-    let mut b: Bed = serde_json::from_slice(&std::fs::read(file_of(1)).unwrap()).unwrap();
+    // Where the record keeps bed 1 (the store after `refresh`); a bed in the unit's
+    // directory is read first.
+    let kept = record_store::recorded_bed_file(
+        &record,
+        &exp.unit_name(&plain[1]),
+        &pen::bed_file_name(&plain[1].case).unwrap(),
+    )
+    .unwrap();
+    let mut b: Bed = serde_json::from_slice(&std::fs::read(kept).unwrap()).unwrap();
     let x = &mut b.particles[5].x[2];
     *x = f64::from_bits(x.to_bits() + 1);
     std::fs::write(file_of(1), serde_json::to_vec(&b).unwrap()).unwrap();

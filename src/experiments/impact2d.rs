@@ -368,6 +368,12 @@ impl Experiment for Impact2d {
         write_series(rec, run, &u.scene)
     }
 
+    /// LAMMPS' data file is the scene's disks as granval writes them (the scene is the
+    /// fingerprint), so a lean record leaves it out.
+    fn regenerate(&self, u: &Unit, file: &str) -> Option<Result<Vec<u8>>> {
+        (file == lammps::DATA_FILE).then(|| Ok(lammps::deck::write_data(&u.scene.sys).into_bytes()))
+    }
+
     fn read_record(&self, _u: &Unit, name: &str, seal: &Verified) -> Result<ImpactRun> {
         let snaps = snapshot_steps(&self.case);
         Ok(ImpactRun {
@@ -1028,13 +1034,17 @@ fn bed_file_name(case: &Impact2dCase, key: &BedKey) -> Option<String> {
 }
 
 /// A bed stored in a reference record (`recorded`: the record's root) with the first
-/// unit that uses it. Reading it before the seal is verified is safe: the comparison
+/// unit that uses it (in its directory or, by its sealed hash, in the bed store). Reading it before the seal is verified is safe: the comparison
 /// goes on only if every unit's scene, built from it, has the fingerprint the seal
 /// holds, i.e. is bit for bit the input the reference engine ran from.
 fn recorded_bed(case: &Impact2dCase, key: &BedKey, recorded: &Path) -> Option<Bed> {
     let first = case.variants.iter().find(|v| case.bed_of(v) == *key)?;
-    let dir = super::reference::unit_dir(recorded, &label_dir(first));
-    super::bed_cache::load::<Bed>(Some(&dir.join(bed_file_name(case, key)?)))
+    let file = super::record_store::recorded_bed_file(
+        recorded,
+        &label_dir(first),
+        &bed_file_name(case, key)?,
+    )?;
+    super::bed_cache::load::<Bed>(Some(&file))
 }
 
 /// The beds of a case: from the sealed record when the comparison will read one

@@ -8,7 +8,9 @@
 //! reference-engine input (its fingerprint) and of every file recorded. Before a record
 //! is used, all three are checked; any mismatch is an error (exit 2) that names the file
 //! and says how to re-record. A record is never produced by the native engine: the seal
-//! names the engine, and only LIGGGHTS or LAMMPS are accepted.
+//! names the engine, and only LIGGGHTS or LAMMPS are accepted. A file's bytes may live
+//! outside its unit directory (a bed in the bed store) or be written again by granval
+//! (a data file); [`super::record_store`] says where, the seal stays as recorded.
 
 use crate::rundata::provenance::{EngineKind, Sha256, now_utc};
 use anyhow::{Context, Result, bail, ensure};
@@ -137,12 +139,15 @@ impl Verified {
             self.seal.units.get(unit).with_context(|| {
                 format!("{}: no unit {unit:?} in the seal", self.root.display())
             })?;
-        ensure!(
-            u.files.contains_key(name),
-            "{}: {name} of unit {unit:?} is not covered by the seal",
-            self.root.join(SEAL_FILE).display()
-        );
-        Ok(unit_dir(&self.root, unit).join(name))
+        let Some(sha) = u.files.get(name) else {
+            bail!(
+                "{}: {name} of unit {unit:?} is not covered by the seal",
+                self.root.join(SEAL_FILE).display()
+            );
+        };
+        // A bed may live in the record store (`record_store`), found by its sealed hash.
+        Ok(super::record_store::locate(&self.root, unit, name, sha)
+            .unwrap_or_else(|| unit_dir(&self.root, unit).join(name)))
     }
 }
 
@@ -155,13 +160,15 @@ fn rerecord_hint(case_file: &Path) -> String {
 
 /// Checks a record against the case it is about to stand in for: the case's canonical
 /// hash, each unit's fingerprint, and every file's hash. `units` are (name, fingerprint)
-/// of the units the comparison needs, in order.
+/// of the units the comparison needs, in order; `regenerate` writes again the files a
+/// lean record leaves out (`record_store`).
 pub fn verify(
     root: &Path,
     case_file: &Path,
     case_hash: &Sha256,
     engine: EngineKind,
     units: &[(String, Sha256)],
+    regenerate: super::record_store::Regenerate,
 ) -> Result<Verified> {
     let hint = rerecord_hint(case_file);
     let path = root.join(SEAL_FILE);
@@ -213,24 +220,8 @@ pub fn verify(
                 fingerprint
             );
         }
-        let dir = unit_dir(root, name);
         for (file, want) in &u.files {
-            let p = dir.join(file);
-            let got = Sha256::of_file(&p).map_err(|e| {
-                if p.exists() {
-                    anyhow::anyhow!(
-                        "{e:#}: a sealed file must be the regular file recorded ({hint})"
-                    )
-                } else {
-                    anyhow::anyhow!("{}: sealed file missing ({hint})", p.display())
-                }
-            })?;
-            if &got != want {
-                bail!(
-                    "{}: content differs from the seal (sha256 {got}, sealed {want}): the recorded reference was modified; {hint}",
-                    p.display()
-                );
-            }
+            super::record_store::check_sealed_file(root, name, file, want, regenerate, &hint)?;
         }
     }
     Ok(Verified {
@@ -291,6 +282,7 @@ pub fn write(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::experiments::record_store::nothing_regenerable;
 
     fn setup() -> (tempfile::TempDir, Sha256, Vec<(String, Sha256)>) {
         let d = tempfile::tempdir().unwrap();
@@ -320,6 +312,7 @@ mod tests {
             &case,
             EngineKind::Liggghts,
             &units,
+            &nothing_regenerable,
         )
         .unwrap();
         assert!(v.file("bed-0", "force.txt").is_ok());
@@ -337,6 +330,7 @@ mod tests {
             &case,
             EngineKind::Liggghts,
             &units,
+            &nothing_regenerable,
         )
         .unwrap_err();
         assert!(format!("{e:#}").contains("modified"), "{e:#}");
@@ -348,6 +342,7 @@ mod tests {
             &other,
             EngineKind::Liggghts,
             &units,
+            &nothing_regenerable,
         )
         .unwrap_err();
         assert!(format!("{e:#}").contains("different case"), "{e:#}");
@@ -358,6 +353,7 @@ mod tests {
             &case,
             EngineKind::Liggghts,
             &moved,
+            &nothing_regenerable,
         )
         .unwrap_err();
         assert!(format!("{e:#}").contains("different engine input"), "{e:#}");
@@ -367,6 +363,7 @@ mod tests {
             &case,
             EngineKind::Lammps,
             &units,
+            &nothing_regenerable,
         )
         .unwrap_err();
         assert!(format!("{e:#}").contains("reference engine"), "{e:#}");
@@ -377,7 +374,8 @@ mod tests {
                 Path::new("c.toml"),
                 &case,
                 EngineKind::Liggghts,
-                &units
+                &units,
+                &nothing_regenerable,
             )
             .is_err()
         );

@@ -3,6 +3,7 @@
 //! the checks, run the case's negative controls against the same reference runs, and
 //! turn every failure into an error check — never a pass.
 
+use super::record_store;
 use super::reference::{self, RefMode, Source};
 use super::{Experiment, Options, Role, Run};
 use crate::case::NegativeControl;
@@ -121,6 +122,7 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
                 &exp.canonical_hash(),
                 engine,
                 &fingerprints,
+                &regenerator(exp, &units, &names),
             ) {
                 Ok(v) => {
                     notes.push(format!(
@@ -461,12 +463,14 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         .map(|(u, n)| Ok((n.clone(), exp.fingerprint(u)?)))
         .collect::<Result<Vec<_>>>()?;
     let root = reference::record_root(&opts.reference_root, exp.kind(), name);
+    let regenerate = regenerator(exp, &units, &names);
     let previous = reference::verify(
         &root,
         exp.source(),
         &exp.canonical_hash(),
         engine,
         &fingerprints,
+        &regenerate,
     );
     let fresh = recording_dir(&root);
     if fresh.exists() {
@@ -502,7 +506,7 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
     }
     std::fs::copy(exp.source(), fresh.join("case.toml"))
         .with_context(|| format!("copying {} into the record", exp.source().display()))?;
-    reference::write(
+    let seal = reference::write(
         &fresh,
         name,
         exp.kind(),
@@ -511,6 +515,9 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         &version,
         &fingerprints,
     )?;
+    // Sealed with every file present; then the beds go to the store and the files
+    // granval writes itself are left out (each only if it is written again exactly).
+    lines.extend(record_store::make_lean(&fresh, &seal, &regenerate)?);
     if root.exists() {
         std::fs::remove_dir_all(&root)
             .with_context(|| format!("cannot replace {}", root.display()))?;
@@ -522,6 +529,68 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         root.join(reference::SEAL_FILE).display()
     ));
     Ok(lines)
+}
+
+/// `granval reference verify`: a case's record checked against its seal without
+/// running anything. The units are prepared as a recorded comparison prepares them
+/// (beds from the record, or settled natively for records that hold none); their
+/// fingerprints and every sealed file are checked, wherever the file's bytes are
+/// ([`record_store`]). Returns what was checked and where the files came from, or
+/// `None` when the case has no record at all (nothing to verify).
+pub fn verify_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<String>> {
+    let name = exp.name();
+    let root = reference::record_root(&opts.reference_root, exp.kind(), name);
+    if !root.join(reference::SEAL_FILE).exists() {
+        return Ok(None);
+    }
+    let unit_opts = Options {
+        recorded_inputs: Some(root.clone()),
+        ..opts.clone()
+    };
+    let units = exp.units(&unit_opts)?;
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    let fingerprints = units
+        .iter()
+        .zip(&names)
+        .map(|(u, n)| Ok((n.clone(), exp.fingerprint(u)?)))
+        .collect::<Result<Vec<_>>>()?;
+    let v = reference::verify(
+        &root,
+        exp.source(),
+        &exp.canonical_hash(),
+        exp.reference_engine(),
+        &fingerprints,
+        &regenerator(exp, &units, &names),
+    )?;
+    let (mut here, mut stored, mut written) = (0, 0, 0);
+    for n in &names {
+        for (file, sha) in &v.seal.units[n].files {
+            match record_store::locate(&root, n, file, sha) {
+                Some(p) if p.starts_with(&root) => here += 1,
+                Some(_) => stored += 1,
+                None => written += 1,
+            }
+        }
+    }
+    Ok(Some(format!(
+        "{name}: verified {} ({} unit(s)): case, engine input, and {} sealed files: {here} in the record, {stored} bed(s) from the bed store, {written} written again from the beds",
+        root.display(),
+        names.len(),
+        here + stored + written
+    )))
+}
+
+/// The record files of `units` (named `names`) that the experiment writes again from
+/// the unit itself ([`Experiment::regenerate`]), for a lean record ([`record_store`]).
+pub fn regenerator<'a, E: Experiment>(
+    exp: &'a E,
+    units: &'a [E::Unit],
+    names: &'a [String],
+) -> impl Fn(&str, &str) -> Option<Result<Vec<u8>>> + 'a {
+    move |unit, file| {
+        let i = names.iter().position(|n| n == unit)?;
+        exp.regenerate(&units[i], file)
+    }
 }
 
 /// Where a record is written before it replaces `root`: beside it, the whole name kept

@@ -184,6 +184,7 @@ pub fn reference_runs<E: granval::experiments::Experiment>(
                 &exp.canonical_hash(),
                 engine,
                 &fingerprints,
+                &runner::regenerator(exp, units, &names),
             )
             .unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
             units

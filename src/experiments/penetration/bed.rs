@@ -42,12 +42,25 @@ pub fn bed_file_name(case: &PenetrationCase) -> Option<String> {
     )
 }
 
-/// The bed of `case` as stored with its recorded reference run (`unit_dir`: the
-/// unit's directory in the record). Read before the seal is verified, which is safe:
-/// the comparison goes on only if the deck built from it has the fingerprint the seal
-/// holds, i.e. the LIGGGHTS run started from exactly this bed.
-pub fn recorded_bed(case: &PenetrationCase, unit_dir: &std::path::Path) -> Option<Bed> {
-    crate::experiments::bed_cache::load::<Bed>(Some(&unit_dir.join(bed_file_name(case)?)))
+/// The bed of `case` as stored with the recorded reference run of `unit` (`root`: the
+/// record; the bed is in the unit's directory or, by its sealed hash, in the bed store).
+/// Read before the seal is verified, which is safe: the comparison goes on only if the
+/// deck built from it has the fingerprint the seal holds, i.e. the LIGGGHTS run started
+/// from exactly this bed.
+pub fn recorded_bed(case: &PenetrationCase, root: &std::path::Path, unit: &str) -> Option<Bed> {
+    let file =
+        crate::experiments::record_store::recorded_bed_file(root, unit, &bed_file_name(case)?)?;
+    crate::experiments::bed_cache::load::<Bed>(Some(&file))
+}
+
+/// LIGGGHTS' data file of a sphere bed (`data.bed`) as granval writes it for `case`
+/// from `bed`: what a lean record leaves out and writes again on use. `None` for a bed
+/// of clumps, whose bodies file is kept.
+pub fn data_file(case: &PenetrationCase, bed: &Bed) -> Option<Result<Vec<u8>>> {
+    bed.bodies.is_empty().then(|| {
+        let deck = liggghts_deck(case, bed)?;
+        Ok(crate::engines::liggghts::penetration::data_text(&deck)?.into_bytes())
+    })
 }
 
 /// Prepares the bed natively (pour + settle to the case's KE criterion).

@@ -152,6 +152,43 @@ pub fn read_bed(case: &PenetrationCase, dir: &Path) -> Result<Bed> {
     })
 }
 
+/// The bed of unit `k` when `dir` is a lean sealed record (`granval analyze
+/// reference/penetration/<case>`), whose `bed-K/` holds no `data.bed`: taken from the
+/// record's bed store, or settled again for a record that holds no bed, and used only
+/// if the data file written from it has the sha256 the seal names for `data.bed`.
+/// `None` when `dir` is not such a record (a deck directory, or a record with its
+/// `data.bed`): the bed is then read from the directory.
+pub fn lean_record_bed(
+    case: &PenetrationCase,
+    dir: &Path,
+    k: usize,
+    progress: bool,
+) -> Result<Option<Bed>> {
+    use crate::experiments::record_store;
+    let unit = bed_dir_name(k);
+    let bdir = dir.join(&unit);
+    if case.clump.is_some() || bdir.join(lp::DATA_FILE).exists() || settles_in_liggghts(&bdir) {
+        return Ok(None);
+    }
+    let Some(want) = record_store::sealed_sha(dir, &unit, lp::DATA_FILE) else {
+        return Ok(None);
+    };
+    let bed = match super::bed::recorded_bed(case, dir, &unit) {
+        Some(b) => b,
+        None => prepare_bed(case, progress)
+            .with_context(|| format!("preparing bed {k} (seed {})", case.seed))?,
+    };
+    let data = super::bed::data_file(case, &bed).context("a sphere bed")??;
+    let got = crate::rundata::provenance::Sha256::of(&data);
+    ensure!(
+        got == want,
+        "{}: not in the record, and the bed {} gives a data file of sha256 {got}, not the sealed {want}: this is not the bed the recorded run started from",
+        bdir.join(lp::DATA_FILE).display(),
+        bed_hash(&bed)
+    );
+    Ok(Some(bed))
+}
+
 /// The `bed-K` directories of a deck directory, in K order.
 pub fn bed_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut found = Vec::new();
@@ -212,7 +249,10 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             bdir.clone()
         };
         let ck = case.realisation(k);
-        let bed = read_bed(&ck, &bdir)?;
+        let bed = match lean_record_bed(&ck, dir, k, opts.progress)? {
+            Some(b) => b,
+            None => read_bed(&ck, &bdir)?,
+        };
         notes.push(format!(
             "bed {k}: {} grains read from {} (sha256 {}), surface z = {:.6e} m, psi = {:.4}",
             bed.n_grains(),

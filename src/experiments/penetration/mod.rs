@@ -498,9 +498,10 @@ impl Experiment for Penetration {
         (0..self.case.ensemble_beds)
             .map(|k| {
                 let ck = self.case.realisation(k);
-                let recorded = opts.recorded_inputs.as_ref().and_then(|r| {
-                    bed::recorded_bed(&ck, &super::reference::unit_dir(r, &bed_dir_name(k)))
-                });
+                let recorded = opts
+                    .recorded_inputs
+                    .as_ref()
+                    .and_then(|r| bed::recorded_bed(&ck, r, &bed_dir_name(k)));
                 let bed_from_record = recorded.is_some();
                 let bed = match recorded {
                     Some(b) => b,
@@ -630,6 +631,12 @@ impl Experiment for Penetration {
         let mut p = run.run.provenance.clone();
         p.notes.retain(|n| !n.starts_with("run directory"));
         write_provenance(&rec.join(PROVENANCE_FILE), &p)
+    }
+
+    fn regenerate(&self, u: &Unit, file: &str) -> Option<Result<Vec<u8>>> {
+        (file == lp::DATA_FILE)
+            .then(|| bed::data_file(&u.case, &u.bed))
+            .flatten()
     }
 
     fn read_record(&self, u: &Unit, name: &str, seal: &Verified) -> Result<RefRun> {
