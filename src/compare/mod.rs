@@ -276,6 +276,28 @@ impl Check {
         }
     }
 
+    /// A negative control whose unbitten gates the wrong physics left INCONCLUSIVE: the
+    /// data resolve neither the control biting nor its failing to (one bed, too few
+    /// beds). Never a pass.
+    pub fn control_unresolved(
+        label: impl Into<String>,
+        unresolved: &[String],
+        detail: String,
+    ) -> Check {
+        Check::with_status(
+            label,
+            Gate::NegativeControl,
+            format!(
+                "gates the wrong physics left unresolved: {}",
+                unresolved.join(", ")
+            ),
+            unresolved.len() as f64,
+            0.0,
+            Status::Inconclusive,
+            format!("the control cannot bite a gate the data do not resolve: {detail}"),
+        )
+    }
+
     /// A stage that produced nothing to compare: never a pass.
     pub fn error(name: impl Into<String>, message: impl Into<String>) -> Check {
         Check::error_in(name, Gate::Run, message)

@@ -425,13 +425,17 @@ impl ClaimControl {
 
 /// The check of one claim control from the claim's evaluation on the substituted native
 /// runs: it bites only when that evaluation fails (an error or NOT COMPARED is not a
-/// bite).
+/// bite); an INCONCLUSIVE evaluation leaves the control INCONCLUSIVE (docs/statistics.md,
+/// "Negative controls").
 pub fn control_check(claim: &str, control: &ClaimControl, substituted: &Check) -> Check {
     let label = format!("{claim}: negative control \"{}\"", control.name());
     let detail = format!(
         "{control:?}; the claim on the substituted native runs: {:?}, {} = {:.4} ({})",
         substituted.status, substituted.metric, substituted.value, substituted.detail
     );
+    if substituted.status == super::Status::Inconclusive {
+        return Check::control_unresolved(label, &["the claim".to_string()], detail);
+    }
     let unbitten = if substituted.status == super::Status::Fail {
         Vec::new()
     } else {

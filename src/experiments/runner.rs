@@ -355,6 +355,20 @@ fn control_check(
             format!("none of its gates is evaluated here: {detail}"),
         );
     }
+    // A gate the wrong physics left INCONCLUSIVE (every check of it undecided, none
+    // passing) has not shown the control biting nor failing to: the data cannot tell
+    // (docs/statistics.md, "Negative controls").
+    let undecided = |g: &String| {
+        let of_gate: Vec<&Check> = verdict
+            .checks
+            .iter()
+            .filter(|k| k.gate.key() == *g)
+            .collect();
+        !of_gate.is_empty() && of_gate.iter().all(|k| k.status == Status::Inconclusive)
+    };
+    if !missing.is_empty() && missing.iter().all(undecided) {
+        return Check::control_unresolved(label, &missing, detail);
+    }
     Check::control(label, &missing, detail)
 }
 
