@@ -345,7 +345,7 @@ fn control_check(
             .map_or("", |(_, w)| w.as_str());
         summary.push(format!("{}: not evaluated here ({why})", g.key()));
     }
-    let detail = format!("perturbation {:?}; {}", c.perturbation, summary.join(" | "));
+    let detail = format!("perturbation: {}; {}", c.perturbation, summary.join(" | "));
     if asked.is_empty() {
         return Check::not_compared(
             label,
@@ -385,8 +385,8 @@ fn unbitten(
                 .iter()
                 .map(|k| match k.status {
                     Status::NotCompared | Status::Inconclusive | Status::Error => format!(
-                        "{:?}: {}",
-                        k.status,
+                        "{}: {}",
+                        k.status.label(),
                         k.detail.chars().take(400).collect::<String>()
                     ),
                     _ => format!("{} = {:.3e} vs {:.1e}", k.metric, k.value, k.tolerance),

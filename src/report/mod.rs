@@ -3,12 +3,14 @@
 //! [`Report::exit_code`].
 
 pub mod field_svg;
+pub mod markdown;
 pub mod plot;
 pub mod progress;
 pub mod stress;
 pub mod svg;
 pub mod svg_impact;
 pub mod svg_triaxial;
+pub mod text;
 pub mod vtk;
 
 use crate::compare::expect::{Expectation, GateOutcome, release_gate};
@@ -113,117 +115,6 @@ impl Report {
         std::fs::write(dir.join("report.md"), self.markdown(title))?;
         std::fs::write(dir.join("report.junit.xml"), self.junit(title))?;
         Ok(())
-    }
-
-    pub fn markdown(&self, title: &str) -> String {
-        let mut s = String::new();
-        // An undecidable gate (NOT COMPARED) exits 2 like an error, but a reader should
-        // not take a suite that ran to the end for a crash: the heading says which.
-        let has = |st: Status| self.checks.iter().filter(|c| c.status == st).count();
-        let verdict = if has(Status::Error) > 0 {
-            "ERROR"
-        } else if self.errored {
-            "INCOMPLETE"
-        } else if self.passed {
-            "PASS"
-        } else if self.checks.is_empty() {
-            // Still exit 1 for compare/check: a comparison that checked nothing failed.
-            "NO GATED CHECKS"
-        } else {
-            "FAIL"
-        };
-        let _ = writeln!(s, "# {title}: {verdict}\n");
-        let _ = writeln!(
-            s,
-            "{} checks: {} pass, {} FAIL, {} INCONCLUSIVE, {} NOT COMPARED, {} ERROR (exit {}).\n",
-            self.checks.len(),
-            has(Status::Pass),
-            has(Status::Fail),
-            has(Status::Inconclusive),
-            has(Status::NotCompared),
-            has(Status::Error),
-            self.exit_code()
-        );
-        if let Some(g) = &self.gate {
-            let expected = g.rows.iter().filter(|r| r.holds).count();
-            let changed = g.rows.len() - expected;
-            let _ = writeln!(
-                s,
-                "Release gate: **{}** ({expected} registered finding(s) as expected, {changed} change(s); docs/statistics.md). Every verdict below is the check's own.\n",
-                if g.passed() { "PASS" } else { "FAIL" }
-            );
-        }
-        if !self.notes.is_empty() {
-            for n in &self.notes {
-                let _ = writeln!(s, "> {n}");
-            }
-            s.push('\n');
-        }
-        let _ = writeln!(
-            s,
-            "| check | metric | value | tolerance | verdict | where |"
-        );
-        let _ = writeln!(s, "|---|---|---|---|---|---|");
-        for c in &self.checks {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {:.3e} | {:.1e} | {} | {} |",
-                c.name,
-                c.metric,
-                c.value,
-                c.tolerance,
-                match c.status {
-                    Status::Pass => "pass".to_string(),
-                    st => format!("**{}**", st.label()),
-                },
-                c.detail.replace('|', "/").replace('\n', " ")
-            );
-        }
-        if let Some(g) = &self.gate
-            && !g.rows.is_empty()
-        {
-            let _ = writeln!(
-                s,
-                "\n## Release gate\n\n| check | registered | this run | as registered | why |\n|---|---|---|---|---|"
-            );
-            for r in &g.rows {
-                let _ = writeln!(
-                    s,
-                    "| {} | {} | {} | {} | {} |",
-                    r.check.replace('|', "/"),
-                    r.expected.label(),
-                    r.got.map_or("not run", |st| st.label()),
-                    if r.holds { "yes" } else { "**NO**" },
-                    r.why.replace('|', "/").replace('\n', " ")
-                );
-            }
-        }
-        for sec in &self.sections {
-            let _ = writeln!(s, "\n## {}\n\n{}", sec.title, sec.body.trim_end());
-            for f in &sec.figures {
-                let _ = writeln!(s, "\n![{f}]({f})");
-            }
-        }
-        if !self.runs.is_empty() {
-            let _ = writeln!(
-                s,
-                "\n## Runs\n\n| case | test | reference | reference source | version | wall time test / ref (s) |\n|---|---|---|---|---|---|"
-            );
-            for r in &self.runs {
-                let _ = writeln!(
-                    s,
-                    "| {} | {} | {} | {} | {} | {:.2} / {:.2} |",
-                    r.case,
-                    r.test_engine,
-                    r.reference_engine,
-                    r.reference_source,
-                    r.reference_version,
-                    r.wall_time_test_s,
-                    r.wall_time_reference_s
-                );
-            }
-        }
-        s
     }
 
     pub fn junit(&self, title: &str) -> String {
