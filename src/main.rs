@@ -326,7 +326,8 @@ fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOut
                 e.to_string(),
             )],
             ..CaseOutcome::default()
-        },
+        }
+        .for_case(&path.display().to_string()),
         Ok(case) => {
             eprintln!("== {} ({})", case.name(), path.display());
             let name = case.name().to_string();
@@ -345,7 +346,7 @@ fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOut
 
 fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
     let (mut checks, mut runs, mut notes, mut sections) = (vec![], vec![], vec![], vec![]);
-    for o in outcomes {
+    for o in outcomes.into_iter().map(named) {
         checks.extend(o.checks);
         runs.extend(o.run);
         notes.extend(o.notes);
@@ -354,6 +355,15 @@ fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
     let mut r = Report::new(checks, runs, notes);
     r.sections = sections;
     r
+}
+
+/// [`report_of`] for outcomes whose checks are named after their case (JUnit's
+/// classname) from the case's run where the runner did not name it.
+fn named(o: CaseOutcome) -> CaseOutcome {
+    match o.run.as_ref().map(|r| r.case.clone()) {
+        Some(case) => o.for_case(&case),
+        None => o,
+    }
 }
 
 fn real_main() -> Result<ExitCode> {

@@ -23,6 +23,17 @@ pub struct CaseOutcome {
 }
 
 impl CaseOutcome {
+    /// Names `case` as the case of every check that has none (JUnit's classname); the
+    /// claims across cases added by a suite stay unnamed.
+    pub fn for_case(mut self, case: &str) -> CaseOutcome {
+        for c in &mut self.checks {
+            if c.case.is_empty() {
+                c.case = case.to_string();
+            }
+        }
+        self
+    }
+
     fn error(name: &str, what: &str, e: anyhow::Error, notes: Vec<String>) -> CaseOutcome {
         CaseOutcome {
             checks: vec![Check::error(format!("{name}: {what}"), format!("{e:#}"))],
@@ -30,6 +41,7 @@ impl CaseOutcome {
             notes,
             sections: Vec::new(),
         }
+        .for_case(name)
     }
 }
 
@@ -230,8 +242,14 @@ fn run_units<E: Experiment>(
         }
     }
 
+    let started = std::time::Instant::now();
     let verdict = exp.checks(units, &natives, &refs, out, opts);
     let mut checks = verdict.checks;
+    // One evaluation produced all these verdicts: each gets an equal share of its time.
+    let share = started.elapsed().as_secs_f64() / checks.len().max(1) as f64;
+    for c in &mut checks {
+        c.time_s = Some(share);
+    }
     notes.extend(verdict.notes);
     let sections = verdict.sections;
     let failed_here: Vec<String> = checks
@@ -241,7 +259,8 @@ fn run_units<E: Experiment>(
         .collect();
     for (k, c) in exp.negative_controls().iter().enumerate() {
         let dir = out.join(format!("control-{k}"));
-        checks.push(negative_control(
+        let started = std::time::Instant::now();
+        let mut check = negative_control(
             exp,
             c,
             Inputs {
@@ -252,7 +271,9 @@ fn run_units<E: Experiment>(
             &failed_here,
             &dir,
             opts,
-        ));
+        );
+        check.time_s = Some(started.elapsed().as_secs_f64());
+        checks.push(check);
     }
     let wall = |rs: &mut dyn Iterator<Item = f64>| rs.sum::<f64>();
     let run = CaseRun {
@@ -274,6 +295,7 @@ fn run_units<E: Experiment>(
         notes,
         sections,
     }
+    .for_case(&name)
 }
 
 fn unit_label(unit: &str, what: &str) -> String {

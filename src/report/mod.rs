@@ -3,6 +3,7 @@
 //! [`Report::exit_code`].
 
 pub mod field_svg;
+pub mod junit;
 pub mod markdown;
 pub mod plot;
 pub mod progress;
@@ -17,7 +18,6 @@ use crate::compare::expect::{Expectation, GateOutcome, release_gate};
 use crate::compare::{Check, Status};
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
-use std::fmt::Write as _;
 use std::path::Path;
 
 /// How one case was run: which engines, and whether the reference was live or recorded.
@@ -115,54 +115,6 @@ impl Report {
         std::fs::write(dir.join("report.md"), self.markdown(title))?;
         std::fs::write(dir.join("report.junit.xml"), self.junit(title))?;
         Ok(())
-    }
-
-    pub fn junit(&self, title: &str) -> String {
-        let esc = |t: &str| {
-            t.replace('&', "&amp;")
-                .replace('<', "&lt;")
-                .replace('>', "&gt;")
-                .replace('"', "&quot;")
-        };
-        let count = |st: Status| self.checks.iter().filter(|c| c.status == st).count();
-        let mut s = format!(
-            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"{}\" tests=\"{}\" failures=\"{}\" errors=\"{}\">\n",
-            esc(title),
-            self.checks.len(),
-            count(Status::Fail),
-            count(Status::Error) + count(Status::NotCompared) + count(Status::Inconclusive)
-        );
-        for c in &self.checks {
-            let _ = write!(
-                s,
-                "  <testcase name=\"{}\" classname=\"granval\">",
-                esc(&c.name)
-            );
-            match c.status {
-                Status::Pass => {}
-                Status::Fail => {
-                    let _ = write!(
-                        s,
-                        "<failure message=\"{} = {:e}, tolerance {:e}\">{}</failure>",
-                        esc(&c.metric),
-                        c.value,
-                        c.tolerance,
-                        esc(&c.detail)
-                    );
-                }
-                Status::Error | Status::NotCompared | Status::Inconclusive => {
-                    let _ = write!(
-                        s,
-                        "<error message=\"{}\">{}</error>",
-                        esc(&c.metric),
-                        esc(&c.detail)
-                    );
-                }
-            }
-            s.push_str("</testcase>\n");
-        }
-        s.push_str("</testsuite>\n");
-        s
     }
 }
 
