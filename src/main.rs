@@ -21,6 +21,74 @@ use std::process::ExitCode;
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
+    /// Print nothing on stdout (errors and warnings still go to stderr) and show no
+    /// progress: the exit code and the report files say it all. `malt`, `bench` and
+    /// `cg-bench`, whose printed lines are their result, still print them.
+    #[arg(long, short, global = true)]
+    quiet: bool,
+    /// Print the whole report on stdout, not only the verdict and what did not pass.
+    #[arg(long, short, global = true, conflicts_with = "quiet")]
+    verbose: bool,
+    /// `json`: one line of JSON on stdout after a comparison (verdict, counts, the
+    /// checks that did not pass, where the report is), for scripts; nothing else.
+    #[arg(long, global = true, value_enum, default_value = "text")]
+    format: Format,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum Format {
+    Text,
+    Json,
+}
+
+/// What goes to the terminal: set once from the global flags.
+#[derive(Clone, Copy)]
+struct Output {
+    quiet: bool,
+    verbose: bool,
+    format: Format,
+}
+
+impl Output {
+    /// Human text on stdout (not with --quiet or --format json).
+    fn text(self) -> bool {
+        !self.quiet && self.format == Format::Text
+    }
+
+    /// Progress bars: only on a terminal (a CI log or a pipe gets none) and not with
+    /// --quiet or --format json.
+    fn progress(self) -> bool {
+        use std::io::IsTerminal;
+        self.text() && std::io::stderr().is_terminal()
+    }
+}
+
+static OUTPUT: std::sync::OnceLock<Output> = std::sync::OnceLock::new();
+
+fn output() -> Output {
+    *OUTPUT.get().unwrap_or(&Output {
+        quiet: false,
+        verbose: false,
+        format: Format::Text,
+    })
+}
+
+/// A line of a command's own output on stdout, unless --quiet or --format json.
+macro_rules! show {
+    ($($t:tt)*) => {
+        if output().text() {
+            println!($($t)*);
+        }
+    };
+}
+
+/// A progress line on stderr (per case of a suite), unless --quiet or --format json.
+macro_rules! say {
+    ($($t:tt)*) => {
+        if output().text() {
+            eprintln!($($t)*);
+        }
+    };
 }
 
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
@@ -269,7 +337,7 @@ fn options(c: &Common) -> Options {
     let mut o = Options {
         reference_root: c.reference.clone(),
         mpi_procs: usize::from(c.np),
-        progress: true,
+        progress: output().progress(),
         allow_large: c.allow_large,
         engine_timeout: c.engine.engine_timeout,
         engine_stall: c.engine.engine_stall,
@@ -308,8 +376,22 @@ fn fresh_dir(dir: &Path, force: bool) -> Result<()> {
 
 fn finish(report: &Report, dir: &Path, title: &str) -> Result<ExitCode> {
     report.write(dir, title)?;
-    print!("{}", report.markdown(title));
-    println!("\nreport written to {}", dir.display());
+    let out = output();
+    match out.format {
+        Format::Json => println!("{}", report.machine_summary(title, dir)),
+        Format::Text if out.quiet => {}
+        Format::Text if out.verbose => {
+            print!("{}", report.markdown(title));
+            println!("\nreport written to {}", dir.display());
+        }
+        Format::Text => {
+            print!("{}", report.summary(title, 300));
+            println!(
+                "\nreport: {} (report.md: every check; report.json; report.junit.xml)",
+                dir.display()
+            );
+        }
+    }
     Ok(ExitCode::from(report.exit_code() as u8))
 }
 
@@ -329,7 +411,7 @@ fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOut
         }
         .for_case(&path.display().to_string()),
         Ok(case) => {
-            eprintln!("== {} ({})", case.name(), path.display());
+            say!("== {} ({})", case.name(), path.display());
             let name = case.name().to_string();
             let dir = out.join(&name);
             let mut o = with_experiment!(case, stress, |exp| runner::compare(&exp, opts, &dir));
@@ -368,6 +450,11 @@ fn named(o: CaseOutcome) -> CaseOutcome {
 
 fn real_main() -> Result<ExitCode> {
     let cli = Cli::parse();
+    let _ = OUTPUT.set(Output {
+        quiet: cli.quiet,
+        verbose: cli.verbose,
+        format: cli.format,
+    });
     match cli.cmd {
         Cmd::Run {
             case,
@@ -393,7 +480,7 @@ fn real_main() -> Result<ExitCode> {
             let lines =
                 with_experiment!(c, false, |exp| runner::run_one(&exp, native, &opts, &out))?;
             for l in lines {
-                println!("{l}");
+                show!("{l}");
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -443,7 +530,7 @@ fn real_main() -> Result<ExitCode> {
                     ..opts.clone()
                 };
                 outcomes.push(compare_one(&e.path, e.stress, &o, &report));
-                eprintln!(
+                say!(
                     "   {} took {:.0} s",
                     e.path.display(),
                     t.elapsed().as_secs_f64()
@@ -504,7 +591,7 @@ fn real_main() -> Result<ExitCode> {
             let opts = Options {
                 reference_root: reference,
                 mpi_procs: 1,
-                progress: true,
+                progress: output().progress(),
                 engine_timeout: engine.engine_timeout,
                 engine_stall: engine.engine_stall,
                 ..Options::default()
@@ -513,7 +600,7 @@ fn real_main() -> Result<ExitCode> {
                 let c = load(&p)?;
                 let lines = with_experiment!(c, false, |exp| runner::refresh(&exp, &opts))?;
                 for l in lines {
-                    println!("{l}");
+                    show!("{l}");
                 }
             }
             Ok(ExitCode::SUCCESS)
@@ -530,19 +617,19 @@ fn real_main() -> Result<ExitCode> {
                 exp.name().to_string(),
                 granval::experiments::validation_summary(&exp)
             ));
-            println!(
+            show!(
                 "{}: valid {kind} case `{name}` (reference engine {engine})",
                 case.display()
             );
             let w = lines.iter().map(|l| l.label.len()).max().unwrap_or(0);
             for l in &lines {
                 if l.comment.is_empty() {
-                    println!("  {:<w$}  {}", l.label, l.value);
+                    show!("  {:<w$}  {}", l.label, l.value);
                 } else {
-                    println!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
+                    show!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
                 }
             }
-            println!(
+            show!(
                 "next: granval deck {} -o DIR   (the {engine} input to read or run), granval compare {} --report OUT",
                 case.display(),
                 case.display()
@@ -583,9 +670,9 @@ fn real_main() -> Result<ExitCode> {
                 c => with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?,
             };
             for d in &dirs {
-                println!("{}", d.display());
+                show!("{}", d.display());
             }
-            println!(
+            show!(
                 "{} deck director{} written",
                 dirs.len(),
                 if dirs.len() == 1 { "y" } else { "ies" }
@@ -637,9 +724,7 @@ fn real_main() -> Result<ExitCode> {
                         || c.gate == granval::compare::Gate::Published
                 })
             {
-                println!(
-                    "--no-native: LIGGGHTS observables only, nothing compared between engines"
-                );
+                show!("--no-native: LIGGGHTS observables only, nothing compared between engines");
             }
             Ok(code)
         }
@@ -721,7 +806,7 @@ fn real_main() -> Result<ExitCode> {
                 granval::experiments::chaos::penetration(&exp, &family, &options(&common), &out)?;
             r.write(&out)?;
             let (s, n) = r.spread();
-            println!(
+            show!(
                 "{}: chaos spread of ln K_phi s_c = {s:.4} over {n} beds (per bed: {}); {}",
                 r.case,
                 r.log_ratio

@@ -8,6 +8,7 @@ pub mod markdown;
 pub mod plot;
 pub mod progress;
 pub mod stress;
+pub mod summary;
 pub mod svg;
 pub mod svg_impact;
 pub mod svg_triaxial;
