@@ -40,13 +40,34 @@ pub struct NotPassed<'a> {
 impl Report {
     /// What granval prints on stdout after a comparison: the verdict, the tally, the
     /// release gate, and every check that did not pass with its value and why (details
-    /// cut at `width` characters); the notes and passing checks are in `report.md`.
+    /// other than an error's cut at `width` characters); the notes and passing checks
+    /// are in `report.md`.
     pub fn summary(&self, title: &str, width: usize) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "{}: {}", visible(title), self.verdict());
         let _ = writeln!(s, "{}", self.tally());
         if let Some(g) = self.gate_line("") {
             let _ = writeln!(s, "{g}");
+        }
+        // Where the reference came from when not from a live engine: a pass against a
+        // record must never read like a live one.
+        for r in &self.runs {
+            if let Some(root) = r.reference_source.strip_prefix("recorded ") {
+                let _ = writeln!(
+                    s,
+                    "{}: compared against the RECORDED {} run in {root} (seal verified), not a live engine",
+                    visible(&r.case),
+                    visible(&r.reference_engine)
+                );
+            } else if r.reference_source != "live" {
+                let _ = writeln!(
+                    s,
+                    "{}: {} reference from {}",
+                    visible(&r.case),
+                    visible(&r.reference_engine),
+                    visible(&r.reference_source)
+                );
+            }
         }
         let bad: Vec<&Check> = self
             .checks
@@ -58,7 +79,9 @@ impl Report {
         }
         for c in bad {
             let mut detail = visible(&c.detail).replace('\n', " ");
-            if detail.chars().count() > width {
+            // An error's detail is why the run failed (an engine's own message, a
+            // remedy): printed whole. Other details are cut; report.md has them all.
+            if c.status != Status::Error && detail.chars().count() > width {
                 detail = detail.chars().take(width).collect::<String>() + " ...";
             }
             let _ = writeln!(
@@ -122,8 +145,10 @@ impl Report {
 mod tests {
     use super::*;
     use crate::compare::Gate;
+    use crate::report::CaseRun;
 
-    /// Stdout names every check that did not pass, and no passing one.
+    /// Stdout names every check that did not pass, and no passing one, and every case
+    /// compared against a record rather than a live engine.
     #[test]
     fn the_summary_lists_only_what_did_not_pass() {
         let r = Report::new(
@@ -144,13 +169,45 @@ mod tests {
                     1e-6,
                     "worst at step 10 particle 2",
                 ),
-                Check::error("case: reference run", "LIGGGHTS exited with status 1"),
+                Check::error(
+                    "case: reference run",
+                    format!("LIGGGHTS exited with status 1: {}end", "x".repeat(400)),
+                ),
+                Check::at_most(
+                    "case: angular velocity",
+                    Gate::AngularVelocity,
+                    "max |dw| / max|w_ref|",
+                    1.0,
+                    1e-6,
+                    format!("{}end", "y".repeat(400)),
+                ),
             ],
-            Vec::new(),
+            ["live", "recorded reference/micro/b"]
+                .iter()
+                .enumerate()
+                .map(|(k, src)| CaseRun {
+                    case: format!("case{k}"),
+                    case_file: String::new(),
+                    test_engine: "native".into(),
+                    reference_engine: "LIGGGHTS".into(),
+                    reference_version: "3.8.0".into(),
+                    reference_source: src.to_string(),
+                    wall_time_test_s: 0.0,
+                    wall_time_reference_s: 0.0,
+                })
+                .collect(),
             vec!["a note".into()],
         );
         let s = r.summary("granval compare x", 200);
-        assert!(s.starts_with("granval compare x: ERROR\n3 checks: 1 pass, 1 FAIL"));
+        // A recorded reference is said on stdout; a live one needs no line.
+        assert!(s.contains(
+            "case1: compared against the RECORDED LIGGGHTS run in reference/micro/b (seal verified), not a live engine"
+        ));
+        assert!(!s.contains("case0"));
+        assert!(s.starts_with("granval compare x: ERROR\n4 checks: 1 pass, 2 FAIL"));
+        // An error's reason whole, a failure's detail cut.
+        assert!(s.contains(&format!("{}end", "x".repeat(400))));
+        assert!(s.contains(&format!("{} ...", "y".repeat(200))) && !s.contains("yend"));
         assert!(
             s.contains("FAIL         case: velocity") && s.contains("= 0.002 (tolerance 1.000e-6)")
         );
