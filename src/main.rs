@@ -22,6 +22,74 @@ use std::process::ExitCode;
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
+    /// Print nothing on stdout (errors and warnings still go to stderr) and show no
+    /// progress: the exit code and the report files say it all. `malt`, `bench` and
+    /// `cg-bench`, whose printed lines are their result, still print them.
+    #[arg(long, short, global = true)]
+    quiet: bool,
+    /// Print the whole report on stdout, not only the verdict and what did not pass.
+    #[arg(long, short, global = true, conflicts_with = "quiet")]
+    verbose: bool,
+    /// `json`: one line of JSON on stdout after a comparison (verdict, counts, the
+    /// checks that did not pass, where the report is), for scripts; nothing else.
+    #[arg(long, global = true, value_enum, default_value = "text")]
+    format: Format,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum Format {
+    Text,
+    Json,
+}
+
+/// What goes to the terminal: set once from the global flags.
+#[derive(Clone, Copy)]
+struct Output {
+    quiet: bool,
+    verbose: bool,
+    format: Format,
+}
+
+impl Output {
+    /// Human text on stdout (not with --quiet or --format json).
+    fn text(self) -> bool {
+        !self.quiet && self.format == Format::Text
+    }
+
+    /// Progress bars: only on a terminal (a CI log or a pipe gets none) and not with
+    /// --quiet or --format json.
+    fn progress(self) -> bool {
+        use std::io::IsTerminal;
+        self.text() && std::io::stderr().is_terminal()
+    }
+}
+
+static OUTPUT: std::sync::OnceLock<Output> = std::sync::OnceLock::new();
+
+fn output() -> Output {
+    *OUTPUT.get().unwrap_or(&Output {
+        quiet: false,
+        verbose: false,
+        format: Format::Text,
+    })
+}
+
+/// A line of a command's own output on stdout, unless --quiet or --format json.
+macro_rules! show {
+    ($($t:tt)*) => {
+        if output().text() {
+            outln!($($t)*);
+        }
+    };
+}
+
+/// A progress line on stderr (per case of a suite), unless --quiet or --format json.
+macro_rules! say {
+    ($($t:tt)*) => {
+        if output().text() {
+            eprintln!($($t)*);
+        }
+    };
 }
 
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
@@ -284,7 +352,7 @@ fn options(c: &Common) -> Options {
     let mut o = Options {
         reference_root: c.reference.clone(),
         mpi_procs: usize::from(c.np),
-        progress: true,
+        progress: output().progress(),
         allow_large: c.allow_large,
         engine_timeout: c.engine.engine_timeout,
         engine_stall: c.engine.engine_stall,
@@ -321,8 +389,22 @@ fn protected(common: &Common) -> Protected {
 
 fn finish(report: &Report, dir: &Path, title: &str) -> Result<ExitCode> {
     report.write(dir, title)?;
-    out!("{}", report.markdown(title));
-    outln!("\nreport written to {}", dir.display());
+    let out = output();
+    match out.format {
+        Format::Json => outln!("{}", report.machine_summary(title, dir)),
+        Format::Text if out.quiet => {}
+        Format::Text if out.verbose => {
+            out!("{}", report.markdown(title));
+            outln!("\nreport written to {}", dir.display());
+        }
+        Format::Text => {
+            out!("{}", report.summary(title, 300));
+            outln!(
+                "\nreport: {} (report.md: every check; report.json; report.junit.xml)",
+                dir.display()
+            );
+        }
+    }
     Ok(ExitCode::from(report.exit_code() as u8))
 }
 
@@ -339,9 +421,10 @@ fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOut
                 e.to_string(),
             )],
             ..CaseOutcome::default()
-        },
+        }
+        .for_case(&path.display().to_string()),
         Ok(case) => {
-            eprintln!("== {} ({})", case.name(), path.display());
+            say!("== {} ({})", case.name(), path.display());
             let name = case.name().to_string();
             let dir = out.join(&name);
             let mut o = with_experiment!(case, stress, |exp| runner::compare(&exp, opts, &dir));
@@ -400,7 +483,7 @@ fn only_entries(s: &suite::Suite, only: &[PathBuf]) -> Result<Vec<suite::SuiteCa
 
 fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
     let (mut checks, mut runs, mut notes, mut sections) = (vec![], vec![], vec![], vec![]);
-    for o in outcomes {
+    for o in outcomes.into_iter().map(named) {
         checks.extend(o.checks);
         runs.extend(o.run);
         notes.extend(o.notes);
@@ -411,10 +494,24 @@ fn report_of(outcomes: Vec<CaseOutcome>) -> Report {
     r
 }
 
+/// [`report_of`] for outcomes whose checks are named after their case (JUnit's
+/// classname) from the case's run where the runner did not name it.
+fn named(o: CaseOutcome) -> CaseOutcome {
+    match o.run.as_ref().map(|r| r.case.clone()) {
+        Some(case) => o.for_case(&case),
+        None => o,
+    }
+}
+
 fn real_main() -> Result<ExitCode> {
     let cli = Cli::parse();
     // A switch that is not one (GRANVAL_REQUIRE_LIVE=ture) is refused before anything.
     granval::experiments::env_flags::require_live()?;
+    let _ = OUTPUT.set(Output {
+        quiet: cli.quiet,
+        verbose: cli.verbose,
+        format: cli.format,
+    });
     match cli.cmd {
         Cmd::Run {
             case,
@@ -445,7 +542,7 @@ fn real_main() -> Result<ExitCode> {
             let lines =
                 with_experiment!(c, false, |exp| runner::run_one(&exp, native, &opts, &out))?;
             for l in lines {
-                outln!("{l}");
+                show!("{l}");
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -512,7 +609,7 @@ fn real_main() -> Result<ExitCode> {
                     ..opts.clone()
                 };
                 outcomes.push(compare_one(&e.path, e.stress, &o, &report));
-                eprintln!(
+                say!(
                     "   {} took {:.0} s",
                     e.path.display(),
                     t.elapsed().as_secs_f64()
@@ -573,7 +670,7 @@ fn real_main() -> Result<ExitCode> {
             let opts = Options {
                 reference_root: reference,
                 mpi_procs: 1,
-                progress: true,
+                progress: output().progress(),
                 engine_timeout: engine.engine_timeout,
                 engine_stall: engine.engine_stall,
                 ..Options::default()
@@ -582,7 +679,7 @@ fn real_main() -> Result<ExitCode> {
                 let c = load(&p)?;
                 let lines = with_experiment!(c, false, |exp| runner::refresh(&exp, &opts))?;
                 for l in lines {
-                    outln!("{l}");
+                    show!("{l}");
                 }
             }
             Ok(ExitCode::SUCCESS)
@@ -612,9 +709,9 @@ fn real_main() -> Result<ExitCode> {
                 match with_experiment!(c, false, |exp| runner::verify_record(&exp, &opts)) {
                     Ok(Some(line)) => {
                         verified += 1;
-                        println!("{line}");
+                        show!("{line}");
                     }
-                    Ok(None) => println!(
+                    Ok(None) => show!(
                         "{}: no record under {}",
                         p.display(),
                         opts.reference_root.display()
@@ -631,7 +728,7 @@ fn real_main() -> Result<ExitCode> {
                     paths.len()
                 );
             }
-            println!("{verified} record(s) verified");
+            show!("{verified} record(s) verified");
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Validate { case } => {
@@ -646,19 +743,19 @@ fn real_main() -> Result<ExitCode> {
                 exp.name().to_string(),
                 granval::experiments::validation_summary(&exp)
             ));
-            outln!(
+            show!(
                 "{}: valid {kind} case `{name}` (reference engine {engine})",
                 case.display()
             );
             let w = lines.iter().map(|l| l.label.len()).max().unwrap_or(0);
             for l in &lines {
                 if l.comment.is_empty() {
-                    outln!("  {:<w$}  {}", l.label, l.value);
+                    show!("  {:<w$}  {}", l.label, l.value);
                 } else {
-                    outln!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
+                    show!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
                 }
             }
-            outln!(
+            show!(
                 "next: granval deck {} -o DIR   (the {engine} input to read or run), granval compare {} --report OUT",
                 case.display(),
                 case.display()
@@ -699,9 +796,9 @@ fn real_main() -> Result<ExitCode> {
                 c => with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?,
             };
             for d in &dirs {
-                outln!("{}", d.display());
+                show!("{}", d.display());
             }
-            outln!(
+            show!(
                 "{} deck director{} written",
                 dirs.len(),
                 if dirs.len() == 1 { "y" } else { "ies" }
@@ -760,7 +857,7 @@ fn real_main() -> Result<ExitCode> {
                         || c.gate == granval::compare::Gate::Published
                 })
             {
-                outln!("--no-native: LIGGGHTS observables only, nothing compared between engines");
+                show!("--no-native: LIGGGHTS observables only, nothing compared between engines");
             }
             Ok(code)
         }
@@ -845,7 +942,7 @@ fn real_main() -> Result<ExitCode> {
                 granval::experiments::chaos::penetration(&exp, &family, &options(&common), &out)?;
             r.write(&out)?;
             let (s, n) = r.spread();
-            outln!(
+            show!(
                 "{}: chaos spread of ln K_phi s_c = {s:.4} over {n} beds (per bed: {}); {}",
                 r.case,
                 r.log_ratio

@@ -587,3 +587,90 @@ mod applicable_tests {
         );
     }
 }
+
+/// In words, as reports print it: only what differs from the case as written, e.g.
+/// "friction x 0.8, restitution + 0.05" (never the struct's field dump).
+impl std::fmt::Display for Perturbation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let d = Perturbation::default();
+        let mut parts: Vec<String> = Vec::new();
+        if self.friction_factor != d.friction_factor {
+            parts.push(format!("friction x {}", self.friction_factor));
+        }
+        if self.rolling_friction_factor != d.rolling_friction_factor {
+            parts.push(format!(
+                "rolling friction x {}",
+                self.rolling_friction_factor
+            ));
+        }
+        if self.restitution_shift != d.restitution_shift {
+            parts.push(format!(
+                "restitution {:+} (at most 1)",
+                self.restitution_shift
+            ));
+        }
+        if self.poisson_shift != d.poisson_shift {
+            parts.push(format!("Poisson ratio {:+}", self.poisson_shift));
+        }
+        if let Some((a, b, v)) = self.pair_friction {
+            parts.push(format!("friction of types {}-{} = {v}", a + 1, b + 1));
+        }
+        if self.swap_friction_model {
+            parts.push("static and kinetic friction models swapped".into());
+        }
+        if self.sweep_ignored {
+            parts.push("the swept parameter not applied".into());
+        }
+        if self.packing_ignored {
+            parts.push("every variant on the first variant's packing".into());
+        }
+        if self.other_size_speed_factor != d.other_size_speed_factor {
+            parts.push(format!(
+                "impact speed x {} on beds of another size",
+                self.other_size_speed_factor
+            ));
+        }
+        if self.interface_frozen_floor {
+            parts.push("the frozen floor tracked instead of the interface".into());
+        }
+        if self.inertia_factor != d.inertia_factor {
+            parts.push(format!("moments of inertia x {}", self.inertia_factor));
+        }
+        if self.member_sphere_mass {
+            parts.push("clump members with their own sphere mass as contact mass".into());
+        }
+        if self.nudge_one_ulp {
+            parts.push("every grain moved by one ulp in x".into());
+        }
+        if parts.is_empty() {
+            f.write_str("none (the case as written)")
+        } else {
+            f.write_str(&parts.join(", "))
+        }
+    }
+}
+
+#[cfg(test)]
+mod display_tests {
+    use super::*;
+
+    /// Reports describe a control in words, never as a Rust field dump.
+    #[test]
+    fn a_perturbation_reads_as_words() {
+        let p = Perturbation {
+            friction_factor: 0.8,
+            pair_friction: Some((0, 1, 0.3)),
+            restitution_shift: 0.05,
+            ..Perturbation::default()
+        };
+        assert_eq!(
+            p.to_string(),
+            "friction x 0.8, restitution +0.05 (at most 1), friction of types 1-2 = 0.3"
+        );
+        assert_eq!(
+            Perturbation::default().to_string(),
+            "none (the case as written)"
+        );
+        assert!(!p.to_string().contains("Perturbation"));
+    }
+}

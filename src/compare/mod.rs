@@ -166,6 +166,15 @@ pub struct Check {
     pub passed: bool,
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub detail: String,
+    /// The case the check belongs to (empty: a claim across cases); JUnit's
+    /// `classname`. Set by the runner, not by the comparisons.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub case: String,
+    /// Wall time (s) of the work that produced this verdict and no other (a negative
+    /// control's runs; a share of the comparison of the case's runs), when measured.
+    /// JUnit's `time`. The engine runs a case's checks share are its `CaseRun` times.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_s: Option<f64>,
 }
 
 /// serde_json writes a non-finite f64 as `null`; read `null` back as NaN so that every
@@ -193,6 +202,8 @@ impl Check {
             status,
             passed: status == Status::Pass,
             detail: detail.into(),
+            case: String::new(),
+            time_s: None,
         }
     }
 

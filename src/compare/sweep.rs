@@ -415,6 +415,26 @@ pub enum ClaimControl {
     },
 }
 
+/// In words, as reports print it.
+impl std::fmt::Display for ClaimControl {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ClaimControl::SweepIgnored { name } => write!(
+                f,
+                "control \"{name}\": every case replaced by the first (the swept parameter ignored)"
+            ),
+            ClaimControl::CaseControl {
+                name,
+                case,
+                control,
+            } => write!(
+                f,
+                "control \"{name}\": case {case} replaced by its negative control \"{control}\""
+            ),
+        }
+    }
+}
+
 impl ClaimControl {
     pub fn name(&self) -> &str {
         match self {
@@ -430,8 +450,11 @@ impl ClaimControl {
 pub fn control_check(claim: &str, control: &ClaimControl, substituted: &Check) -> Check {
     let label = format!("{claim}: negative control \"{}\"", control.name());
     let detail = format!(
-        "{control:?}; the claim on the substituted native runs: {:?}, {} = {:.4} ({})",
-        substituted.status, substituted.metric, substituted.value, substituted.detail
+        "{control}; the claim on the substituted native runs: {}, {} = {} ({})",
+        substituted.status.label(),
+        substituted.metric,
+        crate::numerics::fmt::number(substituted.value),
+        substituted.detail
     );
     if substituted.status == super::Status::Inconclusive {
         return Check::control_unresolved(label, &["the claim".to_string()], detail);

@@ -68,10 +68,10 @@ pub fn installed(engine: EngineKind) -> Option<String> {
 pub fn probe(engine: EngineKind) -> Result<Option<String>> {
     use crate::engines::process::Probe;
     let (found, binary) = match engine {
-        EngineKind::Liggghts => (
-            crate::engines::liggghts::probe("liggghts"),
-            "liggghts".to_string(),
-        ),
+        EngineKind::Liggghts => {
+            let b = crate::engines::liggghts::binary();
+            (crate::engines::liggghts::probe(&b), b)
+        }
         EngineKind::Lammps => {
             let b = crate::engines::lammps::binary();
             (crate::engines::lammps::probe(&b), b)

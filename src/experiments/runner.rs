@@ -24,6 +24,17 @@ pub struct CaseOutcome {
 }
 
 impl CaseOutcome {
+    /// Names `case` as the case of every check that has none (JUnit's classname); the
+    /// claims across cases added by a suite stay unnamed.
+    pub fn for_case(mut self, case: &str) -> CaseOutcome {
+        for c in &mut self.checks {
+            if c.case.is_empty() {
+                c.case = case.to_string();
+            }
+        }
+        self
+    }
+
     fn error(name: &str, what: &str, e: anyhow::Error, notes: Vec<String>) -> CaseOutcome {
         CaseOutcome {
             checks: vec![Check::error(format!("{name}: {what}"), format!("{e:#}"))],
@@ -31,6 +42,7 @@ impl CaseOutcome {
             notes,
             sections: Vec::new(),
         }
+        .for_case(name)
     }
 }
 
@@ -232,8 +244,14 @@ fn run_units<E: Experiment>(
         }
     }
 
+    let started = std::time::Instant::now();
     let verdict = exp.checks(units, &natives, &refs, out, opts);
     let mut checks = verdict.checks;
+    // One evaluation produced all these verdicts: each gets an equal share of its time.
+    let share = started.elapsed().as_secs_f64() / checks.len().max(1) as f64;
+    for c in &mut checks {
+        c.time_s = Some(share);
+    }
     notes.extend(verdict.notes);
     let sections = verdict.sections;
     let failed_here: Vec<String> = checks
@@ -243,7 +261,8 @@ fn run_units<E: Experiment>(
         .collect();
     for (k, c) in exp.negative_controls().iter().enumerate() {
         let dir = out.join(format!("control-{k}"));
-        checks.push(negative_control(
+        let started = std::time::Instant::now();
+        let mut check = negative_control(
             exp,
             c,
             Inputs {
@@ -254,7 +273,9 @@ fn run_units<E: Experiment>(
             &failed_here,
             &dir,
             opts,
-        ));
+        );
+        check.time_s = Some(started.elapsed().as_secs_f64());
+        checks.push(check);
     }
     let wall = |rs: &mut dyn Iterator<Item = f64>| rs.sum::<f64>();
     let run = CaseRun {
@@ -276,6 +297,7 @@ fn run_units<E: Experiment>(
         notes,
         sections,
     }
+    .for_case(&name)
 }
 
 fn unit_label(unit: &str, what: &str) -> String {
@@ -347,7 +369,7 @@ fn control_check(
             .map_or("", |(_, w)| w.as_str());
         summary.push(format!("{}: not evaluated here ({why})", g.key()));
     }
-    let detail = format!("perturbation {:?}; {}", c.perturbation, summary.join(" | "));
+    let detail = format!("perturbation: {}; {}", c.perturbation, summary.join(" | "));
     if asked.is_empty() {
         return Check::not_compared(
             label,
@@ -401,8 +423,8 @@ fn unbitten(
                 .iter()
                 .map(|k| match k.status {
                     Status::NotCompared | Status::Inconclusive | Status::Error => format!(
-                        "{:?}: {}",
-                        k.status,
+                        "{}: {}",
+                        k.status.label(),
                         k.detail.chars().take(400).collect::<String>()
                     ),
                     _ => format!("{} = {:.3e} vs {:.1e}", k.metric, k.value, k.tolerance),

@@ -2,6 +2,7 @@
 //! minimisation, the decision statistics of docs/statistics.md. The bottom layer: it
 //! imports nothing from the crate.
 
+pub mod fmt;
 pub mod minimize;
 pub mod quadrature;
 pub mod roots;

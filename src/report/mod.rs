@@ -4,19 +4,22 @@
 
 pub mod console;
 pub mod field_svg;
+pub mod junit;
+pub mod markdown;
 pub mod plot;
 pub mod progress;
 pub mod stress;
+pub mod summary;
 pub mod svg;
 pub mod svg_impact;
 pub mod svg_triaxial;
+pub mod text;
 pub mod vtk;
 
 use crate::compare::expect::{Expectation, GateOutcome, release_gate};
 use crate::compare::{Check, Status};
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
-use std::fmt::Write as _;
 use std::path::Path;
 
 /// The report files of a report directory.
@@ -123,168 +126,6 @@ impl Report {
             &dir.join(JSON_FILE),
             (serde_json::to_string_pretty(self)? + "\n").as_bytes(),
         )
-    }
-
-    pub fn markdown(&self, title: &str) -> String {
-        let mut s = String::new();
-        // An undecidable gate (NOT COMPARED) exits 2 like an error, but a reader should
-        // not take a suite that ran to the end for a crash: the heading says which.
-        let has = |st: Status| self.checks.iter().filter(|c| c.status == st).count();
-        let verdict = if has(Status::Error) > 0 {
-            "ERROR"
-        } else if self.errored && has(Status::NotCompared) == 0 && has(Status::Inconclusive) > 0 {
-            // Every gate was decided or under-resolved: the data could not tell.
-            "INCONCLUSIVE"
-        } else if self.errored {
-            "INCOMPLETE"
-        } else if self.passed {
-            "PASS"
-        } else if self.checks.is_empty() {
-            // Still exit 1 for compare/check: a comparison that checked nothing failed.
-            "NO GATED CHECKS"
-        } else {
-            "FAIL"
-        };
-        let _ = writeln!(s, "# {title}: {verdict}\n");
-        let _ = writeln!(
-            s,
-            "{} checks: {} pass, {} FAIL, {} INCONCLUSIVE, {} NOT COMPARED, {} ERROR (exit {}).\n",
-            self.checks.len(),
-            has(Status::Pass),
-            has(Status::Fail),
-            has(Status::Inconclusive),
-            has(Status::NotCompared),
-            has(Status::Error),
-            self.exit_code()
-        );
-        if let Some(g) = &self.gate {
-            let expected = g.rows.iter().filter(|r| r.holds).count();
-            let changed = g.rows.len() - expected;
-            let _ = writeln!(
-                s,
-                "Release gate: **{}** ({expected} registered finding(s) as expected, {changed} change(s); docs/statistics.md). Every verdict below is the check's own.\n",
-                if g.passed() { "PASS" } else { "FAIL" }
-            );
-        }
-        if !self.notes.is_empty() {
-            for n in &self.notes {
-                let _ = writeln!(s, "> {n}");
-            }
-            s.push('\n');
-        }
-        let _ = writeln!(
-            s,
-            "| check | metric | value | tolerance | verdict | where |"
-        );
-        let _ = writeln!(s, "|---|---|---|---|---|---|");
-        for c in &self.checks {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {:.3e} | {:.1e} | {} | {} |",
-                c.name,
-                c.metric,
-                c.value,
-                c.tolerance,
-                match c.status {
-                    Status::Pass => "pass".to_string(),
-                    st => format!("**{}**", st.label()),
-                },
-                c.detail.replace('|', "/").replace('\n', " ")
-            );
-        }
-        if let Some(g) = &self.gate
-            && !g.rows.is_empty()
-        {
-            let _ = writeln!(
-                s,
-                "\n## Release gate\n\n| check | registered | this run | as registered | why |\n|---|---|---|---|---|"
-            );
-            for r in &g.rows {
-                let _ = writeln!(
-                    s,
-                    "| {} | {} | {} | {} | {} |",
-                    r.check.replace('|', "/"),
-                    r.expected.label(),
-                    r.got.map_or("not run", |st| st.label()),
-                    if r.holds { "yes" } else { "**NO**" },
-                    r.why.replace('|', "/").replace('\n', " ")
-                );
-            }
-        }
-        for sec in &self.sections {
-            let _ = writeln!(s, "\n## {}\n\n{}", sec.title, sec.body.trim_end());
-            for f in &sec.figures {
-                let _ = writeln!(s, "\n![{f}]({f})");
-            }
-        }
-        if !self.runs.is_empty() {
-            let _ = writeln!(
-                s,
-                "\n## Runs\n\n| case | test | reference | reference source | version | wall time test / ref (s) |\n|---|---|---|---|---|---|"
-            );
-            for r in &self.runs {
-                let _ = writeln!(
-                    s,
-                    "| {} | {} | {} | {} | {} | {:.2} / {:.2} |",
-                    r.case,
-                    r.test_engine,
-                    r.reference_engine,
-                    r.reference_source,
-                    r.reference_version,
-                    r.wall_time_test_s,
-                    r.wall_time_reference_s
-                );
-            }
-        }
-        s
-    }
-
-    pub fn junit(&self, title: &str) -> String {
-        let esc = |t: &str| {
-            t.replace('&', "&amp;")
-                .replace('<', "&lt;")
-                .replace('>', "&gt;")
-                .replace('"', "&quot;")
-        };
-        let count = |st: Status| self.checks.iter().filter(|c| c.status == st).count();
-        let mut s = format!(
-            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"{}\" tests=\"{}\" failures=\"{}\" errors=\"{}\">\n",
-            esc(title),
-            self.checks.len(),
-            count(Status::Fail),
-            count(Status::Error) + count(Status::NotCompared) + count(Status::Inconclusive)
-        );
-        for c in &self.checks {
-            let _ = write!(
-                s,
-                "  <testcase name=\"{}\" classname=\"granval\">",
-                esc(&c.name)
-            );
-            match c.status {
-                Status::Pass => {}
-                Status::Fail => {
-                    let _ = write!(
-                        s,
-                        "<failure message=\"{} = {:e}, tolerance {:e}\">{}</failure>",
-                        esc(&c.metric),
-                        c.value,
-                        c.tolerance,
-                        esc(&c.detail)
-                    );
-                }
-                Status::Error | Status::NotCompared | Status::Inconclusive => {
-                    let _ = write!(
-                        s,
-                        "<error message=\"{}\">{}</error>",
-                        esc(&c.metric),
-                        esc(&c.detail)
-                    );
-                }
-            }
-            s.push_str("</testcase>\n");
-        }
-        s.push_str("</testsuite>\n");
-        s
     }
 }
 

@@ -59,10 +59,20 @@ pub struct Liggghts {
     pub limits: process::Limits,
 }
 
+/// The LIGGGHTS executable: `GRANVAL_LIGGGHTS` if set and not empty (a build called
+/// `lmp_liggghts` or `liggghts-3.8`, a path, or a missing name to exercise the recorded
+/// fallback), else `liggghts`. The same rule as LAMMPS' `GRANVAL_LMP`.
+pub fn binary() -> String {
+    std::env::var("GRANVAL_LIGGGHTS")
+        .ok()
+        .filter(|b| !b.trim().is_empty())
+        .unwrap_or_else(|| "liggghts".into())
+}
+
 impl Default for Liggghts {
     fn default() -> Self {
         Liggghts {
-            binary: "liggghts".to_string(),
+            binary: binary(),
             mpi_procs: 1,
             limits: process::Limits::derived(0.0, None, None),
         }

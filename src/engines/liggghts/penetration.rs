@@ -1033,7 +1033,8 @@ pub fn argv(mpi_procs: usize) -> Vec<String> {
     if have_stdbuf() {
         argv.extend(["stdbuf", "-oL"].map(String::from));
     }
-    argv.extend(["liggghts", "-in", DECK_FILE, "-log", LOG_FILE].map(String::from));
+    argv.push(super::binary());
+    argv.extend(["-in", DECK_FILE, "-log", LOG_FILE].map(String::from));
     argv
 }
 

@@ -534,7 +534,8 @@ pub fn run(
     write_deck_dir(d, dir)?;
     process::remove_stale(dir, &[WALLS_FILE, LOG_FILE, STDOUT_FILE, STDERR_FILE])?;
     let mut argv = process::mpi_prefix(mpi_procs);
-    argv.extend(["liggghts", "-in", DECK_FILE, "-log", LOG_FILE].map(String::from));
+    argv.push(super::binary());
+    argv.extend(["-in", DECK_FILE, "-log", LOG_FILE].map(String::from));
     let command = process::command_line(&argv);
     let fin = process::run(
         &argv,

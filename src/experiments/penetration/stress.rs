@@ -441,8 +441,9 @@ fn run_checks(
             "the wrong physics passed phi",
             1.0,
             format!(
-                "the control did not bite ({:?}): {}",
-                neg.status, neg.detail
+                "the control did not bite ({}): {}",
+                neg.status.label(),
+                neg.detail
             ),
         ))
     });
