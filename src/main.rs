@@ -933,7 +933,12 @@ fn real_main() -> Result<ExitCode> {
                     case.display()
                 );
             };
-            let _out = claim(&out, "--out", common.force, &protected(&common).input(&case))?;
+            let _out = claim(
+                &out,
+                "--out",
+                common.force,
+                &protected(&common).input(&case),
+            )?;
             let exp = granval::experiments::penetration::Penetration {
                 case: pc,
                 stress: false,
