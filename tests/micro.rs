@@ -74,7 +74,7 @@ fn recorded_references_match_live_liggghts() {
             exp.source(),
             &exp.canonical_hash(),
             EngineKind::Liggghts,
-            &[(String::new(), exp.fingerprint(&()).unwrap())],
+            &granval::experiments::reference::unit_keys(&exp, &[()]).unwrap(),
         )
         .unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
         let rec = exp.read_record(&(), "", &seal).unwrap();
@@ -114,7 +114,7 @@ fn caught(pert: Perturbation) -> Vec<String> {
                 exp.source(),
                 &exp.canonical_hash(),
                 EngineKind::Liggghts,
-                &[(String::new(), exp.fingerprint(&()).unwrap())],
+                &granval::experiments::reference::unit_keys(&exp, &[()]).unwrap(),
             )
             .unwrap();
             exp.read_record(&(), "", &seal).unwrap()

@@ -252,6 +252,15 @@ impl Experiment for Impact2d {
     fn fingerprint(&self, u: &Unit) -> Result<Sha256> {
         Ok(scene_hash(&u.scene))
     }
+    fn engine_input(&self, u: &Unit) -> Result<Vec<(&'static str, String)>> {
+        Ok(vec![
+            (
+                lammps::DECK_FILE,
+                lammps::deck::write_deck(&u.scene.sys, &self.outputs(u))?,
+            ),
+            (lammps::DATA_FILE, lammps::deck::write_data(&u.scene.sys)),
+        ])
+    }
 
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<ImpactRun> {
         let c = &self.case;

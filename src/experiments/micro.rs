@@ -192,6 +192,9 @@ impl Experiment for Micro {
     fn fingerprint(&self, _unit: &()) -> Result<Sha256> {
         liggghts::micro_input_hash(&self.case)
     }
+    fn engine_input(&self, _unit: &()) -> Result<Vec<(&'static str, String)>> {
+        liggghts::micro_inputs(&self.case)
+    }
 
     fn run_native(&self, _unit: &(), role: Role, dir: &Path, opts: &Options) -> Result<MicroRun> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

@@ -105,12 +105,7 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
     let source = match live {
         Some(version) => Source::Live { version },
         None => {
-            let fingerprints = match units
-                .iter()
-                .zip(&names)
-                .map(|(u, n)| Ok((n.clone(), exp.fingerprint(u)?)))
-                .collect::<Result<Vec<_>>>()
-            {
+            let fingerprints = match reference::unit_keys(exp, &units) {
                 Ok(f) => f,
                 Err(e) => return CaseOutcome::error(&name, "reference input", e, vec![]),
             };
@@ -448,17 +443,19 @@ pub fn run_one<E: Experiment>(
 /// returned line by line. The new record replaces the old one only when complete.
 pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
     let engine = exp.reference_engine();
+    let name = exp.name();
+    exp.preflight()?;
+    reference::refuse_other_case_file(
+        &reference::record_root(&opts.reference_root, exp.kind(), name),
+        exp.source(),
+        name,
+    )?;
     let version = reference::installed(engine).with_context(|| {
         format!("reference refresh needs a live {engine}: it records what the real engine computes")
     })?;
-    let name = exp.name();
     let units = exp.units(opts)?;
     let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
-    let fingerprints = units
-        .iter()
-        .zip(&names)
-        .map(|(u, n)| Ok((n.clone(), exp.fingerprint(u)?)))
-        .collect::<Result<Vec<_>>>()?;
+    let fingerprints = reference::unit_keys(exp, &units)?;
     let root = reference::record_root(&opts.reference_root, exp.kind(), name);
     let previous = reference::verify(
         &root,
@@ -502,6 +499,7 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         &fresh,
         name,
         exp.kind(),
+        exp.source(),
         &exp.canonical_hash(),
         engine,
         &version,

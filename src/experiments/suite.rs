@@ -229,6 +229,7 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         "{}: the suite has no cases",
         path.display()
     );
+    unique_names(&path, &cases)?;
     let mut claims = Vec::new();
     for (k, c) in f.claims.into_iter().enumerate() {
         ensure!(
@@ -294,6 +295,41 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         claims,
         reference,
     })
+}
+
+/// A case's outputs go to `OUT/<case name>/` and its record to
+/// `reference/<kind>/<case name>/`: two case files of one suite with the same `[case]
+/// name` would overwrite each other's outputs and give two indistinguishable rows, and a
+/// file listed twice would run twice. Both are refused, naming the files. The name is
+/// read alone (a case file that does not parse is left to its own loader's error).
+fn unique_names(suite_file: &Path, cases: &[SuiteCase]) -> Result<()> {
+    let mut seen: Vec<(String, &Path)> = Vec::new();
+    for (k, c) in cases.iter().enumerate() {
+        if let Some(j) = cases[..k].iter().position(|d| d.path == c.path) {
+            bail!(
+                "{}: {} is listed twice (cases {j} and {k} after expanding the globs): it would run twice",
+                suite_file.display(),
+                c.path.display()
+            );
+        }
+        let Some(name) = std::fs::read_to_string(&c.path)
+            .ok()
+            .and_then(|t| t.parse::<toml::Table>().ok())
+            .and_then(|t| Some(t.get("case")?.get("name")?.as_str()?.to_string()))
+        else {
+            continue;
+        };
+        if let Some((_, first)) = seen.iter().find(|(n, _)| *n == name) {
+            bail!(
+                "{}: {} and {} both declare [case] name = {name:?}: their outputs (OUT/{name}/) and records would overwrite each other; rename one",
+                suite_file.display(),
+                first.display(),
+                c.path.display()
+            );
+        }
+        seen.push((name, &c.path));
+    }
+    Ok(())
 }
 
 fn penetration_case(p: &Path) -> Result<crate::case::penetration::PenetrationCase, String> {
@@ -786,6 +822,34 @@ mod tests {
         write(d.path(), &HEAD.replace("\"release\"", "\"../x\""));
         let e = format!("{:#}", load(d.path(), "s").unwrap_err());
         assert!(e.contains("plain relative directory"), "{e}");
+    }
+
+    /// Two case files with one `[case] name`, or one file listed twice, are refused
+    /// naming both; distinct names load (the negative control).
+    #[test]
+    fn case_names_are_unique_within_a_suite() {
+        let d = tempfile::tempdir().unwrap();
+        write(d.path(), HEAD);
+        let named = |n: &str| format!("[case]\nname = \"{n}\"\nkind = \"micro\"\n");
+        std::fs::write(d.path().join("release/a.toml"), named("x")).unwrap();
+        std::fs::write(d.path().join("release/b.toml"), named("y")).unwrap();
+        assert!(load(d.path(), "s").is_ok());
+        std::fs::write(d.path().join("release/b.toml"), named("x")).unwrap();
+        let e = format!("{:#}", load(d.path(), "s").unwrap_err());
+        assert!(
+            e.contains("release/a.toml and")
+                && e.contains("release/b.toml both declare [case] name = \"x\""),
+            "{e}"
+        );
+        std::fs::write(d.path().join("release/b.toml"), named("y")).unwrap();
+        write(
+            d.path(),
+            &format!("{HEAD}[[case]]\npath = \"release/*.toml\"\n"),
+        );
+        std::fs::write(d.path().join("release/a.toml"), named("x")).unwrap();
+        std::fs::write(d.path().join("release/b.toml"), named("y")).unwrap();
+        let e = format!("{:#}", load(d.path(), "s").unwrap_err());
+        assert!(e.contains("release/a.toml is listed twice"), "{e}");
     }
 
     /// Claims read the cases' summaries: all present gives one check per engine; a

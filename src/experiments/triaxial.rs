@@ -286,6 +286,9 @@ impl Experiment for Triaxial {
     fn fingerprint(&self, u: &Unit) -> Result<Sha256> {
         lt::input_hash_of(&liggghts_deck(&self.case, u))
     }
+    fn engine_input(&self, u: &Unit) -> Result<Vec<(&'static str, String)>> {
+        lt::inputs(&liggghts_deck(&self.case, u))
+    }
 
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<TriaxialRun> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

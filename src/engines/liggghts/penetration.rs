@@ -905,18 +905,7 @@ pub fn write_deck_dir_with_snapshots(
 ) -> Result<DeckFiles> {
     let deck = deck_text_with_snapshots(d, snapshot_steps)?;
     let data = data_text(d)?;
-    let l = d.units.length();
-    let z_stl = if d.settle.is_some() {
-        0.0
-    } else {
-        d.intruder_bottom_z0 * l
-    };
-    let (stl, segments) = super::stl::flat_cylinder_stl(
-        d.intruder_radius * l,
-        d.intruder_length * l,
-        [0.0, 0.0, z_stl],
-        d.rim_error_frac,
-    );
+    let (stl, segments) = stl_text(d);
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create run directory {}", dir.display()))?;
     let readme = readme_text(d, segments);
@@ -1127,21 +1116,36 @@ pub fn run_existing(
 /// STL): the fingerprint of a penetration bed's reference run. Equal to the
 /// `input_hash` of [`write_deck_dir`].
 pub fn input_hash_of(d: &PenetrationDeck) -> Result<Sha256> {
-    let deck = deck_text(d)?;
-    let data = data_text(d)?;
+    let files = input_files(d)?;
+    Ok(deck_text::fingerprint(
+        &files.iter().map(|(_, t)| t.as_str()).collect::<Vec<_>>(),
+    ))
+}
+
+/// The input files of `d` without snapshot dumps (name, text), in fingerprint order:
+/// deck, grains (`data.bed`, `bodies.bed` or `data.lattice`), intruder mesh.
+pub fn input_files(d: &PenetrationDeck) -> Result<Vec<(&'static str, String)>> {
+    Ok(vec![
+        (DECK_FILE, deck_text(d)?),
+        (data_file_name(d), data_text(d)?),
+        (STL_FILE, stl_text(d).0),
+    ])
+}
+
+/// The intruder mesh of `d` at its start position, and its number of rim segments.
+fn stl_text(d: &PenetrationDeck) -> (String, usize) {
     let l = d.units.length();
     let z_stl = if d.settle.is_some() {
         0.0
     } else {
         d.intruder_bottom_z0 * l
     };
-    let (stl, _) = super::stl::flat_cylinder_stl(
+    super::stl::flat_cylinder_stl(
         d.intruder_radius * l,
         d.intruder_length * l,
         [0.0, 0.0, z_stl],
         d.rim_error_frac,
-    );
-    Ok(deck_text::fingerprint(&[&deck, &data, &stl]))
+    )
 }
 
 fn input_hash(dir: &Path) -> Sha256 {

@@ -520,6 +520,9 @@ impl Experiment for Penetration {
     fn fingerprint(&self, u: &Unit) -> Result<Sha256> {
         lp::input_hash_of(&liggghts_deck(&u.case, &u.bed)?)
     }
+    fn engine_input(&self, u: &Unit) -> Result<Vec<(&'static str, String)>> {
+        lp::input_files(&liggghts_deck(&u.case, &u.bed)?)
+    }
 
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<NativeRun> {
         let main = role == Role::Main;
