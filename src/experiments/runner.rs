@@ -77,6 +77,9 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
     if let Err(e) = check_limits(exp, opts) {
         return CaseOutcome::error(&name, "resource limits", e, vec![]);
     }
+    if let Err(e) = exp.preflight() {
+        return CaseOutcome::error(&name, "case", e, vec![]);
+    }
     let live = match resolve(exp, opts) {
         Ok(l) => l,
         Err(e) => return CaseOutcome::error(&name, "reference engine", e, vec![]),
@@ -152,6 +155,9 @@ pub fn analyze<E: Experiment>(exp: &E, opts: &Options, dir: &Path, out: &Path) -
     let name = exp.name().to_string();
     if let Err(e) = check_limits(exp, opts) {
         return CaseOutcome::error(&name, "resource limits", e, vec![]);
+    }
+    if let Err(e) = exp.preflight() {
+        return CaseOutcome::error(&name, "case", e, vec![]);
     }
     if let Err(e) = std::fs::create_dir_all(out) {
         return CaseOutcome::error(&name, "output directory", e.into(), vec![]);
@@ -424,6 +430,7 @@ pub fn run_one<E: Experiment>(
             {
                 bail!("{} is not installed", exp.reference_engine());
             }
+            exp.preflight()?;
             exp.run_reference(u, &dir, opts)?.provenance().clone()
         };
         lines.push(format!(
@@ -533,6 +540,7 @@ fn first_line(s: &str) -> &str {
 
 /// `granval deck`: the reference engine's input for every unit, without running it.
 pub fn deck<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> Result<Vec<PathBuf>> {
+    exp.preflight()?;
     let units = exp.units(opts)?;
     let mut dirs = Vec::new();
     for u in &units {

@@ -216,6 +216,14 @@ impl Experiment for Triaxial {
         }
     }
 
+    fn preflight(&self) -> Result<()> {
+        crate::engines::liggghts::check_materials(
+            &self.case.source,
+            &self.case.materials,
+            &self.case.pairs,
+        )
+    }
+
     fn derived(&self) -> Vec<Derived> {
         let c = &self.case;
         let (side, n) = c.lattice_box();

@@ -425,6 +425,19 @@ impl Experiment for Penetration {
         }
     }
 
+    fn preflight(&self) -> Result<()> {
+        ensure!(
+            !(self.stress && self.case.clump.is_some()),
+            "{}: the stress fields of a bed of clumps are not built (contact snapshots and coarse graining are per sphere); run it without the stress option",
+            self.case.source.display()
+        );
+        crate::engines::liggghts::check_materials(
+            &self.case.source,
+            &self.case.materials,
+            &self.case.pairs,
+        )
+    }
+
     fn derived(&self) -> Vec<Derived> {
         let c = &self.case;
         let travel = c.start_gap + c.final_depth + c.diameter.max();
