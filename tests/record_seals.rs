@@ -6,6 +6,7 @@
 mod common;
 
 use granval::case::AnyCase;
+use granval::experiments::penetration::{deck_dir, reduce_liggghts_dir};
 use granval::experiments::{Experiment, Options, reference, suite};
 use granval::with_experiment;
 use std::path::{Path, PathBuf};
@@ -213,4 +214,87 @@ fn a_seal_entry_outside_the_record_is_refused_before_it_is_opened() {
         e.contains("\"../../../../etc/passwd\" is not a plain file name"),
         "{e}"
     );
+}
+
+/// Every penetration record's outputs are of its own deck, as `analyze` now demands of
+/// a run directory: its log echoes the deck (title, then every command in order), its
+/// force file carries the deck's title and its intruder follows the deck's start and
+/// speed (within 1e-7 of z0; the records stay below 2e-11).
+#[test]
+fn every_penetration_record_holds_the_outputs_of_its_own_deck() {
+    let cases = common::root().join("cases");
+    let mut n = 0;
+    for name in suite::names(&cases) {
+        let s = suite::load(&cases, &name).unwrap();
+        let rr = s.reference_root(&common::root().join("reference"));
+        for e in &s.cases {
+            let Ok(AnyCase::Penetration(c)) = AnyCase::load(&e.path) else {
+                continue;
+            };
+            let root = reference::record_root(&rr, "penetration", &c.name);
+            if !root.join(reference::SEAL_FILE).exists() {
+                continue;
+            }
+            for k in 0..c.ensemble_beds {
+                let ck = c.realisation(k);
+                let d = root.join(format!("bed-{k}"));
+                let bed = deck_dir::read_bed(&ck, &d).unwrap();
+                reduce_liggghts_dir(&ck, &bed, &d)
+                    .unwrap_or_else(|e| panic!("{}: {e:#}", d.display()));
+                n += 1;
+            }
+        }
+    }
+    assert!(n >= 60, "{n} beds");
+}
+
+/// Real LIGGGHTS outputs of the CI record, swapped between beds: bed 1's force file or
+/// log in bed 0's directory is refused (another bed's intruder start; another seed's
+/// title), and so is a force file written with another title; bed 0's own outputs (the
+/// negative control) reduce.
+#[test]
+fn outputs_of_another_bed_are_refused_not_reduced() {
+    use granval::engines::liggghts::penetration as lp;
+    let c = match AnyCase::load(&common::root().join("cases/penetration/ci.toml")).unwrap() {
+        AnyCase::Penetration(c) => c,
+        _ => panic!(),
+    };
+    let rec = common::root().join("reference/penetration/penetration-ci");
+    let ck = c.realisation(0);
+    let copy = |swap: &str| {
+        let tmp = tempfile::tempdir().unwrap();
+        for e in std::fs::read_dir(rec.join("bed-0")).unwrap() {
+            let e = e.unwrap();
+            std::fs::copy(e.path(), tmp.path().join(e.file_name())).unwrap();
+        }
+        if !swap.is_empty() {
+            std::fs::copy(rec.join("bed-1").join(swap), tmp.path().join(swap)).unwrap();
+        }
+        tmp
+    };
+    let reduce = |d: &Path| {
+        let bed = deck_dir::read_bed(&ck, d).unwrap();
+        reduce_liggghts_dir(&ck, &bed, d).map(|_| ())
+    };
+    reduce(copy("").path()).unwrap();
+    let e = format!("{:#}", reduce(copy(lp::FORCE_FILE).path()).unwrap_err());
+    assert!(
+        e.contains("force.txt") && e.contains("the force file is of another bed"),
+        "{e}"
+    );
+    let e = format!("{:#}", reduce(copy(lp::LOG_FILE).path()).unwrap_err());
+    assert!(
+        e.contains("log.liggghts") && e.contains("does not echo the title"),
+        "{e}"
+    );
+    let d = copy("");
+    let f = d.path().join(lp::FORCE_FILE);
+    let text = std::fs::read_to_string(&f).unwrap();
+    std::fs::write(
+        &f,
+        text.replacen("units SI: s, m, N", "units cgs: s, cm, dyn", 1),
+    )
+    .unwrap();
+    let e = format!("{:#}", reduce(d.path()).unwrap_err());
+    assert!(e.contains("not this run's force file"), "{e}");
 }

@@ -17,6 +17,7 @@
 
 pub mod bed;
 pub mod deck_dir;
+pub mod inputs;
 pub mod stress;
 
 use super::reference::Verified;
@@ -221,15 +222,6 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
     let mut b = binner(case, bed)?;
     let mut provenance = lp::read_outputs(&deck, dir, |s| b.push(s.z_bottom, s.f[2]))
         .with_context(|| format!("LIGGGHTS run in {}", dir.display()))?;
-    if let Ok(on_disk) = std::fs::read_to_string(dir.join(lp::DECK_FILE))
-        && !crate::engines::deck_text::same_input(&on_disk, &lp::deck_text(&deck)?)
-        && !on_disk.contains(crate::engines::liggghts::snapshot::PAIR_PREFIX)
-    {
-        provenance.notes.push(format!(
-            "{} differs from the deck granval writes for this case and bed (edited by hand?)",
-            dir.join(lp::DECK_FILE).display()
-        ));
-    }
     provenance.notes.push(packing::bed_note(case, bed));
     provenance
         .notes
@@ -245,6 +237,7 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
 /// (converted into `dir/snapshots`); with `--reuse`, an earlier run of the same deck and
 /// plan in `dir` is read instead.
 fn liggghts_run(
+    case: &PenetrationCase,
     u: &Unit,
     plan: Option<&SnapshotPlan>,
     dir: &Path,
@@ -304,6 +297,8 @@ fn liggghts_run(
         }
     };
     bar.finish_and_clear();
+    inputs::InputManifest::of_dir(dir, case, u.k, u.case.seed, Some(u.bed_hash.clone()))?
+        .write(dir)?;
     provenance.notes.push(packing::bed_note(&u.case, &u.bed));
     provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
     if !u.bed.bodies.is_empty() {
@@ -592,10 +587,10 @@ impl Experiment for Penetration {
     }
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<RefRun> {
-        let mut main = liggghts_run(u, u.plan.as_ref(), dir, opts)?;
+        let mut main = liggghts_run(&self.case, u, u.plan.as_ref(), dir, opts)?;
         if let Some(sp) = &u.study_plan {
             let sdir = dir.join(STUDY_DIR);
-            let study = liggghts_run(u, Some(sp), &sdir, opts)
+            let study = liggghts_run(&self.case, u, Some(sp), &sdir, opts)
                 .with_context(|| format!("bed {}: estimator-study run", u.k))?;
             main.study_snapshots = study.snapshots;
         }
@@ -658,6 +653,11 @@ impl Experiment for Penetration {
     }
 
     fn read_run_dir(&self, u: &Unit, dir: &Path) -> Result<RefRun> {
+        // The bed is this unit's (granval prepared it): the deck on disk must be the one
+        // written from it, as the directory's manifest must list it.
+        let manifest = inputs::InputManifest::read(dir)?;
+        manifest.check(dir, &self.case, &self.case.source, u.k, u.case.seed)?;
+        deck_dir::check_case_inputs(&u.case, &u.bed, dir, manifest.settles_in_liggghts())?;
         Ok(RefRun {
             run: reduce_liggghts_dir(&u.case, &u.bed, dir)?,
             snapshots: None,
