@@ -16,6 +16,8 @@ pub struct EngineRun {
     pub fdr: Fdr,
     pub samples: u64,
     pub provenance: Provenance,
+    /// The force file the FDR was reduced from (what a run seal covers).
+    pub force_file: Option<std::path::PathBuf>,
 }
 
 /// The streaming eq-5 reducer of a run from `bed`: its own psi and surface.

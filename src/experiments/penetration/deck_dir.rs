@@ -333,7 +333,7 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             )?);
         }
     }
-    let v = fdr_checks(
+    let (mut v, summary) = fdr_checks(
         &case,
         &units,
         &natives.iter().map(|r| &r.run).collect::<Vec<_>>(),
@@ -344,6 +344,19 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
         &reference.iter().collect::<Vec<_>>(),
         out_dir,
     );
+    let runs = |k: usize| -> Result<super::run_seal::BedRuns> {
+        let u = &units[k];
+        Ok(super::run_seal::BedRuns {
+            unit: u,
+            engine_input: exp.fingerprint(u)?,
+            native_force: natives.get(k).and_then(|r| r.run.force_file.clone()),
+            reference_force: reference[k]
+                .force_file
+                .clone()
+                .context("the LIGGGHTS run names no force file")?,
+        })
+    };
+    super::seal_summary(&case, (0..units.len()).map(runs), &summary, out_dir, &mut v);
     notes.extend(v.notes);
     let wall = |it: &mut dyn Iterator<Item = f64>| it.sum::<f64>();
     Ok(CaseOutcome {

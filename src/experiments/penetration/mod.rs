@@ -18,6 +18,7 @@
 pub mod bed;
 pub mod deck_dir;
 pub mod inputs;
+pub mod run_seal;
 pub mod stress;
 
 use super::reference::Verified;
@@ -141,6 +142,7 @@ fn native_run(
         fdr: b.fdr(),
         samples: b.samples(),
         provenance,
+        force_file: Some(dir.join(FORCE_CSV)),
     })
 }
 
@@ -208,6 +210,7 @@ fn reuse_native(
         fdr: b.fdr(),
         samples: b.samples(),
         provenance,
+        force_file: Some(force),
     }))
 }
 
@@ -230,6 +233,7 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
         fdr: b.fdr(),
         samples: b.samples(),
         provenance,
+        force_file: Some(dir.join(lp::FORCE_FILE)),
     })
 }
 
@@ -323,6 +327,7 @@ fn liggghts_run(
             fdr: b.fdr(),
             samples: b.samples(),
             provenance,
+            force_file: Some(dir.join(lp::FORCE_FILE)),
         },
         snapshots,
         study_snapshots: None,
@@ -714,7 +719,7 @@ impl Experiment for Penetration {
         out: &Path,
         opts: &Options,
     ) -> Verdict {
-        let mut v = fdr_checks(
+        let (mut v, summary) = fdr_checks(
             &self.case,
             units,
             &native.iter().map(|r| &r.run).collect::<Vec<_>>(),
@@ -732,7 +737,52 @@ impl Experiment for Penetration {
             v.notes.extend(s.notes);
             v.unevaluated.extend(s.unevaluated);
         }
+        let runs = |k: usize| -> Result<run_seal::BedRuns> {
+            let u = &units[k];
+            Ok(run_seal::BedRuns {
+                unit: u,
+                engine_input: self.fingerprint(u)?,
+                native_force: native.get(k).and_then(|r| r.run.force_file.clone()),
+                reference_force: reference[k]
+                    .run
+                    .force_file
+                    .clone()
+                    .context("the reference run names no force file")?,
+            })
+        };
+        seal_summary(
+            &self.case,
+            (0..units.len()).map(runs),
+            &summary,
+            out,
+            &mut v,
+        );
         v
+    }
+}
+
+/// Writes the case's `summary.json` and its run seal into `out` (claims across cases
+/// read only sealed summaries, [`run_seal`]); a run whose summary cannot be sealed gets
+/// an error check, as a summary without a seal would be refused later anyway.
+pub fn seal_summary<'a>(
+    case: &PenetrationCase,
+    beds: impl Iterator<Item = Result<run_seal::BedRuns<'a>>>,
+    summary: &crate::compare::sweep::CaseSummary,
+    out: &Path,
+    v: &mut Verdict,
+) {
+    let sealed = beds
+        .collect::<Result<Vec<_>>>()
+        .and_then(|beds| run_seal::write(out, case, &beds, summary, &v.checks));
+    if let Err(e) = sealed {
+        v.checks.push(Check::error(
+            format!("{}: run seal", case.name),
+            format!(
+                "{} and {} not written: {e:#}",
+                crate::compare::sweep::SUMMARY_FILE,
+                run_seal::RUN_SEAL_FILE
+            ),
+        ));
     }
 }
 
@@ -786,8 +836,8 @@ pub fn k_phi_fit_end(case: &PenetrationCase, range: &cp::FitRange) -> f64 {
 }
 
 /// Every FDR check of the experiment from the runs of both engines, with the FDR CSVs
-/// and the overlay SVG written to `out`. Shared by `compare` and `analyze`, so both give
-/// the same report from the same runs.
+/// and the overlay SVG written to `out`, and the case's summary. Shared by `compare` and
+/// `analyze`, so both give the same report from the same runs.
 pub fn fdr_checks(
     case: &PenetrationCase,
     units: &[Unit],
@@ -795,7 +845,7 @@ pub fn fdr_checks(
     native_slow: &[&EngineRun],
     reference: &[&EngineRun],
     out: &Path,
-) -> Verdict {
+) -> (Verdict, crate::compare::sweep::CaseSummary) {
     let name = |w: &str| format!("{}: {w}", case.name);
     let mut notes: Vec<String> = units
         .iter()
@@ -814,15 +864,18 @@ pub fn fdr_checks(
         })
         .collect();
     let mut checks = Vec::new();
-    let range = fit_range_of(case, units, native, reference);
+    let Summarized {
+        range,
+        h_max,
+        native: native_o,
+        reference,
+        summary,
+    } = summarize(case, units, native, reference);
     notes.push(range.text());
-    let h_max = k_phi_fit_end(case, &range);
     let obs = |r: &[&EngineRun]| {
         let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
         cp::ensemble_in(case, &f, h_max)
     };
-    let reference = (!reference.is_empty()).then(|| obs(reference));
-    let native_o = (!native.is_empty()).then(|| obs(native));
     let _ = std::fs::create_dir_all(out);
     let mut curves = Vec::new();
     for (label, o) in [("native", &native_o), ("liggghts", &reference)] {
@@ -867,12 +920,6 @@ pub fn fdr_checks(
             None => {}
         }
     }
-    if let Err(e) = summary(case, units, &native_o, &reference).write(out) {
-        notes.push(format!(
-            "{} not written: {e:#}",
-            crate::compare::sweep::SUMMARY_FILE
-        ));
-    }
     if let (Some(Ok(a)), Some(Ok(b))) = (&native_o, &reference) {
         checks.extend(cp::compare(case, &range, a, b));
         notes.extend(cp::boundaries_not_compared(a, b));
@@ -898,10 +945,51 @@ pub fn fdr_checks(
     {
         notes.push(format!("SVG not written: {e:#}"));
     }
-    Verdict {
-        checks,
-        notes,
-        ..Verdict::default()
+    (
+        Verdict {
+            checks,
+            notes,
+            ..Verdict::default()
+        },
+        summary,
+    )
+}
+
+/// The ensemble observables of a run and the summary claims across cases read from it.
+pub struct Summarized {
+    pub range: cp::FitRange,
+    /// Upper end of every K_phi fit ([`k_phi_fit_end`]).
+    pub h_max: f64,
+    /// Each engine's ensemble observables (None: that engine did not run).
+    pub native: Option<Result<cp::Observables>>,
+    pub reference: Option<Result<cp::Observables>>,
+    pub summary: crate::compare::sweep::CaseSummary,
+}
+
+/// Rule 3's range, each engine's ensemble observables on it and the case summary, from
+/// the runs of both engines: what [`fdr_checks`] gates and what a run seal recomputes
+/// from the sealed force files ([`run_seal::verify`]), with this one function.
+pub fn summarize(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: &[&EngineRun],
+    reference: &[&EngineRun],
+) -> Summarized {
+    let range = fit_range_of(case, units, native, reference);
+    let h_max = k_phi_fit_end(case, &range);
+    let obs = |r: &[&EngineRun]| {
+        let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
+        cp::ensemble_in(case, &f, h_max)
+    };
+    let reference = (!reference.is_empty()).then(|| obs(reference));
+    let native = (!native.is_empty()).then(|| obs(native));
+    let summary = summary(case, units, &native, &reference);
+    Summarized {
+        range,
+        h_max,
+        native,
+        reference,
+        summary,
     }
 }
 
