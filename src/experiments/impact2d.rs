@@ -1074,7 +1074,9 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
             continue;
         }
         let cache = super::bed_cache::file("impact2d", &spec);
-        let cached = super::bed_cache::load::<Bed>(cache.as_deref());
+        // The seal names the whole bed specification (count, seed, packing): a 2D bed
+        // loses grains to smoothing, so its size alone says nothing more.
+        let cached = super::bed_cache::load_cached::<Bed>(cache.as_deref(), &spec, |_| Ok(()))?;
         let b = match cached {
             Some(b) => b,
             None => {
@@ -1099,7 +1101,7 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
                     )
                 })?;
                 bar.finish_and_clear();
-                super::bed_cache::store(cache.as_deref(), &b);
+                super::bed_cache::store(cache.as_deref(), &spec, &b);
                 b
             }
         };
