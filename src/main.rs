@@ -190,7 +190,13 @@ enum Cmd {
     /// Validate a case file without running anything and print what follows from it:
     /// grain count, Rayleigh (or collision) time and the time step's fraction of it,
     /// steps, estimated run time and output, the resource limits. Exit 0 if valid.
-    Validate { case: PathBuf },
+    Validate {
+        case: PathBuf,
+        /// Accept a case whose estimated steps, output or memory exceed the limits (as
+        /// `--allow-large` does for the commands that run it).
+        #[arg(long)]
+        allow_large: bool,
+    },
     /// Reference data management.
     Reference {
         #[command(subcommand)]
@@ -731,7 +737,7 @@ fn real_main() -> Result<ExitCode> {
             show!("{verified} record(s) verified");
             Ok(ExitCode::SUCCESS)
         }
-        Cmd::Validate { case } => {
+        Cmd::Validate { case, allow_large } => {
             let c = load(&case)?;
             let (kind, engine) = match &c {
                 AnyCase::Micro(_) => ("micro", "LIGGGHTS"),
@@ -739,13 +745,28 @@ fn real_main() -> Result<ExitCode> {
                 AnyCase::Impact2d(_) => ("impact2d", "LAMMPS"),
                 AnyCase::Triaxial(_) => ("triaxial", "LIGGGHTS"),
             };
-            let (name, lines) = with_experiment!(c, false, |exp| (
-                exp.name().to_string(),
-                granval::experiments::validation_summary(&exp)
-            ));
+            // Exactly what `compare` refuses before it runs (the reference engine's
+            // limits, the start state, the resource limits): a case that validates runs.
+            let (name, lines, refused) = with_experiment!(c, false, |exp| {
+                exp.preflight()?;
+                anyhow::Ok((
+                    exp.name().to_string(),
+                    granval::experiments::validation_summary(&exp),
+                    granval::experiments::limits::refuse(
+                        &exp.estimate(),
+                        &case.display().to_string(),
+                    ),
+                ))
+            })?;
+            let refused = refused.filter(|_| !allow_large);
             show!(
-                "{}: valid {kind} case `{name}` (reference engine {engine})",
-                case.display()
+                "{}: {} {kind} case `{name}` (reference engine {engine})",
+                case.display(),
+                if refused.is_some() {
+                    "too large to run here:"
+                } else {
+                    "valid"
+                }
             );
             let w = lines.iter().map(|l| l.label.len()).max().unwrap_or(0);
             for l in &lines {
@@ -754,6 +775,9 @@ fn real_main() -> Result<ExitCode> {
                 } else {
                     show!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
                 }
+            }
+            if let Some(why) = refused {
+                bail!("{}: refused before running: {why}", case.display());
             }
             show!(
                 "next: granval deck {} -o DIR   (the {engine} input to read or run), granval compare {} --report OUT",

@@ -81,18 +81,29 @@ fn non_positive_radius() {
     );
 }
 
+/// Isotropic elasticity needs -1 < nu <= 0.5 (positive bulk and shear moduli; 0.5 is
+/// the incompressible limit, which LIGGGHTS takes too): outside, refused.
 #[test]
 fn poisson_out_of_range() {
-    let m = err(&base().replacen("poisson_ratio = 0.3", "poisson_ratio = 0.5", 1));
-    assert_mentions(
-        &m,
-        &[
-            "cases/bad.toml",
-            "materials[0].poisson_ratio",
-            "0.5",
-            "(-1, 0.5)",
-        ],
-    );
+    for bad in ["0.51", "-1.0"] {
+        let m = err(&base().replacen("poisson_ratio = 0.3", &format!("poisson_ratio = {bad}"), 1));
+        assert_mentions(
+            &m,
+            &[
+                "cases/bad.toml",
+                "materials[0].poisson_ratio",
+                bad.trim_end_matches(".0"),
+                "(-1, 0.5]",
+            ],
+        );
+    }
+    for good in ["0.5", "-0.2", "0.0"] {
+        Case::from_toml_str(
+            &base().replacen("poisson_ratio = 0.3", &format!("poisson_ratio = {good}"), 1),
+            Path::new("cases/ok.toml"),
+        )
+        .unwrap_or_else(|e| panic!("nu = {good}: {e}"));
+    }
 }
 
 #[test]

@@ -77,7 +77,7 @@ fn recorded_references_match_live_liggghts() {
             exp.source(),
             &exp.canonical_hash(),
             EngineKind::Liggghts,
-            &[(String::new(), exp.fingerprint(&()).unwrap())],
+            &granval::experiments::reference::unit_keys(&exp, &[()]).unwrap(),
             &granval::experiments::record_store::nothing_regenerable,
         )
         .unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
@@ -118,7 +118,7 @@ fn caught(pert: Perturbation) -> Vec<String> {
                 exp.source(),
                 &exp.canonical_hash(),
                 EngineKind::Liggghts,
-                &[(String::new(), exp.fingerprint(&()).unwrap())],
+                &granval::experiments::reference::unit_keys(&exp, &[()]).unwrap(),
                 &granval::experiments::record_store::nothing_regenerable,
             )
             .unwrap();

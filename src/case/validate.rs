@@ -163,8 +163,11 @@ pub(super) fn physics(
             return Err(ctx.bad(f("type"), m.type_, "type defined twice"));
         }
         let nu = finite(ctx, &f("poisson_ratio"), m.poisson_ratio)?;
-        if !(nu > -1.0 && nu < 0.5) {
-            return Err(ctx.bad(f("poisson_ratio"), nu, "must lie in (-1, 0.5)"));
+        // Isotropic elasticity: positive bulk and shear moduli need -1 < nu <= 1/2
+        // (1/2: incompressible). The reference engines may take less (LIGGGHTS: nu >= 0),
+        // which every command that compares checks ([`crate::experiments::Experiment::preflight`]).
+        if !(nu > -1.0 && nu <= 0.5) {
+            return Err(ctx.bad(f("poisson_ratio"), nu, "must lie in (-1, 0.5]"));
         }
         let (e, g) = match (m.youngs_modulus, m.shear_modulus) {
             (Some(e), None) => {

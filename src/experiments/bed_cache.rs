@@ -6,6 +6,7 @@
 //! provenance and seal as before, so a cached bed that differed would fail the seal.
 
 use crate::rundata::provenance::Sha256;
+use anyhow::{Context, Result, bail};
 use serde::{Serialize, de::DeserializeOwned};
 use std::path::{Path, PathBuf};
 
@@ -36,7 +37,8 @@ pub fn in_cache(name: &str) -> Option<PathBuf> {
 /// Appended to the note of a bed read from a reference record.
 pub const FROM_RECORD_NOTE: &str = "; taken from the sealed reference record, where it was stored when the reference run was recorded (not settled again here)";
 
-/// The cached bed, if there is a readable one.
+/// The bed stored as `file` in a sealed reference record, if there is a readable one
+/// (the record's seal, checked before the comparison goes on, covers it).
 pub fn load<T: DeserializeOwned>(file: Option<&Path>) -> Option<T> {
     let bytes = crate::rundata::fsio::read(
         file?,
@@ -46,11 +48,94 @@ pub fn load<T: DeserializeOwned>(file: Option<&Path>) -> Option<T> {
     serde_json::from_slice(&bytes.ok()?).ok()
 }
 
-/// Stores a bed; a failure only costs the next run a preparation.
-pub fn store<T: Serialize>(file: Option<&Path>, bed: &T) {
+/// The seal beside a cached bed (`<bed file>.seal.json`): what it was prepared from
+/// and its sha256.
+#[derive(Serialize, serde::Deserialize, PartialEq, Debug)]
+#[serde(deny_unknown_fields)]
+struct CacheSeal {
+    granval: String,
+    /// The bed's specification as prepared (JSON; it holds the seed).
+    spec: String,
+    /// sha256 of the bed file's bytes.
+    sha256: Sha256,
+}
+
+fn seal_path(file: &Path) -> PathBuf {
+    let mut name = file.file_name().unwrap_or_default().to_os_string();
+    name.push(".seal.json");
+    file.with_file_name(name)
+}
+
+/// The cached bed of `spec` in `file` (None: no cache, or no bed cached yet). A cache
+/// file is used only when its seal (written by [`store`]) names this specification and
+/// the file's sha256, and `check` (the case's own count of grains) accepts the bed;
+/// anything else is an error naming the file, never a bed prepared elsewhere reported
+/// as prepared here. The seal is written by granval and can be rewritten by a person
+/// too: it stops a stale, truncated or hand-made file, not a forger.
+pub fn load_cached<T: DeserializeOwned>(
+    file: Option<&Path>,
+    spec: &impl Serialize,
+    check: impl Fn(&T) -> Result<()>,
+) -> Result<Option<T>> {
+    let Some(file) = file else { return Ok(None) };
+    if !file.exists() {
+        return Ok(None);
+    }
+    let remedy = "move it out of GRANVAL_BED_CACHE: granval then prepares the bed again and stores it sealed";
+    let sp = seal_path(file);
+    let seal: CacheSeal = std::fs::read_to_string(&sp)
+        .map_err(anyhow::Error::from)
+        .and_then(|t| Ok(serde_json::from_str(&t)?))
+        .with_context(|| {
+            format!(
+                "{}: a cached bed without a readable seal ({}); {remedy}",
+                file.display(),
+                sp.display()
+            )
+        })?;
+    let want = serde_json::to_string(spec)?;
+    if seal.spec != want {
+        bail!(
+            "{}: cached for another specification ({} names {}, this bed is {want}); {remedy}",
+            file.display(),
+            sp.display(),
+            seal.spec
+        );
+    }
+    let got = crate::rundata::file_seal::digest(
+        file.parent().unwrap_or(Path::new(".")),
+        &file.file_name().unwrap_or_default().to_string_lossy(),
+    )?;
+    if got != seal.sha256 {
+        bail!(
+            "{}: content differs from its seal (sha256 {got}, sealed {}); {remedy}",
+            file.display(),
+            seal.sha256
+        );
+    }
+    let bed: T = serde_json::from_slice(&std::fs::read(file)?)
+        .with_context(|| format!("{}: not a bed; {remedy}", file.display()))?;
+    check(&bed).with_context(|| format!("{}: {remedy}", file.display()))?;
+    Ok(Some(bed))
+}
+
+/// Stores a bed of `spec` with its seal; a failure only costs the next run a preparation.
+pub fn store<T: Serialize>(file: Option<&Path>, spec: &impl Serialize, bed: &T) {
     if let Some(path) = file {
         let _ = std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")));
-        let _ = std::fs::write(path, serde_json::to_vec(bed).unwrap_or_default());
+        let bytes = serde_json::to_vec(bed).unwrap_or_default();
+        if std::fs::write(path, &bytes).is_err() {
+            return;
+        }
+        let seal = CacheSeal {
+            granval: env!("CARGO_PKG_VERSION").into(),
+            spec: serde_json::to_string(spec).unwrap_or_default(),
+            sha256: Sha256::of(&bytes),
+        };
+        let _ = std::fs::write(
+            seal_path(path),
+            serde_json::to_string_pretty(&seal).unwrap_or_default() + "\n",
+        );
     }
 }
 
@@ -98,8 +183,10 @@ mod tests {
             settle_time: 0.342,
             ke_at_end_of_pour: 1.0 / 3.0,
         };
-        store(Some(&f), &bed);
-        let back: Bed = load(Some(&f)).expect("cached bed");
+        store(Some(&f), &"spec", &bed);
+        let back: Bed = load_cached(Some(&f), &"spec", |_: &Bed| Ok(()))
+            .unwrap()
+            .expect("cached bed");
         let bits = |b: &Bed| {
             let mut v: Vec<u64> =
                 vec![b.surface_z.to_bits(), b.psi.to_bits(), b.ke_ratio.to_bits()];
@@ -121,5 +208,47 @@ mod tests {
         assert_eq!(bits(&bed), bits(&back));
         assert!(load::<Bed>(Some(&d.path().join("missing.json"))).is_none());
         assert!(load::<Bed>(None).is_none());
+        let none = |p: Option<&Path>| load_cached::<Bed>(p, &"spec", |_| Ok(())).unwrap();
+        assert!(none(Some(&d.path().join("missing.json"))).is_none());
+        assert!(none(None).is_none());
+    }
+
+    /// A cached bed is used only through its seal: of another specification, edited,
+    /// without a seal, or refused by the case's check, it is an error naming the file;
+    /// the sealed one (the negative control) is used.
+    #[test]
+    fn a_cached_bed_is_checked_before_use() {
+        let d = tempfile::tempdir().unwrap();
+        let f = d.path().join("b.json");
+        let bed = vec![1.0f64, 2.0, 3.0];
+        store(Some(&f), &("spec", 7u64), &bed);
+        let ok = |_: &Vec<f64>| Ok(());
+        assert_eq!(
+            load_cached(Some(&f), &("spec", 7u64), ok).unwrap(),
+            Some(bed.clone())
+        );
+        let err = |spec: (&str, u64), check: &dyn Fn(&Vec<f64>) -> Result<()>| {
+            format!("{:#}", load_cached(Some(&f), &spec, check).unwrap_err())
+        };
+        // Another seed.
+        let e = err(("spec", 8), &ok);
+        assert!(
+            e.contains("b.json") && e.contains("another specification"),
+            "{e}"
+        );
+        // The case's own check (e.g. 5 grains where the case pours 2000).
+        let e = err(("spec", 7), &|b| {
+            anyhow::ensure!(b.len() == 2000, "{} grains, the case pours 2000", b.len());
+            Ok(())
+        });
+        assert!(e.contains("3 grains, the case pours 2000"), "{e}");
+        // Edited after it was stored.
+        std::fs::write(&f, "[1.0,2.0]").unwrap();
+        let e = err(("spec", 7), &ok);
+        assert!(e.contains("content differs from its seal"), "{e}");
+        // No seal at all (written by hand, or before beds were sealed).
+        std::fs::remove_file(seal_path(&f)).unwrap();
+        let e = err(("spec", 7), &ok);
+        assert!(e.contains("without a readable seal"), "{e}");
     }
 }

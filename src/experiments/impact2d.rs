@@ -252,6 +252,15 @@ impl Experiment for Impact2d {
     fn fingerprint(&self, u: &Unit) -> Result<Sha256> {
         Ok(scene_hash(&u.scene))
     }
+    fn engine_input(&self, u: &Unit) -> Result<Vec<(&'static str, String)>> {
+        Ok(vec![
+            (
+                lammps::DECK_FILE,
+                lammps::deck::write_deck(&u.scene.sys, &self.outputs(u))?,
+            ),
+            (lammps::DATA_FILE, lammps::deck::write_data(&u.scene.sys)),
+        ])
+    }
 
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<ImpactRun> {
         let c = &self.case;
@@ -1080,7 +1089,9 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
             continue;
         }
         let cache = super::bed_cache::file("impact2d", &spec);
-        let cached = super::bed_cache::load::<Bed>(cache.as_deref());
+        // The seal names the whole bed specification (count, seed, packing): a 2D bed
+        // loses grains to smoothing, so its size alone says nothing more.
+        let cached = super::bed_cache::load_cached::<Bed>(cache.as_deref(), &spec, |_| Ok(()))?;
         let b = match cached {
             Some(b) => b,
             None => {
@@ -1105,7 +1116,7 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
                     )
                 })?;
                 bar.finish_and_clear();
-                super::bed_cache::store(cache.as_deref(), &b);
+                super::bed_cache::store(cache.as_deref(), &spec, &b);
                 b
             }
         };

@@ -136,7 +136,15 @@ impl Experiment for Micro {
     }
 
     fn estimate(&self) -> Estimate {
-        let n = self.case.particles.len() as f64;
+        // Spheres the engines integrate: every clump body counts its member spheres.
+        let n = self.case.particles.len() as f64
+            + self
+                .case
+                .clumps
+                .bodies
+                .iter()
+                .map(|b| self.case.clumps.template_of(b).radii.len() as f64)
+                .sum::<f64>();
         let steps = self.case.n_steps as f64;
         let frames = steps / self.case.output_every as f64 + 1.0;
         // About 300 bytes per particle per frame in particles.csv and in the dump;
@@ -149,6 +157,13 @@ impl Experiment for Micro {
         }
     }
 
+    fn preflight(&self) -> Result<()> {
+        liggghts::check_liggghts_limits(&self.case)?;
+        crate::physics::dem::Simulation::from_case(&self.case)
+            .check_start()
+            .with_context(|| format!("{}: the start state", self.case.source.display()))
+    }
+
     fn derived(&self) -> Vec<Derived> {
         let c = &self.case;
         vec![
@@ -156,6 +171,19 @@ impl Experiment for Micro {
                 "particles",
                 c.particles.len().to_string(),
                 format!("{} wall(s), {} material(s)", c.walls.len(), c.n_types()),
+            ),
+            Derived::new(
+                "clumps",
+                c.clumps.bodies.len().to_string(),
+                format!(
+                    "rigid bodies of {} member spheres in all ({} templates); the estimates count every sphere",
+                    c.clumps
+                        .bodies
+                        .iter()
+                        .map(|b| c.clumps.template_of(b).radii.len())
+                        .sum::<usize>(),
+                    c.clumps.templates.len()
+                ),
             ),
             Derived::new(
                 "Rayleigh time",
@@ -191,6 +219,9 @@ impl Experiment for Micro {
     }
     fn fingerprint(&self, _unit: &()) -> Result<Sha256> {
         liggghts::micro_input_hash(&self.case)
+    }
+    fn engine_input(&self, _unit: &()) -> Result<Vec<(&'static str, String)>> {
+        liggghts::micro_inputs(&self.case)
     }
 
     fn run_native(&self, _unit: &(), role: Role, dir: &Path, opts: &Options) -> Result<MicroRun> {

@@ -308,6 +308,16 @@ pub trait Experiment {
     }
     fn estimate(&self) -> Estimate;
 
+    /// What a comparison of this case refuses before anything is prepared or run, checked
+    /// by every command that compares, writes a deck or validates (so a case that
+    /// validates is a case that runs): what the reference engine refuses of its input
+    /// (LIGGGHTS: 0 <= nu <= 0.5, 0.05 < e <= 1, atom IDs below 2^31) and the native
+    /// engine's start checks (overlaps). `granval run --engine native` makes only the
+    /// native checks, so a case only the native engine takes still runs there.
+    fn preflight(&self) -> Result<()> {
+        Ok(())
+    }
+
     /// Quantities derived from the case, for `granval validate` (what a person
     /// writing a case checks before running it): label, value with unit, comment.
     fn derived(&self) -> Vec<Derived>;
@@ -318,6 +328,11 @@ pub trait Experiment {
     fn unit_name(&self, unit: &Self::Unit) -> String;
     /// sha256 of the reference engine's input for this unit.
     fn fingerprint(&self, unit: &Self::Unit) -> Result<Sha256>;
+    /// The reference engine's input files of a unit (name, text) as
+    /// [`Experiment::write_deck`] writes them, in the order their fingerprint
+    /// ([`crate::engines::deck_text::fingerprint`]) is taken: a record must store exactly
+    /// this input (comments aside), and its provenance must name that fingerprint.
+    fn engine_input(&self, unit: &Self::Unit) -> Result<Vec<(&'static str, String)>>;
 
     fn run_native(
         &self,

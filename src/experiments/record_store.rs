@@ -104,14 +104,15 @@ pub fn check_sealed_file(
     hint: &str,
 ) -> Result<()> {
     let in_unit = unit_dir(record_root, unit).join(name);
-    if in_unit.exists() && !in_unit.is_file() {
+    if std::fs::symlink_metadata(&in_unit).is_ok_and(|m| !m.file_type().is_file()) {
         bail!(
             "{}: not a regular file (a sealed file must be the regular file recorded; {hint})",
             in_unit.display()
         );
     }
     if let Some(p) = locate(record_root, unit, name, want) {
-        let got = Sha256::of_file(&p).map_err(|e| {
+        let (parent, file) = (p.parent().unwrap_or(Path::new(".")), p.file_name().unwrap_or_default());
+        let got = crate::rundata::file_seal::digest(parent, &file.to_string_lossy()).map_err(|e| {
             anyhow::anyhow!("{e:#}: a sealed file must be the regular file recorded ({hint})")
         })?;
         if &got != want {

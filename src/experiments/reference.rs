@@ -101,6 +101,35 @@ pub fn unit_dir(root: &Path, unit: &str) -> PathBuf {
     }
 }
 
+/// What a comparison needs of one unit's record: its name, the fingerprint the seal
+/// must hold, and the reference engine's input the record must store (file names in
+/// fingerprint order, and the fingerprint of those files).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnitKey {
+    pub name: String,
+    pub fingerprint: Sha256,
+    pub input: Vec<&'static str>,
+    pub input_hash: Sha256,
+}
+
+/// The [`UnitKey`]s of an experiment's units.
+pub fn unit_keys<E: super::Experiment>(exp: &E, units: &[E::Unit]) -> Result<Vec<UnitKey>> {
+    units
+        .iter()
+        .map(|u| {
+            let input = exp.engine_input(u)?;
+            Ok(UnitKey {
+                name: exp.unit_name(u),
+                fingerprint: exp.fingerprint(u)?,
+                input_hash: crate::engines::deck_text::fingerprint(
+                    &input.iter().map(|(_, t)| t.as_str()).collect::<Vec<_>>(),
+                ),
+                input: input.into_iter().map(|(n, _)| n).collect(),
+            })
+        })
+        .collect()
+}
+
 /// One unit as sealed: the fingerprint of its reference-engine input and its files.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct SealedUnit {
@@ -120,6 +149,11 @@ pub struct Seal {
     pub engine: EngineKind,
     pub engine_version: String,
     pub sealed: String,
+    /// The case file the record was made from, as `reference refresh` was given it
+    /// (absent in records sealed before it was kept): a refresh of another case file
+    /// with the same name is refused instead of replacing this record.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub case_file: Option<String>,
     /// Unit name -> contents, in unit order.
     pub units: BTreeMap<String, SealedUnit>,
 }
@@ -159,15 +193,17 @@ fn rerecord_hint(case_file: &Path) -> String {
 }
 
 /// Checks a record against the case it is about to stand in for: the case's canonical
-/// hash, each unit's fingerprint, and every file's hash. `units` are (name, fingerprint)
-/// of the units the comparison needs, in order; `regenerate` writes again the files a
-/// lean record leaves out (`record_store`).
+/// hash, each unit's fingerprint, every file's hash (file names checked to be plain
+/// names inside the record before any is opened), and that the record's engine input
+/// and its provenance agree with the fingerprint (a provenance or a stored deck that
+/// contradicts the seal is refused). `units`: the units the comparison needs, in order;
+/// `regenerate` writes again the files a lean record leaves out (`record_store`).
 pub fn verify(
     root: &Path,
     case_file: &Path,
     case_hash: &Sha256,
     engine: EngineKind,
-    units: &[(String, Sha256)],
+    units: &[UnitKey],
     regenerate: super::record_store::Regenerate,
 ) -> Result<Verified> {
     let hint = rerecord_hint(case_file);
@@ -204,7 +240,18 @@ pub fn verify(
             case_file.display()
         );
     }
-    for (name, fingerprint) in units {
+    for (name, u) in &seal.units {
+        if !name.is_empty() {
+            crate::rundata::file_seal::plain_name(name)
+                .with_context(|| format!("{}: unit {name:?}", path.display()))?;
+        }
+        for file in u.files.keys() {
+            crate::rundata::file_seal::plain_name(file)
+                .with_context(|| format!("{}: unit {name:?}: sealed file", path.display()))?;
+        }
+    }
+    for key in units {
+        let (name, fingerprint) = (&key.name, &key.fingerprint);
         let Some(u) = seal.units.get(name) else {
             bail!(
                 "{}: no recorded unit {name:?} (the record has {:?}); {hint}",
@@ -223,6 +270,7 @@ pub fn verify(
         for (file, want) in &u.files {
             super::record_store::check_sealed_file(root, name, file, want, regenerate, &hint)?;
         }
+        check_engine_input(&unit_dir(root, name), key, u, regenerate, &hint)?;
     }
     Ok(Verified {
         root: root.to_path_buf(),
@@ -230,19 +278,133 @@ pub fn verify(
     })
 }
 
+/// The engine input a unit's record stores and the provenance it carries must be the
+/// input the seal's fingerprint stands for: every input file sealed, their fingerprint
+/// the one the case gives today, and `provenance.json`'s `input_hash` that same value.
+/// The files' hashes alone prove only that nothing changed since sealing, not that what
+/// was sealed is consistent.
+fn check_engine_input(
+    dir: &Path,
+    key: &UnitKey,
+    u: &SealedUnit,
+    regenerate: super::record_store::Regenerate,
+    hint: &str,
+) -> Result<()> {
+    let mut texts = Vec::with_capacity(key.input.len());
+    for f in &key.input {
+        ensure!(
+            u.files.contains_key(*f),
+            "{}: the record of unit {:?} does not hold its engine input {f} ({hint})",
+            dir.display(),
+            key.name
+        );
+        let p = dir.join(f);
+        // A file a lean record left out is the one written again from the unit, which
+        // check_sealed_file has just hashed against the seal.
+        let again = if p.exists() { None } else { regenerate(&key.name, f) };
+        let text = match again {
+            Some(bytes) => String::from_utf8(bytes?)
+                .with_context(|| format!("{}: written again, not UTF-8", p.display()))?,
+            None => std::fs::read_to_string(&p)
+                .with_context(|| format!("cannot read {}", p.display()))?,
+        };
+        texts.push(text);
+    }
+    let stored = crate::engines::deck_text::fingerprint(
+        &texts.iter().map(String::as_str).collect::<Vec<_>>(),
+    );
+    if stored != key.input_hash {
+        bail!(
+            "{}: the engine input stored in the record ({}) has fingerprint {stored}, but the input this case gives the engine has {}: the stored input contradicts the seal; {hint}",
+            dir.display(),
+            key.input.join(", "),
+            key.input_hash
+        );
+    }
+    if u.files.contains_key(PROVENANCE_FILE) {
+        let p = dir.join(PROVENANCE_FILE);
+        let prov = crate::rundata::provenance::read_provenance(&p)?;
+        if prov.input_hash != key.input_hash {
+            bail!(
+                "{}: input_hash {} contradicts the seal's engine input (fingerprint {}); {hint}",
+                p.display(),
+                prov.input_hash,
+                key.input_hash
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The case file a record was made from: the seal's `case_file`, or for records sealed
+/// before it was kept, the `case_file` a unit's provenance names when that is a case
+/// file (`.toml`).
+pub fn recorded_case_file(root: &Path) -> Option<PathBuf> {
+    let seal: Seal =
+        serde_json::from_str(&std::fs::read_to_string(root.join(SEAL_FILE)).ok()?).ok()?;
+    if let Some(f) = seal.case_file {
+        return Some(PathBuf::from(f));
+    }
+    seal.units.keys().find_map(|u| {
+        let p =
+            crate::rundata::provenance::read_provenance(&unit_dir(root, u).join(PROVENANCE_FILE))
+                .ok()?;
+        p.case_file
+            .ends_with(".toml")
+            .then(|| PathBuf::from(p.case_file))
+    })
+}
+
+/// `reference refresh` of `case_file` (case `name`) into `root`: refused when the
+/// record there was made from another case file that still declares the same name,
+/// which the new record would silently replace. The same file (by its canonical path)
+/// may be re-recorded, and a record whose case file is gone or renamed its case may be
+/// replaced.
+pub fn refuse_other_case_file(root: &Path, case_file: &Path, name: &str) -> Result<()> {
+    let Some(recorded) = recorded_case_file(root) else {
+        return Ok(());
+    };
+    let same = match (recorded.canonicalize(), case_file.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    let still_named = std::fs::read_to_string(&recorded)
+        .ok()
+        .and_then(|t| t.parse::<toml::Table>().ok())
+        .and_then(|t| t.get("case")?.get("name")?.as_str().map(|n| n == name))
+        .unwrap_or(false);
+    if !same && still_named {
+        bail!(
+            "{}: case {name:?} is recorded there from {}, and {} declares the same [case] name: recording it would replace the other case's record; rename one of the two cases",
+            root.display(),
+            recorded.display(),
+            case_file.display()
+        );
+    }
+    Ok(())
+}
+
+/// Every record's provenance file.
+pub const PROVENANCE_FILE: &str = "provenance.json";
+
 /// Writes the seal of a freshly recorded case: every file now present in each unit's
 /// directory (sub-directories excepted) is covered.
+#[allow(clippy::too_many_arguments)]
 pub fn write(
     root: &Path,
     case_name: &str,
     case_kind: &str,
+    case_file: &Path,
     case_hash: &Sha256,
     engine: EngineKind,
     engine_version: &str,
-    units: &[(String, Sha256)],
+    units: &[UnitKey],
 ) -> Result<Seal> {
     let mut sealed = BTreeMap::new();
-    for (name, fingerprint) in units {
+    for UnitKey {
+        name, fingerprint, ..
+    } in units
+    {
         let dir = unit_dir(root, name);
         let mut files = BTreeMap::new();
         for e in
@@ -271,6 +433,7 @@ pub fn write(
         engine,
         engine_version: engine_version.into(),
         sealed: now_utc(),
+        case_file: Some(case_file.display().to_string()),
         units: sealed,
     };
     let path = root.join(SEAL_FILE);
@@ -284,16 +447,29 @@ mod tests {
     use super::*;
     use crate::experiments::record_store::nothing_regenerable;
 
-    fn setup() -> (tempfile::TempDir, Sha256, Vec<(String, Sha256)>) {
+    fn key(fingerprint: Sha256) -> UnitKey {
+        UnitKey {
+            name: "bed-0".into(),
+            input_hash: fingerprint.clone(),
+            fingerprint,
+            input: vec!["in.deck"],
+        }
+    }
+
+    const DECK: &str = "# a deck\nrun 10\n";
+
+    fn setup() -> (tempfile::TempDir, Sha256, Vec<UnitKey>) {
         let d = tempfile::tempdir().unwrap();
         std::fs::create_dir_all(d.path().join("bed-0")).unwrap();
         std::fs::write(d.path().join("bed-0/force.txt"), "1 2 3\n").unwrap();
+        std::fs::write(d.path().join("bed-0/in.deck"), DECK).unwrap();
         let case = Sha256::of(b"case");
-        let units = vec![("bed-0".to_string(), Sha256::of(b"deck"))];
+        let units = vec![key(crate::engines::deck_text::fingerprint(&[DECK]))];
         write(
             d.path(),
             "c",
             "penetration",
+            Path::new("c.toml"),
             &case,
             EngineKind::Liggghts,
             "LIGGGHTS (Version x)",
@@ -301,6 +477,39 @@ mod tests {
         )
         .unwrap();
         (d, case, units)
+    }
+
+    /// A record names the case file it was made from; a refresh of another file that
+    /// declares the same name is refused naming both, the same file (reached by another
+    /// path) and a record whose file now names another case are not.
+    #[test]
+    fn a_record_is_not_replaced_by_another_case_file_of_the_same_name() {
+        let (d, _, _) = setup();
+        let cases = tempfile::tempdir().unwrap();
+        let a = cases.path().join("a.toml");
+        let b = cases.path().join("b.toml");
+        std::fs::write(&a, "[case]\nname = \"c\"\n").unwrap();
+        std::fs::write(&b, "[case]\nname = \"c\"\n").unwrap();
+        let seal_path = d.path().join(SEAL_FILE);
+        let mut seal: Seal =
+            serde_json::from_str(&std::fs::read_to_string(&seal_path).unwrap()).unwrap();
+        seal.case_file = Some(a.display().to_string());
+        std::fs::write(&seal_path, serde_json::to_string(&seal).unwrap()).unwrap();
+        assert_eq!(recorded_case_file(d.path()), Some(a.clone()));
+        let e = format!(
+            "{:#}",
+            refuse_other_case_file(d.path(), &b, "c").unwrap_err()
+        );
+        assert!(
+            e.contains(&*a.display().to_string()) && e.contains(&*b.display().to_string()),
+            "{e}"
+        );
+        refuse_other_case_file(d.path(), &a, "c").unwrap();
+        refuse_other_case_file(d.path(), &cases.path().join(".").join("a.toml"), "c").unwrap();
+        std::fs::write(&a, "[case]\nname = \"renamed\"\n").unwrap();
+        refuse_other_case_file(d.path(), &b, "c").unwrap();
+        // No record yet: nothing to replace.
+        refuse_other_case_file(&cases.path().join("none"), &b, "c").unwrap();
     }
 
     #[test]
@@ -346,7 +555,7 @@ mod tests {
         )
         .unwrap_err();
         assert!(format!("{e:#}").contains("different case"), "{e:#}");
-        let moved = vec![("bed-0".to_string(), Sha256::of(b"another deck"))];
+        let moved = vec![key(Sha256::of(b"another deck"))];
         let e = verify(
             d.path(),
             Path::new("c.toml"),

@@ -91,6 +91,9 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
     if let Err(e) = check_limits(exp, opts) {
         return CaseOutcome::error(&name, "resource limits", e, vec![]);
     }
+    if let Err(e) = exp.preflight() {
+        return CaseOutcome::error(&name, "case", e, vec![]);
+    }
     let live = match resolve(exp, opts) {
         Ok(l) => l,
         Err(e) => return CaseOutcome::error(&name, "reference engine", e, vec![]),
@@ -119,12 +122,7 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
     let source = match live {
         Some(version) => Source::Live { version },
         None => {
-            let fingerprints = match units
-                .iter()
-                .zip(&names)
-                .map(|(u, n)| Ok((n.clone(), exp.fingerprint(u)?)))
-                .collect::<Result<Vec<_>>>()
-            {
+            let fingerprints = match reference::unit_keys(exp, &units) {
                 Ok(f) => f,
                 Err(e) => return CaseOutcome::error(&name, "reference input", e, vec![]),
             };
@@ -172,6 +170,9 @@ pub fn analyze<E: Experiment>(exp: &E, opts: &Options, dir: &Path, out: &Path) -
     let name = exp.name().to_string();
     if let Err(e) = check_limits(exp, opts) {
         return CaseOutcome::error(&name, "resource limits", e, vec![]);
+    }
+    if let Err(e) = exp.preflight() {
+        return CaseOutcome::error(&name, "case", e, vec![]);
     }
     if let Err(e) = std::fs::create_dir_all(out) {
         return CaseOutcome::error(&name, "output directory", e.into(), vec![]);
@@ -468,6 +469,7 @@ pub fn run_one<E: Experiment>(
             {
                 bail!("{} is not installed", exp.reference_engine());
             }
+            exp.preflight()?;
             exp.run_reference(u, &dir, opts)?.provenance().clone()
         };
         lines.push(format!(
@@ -487,17 +489,19 @@ pub fn run_one<E: Experiment>(
 /// returned line by line. The new record replaces the old one only when complete.
 pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
     let engine = exp.reference_engine();
+    let name = exp.name();
+    exp.preflight()?;
+    reference::refuse_other_case_file(
+        &reference::record_root(&opts.reference_root, exp.kind(), name),
+        exp.source(),
+        name,
+    )?;
     let version = reference::probe(engine)?.with_context(|| {
         format!("reference refresh needs a live {engine}: it records what the real engine computes")
     })?;
-    let name = exp.name();
     let units = exp.units(opts)?;
     let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
-    let fingerprints = units
-        .iter()
-        .zip(&names)
-        .map(|(u, n)| Ok((n.clone(), exp.fingerprint(u)?)))
-        .collect::<Result<Vec<_>>>()?;
+    let fingerprints = reference::unit_keys(exp, &units)?;
     let root = reference::record_root(&opts.reference_root, exp.kind(), name);
     let regenerate = regenerator(exp, &units, &names);
     let previous = reference::verify(
@@ -546,6 +550,7 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         &fresh,
         name,
         exp.kind(),
+        exp.source(),
         &exp.canonical_hash(),
         engine,
         &version,
@@ -585,11 +590,7 @@ pub fn verify_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<St
     };
     let units = exp.units(&unit_opts)?;
     let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
-    let fingerprints = units
-        .iter()
-        .zip(&names)
-        .map(|(u, n)| Ok((n.clone(), exp.fingerprint(u)?)))
-        .collect::<Result<Vec<_>>>()?;
+    let fingerprints = reference::unit_keys(exp, &units)?;
     let v = reference::verify(
         &root,
         exp.source(),
@@ -644,6 +645,7 @@ fn first_line(s: &str) -> &str {
 
 /// `granval deck`: the reference engine's input for every unit, without running it.
 pub fn deck<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> Result<Vec<PathBuf>> {
+    exp.preflight()?;
     let units = exp.units(opts)?;
     let mut dirs = Vec::new();
     for u in &units {

@@ -299,6 +299,7 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         "{}: the suite has no cases",
         path.display()
     );
+    unique_names(&path, &cases)?;
     let mut claims = Vec::new();
     for (k, c) in f.claims.into_iter().enumerate() {
         ensure!(
@@ -401,6 +402,41 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
     })
 }
 
+/// A case's outputs go to `OUT/<case name>/` and its record to
+/// `reference/<kind>/<case name>/`: two case files of one suite with the same `[case]
+/// name` would overwrite each other's outputs and give two indistinguishable rows, and a
+/// file listed twice would run twice. Both are refused, naming the files. The name is
+/// read alone (a case file that does not parse is left to its own loader's error).
+fn unique_names(suite_file: &Path, cases: &[SuiteCase]) -> Result<()> {
+    let mut seen: Vec<(String, &Path)> = Vec::new();
+    for (k, c) in cases.iter().enumerate() {
+        if let Some(j) = cases[..k].iter().position(|d| d.path == c.path) {
+            bail!(
+                "{}: {} is listed twice (cases {j} and {k} after expanding the globs): it would run twice",
+                suite_file.display(),
+                c.path.display()
+            );
+        }
+        let Some(name) = std::fs::read_to_string(&c.path)
+            .ok()
+            .and_then(|t| t.parse::<toml::Table>().ok())
+            .and_then(|t| Some(t.get("case")?.get("name")?.as_str()?.to_string()))
+        else {
+            continue;
+        };
+        if let Some((_, first)) = seen.iter().find(|(n, _)| *n == name) {
+            bail!(
+                "{}: {} and {} both declare [case] name = {name:?}: their outputs (OUT/{name}/) and records would overwrite each other; rename one",
+                suite_file.display(),
+                first.display(),
+                c.path.display()
+            );
+        }
+        seen.push((name, &c.path));
+    }
+    Ok(())
+}
+
 fn penetration_case(p: &Path) -> Result<crate::case::penetration::PenetrationCase, String> {
     match crate::case::AnyCase::load(p).map_err(|e| format!("{e:#}"))? {
         crate::case::AnyCase::Penetration(c) => Ok(c),
@@ -457,49 +493,54 @@ fn resolve_control(
     }
 }
 
-/// The summary of the case `name` in one of `dirs` (`DIR/<name>/summary.json`, as
-/// `check` writes, or `DIR/summary.json`, as `compare` / `stress --out DIR` write), with
-/// the directory it came from.
-fn find_summary(
-    dirs: &[PathBuf],
-    name: &str,
-) -> Option<(PathBuf, crate::compare::sweep::CaseSummary)> {
+/// The directory holding the summary of the case `name` in one of `dirs`
+/// (`DIR/<name>/summary.json`, as `check` writes, or `DIR/summary.json` naming the case,
+/// as `compare` / `stress --out DIR` write). Found is not accepted: [`gather`] verifies
+/// its run seal.
+fn find_summary(dirs: &[PathBuf], name: &str) -> Option<PathBuf> {
+    use crate::compare::sweep::SUMMARY_FILE;
     dirs.iter().find_map(|d| {
-        [d.join(name), d.to_path_buf()].into_iter().find_map(|c| {
-            crate::compare::sweep::CaseSummary::read(&c)
-                .ok()
-                .filter(|s| s.case == name)
-                .map(|s| (c, s))
-        })
+        let own = d.join(name);
+        if own.join(SUMMARY_FILE).is_file() {
+            return Some(own);
+        }
+        let names_it = std::fs::read_to_string(d.join(SUMMARY_FILE))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .is_some_and(|v| v.get("case").and_then(|c| c.as_str()) == Some(name));
+        names_it.then(|| d.to_path_buf())
     })
 }
 
 /// The summaries of a claim's cases found in `dirs` (in the claim's order, with the
-/// directory each came from) and the names of the cases without one; `Err` when a case
-/// cannot take part or its summary is of another version of the case (canonical hash).
+/// directory each came from), the names of the cases without one, and for the report
+/// where each came from; `Err` when a case cannot take part or a summary found is not
+/// accepted: its run seal does not verify ([`super::penetration::run_seal::verify`]:
+/// hand-written, edited, of another version of the case, or not following from the
+/// run's sealed outputs).
 type Gathered = (
     Vec<(String, PathBuf, crate::compare::sweep::CaseSummary)>,
+    Vec<String>,
     Vec<String>,
 );
 
 fn gather(claim: &SuiteClaim, dirs: &[PathBuf]) -> Result<Gathered, String> {
-    let (mut found, mut missing) = (Vec::new(), Vec::new());
+    let (mut found, mut missing, mut sources) = (Vec::new(), Vec::new(), Vec::new());
     for p in &claim.cases {
         let pc = penetration_case(p)?;
-        let hash = crate::case::ValidatedCase::canonical_hash(&pc).to_string();
         let name = pc.name.clone();
         match find_summary(dirs, &name) {
             None => missing.push(name),
-            Some((d, s)) if s.canonical_hash == hash => found.push((name, d, s)),
-            Some((d, _)) => {
-                return Err(format!(
-                    "{}: the summary is of another version of case {name} (canonical hash differs): re-run it",
-                    d.display()
-                ));
-            }
+            Some(d) => match super::penetration::run_seal::verify(&d, &pc) {
+                Ok(v) => {
+                    sources.push(v.describe());
+                    found.push((name, d, v.summary));
+                }
+                Err(e) => return Err(format!("{e:#}")),
+            },
         }
     }
-    Ok((found, missing))
+    Ok((found, missing, sources))
 }
 
 /// One claim control's check: the claim on the native summaries with the control's
@@ -522,7 +563,11 @@ fn control_check(
         }
         Substitute::Control { case, dir } => {
             let (l, d, s) = &found[*case];
-            let read = sweep::CaseSummary::read(&d.join(dir)).map_err(|e| format!("{e:#}"));
+            let read = penetration_case(&c.cases[*case]).and_then(|pc| {
+                super::penetration::run_seal::verify(&d.join(dir), &pc)
+                    .map(|v| v.summary)
+                    .map_err(|e| format!("{e:#}"))
+            });
             match read.and_then(|w| {
                 (w.case == s.case && w.canonical_hash == s.canonical_hash)
                     .then_some(w)
@@ -553,8 +598,10 @@ fn control_check(
 }
 
 /// The suite's claims, one check per claim and engine, from the case summaries found in
-/// `dirs`. A summary must come from the case as it is now (its canonical hash), else the
-/// claim is an error. `partial`: a claim none of whose cases has a summary is left out
+/// `dirs`. A summary is read only through its run seal, which must verify for the case
+/// as it is now (its canonical hash) and reproduce the summary from the run's sealed
+/// force files; otherwise the claim is an error naming the file. The notes name the
+/// directory each summary came from and the run's own verdict. `partial`: a claim none of whose cases has a summary is left out
 /// (with a note) instead of NOT COMPARED, for runs of a subset (`check --only`).
 pub fn evaluate_claims(
     suite: &Suite,
@@ -566,8 +613,11 @@ pub fn evaluate_claims(
     for c in &suite.claims {
         match gather(c, dirs) {
             Err(e) => checks.push(Check::error_in(&c.name, Gate::Claim, e)),
-            Ok((found, missing)) if missing.is_empty() => {
+            Ok((found, missing, sources)) if missing.is_empty() => {
                 notes.push(format!("claim {:?}: {}", c.name, c.source));
+                for s in sources {
+                    notes.push(format!("claim {:?}: case {s}", c.name));
+                }
                 let summaries: Vec<_> = found
                     .iter()
                     .map(|(l, _, s)| (l.clone(), s.clone()))
@@ -579,11 +629,11 @@ pub fn evaluate_claims(
                     checks.push(control_check(c, control, &found));
                 }
             }
-            Ok((found, _)) if partial && found.is_empty() => notes.push(format!(
+            Ok((found, _, _)) if partial && found.is_empty() => notes.push(format!(
                 "claim {:?}: none of its cases ran here; not evaluated",
                 c.name
             )),
-            Ok((_, missing)) => checks.push(Check::not_compared(
+            Ok((_, missing, _)) => checks.push(Check::not_compared(
                 &c.name,
                 Gate::Claim,
                 format!(
@@ -606,7 +656,7 @@ pub fn claim_sections(
 ) -> (Vec<String>, Vec<crate::report::Section>) {
     let (mut notes, mut sections) = (Vec::new(), Vec::new());
     for c in &suite.claims {
-        let Ok((found, missing)) = gather(c, dirs) else {
+        let Ok((found, missing, _)) = gather(c, dirs) else {
             continue;
         };
         if !missing.is_empty() {
@@ -984,14 +1034,43 @@ mod tests {
         assert!(e.contains("plain relative directory"), "{e}");
     }
 
-    /// Claims read the cases' summaries: all present gives one check per engine; a
-    /// stale summary (another canonical hash) is an error; a missing one NOT COMPARED,
-    /// or only a note when a subset ran and none of the claim's cases was in it.
+    /// Two case files with one `[case] name`, or one file listed twice, are refused
+    /// naming both; distinct names load (the negative control).
+    #[test]
+    fn case_names_are_unique_within_a_suite() {
+        let d = tempfile::tempdir().unwrap();
+        write(d.path(), HEAD);
+        let named = |n: &str| format!("[case]\nname = \"{n}\"\nkind = \"micro\"\n");
+        std::fs::write(d.path().join("release/a.toml"), named("x")).unwrap();
+        std::fs::write(d.path().join("release/b.toml"), named("y")).unwrap();
+        assert!(load(d.path(), "s").is_ok());
+        std::fs::write(d.path().join("release/b.toml"), named("x")).unwrap();
+        let e = format!("{:#}", load(d.path(), "s").unwrap_err());
+        assert!(
+            e.contains("release/a.toml and")
+                && e.contains("release/b.toml both declare [case] name = \"x\""),
+            "{e}"
+        );
+        std::fs::write(d.path().join("release/b.toml"), named("y")).unwrap();
+        write(
+            d.path(),
+            &format!("{HEAD}[[case]]\npath = \"release/*.toml\"\n"),
+        );
+        std::fs::write(d.path().join("release/a.toml"), named("x")).unwrap();
+        std::fs::write(d.path().join("release/b.toml"), named("y")).unwrap();
+        let e = format!("{:#}", load(d.path(), "s").unwrap_err());
+        assert!(e.contains("release/a.toml is listed twice"), "{e}");
+    }
+
+    /// Claims read the cases' sealed summaries: all present gives one check per engine;
+    /// a summary of another version of the case (its run sealed for another canonical
+    /// hash) is an error; a missing one NOT COMPARED, or only a note when a subset ran
+    /// and none of the claim's cases was in it.
     #[test]
     fn claims_are_evaluated_from_current_summaries_only() {
         use crate::case::AnyCase;
         use crate::compare::Status;
-        use crate::compare::sweep::{CaseSummary, EngineSummary};
+        use crate::experiments::penetration::run_seal;
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
         let suite = load(&root, "release").unwrap();
         let claim = suite
@@ -1004,33 +1083,16 @@ mod tests {
             ..suite.clone()
         };
         let d = tempfile::tempdir().unwrap();
-        let write = |p: &Path, hash: Option<&str>, p_level: f64| {
-            let AnyCase::Penetration(c) = AnyCase::load(p).unwrap() else {
-                panic!()
-            };
-            let h: Vec<f64> = (0..300).map(|i| i as f64 * 0.01).collect();
-            let e = EngineSummary {
-                k_phi: p_level,
-                k_phi_se_regression: 0.1,
-                k_phi_beds: vec![p_level; 3],
-                p: h.iter().map(|x| p_level * x).collect(),
-                bed_fdrs: vec![(h.clone(), h.iter().map(|x| p_level * x).collect()); 3],
-                h,
-                psi: 0.6,
-            };
-            let s = CaseSummary {
-                case: c.name.clone(),
-                canonical_hash: hash.map_or(c.canonical_hash().to_string(), str::to_string),
-                bed_hashes: Vec::new(),
-                engines: [
-                    ("native".to_string(), e.clone()),
-                    ("liggghts".to_string(), e),
-                ]
-                .into(),
-            };
-            let dir = d.path().join(&c.name);
-            std::fs::create_dir_all(&dir).unwrap();
-            s.write(&dir).unwrap();
+        let case = |p: &Path| match AnyCase::load(p).unwrap() {
+            AnyCase::Penetration(c) => c,
+            _ => panic!(),
+        };
+        let write = |p: &Path, p_level: f64| {
+            let c = case(p);
+            run_seal::sealed_test_run(&c, &d.path().join(&c.name), |_, h| {
+                p_level * (20.0 * h + 3.0)
+            })
+            .unwrap();
         };
         let dirs = vec![d.path().to_path_buf()];
         let (checks, notes) = evaluate_claims(&one, &dirs, true);
@@ -1038,18 +1100,26 @@ mod tests {
             checks.is_empty() && notes.len() == 1,
             "{checks:?} {notes:?}"
         );
-        write(&claim.cases[0], None, 1.0);
+        write(&claim.cases[0], 1.0);
         let (checks, _) = evaluate_claims(&one, &dirs, true);
         assert_eq!(checks.len(), 1);
         assert_eq!(checks[0].status, Status::NotCompared);
-        write(&claim.cases[1], None, 12.0);
-        let (checks, _) = evaluate_claims(&one, &dirs, false);
+        write(&claim.cases[1], 12.0);
+        let (checks, notes) = evaluate_claims(&one, &dirs, false);
         assert_eq!(
             checks.len(),
             3,
             "native, liggghts and the sweep-ignored control"
         );
         assert!(checks.iter().all(|c| c.passed), "{checks:?}");
+        // The report names where each summary came from.
+        let name = case(&claim.cases[1]).name;
+        assert!(
+            notes.iter().any(|n| n
+                .contains(&format!("{name} from {}", d.path().join(&name).display()))
+                && n.contains("run seal verified")),
+            "{notes:?}"
+        );
         // Both summaries present: the claim gets its section and two figures.
         let (fig_notes, sections) = claim_sections(&one, &dirs, d.path());
         assert!(fig_notes.is_empty(), "{fig_notes:?}");
@@ -1059,22 +1129,28 @@ mod tests {
             let svg = std::fs::read_to_string(d.path().join(f)).unwrap();
             assert!(svg.contains("<svg"), "{f}");
         }
-        write(&claim.cases[1], Some("stale"), 12.0);
+        // A run of another version of the case: the seal names another canonical hash.
+        let seal = d.path().join(&name).join(run_seal::RUN_SEAL_FILE);
+        let text = std::fs::read_to_string(&seal).unwrap();
+        let other = crate::case::ValidatedCase::canonical_hash(&case(&claim.cases[0]));
+        let hash = crate::case::ValidatedCase::canonical_hash(&case(&claim.cases[1]));
+        std::fs::write(&seal, text.replace(hash.hex(), other.hex())).unwrap();
         assert!(
             claim_sections(&one, &dirs, d.path()).1.is_empty(),
             "a stale case has no figures"
         );
         let (checks, _) = evaluate_claims(&one, &dirs, false);
         assert_eq!(checks[0].status, Status::Error, "{checks:?}");
+        assert!(checks[0].detail.contains("another version"), "{checks:?}");
     }
 
     /// Claim controls are checked against the case files when the suite is read, and a
-    /// case control reads the case's own control run: it bites when the claim then
-    /// fails, and is an error when that run is missing.
+    /// case control reads the case's own sealed control run: it bites when the claim
+    /// then fails, and is an error when that run is missing.
     #[test]
     fn claim_controls_name_real_runs() {
         use crate::compare::Status;
-        use crate::compare::sweep::{CaseSummary, EngineSummary};
+        use crate::experiments::penetration::run_seal;
         let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/release");
         let d = tempfile::tempdir().unwrap();
         std::fs::create_dir_all(d.path().join("suites")).unwrap();
@@ -1114,28 +1190,14 @@ mod tests {
         let s = suite(a, b, &case_control("mu_gg = 0.3 instead of 0.5")).unwrap();
 
         let out = tempfile::tempdir().unwrap();
+        // Bed k's force rises with slope k_bed = k - 3, k, k + 3.
         let write = |case: &Path, sub: &str, k: f64| {
             let AnyCase::Penetration(c) = AnyCase::load(case).unwrap() else {
                 panic!()
             };
-            let e = EngineSummary {
-                k_phi: k,
-                k_phi_se_regression: 0.1,
-                k_phi_beds: vec![k - 3.0, k, k + 3.0],
-                h: vec![1.0, 2.0],
-                p: vec![k, 2.0 * k],
-                bed_fdrs: Vec::new(),
-                psi: 0.6,
-            };
-            let dir = out.path().join(&c.name).join(sub);
-            std::fs::create_dir_all(&dir).unwrap();
-            CaseSummary {
-                case: c.name.clone(),
-                canonical_hash: c.canonical_hash().to_string(),
-                bed_hashes: vec!["b0".into(), "b1".into(), "b2".into()],
-                engines: [("native".to_string(), e.clone()), ("liggghts".into(), e)].into(),
-            }
-            .write(&dir)
+            run_seal::sealed_test_run(&c, &out.path().join(&c.name).join(sub), |b, h| {
+                (k + 3.0 * (b as f64 - 1.0)) * h + 3.0
+            })
             .unwrap();
         };
         use crate::case::AnyCase;

@@ -69,7 +69,18 @@ pub fn sample_hash(s: &Sample) -> Sha256 {
 pub fn prepare(case: &TriaxialCase, seed: u64, sigma_c: f64, progress: bool) -> Result<Sample> {
     let key = (case.canonical_hash().to_string(), seed, sigma_c);
     let cache = super::bed_cache::file("triaxial", &key);
-    if let Some(s) = super::bed_cache::load::<Sample>(cache.as_deref()) {
+    let count = |s: &Sample| {
+        anyhow::ensure!(
+            s.particles.len() == case.grains && s.seed == seed && s.sigma_c == sigma_c,
+            "a sample of {} grains, seed {}, sigma_c {} Pa; the case compacts {} grains, seed {seed}, to {sigma_c} Pa",
+            s.particles.len(),
+            s.seed,
+            s.sigma_c,
+            case.grains
+        );
+        Ok(())
+    };
+    if let Some(s) = super::bed_cache::load_cached::<Sample>(cache.as_deref(), &key, count)? {
         return Ok(s);
     }
     let bar = crate::report::progress::bar(progress, 1, "compaction");
@@ -80,7 +91,7 @@ pub fn prepare(case: &TriaxialCase, seed: u64, sigma_c: f64, progress: bool) -> 
         ))
     })?;
     bar.finish_and_clear();
-    super::bed_cache::store(cache.as_deref(), &s);
+    super::bed_cache::store(cache.as_deref(), &key, &s);
     Ok(s)
 }
 
@@ -216,6 +227,14 @@ impl Experiment for Triaxial {
         }
     }
 
+    fn preflight(&self) -> Result<()> {
+        crate::engines::liggghts::check_materials(
+            &self.case.source,
+            &self.case.materials,
+            &self.case.pairs,
+        )
+    }
+
     fn derived(&self) -> Vec<Derived> {
         let c = &self.case;
         let (side, n) = c.lattice_box();
@@ -285,6 +304,9 @@ impl Experiment for Triaxial {
 
     fn fingerprint(&self, u: &Unit) -> Result<Sha256> {
         lt::input_hash_of(&liggghts_deck(&self.case, u))
+    }
+    fn engine_input(&self, u: &Unit) -> Result<Vec<(&'static str, String)>> {
+        lt::inputs(&liggghts_deck(&self.case, u))
     }
 
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<TriaxialRun> {

@@ -2,6 +2,7 @@
 //! intruder force samples, 2D impact series, contact snapshots, and provenance. Plain
 //! data and its file formats; no physics, no analysis.
 
+pub mod file_seal;
 pub mod force;
 pub mod frames;
 pub mod fsio;

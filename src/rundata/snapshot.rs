@@ -14,6 +14,7 @@
 //! Files: `snapshot_KK.json` (meta), `snapshot_KK_grains.csv`, `snapshot_KK_contacts.csv`,
 //! all SI, floats in Rust's shortest round-trip `{:e}`. One snapshot is read at a time.
 
+use super::provenance::Sha256;
 use crate::numerics::vec3::*;
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
@@ -135,6 +136,24 @@ fn grains_path(dir: &Path, k: usize) -> PathBuf {
 fn contacts_path(dir: &Path, k: usize) -> PathBuf {
     dir.join(format!("snapshot_{k:02}_contacts.csv"))
 }
+fn seal_path(dir: &Path, k: usize) -> PathBuf {
+    dir.join(format!("snapshot_{k:02}_seal.json"))
+}
+
+/// What [`write`] wrote of snapshot `k` (`snapshot_KK_seal.json`): the number of grain
+/// and contact rows and the sha256 of both files. [`read`] refuses a snapshot whose
+/// files do not match it, so a truncated or edited snapshot (e.g. one reused with
+/// `stress --reuse`, whose contact count decides the stress fields) is an error naming
+/// the file, never a quietly different stress. Written by granval, it stops damage and
+/// stale files, not a forger who rewrites it.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+struct SnapshotSeal {
+    grains: usize,
+    contacts: usize,
+    grains_sha256: Sha256,
+    contacts_sha256: Sha256,
+}
 
 const GRAIN_HEADER: &str = "id,x,y,z,vx,vy,vz,radius";
 const CONTACT_HEADER: &str = "kind,i,j,xi_x,xi_y,xi_z,cx,cy,cz,bx,by,bz,fx,fy,fz";
@@ -171,7 +190,16 @@ pub fn write(dir: &Path, k: usize, s: &Snapshot) -> Result<()> {
         writeln!(w)?;
     }
     w.flush()?;
-    Ok(())
+    drop(w);
+    let seal = SnapshotSeal {
+        grains: s.grains.len(),
+        contacts: s.contacts.len(),
+        grains_sha256: Sha256::of_file(&gp)?,
+        contacts_sha256: Sha256::of_file(&cp)?,
+    };
+    let sp = seal_path(dir, k);
+    std::fs::write(&sp, serde_json::to_string_pretty(&seal)? + "\n")
+        .with_context(|| format!("cannot write {}", sp.display()))
 }
 
 /// Snapshot numbers present in `dir`, ascending.
@@ -256,9 +284,33 @@ pub fn read_meta(dir: &Path, k: usize) -> Result<SnapshotMeta> {
     .with_context(|| format!("{}: not a snapshot meta file", mp.display()))
 }
 
-/// Reads snapshot number `k` from `dir`; errors name file, line, column and value.
+/// Reads snapshot number `k` from `dir`; errors name file, line, column and value. The
+/// snapshot's files must match its seal ([`SnapshotSeal`]: row counts and sha256).
 pub fn read(dir: &Path, k: usize) -> Result<Snapshot> {
     let meta = read_meta(dir, k)?;
+    let sp = seal_path(dir, k);
+    let seal: SnapshotSeal = std::fs::read_to_string(&sp)
+        .map_err(anyhow::Error::from)
+        .and_then(|t| Ok(serde_json::from_str(&t)?))
+        .with_context(|| {
+            format!(
+                "{}: no readable seal of snapshot {k} (written by an older granval, or not by granval); run again without --reuse",
+                sp.display()
+            )
+        })?;
+    for (path, want) in [
+        (grains_path(dir, k), &seal.grains_sha256),
+        (contacts_path(dir, k), &seal.contacts_sha256),
+    ] {
+        let got = Sha256::of_file(&path)?;
+        if &got != want {
+            bail!(
+                "{}: content differs from its seal {} (sha256 {got}, sealed {want}): truncated or edited; run again without --reuse",
+                path.display(),
+                sp.display()
+            );
+        }
+    }
     let gp = grains_path(dir, k);
     let mut grains = Vec::new();
     for item in lines(&gp, GRAIN_HEADER)? {
@@ -327,9 +379,101 @@ pub fn read(dir: &Path, k: usize) -> Result<Snapshot> {
             force: [v[9], v[10], v[11]],
         });
     }
+    for (path, n, want) in [
+        (gp, grains.len(), seal.grains),
+        (cp, contacts.len(), seal.contacts),
+    ] {
+        if n != want {
+            bail!(
+                "{}: {n} rows, its seal {} says {want}: truncated or edited; run again without --reuse",
+                path.display(),
+                sp.display()
+            );
+        }
+    }
     Ok(Snapshot {
         meta,
         grains,
         contacts,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn snapshot() -> Snapshot {
+        let contact = |i: u64| Contact {
+            kind: ContactKind::Pair,
+            i,
+            j: i + 1,
+            xi: [0.0, 0.0, i as f64 * 1e-3],
+            point: [0.0, 0.0, i as f64 * 1e-3 + 5e-4],
+            branch: [0.0, 0.0, 1e-3],
+            force: [0.0, 0.0, -0.1 * i as f64],
+        };
+        Snapshot {
+            meta: SnapshotMeta {
+                engine: "liggghts".into(),
+                step: 100,
+                t: 1e-3,
+                h: 0.5,
+                intruder_bottom_z: 0.01,
+                intruder_radius: 0.005,
+                intruder_vz: -0.01,
+                surface_z: 0.012,
+                container_radius: 0.02,
+                floor_z: 0.0,
+                density: 2500.0,
+                psi: 0.6,
+                mean_diameter: 1e-3,
+            },
+            grains: (1..=4)
+                .map(|id| Grain {
+                    id,
+                    x: [0.0, 0.0, id as f64 * 1e-3],
+                    v: [0.0; 3],
+                    radius: 5e-4,
+                })
+                .collect(),
+            contacts: (1..=3).map(contact).collect(),
+        }
+    }
+
+    /// A snapshot is read only as it was written: the negative control reads back; a
+    /// contact file cut after its second row (what a killed conversion or a careless
+    /// copy leaves) is refused by its digest, and with the digest rewritten to match, by
+    /// its row count; a snapshot without its seal is refused.
+    #[test]
+    fn a_truncated_contact_snapshot_is_refused() {
+        let d = tempfile::tempdir().unwrap();
+        write(d.path(), 0, &snapshot()).unwrap();
+        let back = read(d.path(), 0).unwrap();
+        assert_eq!((back.grains.len(), back.contacts.len()), (4, 3));
+
+        let cp = contacts_path(d.path(), 0);
+        let text = std::fs::read_to_string(&cp).unwrap();
+        let cut: String = text.lines().take(3).map(|l| format!("{l}\n")).collect();
+        std::fs::write(&cp, &cut).unwrap();
+        let e = format!("{:#}", read(d.path(), 0).unwrap_err());
+        assert!(
+            e.contains("snapshot_00_contacts.csv") && e.contains("content differs from its seal"),
+            "{e}"
+        );
+
+        let sp = seal_path(d.path(), 0);
+        let mut seal: SnapshotSeal =
+            serde_json::from_str(&std::fs::read_to_string(&sp).unwrap()).unwrap();
+        seal.contacts_sha256 = Sha256::of_file(&cp).unwrap();
+        std::fs::write(&sp, serde_json::to_string(&seal).unwrap()).unwrap();
+        let e = format!("{:#}", read(d.path(), 0).unwrap_err());
+        assert!(
+            e.contains("snapshot_00_contacts.csv") && e.contains("2 rows, its seal"),
+            "{e}"
+        );
+
+        std::fs::remove_file(&sp).unwrap();
+        let e = format!("{:#}", read(d.path(), 0).unwrap_err());
+        assert!(e.contains("no readable seal of snapshot 0"), "{e}");
+    }
 }

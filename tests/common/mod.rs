@@ -173,11 +173,7 @@ pub fn reference_runs<E: granval::experiments::Experiment>(
                 exp.name(),
                 root.display()
             );
-            let fingerprints: Vec<_> = units
-                .iter()
-                .zip(&names)
-                .map(|(u, n)| (n.clone(), exp.fingerprint(u).unwrap()))
-                .collect();
+            let fingerprints = reference::unit_keys(exp, units).unwrap();
             let seal = reference::verify(
                 &root,
                 exp.source(),

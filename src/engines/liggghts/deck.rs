@@ -293,11 +293,47 @@ pub(super) fn comment_safe(s: &str) -> String {
         .collect()
 }
 
-/// Refuses material values LIGGGHTS 3.8 itself would refuse, before anything runs, naming
-/// the case file, the field and the value. Materials are never changed silently.
+/// Largest atom ID LIGGGHTS 3.8 takes: its `tagint` is a signed 32-bit int (LAMMPS'
+/// default `LAMMPS_SMALLBIG`, `MAXTAGINT` = 2^31 - 1); a larger ID in a data file aborts
+/// the run with an empty log.
+pub const MAX_ATOM_ID: u64 = i32::MAX as u64;
+
+/// Refuses what LIGGGHTS 3.8 itself would refuse of a micro case, before anything runs,
+/// naming the case file, the field and the value: its materials and pairs
+/// ([`check_materials`]) and, where the case's particle IDs go into the data file (no
+/// clumps: a clump deck numbers its atoms itself), IDs above [`MAX_ATOM_ID`].
 pub fn check_liggghts_limits(case: &Case) -> Result<()> {
-    let file = case.source.display();
-    for (t, m) in case.materials.iter().enumerate() {
+    check_materials(&case.source, &case.materials, &case.pairs)?;
+    if case.clumps.is_empty()
+        && let Some((k, p)) = case
+            .particles
+            .iter()
+            .enumerate()
+            .find(|(_, p)| p.id > MAX_ATOM_ID)
+    {
+        bail!(
+            "{}: field `particles[{k}].id` = {}: LIGGGHTS 3.8 atom IDs are signed 32-bit integers (at most {MAX_ATOM_ID}); renumber the particles",
+            case.source.display(),
+            p.id
+        );
+    }
+    Ok(())
+}
+
+/// Refuses material and pair values LIGGGHTS 3.8 refuses in every deck granval writes
+/// (its `global_properties.cpp`: `0 <= poissonsRatio <= 0.5`, `0.05 <
+/// coefficientRestitution <= 1`), naming the case file, field and value. The case
+/// loader takes the physical ranges (-1 < nu <= 0.5, 0 < e <= 1), which the native
+/// engine runs; a comparison needs what both engines take. Young's modulus is not
+/// refused here: `soft_particles` / `hard_particles` lift LIGGGHTS' range check with the
+/// material unchanged. Materials are never changed silently.
+pub fn check_materials(
+    file: &std::path::Path,
+    materials: &[crate::case::Material],
+    pairs: &crate::case::PairTable,
+) -> Result<()> {
+    let file = file.display();
+    for (t, m) in materials.iter().enumerate() {
         let ty = t + 1;
         if !(m.youngs_modulus.is_finite() && m.youngs_modulus > 0.0) {
             bail!(
@@ -305,7 +341,7 @@ pub fn check_liggghts_limits(case: &Case) -> Result<()> {
                 m.youngs_modulus
             );
         }
-        if m.poisson_ratio.is_nan() || m.poisson_ratio < 0.0 {
+        if !(0.0..=0.5).contains(&m.poisson_ratio) {
             bail!(
                 "{file}: field `poisson_ratio` of material type {ty} = {:e}: LIGGGHTS 3.8 requires 0 <= poissonsRatio <= 0.5; \
                  granval does not change materials — run this case with the native engine only",
@@ -313,10 +349,10 @@ pub fn check_liggghts_limits(case: &Case) -> Result<()> {
             );
         }
     }
-    let n = case.n_types();
+    let n = materials.len();
     for a in 0..n {
         for b in a..n {
-            let e = case.pairs.restitution[case.pairs.idx(a, b)];
+            let e = pairs.restitution[pairs.idx(a, b)];
             if !(e > MIN_RESTITUTION_EXCLUSIVE && e <= 1.0) {
                 bail!(
                     "{file}: field `restitution` of interaction types [{}, {}] = {e:e}: LIGGGHTS 3.8 requires \

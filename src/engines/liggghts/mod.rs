@@ -18,8 +18,8 @@ pub mod triaxial;
 pub mod units;
 
 pub use deck::{
-    DUMP_COLUMNS, MIN_RESTITUTION_EXCLUSIVE, MIN_YOUNGS_MODULUS_SI, check_liggghts_limits,
-    expected_frames, write_data_file, write_deck,
+    DUMP_COLUMNS, MAX_ATOM_ID, MIN_RESTITUTION_EXCLUSIVE, MIN_YOUNGS_MODULUS_SI,
+    check_liggghts_limits, check_materials, expected_frames, write_data_file, write_deck,
 };
 pub use deck::{hardness, hardness_note};
 pub use dump::{DumpFrames, parse_dump};

@@ -671,9 +671,9 @@ pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> 
     );
     writeln!(
         s,
-        "fix fout all print {} \"$(step) $(step*dt) $(f_cad[9]) $(f_cad[1]) $(f_cad[2]) $(f_cad[3])\" file {FORCE_FILE} screen no title \"# step t z_bottom fx fy fz (units {}; f = force of the grains on the intruder)\"",
+        "fix fout all print {} \"$(step) $(step*dt) $(f_cad[9]) $(f_cad[1]) $(f_cad[2]) $(f_cad[3])\" file {FORCE_FILE} screen no title \"{}\"",
         d.force_every,
-        u.names()
+        force_title(d)
     )?;
     deck_text::comment(
         &mut s,
@@ -904,18 +904,7 @@ pub fn write_deck_dir_with_snapshots(
 ) -> Result<DeckFiles> {
     let deck = deck_text_with_snapshots(d, snapshot_steps)?;
     let data = data_text(d)?;
-    let l = d.units.length();
-    let z_stl = if d.settle.is_some() {
-        0.0
-    } else {
-        d.intruder_bottom_z0 * l
-    };
-    let (stl, segments) = super::stl::flat_cylinder_stl(
-        d.intruder_radius * l,
-        d.intruder_length * l,
-        [0.0, 0.0, z_stl],
-        d.rim_error_frac,
-    );
+    let (stl, segments) = stl_text(d);
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create run directory {}", dir.display()))?;
     let readme = readme_text(d, segments);
@@ -1118,21 +1107,36 @@ pub fn run_existing(
 /// STL): the fingerprint of a penetration bed's reference run. Equal to the
 /// `input_hash` of [`write_deck_dir`].
 pub fn input_hash_of(d: &PenetrationDeck) -> Result<Sha256> {
-    let deck = deck_text(d)?;
-    let data = data_text(d)?;
+    let files = input_files(d)?;
+    Ok(deck_text::fingerprint(
+        &files.iter().map(|(_, t)| t.as_str()).collect::<Vec<_>>(),
+    ))
+}
+
+/// The input files of `d` without snapshot dumps (name, text), in fingerprint order:
+/// deck, grains (`data.bed`, `bodies.bed` or `data.lattice`), intruder mesh.
+pub fn input_files(d: &PenetrationDeck) -> Result<Vec<(&'static str, String)>> {
+    Ok(vec![
+        (DECK_FILE, deck_text(d)?),
+        (data_file_name(d), data_text(d)?),
+        (STL_FILE, stl_text(d).0),
+    ])
+}
+
+/// The intruder mesh of `d` at its start position, and its number of rim segments.
+fn stl_text(d: &PenetrationDeck) -> (String, usize) {
     let l = d.units.length();
     let z_stl = if d.settle.is_some() {
         0.0
     } else {
         d.intruder_bottom_z0 * l
     };
-    let (stl, _) = super::stl::flat_cylinder_stl(
+    super::stl::flat_cylinder_stl(
         d.intruder_radius * l,
         d.intruder_length * l,
         [0.0, 0.0, z_stl],
         d.rim_error_frac,
-    );
-    Ok(deck_text::fingerprint(&[&deck, &data, &stl]))
+    )
 }
 
 fn input_hash(dir: &Path) -> Sha256 {
@@ -1289,11 +1293,14 @@ pub fn read_outputs(
     if !errors.is_empty() {
         bail!("ERROR in the LIGGGHTS output: {}", errors.join(" | "));
     }
+    check_log_echoes_deck(dir, log)?;
     let force_path = dir.join(FORCE_FILE);
     if !force_path.exists() {
         bail!("no {} was written", force_path.display());
     }
+    check_force_title(d, &force_path)?;
     let mut n = 0usize;
+    let mut track = IntruderTrack::new(d);
     for_each_force_sample(&force_path, d.units, |s| {
         let step = (n as u64 + 1) * d.force_every;
         if s.step != step {
@@ -1303,6 +1310,9 @@ pub fn read_outputs(
                 s.step
             );
         }
+        track
+            .check(s)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", force_path.display()))?;
         n += 1;
         visit(s)
     })?;
@@ -1362,6 +1372,133 @@ pub fn read_outputs(
         case_file: dir.join(DECK_FILE).display().to_string(),
         notes,
     })
+}
+
+/// The title line `fix print` writes at the top of [`FORCE_FILE`] for `d`.
+fn force_title(d: &PenetrationDeck) -> String {
+    format!(
+        "# step t z_bottom fx fy fz (units {}; f = force of the grains on the intruder)",
+        d.units.names()
+    )
+}
+
+/// The force file of a run of `d` starts with the title `d`'s deck gives it: a force
+/// file of another deck (other units) is refused, not reduced.
+fn check_force_title(d: &PenetrationDeck, path: &Path) -> Result<()> {
+    use std::io::Read as _;
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut first = String::new();
+    std::io::BufReader::new(file)
+        .take(4096)
+        .read_line(&mut first)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let want = force_title(d);
+    if first.trim_end() != want {
+        bail!(
+            "{}: starts with {:?}, not the title its deck writes ({want:?}): not this run's force file",
+            path.display(),
+            first.trim_end()
+        );
+    }
+    Ok(())
+}
+
+/// The intruder's bottom height in a force file must follow the deck's motion: from
+/// `z0` (where the deck's mesh starts) down at the deck's speed, step by step. A force
+/// file of another bed (another surface, so another `z0`), speed or time step is
+/// refused. A deck that settles its own bed places the intruder itself: only the motion
+/// from its first sample on is checked. LIGGGHTS moves the mesh by `v dt` per step; the
+/// rounding this accumulates stays below 2e-11 of `z0` over the recorded runs (4e5
+/// steps), so 1e-7 leaves room for 1e10 steps while a bed's surface moves `z0` by
+/// millimetres.
+struct IntruderTrack {
+    z0: Option<f64>,
+    speed: f64,
+    dt: f64,
+    tol: f64,
+    first: Option<(u64, f64)>,
+}
+
+impl IntruderTrack {
+    fn new(d: &PenetrationDeck) -> IntruderTrack {
+        IntruderTrack {
+            z0: d.settle.is_none().then_some(d.intruder_bottom_z0),
+            speed: d.speed,
+            dt: d.dt,
+            tol: 1e-7 * d.intruder_bottom_z0.abs().max(d.intruder_length),
+            first: None,
+        }
+    }
+
+    fn check(&mut self, s: &ForceSample) -> Result<()> {
+        let (from_step, from_z) = match (self.z0, self.first) {
+            (Some(z0), _) => (0, z0),
+            (None, Some(f)) => f,
+            (None, None) => {
+                self.first = Some((s.step, s.z_bottom));
+                return Ok(());
+            }
+        };
+        let want = from_z - self.speed * self.dt * (s.step - from_step) as f64;
+        if (s.z_bottom - want).abs() > self.tol {
+            bail!(
+                "step {}: the intruder's bottom is at z = {:e} m, but this deck moves it to {want:e} m (from z = {from_z:e} m at step {from_step}, {:e} m/s): the force file is of another bed, case or run",
+                s.step,
+                s.z_bottom,
+                self.speed
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The log of a run echoes its input (LIGGGHTS' default `echo log`): every command of
+/// the deck in `dir`, in order, and the deck's title comment (which names the case and
+/// the bed's seed). A log of another deck, another bed or another case is refused. A
+/// deck with jumps (the settling loop) runs some lines never and others repeatedly, so
+/// only its title is checked.
+fn check_log_echoes_deck(dir: &Path, log: &str) -> Result<()> {
+    let deck_path = dir.join(DECK_FILE);
+    let deck = std::fs::read_to_string(&deck_path)
+        .with_context(|| format!("cannot read {}", deck_path.display()))?;
+    let log_path = dir.join(LOG_FILE);
+    let lines: Vec<String> = log
+        .lines()
+        .map(|l| l.split_whitespace().collect::<Vec<_>>().join(" "))
+        .collect();
+    let title: Vec<String> = deck
+        .lines()
+        .take_while(|l| l.starts_with('#') && !l.starts_with("# written by granval"))
+        .map(|l| l.split_whitespace().collect::<Vec<_>>().join(" "))
+        .collect();
+    if let Some(t) = title.iter().find(|t| !lines.contains(t)) {
+        bail!(
+            "{}: does not echo the title of {} ({t:?}): the log is of another deck (another case or bed), or LIGGGHTS ran with `-echo none` (run it as the README says)",
+            log_path.display(),
+            deck_path.display()
+        );
+    }
+    let canonical = deck_text::canonical(&deck);
+    if canonical.lines().any(|c| {
+        let w = c.split_whitespace().next().unwrap_or("");
+        w == "jump" || w == "label"
+    }) {
+        return Ok(());
+    }
+    let mut at = 0usize;
+    for (k, cmd) in canonical.lines().enumerate() {
+        match lines[at..].iter().position(|l| l == cmd) {
+            Some(i) => at += i + 1,
+            None => bail!(
+                "{}: command {} of {} (`{cmd}`) is not echoed in order: the log is of another deck",
+                log_path.display(),
+                k + 1,
+                deck_path.display()
+            ),
+        }
+    }
+    Ok(())
 }
 
 /// Reads a bed back from a `read_data` file written by [`data_text`] (SI out), so

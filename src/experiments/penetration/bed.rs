@@ -16,6 +16,8 @@ pub struct EngineRun {
     pub fdr: Fdr,
     pub samples: u64,
     pub provenance: Provenance,
+    /// The force file the FDR was reduced from (what a run seal covers).
+    pub force_file: Option<std::path::PathBuf>,
 }
 
 /// The streaming eq-5 reducer of a run from `bed`: its own psi and surface.
@@ -68,7 +70,19 @@ pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
     // With the pairs of [[interactions]]: the penetration's own act on the settled bed.
     let cache = bed_file_name(case).and_then(|n| crate::experiments::bed_cache::in_cache(&n));
     let case = &case.settling_case();
-    if let Some(b) = crate::experiments::bed_cache::load::<Bed>(cache.as_deref()) {
+    let spec = crate::case::ValidatedCase::canonical_hash(case).to_string();
+    let cached = crate::experiments::bed_cache::load_cached::<Bed>(cache.as_deref(), &spec, |b| {
+        anyhow::ensure!(
+            b.n_grains() == case.count && b.surface_z.is_finite() && b.psi > 0.0,
+            "a bed of {} grains (surface z = {:e} m, psi = {}), the case pours {}",
+            b.n_grains(),
+            b.surface_z,
+            b.psi,
+            case.count
+        );
+        Ok(())
+    })?;
+    if let Some(b) = cached {
         return Ok(b);
     }
     let bar = crate::report::progress::bar(progress, 1, "settle");
@@ -76,7 +90,7 @@ pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
         bar.set_message(format!("t = {t:.3} s, KE ratio {ratio:.1e}"))
     })?;
     bar.finish_and_clear();
-    crate::experiments::bed_cache::store(cache.as_deref(), &bed);
+    crate::experiments::bed_cache::store(cache.as_deref(), &spec, &bed);
     Ok(bed)
 }
 

@@ -12,6 +12,7 @@
 //! ```
 
 use super::bed::{bed_hash, liggghts_deck, liggghts_settle_deck, prepare_bed};
+use super::inputs::InputManifest;
 use super::{Unit, bed_dir_name, fdr_checks, reduce_liggghts_dir};
 use crate::case::penetration::PenetrationCase;
 use crate::engines::liggghts::penetration::{self as lp, Units};
@@ -49,6 +50,12 @@ pub fn write(
     bed_by: BedBy,
     progress: bool,
 ) -> Result<Vec<PathBuf>> {
+    use crate::experiments::Experiment;
+    super::Penetration {
+        case: case.clone(),
+        stress: false,
+    }
+    .preflight()?;
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     std::fs::copy(&case.source, out.join(CASE_FILE)).with_context(|| {
         format!(
@@ -62,14 +69,23 @@ pub fn write(
     for k in 0..case.ensemble_beds {
         let ck = case.realisation(k);
         let dir = out.join(bed_dir_name(k));
-        let (deck, psi) = match bed_by {
+        let (deck, psi, hash) = match bed_by {
             BedBy::Native => {
                 let bed = prepare_bed(&ck, progress)?;
-                (liggghts_deck(&ck, &bed)?, format!("{:.4}", bed.psi))
+                (
+                    liggghts_deck(&ck, &bed)?,
+                    format!("{:.4}", bed.psi),
+                    Some(bed_hash(&bed)),
+                )
             }
-            BedBy::Liggghts => (liggghts_settle_deck(&ck)?, "measured after settling".into()),
+            BedBy::Liggghts => (
+                liggghts_settle_deck(&ck)?,
+                "measured after settling".into(),
+                None,
+            ),
         };
         lp::write_deck_dir(&deck, &dir)?;
+        InputManifest::of_dir(&dir, case, k, ck.seed, hash)?.write(&dir)?;
         lines.push(format!(
             "| {} | {} | {} | {psi} | {} |",
             bed_dir_name(k),
@@ -120,6 +136,12 @@ fn readme(case: &PenetrationCase, rows: &[String], bed_by: BedBy) -> String {
 
 /// The bed a deck directory starts from, read back from its `data.bed`.
 pub fn read_bed(case: &PenetrationCase, dir: &Path) -> Result<Bed> {
+    read_bed_as(case, dir, settles_in_liggghts(dir))
+}
+
+/// [`read_bed`] with who settled the bed given (`settled_by_liggghts`: from its
+/// `bed.dump`), as the directory's manifest says, not guessed from the files present.
+fn read_bed_as(case: &PenetrationCase, dir: &Path, settled_by_liggghts: bool) -> Result<Bed> {
     let (particles, bodies) = if case.clump.is_some() {
         (
             Vec::new(),
@@ -127,7 +149,7 @@ pub fn read_bed(case: &PenetrationCase, dir: &Path) -> Result<Bed> {
                 &dir.join(crate::engines::liggghts::clump_bed::BODIES_FILE),
             )?,
         )
-    } else if settles_in_liggghts(dir) {
+    } else if settled_by_liggghts {
         (
             lp::parse_bed_dump(&dir.join(lp::BED_DUMP_FILE), Units::Si, case.density)?,
             Vec::new(),
@@ -216,13 +238,82 @@ pub fn bed_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(found.into_iter().map(|(_, p)| p).collect())
 }
 
+/// A LIGGGHTS run directory of bed `k` of `case` (`ck`: its realisation), checked and
+/// reduced: the directory holds exactly the inputs its manifest lists, of this case and
+/// bed ([`InputManifest::check`]); the inputs are the ones granval writes for this case
+/// on the bed they hold ([`check_case_inputs`]); the outputs are of this deck (its
+/// log echoes it, its force file follows its intruder; [`reduce_liggghts_dir`]). Any
+/// mismatch is an error naming the file: never a physics verdict on inputs or outputs
+/// granval did not write for this case.
+pub fn read_run(
+    case: &PenetrationCase,
+    case_file: &Path,
+    k: usize,
+    dir: &Path,
+) -> Result<(Bed, super::bed::EngineRun)> {
+    let ck = case.realisation(k);
+    let manifest = InputManifest::read(dir)?;
+    manifest.check(dir, case, case_file, k, ck.seed)?;
+    let settled_by_liggghts = manifest.settles_in_liggghts();
+    let bed = read_bed_as(&ck, dir, settled_by_liggghts)?;
+    if let Some(want) = &manifest.bed_sha256 {
+        let got = bed_hash(&bed);
+        ensure!(
+            &got == want,
+            "{}: the bed read from it has sha256 {got}, {} names {want}",
+            dir.display(),
+            dir.join(super::inputs::MANIFEST_FILE).display()
+        );
+    }
+    check_case_inputs(&ck, &bed, dir, settled_by_liggghts)?;
+    let run = reduce_liggghts_dir(&ck, &bed, dir)?;
+    Ok((bed, run))
+}
+
+/// Errors unless every input in `dir` is the one granval writes for bed `ck` on `bed`
+/// (comments and number notation aside), as `read_run_dir` checks a micro or impact2d
+/// deck directory; a deck with contact snapshot dumps (a `stress` run) is compared with
+/// the deck of the case's snapshot plan on that bed.
+pub fn check_case_inputs(
+    ck: &PenetrationCase,
+    bed: &Bed,
+    dir: &Path,
+    settled_by_liggghts: bool,
+) -> Result<()> {
+    let deck = if settled_by_liggghts {
+        liggghts_settle_deck(ck)?
+    } else {
+        liggghts_deck(ck, bed)?
+    };
+    for (name, mut text) in lp::input_files(&deck)? {
+        if name == lp::DECK_FILE
+            && std::fs::read_to_string(dir.join(name))
+                .is_ok_and(|t| t.contains(crate::engines::liggghts::snapshot::PAIR_PREFIX))
+        {
+            let plan = crate::analysis::stress_fields::snapshot_plan(ck, bed);
+            text = lp::deck_text_with_snapshots(&deck, &plan.steps)?;
+        }
+        let data = name != lp::DECK_FILE && name != lp::STL_FILE;
+        crate::engines::deck_text::check_same_input(dir, name, &text, data)?;
+    }
+    Ok(())
+}
+
 /// `granval analyze DIR`: the deck directory after LIGGGHTS ran in it (here or on a
 /// cluster), reduced to the same checks as `granval compare`. With `native`, the native
 /// engine penetrates each `data.bed` as `compare` does. The LIGGGHTS outputs of bed K
 /// are read from `DIR/bed-K/` (a `granval deck` directory) or `DIR/bed-K/liggghts/` (a
-/// `granval compare` output directory).
+/// `granval compare` output directory). Every bed's inputs and outputs are checked
+/// ([`read_run`]) before anything runs; with `--no-native` too.
 pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Result<CaseOutcome> {
-    let case = PenetrationCase::load(&dir.join(CASE_FILE))?;
+    use crate::experiments::Experiment;
+    let case_file = dir.join(CASE_FILE);
+    let case = PenetrationCase::load(&case_file)?;
+    let exp = super::Penetration {
+        case: case.clone(),
+        stress: false,
+    };
+    exp.preflight()?;
     let beds = bed_dirs(dir)?;
     ensure!(
         !beds.is_empty(),
@@ -234,13 +325,12 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             "{}: {} bed directories but {} declares ensemble.beds = {}",
             dir.display(),
             beds.len(),
-            dir.join(CASE_FILE).display(),
+            case_file.display(),
             case.ensemble_beds
         );
     }
     let mut units = Vec::new();
     let mut reference = Vec::new();
-    let mut natives = Vec::new();
     let mut notes = Vec::new();
     for (k, bdir) in beds.iter().enumerate() {
         let bdir = if bdir.join("liggghts").join(lp::DECK_FILE).exists() {
@@ -248,45 +338,39 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
         } else {
             bdir.clone()
         };
-        let ck = case.realisation(k);
-        let bed = match lean_record_bed(&ck, dir, k, opts.progress)? {
-            Some(b) => b,
-            None => read_bed(&ck, &bdir)?,
-        };
+        let (bed, run) = read_run(&case, &case_file, k, &bdir)
+            .with_context(|| format!("bed {k}: run directory {}", bdir.display()))?;
         notes.push(format!(
-            "bed {k}: {} grains read from {} (sha256 {}), surface z = {:.6e} m, psi = {:.4}",
+            "bed {k}: {} grains read from {} (sha256 {}), surface z = {:.6e} m, psi = {:.4}; its inputs are the ones granval wrote for this case (inputs.json) and its outputs are of that deck",
             bed.n_grains(),
             bdir.display(),
             bed_hash(&bed),
             bed.surface_z,
             bed.psi
         ));
-        reference.push(reduce_liggghts_dir(&ck, &bed, &bdir)?);
-        let u = Unit {
+        reference.push(run);
+        units.push(Unit {
             k,
             bed_from_record: false,
             bed_hash: bed_hash(&bed),
-            case: ck,
+            case: case.realisation(k),
             bed,
             plan: None,
             study_plan: None,
-        };
-        if native {
-            let exp = super::Penetration {
-                case: case.clone(),
-                stress: false,
-            };
-            use crate::experiments::Experiment;
+        });
+    }
+    let mut natives = Vec::new();
+    if native {
+        for u in &units {
             natives.push(exp.run_native(
-                &u,
+                u,
                 Role::Main,
-                &out_dir.join(bed_dir_name(k)).join("native"),
+                &out_dir.join(bed_dir_name(u.k)).join("native"),
                 opts,
             )?);
         }
-        units.push(u);
     }
-    let v = fdr_checks(
+    let (mut v, summary) = fdr_checks(
         &case,
         &units,
         &natives.iter().map(|r| &r.run).collect::<Vec<_>>(),
@@ -297,6 +381,19 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
         &reference.iter().collect::<Vec<_>>(),
         out_dir,
     );
+    let runs = |k: usize| -> Result<super::run_seal::BedRuns> {
+        let u = &units[k];
+        Ok(super::run_seal::BedRuns {
+            unit: u,
+            engine_input: exp.fingerprint(u)?,
+            native_force: natives.get(k).and_then(|r| r.run.force_file.clone()),
+            reference_force: reference[k]
+                .force_file
+                .clone()
+                .context("the LIGGGHTS run names no force file")?,
+        })
+    };
+    super::seal_summary(&case, (0..units.len()).map(runs), &summary, out_dir, &mut v);
     notes.extend(v.notes);
     let wall = |it: &mut dyn Iterator<Item = f64>| it.sum::<f64>();
     Ok(CaseOutcome {

@@ -17,6 +17,8 @@
 
 pub mod bed;
 pub mod deck_dir;
+pub mod inputs;
+pub mod run_seal;
 pub mod stress;
 
 use super::reference::Verified;
@@ -144,6 +146,7 @@ fn native_run(
         fdr: b.fdr(),
         samples: b.samples(),
         provenance,
+        force_file: Some(dir.join(FORCE_CSV)),
     })
 }
 
@@ -211,6 +214,7 @@ fn reuse_native(
         fdr: b.fdr(),
         samples: b.samples(),
         provenance,
+        force_file: Some(force),
     }))
 }
 
@@ -225,18 +229,6 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
     let mut b = binner(case, bed)?;
     let mut provenance = lp::read_outputs(&deck, dir, |s| b.push(s.z_bottom, s.f[2]))
         .with_context(|| format!("LIGGGHTS run in {}", dir.display()))?;
-    if let Ok(on_disk) = crate::rundata::fsio::read_to_string(
-        &dir.join(lp::DECK_FILE),
-        crate::rundata::fsio::max_engine_output(),
-        "a LIGGGHTS deck",
-    ) && !crate::engines::deck_text::same_input(&on_disk, &lp::deck_text(&deck)?)
-        && !on_disk.contains(crate::engines::liggghts::snapshot::PAIR_PREFIX)
-    {
-        provenance.notes.push(format!(
-            "{} differs from the deck granval writes for this case and bed (edited by hand?)",
-            dir.join(lp::DECK_FILE).display()
-        ));
-    }
     provenance.notes.push(packing::bed_note(case, bed));
     provenance
         .notes
@@ -245,6 +237,7 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
         fdr: b.fdr(),
         samples: b.samples(),
         provenance,
+        force_file: Some(dir.join(lp::FORCE_FILE)),
     })
 }
 
@@ -252,6 +245,7 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
 /// (converted into `dir/snapshots`); with `--reuse`, an earlier run of the same deck and
 /// plan in `dir` is read instead.
 fn liggghts_run(
+    case: &PenetrationCase,
     u: &Unit,
     plan: Option<&SnapshotPlan>,
     dir: &Path,
@@ -316,6 +310,8 @@ fn liggghts_run(
         }
     };
     bar.finish_and_clear();
+    inputs::InputManifest::of_dir(dir, case, u.k, u.case.seed, Some(u.bed_hash.clone()))?
+        .write(dir)?;
     provenance.notes.push(packing::bed_note(&u.case, &u.bed));
     provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
     if !u.bed.bodies.is_empty() {
@@ -340,6 +336,7 @@ fn liggghts_run(
             fdr: b.fdr(),
             samples: b.samples(),
             provenance,
+            force_file: Some(dir.join(lp::FORCE_FILE)),
         },
         snapshots,
         study_snapshots: None,
@@ -435,6 +432,19 @@ impl Experiment for Penetration {
                 },
             memory_bytes: 3e3 * n + 2e8,
         }
+    }
+
+    fn preflight(&self) -> Result<()> {
+        ensure!(
+            !(self.stress && self.case.clump.is_some()),
+            "{}: the stress fields of a bed of clumps are not built (contact snapshots and coarse graining are per sphere); run it without the stress option",
+            self.case.source.display()
+        );
+        crate::engines::liggghts::check_materials(
+            &self.case.source,
+            &self.case.materials,
+            &self.case.pairs,
+        )
     }
 
     fn derived(&self) -> Vec<Derived> {
@@ -533,6 +543,9 @@ impl Experiment for Penetration {
     fn fingerprint(&self, u: &Unit) -> Result<Sha256> {
         lp::input_hash_of(&liggghts_deck(&u.case, &u.bed)?)
     }
+    fn engine_input(&self, u: &Unit) -> Result<Vec<(&'static str, String)>> {
+        lp::input_files(&liggghts_deck(&u.case, &u.bed)?)
+    }
 
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<NativeRun> {
         let main = role == Role::Main;
@@ -590,10 +603,10 @@ impl Experiment for Penetration {
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<RefRun> {
         let limits = super::engine_limits(self, opts);
-        let mut main = liggghts_run(u, u.plan.as_ref(), dir, opts, &limits)?;
+        let mut main = liggghts_run(&self.case, u, u.plan.as_ref(), dir, opts, &limits)?;
         if let Some(sp) = &u.study_plan {
             let sdir = dir.join(STUDY_DIR);
-            let study = liggghts_run(u, Some(sp), &sdir, opts, &limits)
+            let study = liggghts_run(&self.case, u, Some(sp), &sdir, opts, &limits)
                 .with_context(|| format!("bed {}: estimator-study run", u.k))?;
             main.study_snapshots = study.snapshots;
         }
@@ -662,6 +675,11 @@ impl Experiment for Penetration {
     }
 
     fn read_run_dir(&self, u: &Unit, dir: &Path) -> Result<RefRun> {
+        // The bed is this unit's (granval prepared it): the deck on disk must be the one
+        // written from it, as the directory's manifest must list it.
+        let manifest = inputs::InputManifest::read(dir)?;
+        manifest.check(dir, &self.case, &self.case.source, u.k, u.case.seed)?;
+        deck_dir::check_case_inputs(&u.case, &u.bed, dir, manifest.settles_in_liggghts())?;
         Ok(RefRun {
             run: reduce_liggghts_dir(&u.case, &u.bed, dir)?,
             snapshots: None,
@@ -718,7 +736,7 @@ impl Experiment for Penetration {
         out: &Path,
         opts: &Options,
     ) -> Verdict {
-        let mut v = fdr_checks(
+        let (mut v, summary) = fdr_checks(
             &self.case,
             units,
             &native.iter().map(|r| &r.run).collect::<Vec<_>>(),
@@ -736,7 +754,52 @@ impl Experiment for Penetration {
             v.notes.extend(s.notes);
             v.unevaluated.extend(s.unevaluated);
         }
+        let runs = |k: usize| -> Result<run_seal::BedRuns> {
+            let u = &units[k];
+            Ok(run_seal::BedRuns {
+                unit: u,
+                engine_input: self.fingerprint(u)?,
+                native_force: native.get(k).and_then(|r| r.run.force_file.clone()),
+                reference_force: reference[k]
+                    .run
+                    .force_file
+                    .clone()
+                    .context("the reference run names no force file")?,
+            })
+        };
+        seal_summary(
+            &self.case,
+            (0..units.len()).map(runs),
+            &summary,
+            out,
+            &mut v,
+        );
         v
+    }
+}
+
+/// Writes the case's `summary.json` and its run seal into `out` (claims across cases
+/// read only sealed summaries, [`run_seal`]); a run whose summary cannot be sealed gets
+/// an error check, as a summary without a seal would be refused later anyway.
+pub fn seal_summary<'a>(
+    case: &PenetrationCase,
+    beds: impl Iterator<Item = Result<run_seal::BedRuns<'a>>>,
+    summary: &crate::compare::sweep::CaseSummary,
+    out: &Path,
+    v: &mut Verdict,
+) {
+    let sealed = beds
+        .collect::<Result<Vec<_>>>()
+        .and_then(|beds| run_seal::write(out, case, &beds, summary, &v.checks));
+    if let Err(e) = sealed {
+        v.checks.push(Check::error(
+            format!("{}: run seal", case.name),
+            format!(
+                "{} and {} not written: {e:#}",
+                crate::compare::sweep::SUMMARY_FILE,
+                run_seal::RUN_SEAL_FILE
+            ),
+        ));
     }
 }
 
@@ -790,8 +853,8 @@ pub fn k_phi_fit_end(case: &PenetrationCase, range: &cp::FitRange) -> f64 {
 }
 
 /// Every FDR check of the experiment from the runs of both engines, with the FDR CSVs
-/// and the overlay SVG written to `out`. Shared by `compare` and `analyze`, so both give
-/// the same report from the same runs.
+/// and the overlay SVG written to `out`, and the case's summary. Shared by `compare` and
+/// `analyze`, so both give the same report from the same runs.
 pub fn fdr_checks(
     case: &PenetrationCase,
     units: &[Unit],
@@ -799,7 +862,7 @@ pub fn fdr_checks(
     native_slow: &[&EngineRun],
     reference: &[&EngineRun],
     out: &Path,
-) -> Verdict {
+) -> (Verdict, crate::compare::sweep::CaseSummary) {
     let name = |w: &str| format!("{}: {w}", case.name);
     let mut notes: Vec<String> = units
         .iter()
@@ -818,15 +881,18 @@ pub fn fdr_checks(
         })
         .collect();
     let mut checks = Vec::new();
-    let range = fit_range_of(case, units, native, reference);
+    let Summarized {
+        range,
+        h_max,
+        native: native_o,
+        reference,
+        summary,
+    } = summarize(case, units, native, reference);
     notes.push(range.text());
-    let h_max = k_phi_fit_end(case, &range);
     let obs = |r: &[&EngineRun]| {
         let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
         cp::ensemble_in(case, &f, h_max)
     };
-    let reference = (!reference.is_empty()).then(|| obs(reference));
-    let native_o = (!native.is_empty()).then(|| obs(native));
     let _ = std::fs::create_dir_all(out);
     let mut curves = Vec::new();
     for (label, o) in [("native", &native_o), ("liggghts", &reference)] {
@@ -871,12 +937,6 @@ pub fn fdr_checks(
             None => {}
         }
     }
-    if let Err(e) = summary(case, units, &native_o, &reference).write(out) {
-        notes.push(format!(
-            "{} not written: {e:#}",
-            crate::compare::sweep::SUMMARY_FILE
-        ));
-    }
     if let (Some(Ok(a)), Some(Ok(b))) = (&native_o, &reference) {
         checks.extend(cp::compare(case, &range, a, b));
         notes.extend(cp::boundary_notes(case, a, b));
@@ -902,10 +962,51 @@ pub fn fdr_checks(
     {
         notes.push(format!("SVG not written: {e:#}"));
     }
-    Verdict {
-        checks,
-        notes,
-        ..Verdict::default()
+    (
+        Verdict {
+            checks,
+            notes,
+            ..Verdict::default()
+        },
+        summary,
+    )
+}
+
+/// The ensemble observables of a run and the summary claims across cases read from it.
+pub struct Summarized {
+    pub range: cp::FitRange,
+    /// Upper end of every K_phi fit ([`k_phi_fit_end`]).
+    pub h_max: f64,
+    /// Each engine's ensemble observables (None: that engine did not run).
+    pub native: Option<Result<cp::Observables>>,
+    pub reference: Option<Result<cp::Observables>>,
+    pub summary: crate::compare::sweep::CaseSummary,
+}
+
+/// Rule 3's range, each engine's ensemble observables on it and the case summary, from
+/// the runs of both engines: what [`fdr_checks`] gates and what a run seal recomputes
+/// from the sealed force files ([`run_seal::verify`]), with this one function.
+pub fn summarize(
+    case: &PenetrationCase,
+    units: &[Unit],
+    native: &[&EngineRun],
+    reference: &[&EngineRun],
+) -> Summarized {
+    let range = fit_range_of(case, units, native, reference);
+    let h_max = k_phi_fit_end(case, &range);
+    let obs = |r: &[&EngineRun]| {
+        let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
+        cp::ensemble_in(case, &f, h_max)
+    };
+    let reference = (!reference.is_empty()).then(|| obs(reference));
+    let native = (!native.is_empty()).then(|| obs(native));
+    let summary = summary(case, units, &native, &reference);
+    Summarized {
+        range,
+        h_max,
+        native,
+        reference,
+        summary,
     }
 }
 

@@ -315,8 +315,7 @@ impl Simulation {
     /// Builds the neighbour list and evaluates forces without advancing history, as
     /// LIGGGHTS' `Verlet::setup` does before step 1 (and before the step-0 dump).
     pub fn setup(&mut self) -> anyhow::Result<()> {
-        self.check_domain()?;
-        self.check_initial_overlaps()?;
+        self.check_start()?;
         self.refresh_kick();
         self.rebuild();
         if self.bodies.is_empty() {
@@ -652,36 +651,36 @@ impl Simulation {
     /// grains out at once and the run would end with a meaningless "left the domain"
     /// error. Checked with a hash grid, so a case with 1e6 coincident grains fails fast
     /// in O(N) memory instead of building an N^2 neighbour list.
+    /// The start checks [`Simulation::setup`] makes (every state finite and inside the
+    /// box, no start overlap), without computing anything: `granval validate` and `deck`
+    /// make exactly the checks a run makes.
+    pub fn check_start(&self) -> anyhow::Result<()> {
+        self.check_domain()?;
+        self.check_initial_overlaps()
+    }
+
     fn check_initial_overlaps(&self) -> anyhow::Result<()> {
         if !self.bodies.is_empty() {
             // Clump cases: LIGGGHTS' insertion (overlapcheck yes) refuses a body touching
             // anything, so the start must be contact-free; members of one body overlap
             // by design and never interact (fix_multisphere.cpp:178-186).
-            for i in 0..self.x.len() {
-                for j in i + 1..self.x.len() {
-                    if self.body[i] >= 0 && self.body[i] == self.body[j] {
-                        continue;
+            if let Some((i, j, gap)) =
+                overlap::first_contact_across_bodies(&self.x, &self.radius, &self.body)
+            {
+                let kind = |k: usize| {
+                    if self.body[k] >= 0 {
+                        "clump"
+                    } else {
+                        "particle"
                     }
-                    let d = norm(sub(self.x[i], self.x[j]));
-                    if d <= self.radius[i] + self.radius[j] {
-                        anyhow::bail!(
-                            "{} id {} and {} id {} touch at the start (gap {:.3e} m): a case with clumps must start without contacts (LIGGGHTS' insertion refuses overlapping bodies)",
-                            if self.body[i] >= 0 {
-                                "clump"
-                            } else {
-                                "particle"
-                            },
-                            self.id[i],
-                            if self.body[j] >= 0 {
-                                "clump"
-                            } else {
-                                "particle"
-                            },
-                            self.id[j],
-                            d - self.radius[i] - self.radius[j]
-                        );
-                    }
-                }
+                };
+                anyhow::bail!(
+                    "{} id {} and {} id {} touch at the start (gap {gap:.3e} m): a case with clumps must start without contacts (LIGGGHTS' insertion refuses overlapping bodies)",
+                    kind(i),
+                    self.id[i],
+                    kind(j),
+                    self.id[j],
+                );
             }
         }
         if let Some((i, j, overlap)) = self

@@ -1,0 +1,300 @@
+//! Every sealed record under `reference/` verifies with the seal's full check (plain file
+//! names, every digest, and the stored engine input and provenance agreeing with the
+//! fingerprint), and a record whose provenance or stored deck contradicts its seal is
+//! refused even though every digest in the seal matches its file.
+
+mod common;
+
+use granval::case::AnyCase;
+use granval::experiments::penetration::{deck_dir, reduce_liggghts_dir};
+use granval::experiments::{Experiment, Options, reference, suite};
+use granval::with_experiment;
+use std::path::{Path, PathBuf};
+
+/// The keys a comparison would pass, taken from the seal itself: each unit's
+/// fingerprint, and its engine input as the kind stores it. For micro, penetration and
+/// triaxial records the fingerprint is that of the engine input; an impact2d seal holds
+/// the scene's hash, and its input's fingerprint is the one its provenance names.
+fn keys_from_seal(dir: &Path, kind: &str) -> Vec<reference::UnitKey> {
+    use granval::engines::{lammps, liggghts};
+    let seal: reference::Seal =
+        serde_json::from_str(&std::fs::read_to_string(dir.join(reference::SEAL_FILE)).unwrap())
+            .unwrap();
+    seal.units
+        .iter()
+        .map(|(name, u)| {
+            let has = |f: &str| u.files.contains_key(f);
+            let input: Vec<&'static str> = match kind {
+                "micro" => [liggghts::DECK_FILE, "data.granval"]
+                    .into_iter()
+                    .filter(|f| has(f))
+                    .collect(),
+                "penetration" => {
+                    use liggghts::penetration as lp;
+                    let grains = if has(lp::DATA_FILE) {
+                        lp::DATA_FILE
+                    } else {
+                        liggghts::clump_bed::BODIES_FILE
+                    };
+                    vec![lp::DECK_FILE, grains, lp::STL_FILE]
+                }
+                "triaxial" => {
+                    use liggghts::triaxial as lt;
+                    [lt::DECK_FILE, lt::DATA_FILE]
+                        .into_iter()
+                        .chain(lt::STL_FILES)
+                        .collect()
+                }
+                "impact2d" => vec![lammps::DECK_FILE, lammps::DATA_FILE],
+                k => panic!("kind {k}"),
+            };
+            let input_hash = if kind == "impact2d" {
+                let p = granval::rundata::provenance::read_provenance(
+                    &reference::unit_dir(dir, name).join(reference::PROVENANCE_FILE),
+                )
+                .unwrap();
+                assert!(
+                    p.notes
+                        .iter()
+                        .any(|n| n == &format!("scene sha256 {}", u.fingerprint)),
+                    "{}: the provenance names another scene",
+                    dir.display()
+                );
+                p.input_hash
+            } else {
+                u.fingerprint.clone()
+            };
+            reference::UnitKey {
+                name: name.clone(),
+                fingerprint: u.fingerprint.clone(),
+                input,
+                input_hash,
+            }
+        })
+        .collect()
+}
+
+/// Every sealed record under `reference/` (each case of each suite, under the suite's
+/// reference root) passes the full seal check against its case, with the keys its seal
+/// implies (`keys_from_seal`; building the units themselves would settle beds the older
+/// records do not store). The comparisons' own keys are exercised by the tests that
+/// compare against records.
+#[test]
+fn every_record_verifies_with_its_engine_input_and_provenance() {
+    let cases = common::root().join("cases");
+    let mut checked = 0;
+    for name in suite::names(&cases) {
+        let s = suite::load(&cases, &name).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+        let reference_root = s.reference_root(&common::root().join("reference"));
+        for e in &s.cases {
+            let c = AnyCase::load(&e.path).unwrap_or_else(|e| panic!("{e}"));
+            with_experiment!(c, false, |exp| {
+                let root = reference::record_root(&reference_root, exp.kind(), exp.name());
+                if root.join(reference::SEAL_FILE).exists() {
+                    reference::verify(
+                        &root,
+                        exp.source(),
+                        &exp.canonical_hash(),
+                        exp.reference_engine(),
+                        &keys_from_seal(&root, exp.kind()),
+                    )
+                    .unwrap_or_else(|err| panic!("{}: {err:#}", root.display()));
+                    checked += 1;
+                }
+            });
+        }
+    }
+    assert!(checked >= 50, "only {checked} records verified");
+}
+
+/// Verifies the record of `case` under `reference_root` as `compare` does.
+fn verify_record(case: &Path, reference_root: &Path) -> anyhow::Result<()> {
+    let c = AnyCase::load(case).unwrap_or_else(|e| panic!("{e}"));
+    with_experiment!(c, false, |exp| {
+        let root = reference::record_root(reference_root, exp.kind(), exp.name());
+        let units = exp.units(&Options::default())?;
+        let keys = reference::unit_keys(&exp, &units)?;
+        reference::verify(
+            &root,
+            exp.source(),
+            &exp.canonical_hash(),
+            exp.reference_engine(),
+            &keys,
+        )
+        .map(|_| ())
+    })
+}
+
+/// A copy of one micro record, re-sealed after an edit, so that every digest matches:
+/// what only the engine-input check can catch.
+fn resealed_copy(edit: impl Fn(&Path)) -> (tempfile::TempDir, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = common::root().join("reference/micro/head-on-e05");
+    let dst = tmp.path().join("micro/head-on-e05");
+    std::fs::create_dir_all(&dst).unwrap();
+    for e in std::fs::read_dir(&src).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), dst.join(e.file_name())).unwrap();
+    }
+    edit(&dst);
+    let mut seal: reference::Seal =
+        serde_json::from_str(&std::fs::read_to_string(dst.join(reference::SEAL_FILE)).unwrap())
+            .unwrap();
+    for u in seal.units.values_mut() {
+        for (f, h) in u.files.iter_mut() {
+            *h = granval::rundata::provenance::Sha256::of_file(&dst.join(f)).unwrap();
+        }
+    }
+    std::fs::write(
+        dst.join(reference::SEAL_FILE),
+        serde_json::to_string_pretty(&seal).unwrap(),
+    )
+    .unwrap();
+    let case = common::root().join("cases/micro/head-on-e05.toml");
+    (tmp, case)
+}
+
+#[test]
+fn a_provenance_or_stored_deck_contradicting_the_seal_is_refused() {
+    // Negative control: the re-sealed copy without an edit verifies.
+    let (tmp, case) = resealed_copy(|_| {});
+    verify_record(&case, tmp.path()).unwrap();
+
+    let (tmp, case) = resealed_copy(|d| {
+        let p = d.join("provenance.json");
+        let text = std::fs::read_to_string(&p).unwrap();
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v["input_hash"] = serde_json::Value::String("ab".repeat(32));
+        std::fs::write(&p, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    });
+    let e = format!("{:#}", verify_record(&case, tmp.path()).unwrap_err());
+    assert!(
+        e.contains("provenance.json") && e.contains("contradicts the seal"),
+        "{e}"
+    );
+
+    // The deck edited (restitution of the only pair): the digests match after resealing,
+    // the stored input does not.
+    let (tmp, case) = resealed_copy(|d| {
+        let p = d.join("in.granval");
+        let text = std::fs::read_to_string(&p).unwrap();
+        let edited = text.replacen(
+            "coefficientRestitution peratomtypepair 2 0.5 0.5 0.5 0.5",
+            "coefficientRestitution peratomtypepair 2 0.6 0.6 0.6 0.6",
+            1,
+        );
+        assert_ne!(edited, text, "the deck names the restitution");
+        std::fs::write(&p, edited).unwrap();
+    });
+    let e = format!("{:#}", verify_record(&case, tmp.path()).unwrap_err());
+    assert!(
+        e.contains("stored in the record") && e.contains("contradicts the seal"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_seal_entry_outside_the_record_is_refused_before_it_is_opened() {
+    let (tmp, case) = resealed_copy(|_| {});
+    let dst = tmp.path().join("micro/head-on-e05");
+    let text = std::fs::read_to_string(dst.join(reference::SEAL_FILE)).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    // The digest of the file it names, so only the name is wrong.
+    let passwd = granval::rundata::provenance::Sha256::of_file(Path::new("/etc/passwd"))
+        .map(|h| h.to_string())
+        .unwrap_or_else(|_| "00".repeat(32));
+    v["units"][""]["files"]["../../../../etc/passwd"] = serde_json::Value::String(passwd);
+    std::fs::write(
+        dst.join(reference::SEAL_FILE),
+        serde_json::to_string_pretty(&v).unwrap(),
+    )
+    .unwrap();
+    let e = format!("{:#}", verify_record(&case, tmp.path()).unwrap_err());
+    assert!(
+        e.contains("\"../../../../etc/passwd\" is not a plain file name"),
+        "{e}"
+    );
+}
+
+/// Every penetration record's outputs are of its own deck, as `analyze` now demands of
+/// a run directory: its log echoes the deck (title, then every command in order), its
+/// force file carries the deck's title and its intruder follows the deck's start and
+/// speed (within 1e-7 of z0; the records stay below 2e-11).
+#[test]
+fn every_penetration_record_holds_the_outputs_of_its_own_deck() {
+    let cases = common::root().join("cases");
+    let mut n = 0;
+    for name in suite::names(&cases) {
+        let s = suite::load(&cases, &name).unwrap();
+        let rr = s.reference_root(&common::root().join("reference"));
+        for e in &s.cases {
+            let Ok(AnyCase::Penetration(c)) = AnyCase::load(&e.path) else {
+                continue;
+            };
+            let root = reference::record_root(&rr, "penetration", &c.name);
+            if !root.join(reference::SEAL_FILE).exists() {
+                continue;
+            }
+            for k in 0..c.ensemble_beds {
+                let ck = c.realisation(k);
+                let d = root.join(format!("bed-{k}"));
+                let bed = deck_dir::read_bed(&ck, &d).unwrap();
+                reduce_liggghts_dir(&ck, &bed, &d)
+                    .unwrap_or_else(|e| panic!("{}: {e:#}", d.display()));
+                n += 1;
+            }
+        }
+    }
+    assert!(n >= 60, "{n} beds");
+}
+
+/// Real LIGGGHTS outputs of the CI record, swapped between beds: bed 1's force file or
+/// log in bed 0's directory is refused (another bed's intruder start; another seed's
+/// title), and so is a force file written with another title; bed 0's own outputs (the
+/// negative control) reduce.
+#[test]
+fn outputs_of_another_bed_are_refused_not_reduced() {
+    use granval::engines::liggghts::penetration as lp;
+    let c = match AnyCase::load(&common::root().join("cases/penetration/ci.toml")).unwrap() {
+        AnyCase::Penetration(c) => c,
+        _ => panic!(),
+    };
+    let rec = common::root().join("reference/penetration/penetration-ci");
+    let ck = c.realisation(0);
+    let copy = |swap: &str| {
+        let tmp = tempfile::tempdir().unwrap();
+        for e in std::fs::read_dir(rec.join("bed-0")).unwrap() {
+            let e = e.unwrap();
+            std::fs::copy(e.path(), tmp.path().join(e.file_name())).unwrap();
+        }
+        if !swap.is_empty() {
+            std::fs::copy(rec.join("bed-1").join(swap), tmp.path().join(swap)).unwrap();
+        }
+        tmp
+    };
+    let reduce = |d: &Path| {
+        let bed = deck_dir::read_bed(&ck, d).unwrap();
+        reduce_liggghts_dir(&ck, &bed, d).map(|_| ())
+    };
+    reduce(copy("").path()).unwrap();
+    let e = format!("{:#}", reduce(copy(lp::FORCE_FILE).path()).unwrap_err());
+    assert!(
+        e.contains("force.txt") && e.contains("the force file is of another bed"),
+        "{e}"
+    );
+    let e = format!("{:#}", reduce(copy(lp::LOG_FILE).path()).unwrap_err());
+    assert!(
+        e.contains("log.liggghts") && e.contains("does not echo the title"),
+        "{e}"
+    );
+    let d = copy("");
+    let f = d.path().join(lp::FORCE_FILE);
+    let text = std::fs::read_to_string(&f).unwrap();
+    std::fs::write(
+        &f,
+        text.replacen("units SI: s, m, N", "units cgs: s, cm, dyn", 1),
+    )
+    .unwrap();
+    let e = format!("{:#}", reduce(d.path()).unwrap_err());
+    assert!(e.contains("not this run's force file"), "{e}");
+}
