@@ -28,11 +28,13 @@ fn forge(dir: &std::path::Path) -> usize {
             }
             let k = 10.0 + 15.0 * i as f64;
             let h: Vec<f64> = (1..300).map(|j| j as f64 * 0.01).collect();
+            let p: Vec<f64> = h.iter().map(|x| k * x + 1.0).collect();
             let e = EngineSummary {
                 k_phi: k,
                 k_phi_se_regression: 0.01,
                 k_phi_beds: vec![k; pc.ensemble_beds],
-                p: h.iter().map(|x| k * x + 1.0).collect(),
+                bed_fdrs: vec![(h.clone(), p.clone()); pc.ensemble_beds],
+                p,
                 h,
                 psi: 0.6,
             };

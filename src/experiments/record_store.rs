@@ -111,10 +111,14 @@ pub fn check_sealed_file(
         );
     }
     if let Some(p) = locate(record_root, unit, name, want) {
-        let (parent, file) = (p.parent().unwrap_or(Path::new(".")), p.file_name().unwrap_or_default());
-        let got = crate::rundata::file_seal::digest(parent, &file.to_string_lossy()).map_err(|e| {
-            anyhow::anyhow!("{e:#}: a sealed file must be the regular file recorded ({hint})")
-        })?;
+        let (parent, file) = (
+            p.parent().unwrap_or(Path::new(".")),
+            p.file_name().unwrap_or_default(),
+        );
+        let got =
+            crate::rundata::file_seal::digest(parent, &file.to_string_lossy()).map_err(|e| {
+                anyhow::anyhow!("{e:#}: a sealed file must be the regular file recorded ({hint})")
+            })?;
         if &got != want {
             bail!(
                 "{}: content differs from the seal (sha256 {got}, sealed {want}): the recorded reference was modified; {hint}",
@@ -220,7 +224,7 @@ fn move_file(from: &Path, to: &Path) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::experiments::reference::{self, verify};
+    use crate::experiments::reference::{self, UnitKey, verify};
     use crate::rundata::provenance::EngineKind;
 
     const BED: &str =
@@ -229,14 +233,21 @@ mod tests {
     /// A sealed two-unit record under `<tmp>/reference/penetration/c`, each unit with a
     /// data file written "by granval" (`data.bed`, regenerable), a bed (the same bed in
     /// both units) and a force file.
-    fn sealed() -> (tempfile::TempDir, PathBuf, Seal, Vec<(String, Sha256)>) {
+    fn sealed() -> (tempfile::TempDir, PathBuf, Seal, Vec<UnitKey>) {
         let d = tempfile::tempdir().unwrap();
         let root = reference::record_root(&d.path().join("reference"), "penetration", "c");
-        let units: Vec<(String, Sha256)> = ["bed-0", "bed-1"]
+        // The engine input of a unit is its data file, so the seal check also reads the
+        // data file written again for a lean record.
+        let units: Vec<UnitKey> = ["bed-0", "bed-1"]
             .iter()
-            .map(|u| (u.to_string(), Sha256::of(u.as_bytes())))
+            .map(|u| UnitKey {
+                name: u.to_string(),
+                fingerprint: Sha256::of(u.as_bytes()),
+                input: vec!["data.bed"],
+                input_hash: crate::engines::deck_text::fingerprint(&[&data_of(u)]),
+            })
             .collect();
-        for (u, _) in &units {
+        for UnitKey { name: u, .. } in &units {
             let dir = unit_dir(&root, u);
             std::fs::create_dir_all(&dir).unwrap();
             std::fs::write(dir.join("data.bed"), data_of(u)).unwrap();
@@ -247,6 +258,7 @@ mod tests {
             &root,
             "c",
             "penetration",
+            Path::new("c.toml"),
             &Sha256::of(b"case"),
             EngineKind::Liggghts,
             "LIGGGHTS (Version x)",
@@ -264,7 +276,7 @@ mod tests {
         (file == "data.bed").then(|| Ok(data_of(unit).into_bytes()))
     }
 
-    fn check(root: &Path, units: &[(String, Sha256)], regen: Regenerate) -> Result<()> {
+    fn check(root: &Path, units: &[UnitKey], regen: Regenerate) -> Result<()> {
         verify(
             root,
             Path::new("c.toml"),
@@ -302,7 +314,7 @@ mod tests {
         let lines = make_lean(&root, &seal, &writer).unwrap();
         assert_eq!(lines.len(), 4, "{lines:?}");
         assert_eq!(std::fs::read(root.join(SEAL_FILE)).unwrap(), seal_text);
-        for (u, _) in &units {
+        for UnitKey { name: u, .. } in &units {
             let dir = unit_dir(&root, u);
             assert!(!dir.join("data.bed").exists() && !dir.join(BED).exists());
             assert!(dir.join("force.txt").exists());
@@ -379,7 +391,7 @@ mod tests {
         let other = |u: &str, f: &str| (f == "data.bed").then(|| Ok(format!("{u}\n").into_bytes()));
         let lines = make_lean(&root, &seal, &other).unwrap();
         assert!(lines.iter().any(|l| l.contains("KEPT")), "{lines:?}");
-        for (u, _) in &units {
+        for UnitKey { name: u, .. } in &units {
             assert!(unit_dir(&root, u).join("data.bed").is_file());
         }
         check(&root, &units, &nothing_regenerable).unwrap();

@@ -301,7 +301,11 @@ fn check_engine_input(
         let p = dir.join(f);
         // A file a lean record left out is the one written again from the unit, which
         // check_sealed_file has just hashed against the seal.
-        let again = if p.exists() { None } else { regenerate(&key.name, f) };
+        let again = if p.exists() {
+            None
+        } else {
+            regenerate(&key.name, f)
+        };
         let text = match again {
             Some(bytes) => String::from_utf8(bytes?)
                 .with_context(|| format!("{}: written again, not UTF-8", p.display()))?,

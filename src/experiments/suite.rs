@@ -788,8 +788,18 @@ pub fn chaos_section(
             let Ok(pc) = penetration_case(p) else {
                 continue;
             };
-            let Some((_, s)) = find_summary(dirs, &pc.name) else {
+            let Some(d) = find_summary(dirs, &pc.name) else {
                 continue;
+            };
+            let s = match super::penetration::run_seal::verify(&d, &pc) {
+                Ok(v) => v.summary,
+                Err(e) => {
+                    notes.push(format!(
+                        "{}: left out of the chaos comparison: {e:#}",
+                        pc.name
+                    ));
+                    continue;
+                }
             };
             let (Some(n), Some(r)) = (s.engines.get("native"), s.engines.get("liggghts")) else {
                 continue;
