@@ -280,10 +280,13 @@ fn hertz(y: f64, r: f64, m: f64, v: f64) -> (f64, f64, f64) {
 }
 
 /// A shipped hard-material case made elastic (e = 1), without gravity, output every step.
+/// Its restitution control then shifts down: a shift up is capped at 1 and refused as
+/// changing nothing (the control is not run here).
 fn hard_case(rel: &str, edit: impl Fn(String) -> String) -> Case {
     let text = std::fs::read_to_string(common::root().join(rel)).unwrap();
     let text = edit(
-        text.replace("restitution = 0.9", "restitution = 1.0")
+        text.replace("restitution_shift = 0.05", "restitution_shift = -0.05")
+            .replace("restitution = 0.9", "restitution = 1.0")
             .replace("restitution = 0.8", "restitution = 1.0")
             .replace("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, 0.0]")
             .replace("output_every = 10", "output_every = 1"),

@@ -94,7 +94,8 @@ fn analyze(deck: &Path, native: bool) -> Output {
     c.arg("analyze")
         .arg(deck)
         .arg("--report")
-        .arg(report.path().join("r"));
+        .arg(report.path().join("r"))
+        .arg("--verbose");
     if !native {
         c.arg("--no-native");
     }

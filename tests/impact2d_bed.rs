@@ -386,7 +386,7 @@ fn records_carry_their_beds_and_a_changed_bed_is_refused() {
                 .contains_key(granval::engines::lammps::DATA_FILE)
         );
     }
-    let kept = granval::experiments::record_store::recorded_bed_file(
+    let kept = granval::experiments::reference::store::recorded_bed_file(
         &record,
         &exp.unit_name(&plain[1]),
         stored[1].as_ref().unwrap(),

@@ -78,7 +78,7 @@ fn recorded_references_match_live_liggghts() {
             &exp.canonical_hash(),
             EngineKind::Liggghts,
             &granval::experiments::reference::unit_keys(&exp, &[()]).unwrap(),
-            &granval::experiments::record_store::nothing_regenerable,
+            &granval::experiments::reference::store::nothing_regenerable,
         )
         .unwrap_or_else(|e| panic!("{}: {e:#}", exp.name()));
         let rec = exp.read_record(&(), "", &seal).unwrap();
@@ -119,7 +119,7 @@ fn caught(pert: Perturbation) -> Vec<String> {
                 &exp.canonical_hash(),
                 EngineKind::Liggghts,
                 &granval::experiments::reference::unit_keys(&exp, &[()]).unwrap(),
-                &granval::experiments::record_store::nothing_regenerable,
+                &granval::experiments::reference::store::nothing_regenerable,
             )
             .unwrap();
             exp.read_record(&(), "", &seal).unwrap()

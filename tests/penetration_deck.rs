@@ -327,7 +327,8 @@ fn full_size_d2mm_deck_starts_under_mpirun() {
 /// left out and written again from the bed when the record is verified.
 #[test]
 fn records_carry_their_beds_and_a_moved_bed_changes_the_fingerprint() {
-    use granval::experiments::{Experiment, record_store, reference};
+    use granval::experiments::Experiment;
+    use granval::experiments::reference::{self, store as record_store};
     use granval::physics::dem::packing::Bed;
     let tmp = tempfile::tempdir().unwrap();
     let case = tiny_case(tmp.path());

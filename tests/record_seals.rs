@@ -98,7 +98,7 @@ fn every_record_verifies_with_its_engine_input_and_provenance() {
                         exp.reference_engine(),
                         &keys_from_seal(&root, exp.kind()),
                         // Records written before the lean store hold every file.
-                        &granval::experiments::record_store::nothing_regenerable,
+                        &granval::experiments::reference::store::nothing_regenerable,
                     )
                     .unwrap_or_else(|err| panic!("{}: {err:#}", root.display()));
                     checked += 1;

@@ -1048,7 +1048,7 @@ fn bed_file_name(case: &Impact2dCase, key: &BedKey) -> Option<String> {
 /// holds, i.e. is bit for bit the input the reference engine ran from.
 fn recorded_bed(case: &Impact2dCase, key: &BedKey, recorded: &Path) -> Option<Bed> {
     let first = case.variants.iter().find(|v| case.bed_of(v) == *key)?;
-    let file = super::record_store::recorded_bed_file(
+    let file = super::reference::store::recorded_bed_file(
         recorded,
         &label_dir(first),
         &bed_file_name(case, key)?,

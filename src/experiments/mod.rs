@@ -15,7 +15,6 @@ pub mod impact2d;
 pub mod micro;
 pub mod output_dir;
 pub mod penetration;
-pub mod record_store;
 pub mod reference;
 pub mod runner;
 pub mod suite;
@@ -355,7 +354,7 @@ pub trait Experiment {
     ) -> Result<()>;
     /// The bytes of a record file of `unit` that granval itself wrote from the unit
     /// (the reference engine's data file of a bed), so a record may leave it out
-    /// ([`record_store`]): written again on use and checked against the sealed sha256.
+    /// ([`reference::store`]): written again on use and checked against the sealed sha256.
     /// `None`: `file` is not regenerable (the engine's outputs never are).
     fn regenerate(&self, _unit: &Self::Unit, _file: &str) -> Option<Result<Vec<u8>>> {
         None

@@ -10,7 +10,9 @@
 //! and says how to re-record. A record is never produced by the native engine: the seal
 //! names the engine, and only LIGGGHTS or LAMMPS are accepted. A file's bytes may live
 //! outside its unit directory (a bed in the bed store) or be written again by granval
-//! (a data file); [`super::record_store`] says where, the seal stays as recorded.
+//! (a data file); [`store`] says where, the seal stays as recorded.
+
+pub mod store;
 
 use crate::rundata::provenance::{EngineKind, Sha256, now_utc};
 use anyhow::{Context, Result, bail, ensure};
@@ -179,8 +181,8 @@ impl Verified {
                 self.root.join(SEAL_FILE).display()
             );
         };
-        // A bed may live in the record store (`record_store`), found by its sealed hash.
-        Ok(super::record_store::locate(&self.root, unit, name, sha)
+        // A bed may live in the record store (`store`), found by its sealed hash.
+        Ok(store::locate(&self.root, unit, name, sha)
             .unwrap_or_else(|| unit_dir(&self.root, unit).join(name)))
     }
 }
@@ -197,14 +199,14 @@ fn rerecord_hint(case_file: &Path) -> String {
 /// names inside the record before any is opened), and that the record's engine input
 /// and its provenance agree with the fingerprint (a provenance or a stored deck that
 /// contradicts the seal is refused). `units`: the units the comparison needs, in order;
-/// `regenerate` writes again the files a lean record leaves out (`record_store`).
+/// `regenerate` writes again the files a lean record leaves out ([`store`]).
 pub fn verify(
     root: &Path,
     case_file: &Path,
     case_hash: &Sha256,
     engine: EngineKind,
     units: &[UnitKey],
-    regenerate: super::record_store::Regenerate,
+    regenerate: store::Regenerate,
 ) -> Result<Verified> {
     let hint = rerecord_hint(case_file);
     let path = root.join(SEAL_FILE);
@@ -268,7 +270,7 @@ pub fn verify(
             );
         }
         for (file, want) in &u.files {
-            super::record_store::check_sealed_file(root, name, file, want, regenerate, &hint)?;
+            store::check_sealed_file(root, name, file, want, regenerate, &hint)?;
         }
         check_engine_input(&unit_dir(root, name), key, u, regenerate, &hint)?;
     }
@@ -287,7 +289,7 @@ fn check_engine_input(
     dir: &Path,
     key: &UnitKey,
     u: &SealedUnit,
-    regenerate: super::record_store::Regenerate,
+    regenerate: store::Regenerate,
     hint: &str,
 ) -> Result<()> {
     let mut texts = Vec::with_capacity(key.input.len());
@@ -449,7 +451,7 @@ pub fn write(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::experiments::record_store::nothing_regenerable;
+    use store::nothing_regenerable;
 
     fn key(fingerprint: Sha256) -> UnitKey {
         UnitKey {

@@ -3,7 +3,7 @@
 //! the checks, run the case's negative controls against the same reference runs, and
 //! turn every failure into an error check — never a pass.
 
-use super::record_store;
+use super::reference::store as record_store;
 use super::reference::{self, RefMode, Source};
 use super::{Experiment, Options, Role, Run};
 use crate::case::NegativeControl;
@@ -576,7 +576,7 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
 /// running anything. The units are prepared as a recorded comparison prepares them
 /// (beds from the record, or settled natively for records that hold none); their
 /// fingerprints and every sealed file are checked, wherever the file's bytes are
-/// ([`record_store`]). Returns what was checked and where the files came from, or
+/// ([`reference::store`]). Returns what was checked and where the files came from, or
 /// `None` when the case has no record at all (nothing to verify).
 pub fn verify_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<String>> {
     let name = exp.name();
@@ -618,7 +618,7 @@ pub fn verify_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<St
 }
 
 /// The record files of `units` (named `names`) that the experiment writes again from
-/// the unit itself ([`Experiment::regenerate`]), for a lean record ([`record_store`]).
+/// the unit itself ([`Experiment::regenerate`]), for a lean record ([`reference::store`]).
 pub fn regenerator<'a, E: Experiment>(
     exp: &'a E,
     units: &'a [E::Unit],

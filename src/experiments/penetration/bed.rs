@@ -51,7 +51,7 @@ pub fn bed_file_name(case: &PenetrationCase) -> Option<String> {
 /// from exactly this bed.
 pub fn recorded_bed(case: &PenetrationCase, root: &std::path::Path, unit: &str) -> Option<Bed> {
     let file =
-        crate::experiments::record_store::recorded_bed_file(root, unit, &bed_file_name(case)?)?;
+        crate::experiments::reference::store::recorded_bed_file(root, unit, &bed_file_name(case)?)?;
     crate::experiments::bed_cache::load::<Bed>(Some(&file))
 }
 

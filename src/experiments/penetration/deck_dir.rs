@@ -186,7 +186,7 @@ pub fn lean_record_bed(
     k: usize,
     progress: bool,
 ) -> Result<Option<Bed>> {
-    use crate::experiments::record_store;
+    use crate::experiments::reference::store as record_store;
     let unit = bed_dir_name(k);
     let bdir = dir.join(&unit);
     if case.clump.is_some() || bdir.join(lp::DATA_FILE).exists() || settles_in_liggghts(&bdir) {

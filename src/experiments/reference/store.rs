@@ -10,7 +10,7 @@
 //! - **Regenerable files.** The reference engine's data file of a unit (LIGGGHTS'
 //!   `data.bed`) is text granval wrote from the unit's bed with its own writer; a record
 //!   need not hold it. When the record is used, the experiment writes it again from the
-//!   unit ([`super::Experiment::regenerate`]) and its sha256 must equal the sealed one:
+//!   unit ([`crate::experiments::Experiment::regenerate`]) and its sha256 must equal the sealed one:
 //!   anything else is an error naming the file, never a pass.
 //!
 //! A file still present in its unit directory is read there first, so records made
@@ -18,7 +18,7 @@
 //! they always did. `reference refresh` records with every file present, seals, then
 //! calls [`make_lean`].
 
-use super::reference::{SEAL_FILE, Seal, unit_dir};
+use super::{SEAL_FILE, Seal, unit_dir};
 use crate::rundata::provenance::Sha256;
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
@@ -42,7 +42,7 @@ pub fn store_dir(record_root: &Path) -> Option<PathBuf> {
 }
 
 /// Whether a sealed file is a bed (`<kind>-bed-<key>.json`, see
-/// [`super::bed_cache::name`]), which lives in the store.
+/// [`crate::experiments::bed_cache::name`]), which lives in the store.
 pub fn is_bed_file(name: &str) -> bool {
     name.strip_suffix(".json")
         .and_then(|s| s.split_once("-bed-"))
@@ -105,8 +105,12 @@ pub fn check_sealed_file(
 ) -> Result<()> {
     let in_unit = unit_dir(record_root, unit).join(name);
     if std::fs::symlink_metadata(&in_unit).is_ok_and(|m| !m.file_type().is_file()) {
+        // Named by its kind (a FIFO, a device, a directory), refused before it is opened.
+        if let Err(e) = crate::rundata::fsio::check_regular(&in_unit, u64::MAX, "a sealed file") {
+            bail!("{e} (a sealed file must be the regular file recorded; {hint})");
+        }
         bail!(
-            "{}: not a regular file (a sealed file must be the regular file recorded; {hint})",
+            "{}: a symbolic link (a sealed file must be the regular file recorded; {hint})",
             in_unit.display()
         );
     }
