@@ -9,19 +9,13 @@
 
 mod common;
 
+use common::text;
+
 use granval::case::penetration::PenetrationCase;
 use granval::engines::liggghts::penetration as lp;
 use granval::experiments::penetration::{bed, deck_dir};
 use std::path::{Path, PathBuf};
 use std::process::Output;
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 /// A deck directory of the tiny case with two beds, written by `granval deck`, with
 /// both beds "run" (outputs as LIGGGHTS writes them).

@@ -6,6 +6,8 @@
 
 mod common;
 
+use common::text;
+
 use granval::case::Particle;
 use granval::case::penetration::PenetrationCase;
 use granval::experiments::bed_cache;
@@ -23,14 +25,6 @@ fn deck(cache: &Path, out: &Path) -> Output {
         .arg(out)
         .output()
         .unwrap()
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
 }
 
 #[test]

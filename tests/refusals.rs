@@ -7,25 +7,11 @@
 
 mod common;
 
+use common::{expect, text};
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-fn expect(o: &Output, code: i32, needles: &[&str]) {
-    let t = text(o);
-    assert_eq!(o.status.code(), Some(code), "{t}");
-    for n in needles {
-        assert!(t.contains(n), "missing {n:?} in:\n{t}");
-    }
-}
 
 /// Runs `c` to its end, or kills it after `secs` and fails: a probe that would hang (a
 /// FIFO read) must fail the test, not stall the suite.

@@ -4,27 +4,13 @@
 
 mod common;
 
+use common::{expect, text};
+
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
 fn run(args: &[&str]) -> Output {
     common::granval().args(args).output().unwrap()
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-fn expect(o: &Output, code: i32, needles: &[&str]) {
-    let t = text(o);
-    assert_eq!(o.status.code(), Some(code), "{t}");
-    for n in needles {
-        assert!(t.contains(n), "missing {n:?} in:\n{t}");
-    }
 }
 
 /// A copy of the micro references in a temporary directory, for tampering.

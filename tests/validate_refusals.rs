@@ -5,27 +5,13 @@
 
 mod common;
 
+use common::{expect, text};
+
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-fn text(o: &Output) -> String {
-    format!(
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
 fn granval(args: &[&str], case: &Path) -> Output {
     common::granval().args(args).arg(case).output().unwrap()
-}
-
-fn expect(o: &Output, code: i32, needles: &[&str]) {
-    let t = text(o);
-    assert_eq!(o.status.code(), Some(code), "{t}");
-    for n in needles {
-        assert!(t.contains(n), "missing {n:?} in:\n{t}");
-    }
 }
 
 /// Two spheres of radius 1 mm on the x axis, `gap` apart (negative: overlapping), with

@@ -236,3 +236,21 @@ pub fn mpi_lock() -> std::sync::MutexGuard<'static, ()> {
     static MPI: std::sync::Mutex<()> = std::sync::Mutex::new(());
     MPI.lock().unwrap_or_else(|p| p.into_inner())
 }
+
+/// A finished command's stdout and stderr, as one text for messages and searches.
+pub fn text(o: &std::process::Output) -> String {
+    format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Asserts a finished command's exit code and that its output names every needle.
+pub fn expect(o: &std::process::Output, code: i32, needles: &[&str]) {
+    let t = text(o);
+    assert_eq!(o.status.code(), Some(code), "{t}");
+    for n in needles {
+        assert!(t.contains(n), "missing {n:?} in:\n{t}");
+    }
+}
