@@ -352,6 +352,21 @@ enum RefCmd {
         #[arg(long)]
         only: Option<PathBuf>,
     },
+    /// Make committed records lean in place (as `refresh` makes new ones): each record
+    /// must verify first; engine data files are left out where the record holds the
+    /// unit's bed (written again and checked on use), files of 64 KiB or more are kept
+    /// zstd-compressed; seals unchanged; verified again after.
+    Lean {
+        #[arg(long, default_value = "micro")]
+        suite: String,
+        #[arg(long, default_value = "cases")]
+        cases: PathBuf,
+        #[arg(long, default_value = "reference")]
+        reference: PathBuf,
+        /// Only this case file (repeatable).
+        #[arg(long)]
+        only: Vec<PathBuf>,
+    },
 }
 
 fn options(c: &Common) -> Options {
@@ -686,6 +701,43 @@ fn real_main() -> Result<ExitCode> {
                 let lines = with_experiment!(c, false, |exp| runner::refresh(&exp, &opts))?;
                 for l in lines {
                     show!("{l}");
+                }
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Reference {
+            cmd:
+                RefCmd::Lean {
+                    suite,
+                    cases,
+                    reference,
+                    only,
+                },
+        } => {
+            let s = suite::load(&cases, &suite)?;
+            let opts = Options {
+                reference_root: s.reference_root(&reference),
+                progress: output().progress(),
+                ..Options::default()
+            };
+            let paths: Vec<PathBuf> = if only.is_empty() {
+                s.cases.into_iter().map(|e| e.path).collect()
+            } else {
+                only
+            };
+            for p in &paths {
+                let c = load(p)?;
+                match with_experiment!(c, false, |exp| runner::lean_record(&exp, &opts))? {
+                    Some(lines) => {
+                        for l in lines {
+                            show!("{l}");
+                        }
+                    }
+                    None => show!(
+                        "{}: no record under {}",
+                        p.display(),
+                        opts.reference_root.display()
+                    ),
                 }
             }
             Ok(ExitCode::SUCCESS)

@@ -181,9 +181,56 @@ impl Verified {
                 self.root.join(SEAL_FILE).display()
             );
         };
-        // A bed may live in the record store (`store`), found by its sealed hash.
-        Ok(store::locate(&self.root, unit, name, sha)
+        // A bed may live in the record store (`store`), found by its sealed hash; a
+        // large file may be kept compressed (read from the cache, hashed at verify).
+        Ok(store::locate(&self.root, unit, name, sha)?
             .unwrap_or_else(|| unit_dir(&self.root, unit).join(name)))
+    }
+
+    /// A directory holding the sealed files of `unit` as the engine wrote them, for
+    /// readers of a whole run directory: the unit's own directory when it keeps every
+    /// file plain, else a directory in the record cache ([`store::cache_dir`]) named
+    /// by the sha256 of the unit's seal, each file copied from where the store keeps
+    /// it and hashed against the seal. Files a lean record leaves out to be written
+    /// again (engine data files) are not in it.
+    pub fn unit_files(&self, unit: &str) -> Result<PathBuf> {
+        let u =
+            self.seal.units.get(unit).with_context(|| {
+                format!("{}: no unit {unit:?} in the seal", self.root.display())
+            })?;
+        let own = unit_dir(&self.root, unit);
+        if !u
+            .files
+            .keys()
+            .any(|f| store::is_packed(&self.root, unit, f))
+        {
+            return Ok(own);
+        }
+        let key = Sha256::of(serde_json::to_string(&u.files)?.as_bytes());
+        let dir = store::cache_dir().join("units").join(key.hex());
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        for (name, sha) in &u.files {
+            let Some(from) = store::locate(&self.root, unit, name, sha)? else {
+                continue;
+            };
+            let to = dir.join(name);
+            if !(to.is_file() && Sha256::of_file(&to).is_ok_and(|s| &s == sha)) {
+                let tmp = tempfile::NamedTempFile::new_in(&dir)
+                    .with_context(|| format!("cannot write in {}", dir.display()))?;
+                std::fs::copy(&from, tmp.path())
+                    .with_context(|| format!("cannot copy {}", from.display()))?;
+                tmp.persist(&to)
+                    .with_context(|| format!("cannot write {}", to.display()))?;
+            }
+            let got = Sha256::of_file(&to)?;
+            ensure!(
+                &got == sha,
+                "{}: content differs from the seal (sha256 {got}, sealed {sha})",
+                to.display()
+            );
+        }
+        Ok(dir)
     }
 }
 
@@ -272,7 +319,7 @@ pub fn verify(
         for (file, want) in &u.files {
             store::check_sealed_file(root, name, file, want, regenerate, &hint)?;
         }
-        check_engine_input(&unit_dir(root, name), key, u, regenerate, &hint)?;
+        check_engine_input(root, key, u, regenerate, &hint)?;
     }
     Ok(Verified {
         root: root.to_path_buf(),
@@ -286,12 +333,13 @@ pub fn verify(
 /// The files' hashes alone prove only that nothing changed since sealing, not that what
 /// was sealed is consistent.
 fn check_engine_input(
-    dir: &Path,
+    root: &Path,
     key: &UnitKey,
     u: &SealedUnit,
     regenerate: store::Regenerate,
     hint: &str,
 ) -> Result<()> {
+    let dir = unit_dir(root, &key.name);
     let mut texts = Vec::with_capacity(key.input.len());
     for f in &key.input {
         ensure!(
@@ -300,9 +348,13 @@ fn check_engine_input(
             dir.display(),
             key.name
         );
-        let p = dir.join(f);
-        // A file a lean record left out is the one written again from the unit, which
-        // check_sealed_file has just hashed against the seal.
+        // Where the store keeps it (plain, compressed, a stored bed); a file a lean
+        // record left out is the one written again from the unit. check_sealed_file
+        // has just hashed either against the seal.
+        let p = match store::locate(root, &key.name, f, &u.files[*f])? {
+            Some(p) => p,
+            None => dir.join(f),
+        };
         let again = if p.exists() {
             None
         } else {

@@ -558,7 +558,12 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
     )?;
     // Sealed with every file present; then the beds go to the store and the files
     // granval writes itself are left out (each only if it is written again exactly).
-    lines.extend(record_store::make_lean(&fresh, &seal, &regenerate)?);
+    lines.extend(record_store::make_lean(
+        &fresh,
+        &seal,
+        &regenerate,
+        record_store::BedPlacement::Store,
+    )?);
     if root.exists() {
         std::fs::remove_dir_all(&root)
             .with_context(|| format!("cannot replace {}", root.display()))?;
@@ -570,6 +575,74 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         root.join(reference::SEAL_FILE).display()
     ));
     Ok(lines)
+}
+
+/// `granval reference lean`: a committed record made lean in place, as `refresh` makes
+/// a new one ([`record_store::make_lean`]). The record must verify first (nothing of a
+/// record that does not is touched) and verifies again after. Data files are left out
+/// only in units whose bed the record holds: a unit whose bed is settled anew on every
+/// use would turn each later read of the record into a settling. Beds stay in their
+/// unit directories ([`record_store::BedPlacement::InPlace`]). Returns what was done, or
+/// `None` when the case has no record.
+pub fn lean_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<String>>> {
+    let name = exp.name();
+    let root = reference::record_root(&opts.reference_root, exp.kind(), name);
+    if !root.join(reference::SEAL_FILE).exists() {
+        return Ok(None);
+    }
+    let unit_opts = Options {
+        recorded_inputs: Some(root.clone()),
+        ..opts.clone()
+    };
+    let units = exp.units(&unit_opts)?;
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    let fingerprints = reference::unit_keys(exp, &units)?;
+    let regenerate = regenerator(exp, &units, &names);
+    let check = |regenerate: record_store::Regenerate| {
+        reference::verify(
+            &root,
+            exp.source(),
+            &exp.canonical_hash(),
+            exp.reference_engine(),
+            &fingerprints,
+            regenerate,
+        )
+    };
+    let v = check(&regenerate).with_context(|| {
+        format!("{name}: the record does not verify, so nothing of it is made lean")
+    })?;
+    let bedded: Vec<&str> = v
+        .seal
+        .units
+        .iter()
+        .filter(|(_, u)| u.files.keys().any(|f| record_store::is_bed_file(f)))
+        .map(|(n, _)| n.as_str())
+        .collect();
+    let only_bedded = |unit: &str, file: &str| {
+        if bedded.contains(&unit) {
+            regenerate(unit, file)
+        } else {
+            None
+        }
+    };
+    let mut lines = record_store::make_lean(
+        &root,
+        &v.seal,
+        &only_bedded,
+        record_store::BedPlacement::InPlace,
+    )?;
+    check(&regenerate).with_context(|| {
+        format!(
+            "{name}: after making it lean the record no longer verifies (restore it from git: `git checkout -- {}`)",
+            root.display()
+        )
+    })?;
+    lines.push(format!(
+        "{name}: verified again after ({} of {} unit(s) hold their bed)",
+        bedded.len(),
+        names.len()
+    ));
+    Ok(Some(lines))
 }
 
 /// `granval reference verify`: a case's record checked against its seal without
@@ -599,10 +672,11 @@ pub fn verify_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<St
         &fingerprints,
         &regenerator(exp, &units, &names),
     )?;
-    let (mut here, mut stored, mut written) = (0, 0, 0);
+    let (mut here, mut packed, mut stored, mut written) = (0, 0, 0, 0);
     for n in &names {
         for (file, sha) in &v.seal.units[n].files {
-            match record_store::locate(&root, n, file, sha) {
+            match record_store::locate(&root, n, file, sha)? {
+                _ if record_store::is_packed(&root, n, file) => packed += 1,
                 Some(p) if p.starts_with(&root) => here += 1,
                 Some(_) => stored += 1,
                 None => written += 1,
@@ -610,10 +684,10 @@ pub fn verify_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<St
         }
     }
     Ok(Some(format!(
-        "{name}: verified {} ({} unit(s)): case, engine input, and {} sealed files: {here} in the record, {stored} bed(s) from the bed store, {written} written again from the beds",
+        "{name}: verified {} ({} unit(s)): case, engine input, and {} sealed files: {here} in the record, {packed} compressed in the record, {stored} bed(s) from the bed store, {written} written again from the beds",
         root.display(),
         names.len(),
-        here + stored + written
+        here + packed + stored + written
     )))
 }
 

@@ -387,7 +387,7 @@ impl Experiment for Triaxial {
             seal.root.display(),
             recorded.engine
         );
-        let dir = super::reference::unit_dir(&seal.root, name);
+        let dir = seal.unit_files(name)?;
         let mut run = self.read_liggghts(u, &dir)?;
         run.provenance = recorded;
         Ok(run)

@@ -664,7 +664,7 @@ impl Experiment for Penetration {
             seal.root.display(),
             recorded.engine
         );
-        let dir = super::reference::unit_dir(&seal.root, name);
+        let dir = seal.unit_files(name)?;
         let mut run = reduce_liggghts_dir(&u.case, &u.bed, &dir)?;
         run.provenance = recorded;
         Ok(RefRun {

@@ -13,10 +13,19 @@
 //!   unit ([`crate::experiments::Experiment::regenerate`]) and its sha256 must equal the sealed one:
 //!   anything else is an error naming the file, never a pass.
 //!
+//! - **Large files, compressed.** A sealed file of at least [`COMPRESS_AT_LEAST`] bytes
+//!   that must stay in the record (a force curve, a log, a bed) is kept as `NAME.zst`
+//!   (zstd). The seal still names the sha256 of the file as the engine wrote it: the
+//!   bytes are decompressed once into a cache outside the repository
+//!   ([`cache_dir`]), keyed by that sha256, and hashed against the seal before anything
+//!   reads them. Text of numbers compresses 3-5x; nothing is lost and nothing about the
+//!   seal changes.
+//!
 //! A file still present in its unit directory is read there first, so records made
 //! before the store (and the directory of a recording before [`make_lean`]) work as
 //! they always did. `reference refresh` records with every file present, seals, then
-//! calls [`make_lean`].
+//! calls [`make_lean`]; `reference lean` does the same to a committed record that
+//! verifies (see [`BedPlacement`] for why its beds stay where they are).
 
 use super::{SEAL_FILE, Seal, unit_dir};
 use crate::rundata::provenance::Sha256;
@@ -25,6 +34,86 @@ use std::path::{Path, PathBuf};
 
 /// The store of beds, under the reference root (beside the kind directories).
 pub const BEDS_DIR: &str = "beds";
+
+/// The suffix of a sealed file kept compressed (zstd frame of the sealed bytes).
+pub const COMPRESSED_SUFFIX: &str = ".zst";
+
+/// Sealed files at least this large are kept compressed by [`make_lean`]: below it the
+/// saving is a few kilobytes, and small files (provenance, seals of decks) stay
+/// readable with any tool.
+pub const COMPRESS_AT_LEAST: u64 = 64 * 1024;
+
+/// zstd level of the store: the highest of zstd's normal levels. Compression runs once
+/// per record; decompression speed does not depend on the level.
+const ZSTD_LEVEL: i32 = 19;
+
+/// Where a bed goes when a record is made lean.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BedPlacement {
+    /// Into the bed store, once by content (a new record: the bed is new to the
+    /// repository either way).
+    Store,
+    /// Left in its unit directory (compressed): a record already committed, whose bed
+    /// moving would be a rename in the repository's history and gain nothing unless
+    /// another record holds the same bed.
+    InPlace,
+}
+
+/// The cache of decompressed record files, outside the repository:
+/// `$GRANVAL_RECORD_CACHE`, else `<temp dir>/granval-records-<uid>`. Files in it are
+/// named by their sealed sha256 and hashed against the seal whenever they are used, so
+/// the cache is never trusted, only reused; removing it costs one decompression.
+pub fn cache_dir() -> PathBuf {
+    match std::env::var_os("GRANVAL_RECORD_CACHE") {
+        Some(d) if !d.is_empty() => PathBuf::from(d),
+        // SAFETY: getuid(2) cannot fail and touches no memory.
+        _ => std::env::temp_dir().join(format!("granval-records-{}", unsafe { libc::getuid() })),
+    }
+}
+
+/// `name` as the store keeps it compressed.
+fn packed_name(name: &str) -> String {
+    format!("{name}{COMPRESSED_SUFFIX}")
+}
+
+/// The decompressed bytes of `packed` (the compressed form of sealed file `name`,
+/// sealed as `sha`), as a file in the cache: reused when one there already hashes to
+/// `sha`, else written anew (atomically, so concurrent readers never see half a file).
+/// The caller hashes what it reads against the seal as for any other sealed file.
+fn unpacked(packed: &Path, name: &str, sha: &Sha256) -> Result<PathBuf> {
+    let dir = cache_dir().join(sha.hex());
+    let out = dir.join(name);
+    if out.is_file() && Sha256::of_file(&out).is_ok_and(|s| &s == sha) {
+        return Ok(out);
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let bytes = decode(packed)?;
+    let tmp = tempfile::NamedTempFile::new_in(&dir)
+        .with_context(|| format!("cannot write in {}", dir.display()))?;
+    std::fs::write(tmp.path(), &bytes)
+        .with_context(|| format!("cannot write {}", tmp.path().display()))?;
+    tmp.persist(&out)
+        .with_context(|| format!("cannot write {}", out.display()))?;
+    Ok(out)
+}
+
+/// The bytes a compressed sealed file stands for (a regular file, one or more whole
+/// zstd frames).
+fn decode(packed: &Path) -> Result<Vec<u8>> {
+    crate::rundata::fsio::check_regular(packed, u64::MAX, "a sealed file (compressed)")?;
+    let input =
+        std::fs::File::open(packed).with_context(|| format!("cannot open {}", packed.display()))?;
+    zstd::stream::decode_all(input)
+        .with_context(|| format!("{}: not a whole zstd stream", packed.display()))
+}
+
+/// The bytes of `path`, compressed as the store keeps them.
+fn compress(path: &Path) -> Result<Vec<u8>> {
+    let input =
+        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    zstd::stream::encode_all(input, ZSTD_LEVEL)
+        .with_context(|| format!("cannot compress {}", path.display()))
+}
 
 /// Gives the bytes of a sealed file of a unit that the record may leave out because
 /// granval writes it itself (unit name, file name); `None`: not regenerable.
@@ -57,16 +146,44 @@ pub fn stored_bed(record_root: &Path, sha: &Sha256) -> Option<PathBuf> {
 }
 
 /// Where the bytes of sealed file `name` of `unit` (sealed as `sha`) are on disk: the
-/// unit directory, or for a bed the store; `None` when neither holds it.
-pub fn locate(record_root: &Path, unit: &str, name: &str, sha: &Sha256) -> Option<PathBuf> {
-    let here = unit_dir(record_root, unit).join(name);
+/// unit directory, its compressed form there (decompressed into the cache), or for a
+/// bed the store; `None` when none holds it. Errors only when a compressed form exists
+/// but cannot be read.
+pub fn locate(record_root: &Path, unit: &str, name: &str, sha: &Sha256) -> Result<Option<PathBuf>> {
+    let dir = unit_dir(record_root, unit);
+    let here = dir.join(name);
     if here.is_file() {
-        return Some(here);
+        return Ok(Some(here));
+    }
+    let packed = dir.join(packed_name(name));
+    if packed.exists() {
+        return unpacked(&packed, name, sha).map(Some);
     }
     if is_bed_file(name) {
-        return stored_bed(record_root, sha).filter(|p| p.is_file());
+        return in_store(record_root, sha);
     }
-    None
+    Ok(None)
+}
+
+/// The bed sealed as `sha` in the store of `record_root`, plain or compressed.
+fn in_store(record_root: &Path, sha: &Sha256) -> Result<Option<PathBuf>> {
+    let Some(stored) = stored_bed(record_root, sha) else {
+        return Ok(None);
+    };
+    if stored.is_file() {
+        return Ok(Some(stored));
+    }
+    let name = format!("{}.json", sha.hex());
+    let packed = stored.with_file_name(packed_name(&name));
+    if packed.exists() {
+        return unpacked(&packed, &name, sha).map(Some);
+    }
+    Ok(None)
+}
+
+/// Whether sealed file `name` of `unit` is kept compressed in its unit directory.
+pub fn is_packed(record_root: &Path, unit: &str, name: &str) -> bool {
+    unit_dir(record_root, unit).join(packed_name(name)).exists()
 }
 
 /// The bed file `name` of `unit`, read before the seal is verified (the seal is only
@@ -83,6 +200,8 @@ pub fn recorded_bed_file(record_root: &Path, unit: &str, name: &str) -> Option<P
         name,
         &sealed_sha(record_root, unit, name)?,
     )
+    .ok()
+    .flatten()
 }
 
 /// The sha256 the seal of the record at `record_root` names for file `name` of `unit`,
@@ -114,7 +233,23 @@ pub fn check_sealed_file(
             in_unit.display()
         );
     }
-    if let Some(p) = locate(record_root, unit, name, want) {
+    // A compressed file is decompressed and hashed here every time, not taken from the
+    // cache: verifying a record checks the record's own bytes.
+    let packed = unit_dir(record_root, unit).join(packed_name(name));
+    if !in_unit.exists() && packed.exists() {
+        let bytes = decode(&packed).map_err(|e| anyhow::anyhow!("{e:#} ({hint})"))?;
+        let got = Sha256::of(&bytes);
+        if &got != want {
+            bail!(
+                "{}: decompressed, its content differs from the seal (sha256 {got}, sealed {want}): the recorded reference was modified; {hint}",
+                packed.display()
+            );
+        }
+        return Ok(());
+    }
+    let found = locate(record_root, unit, name, want)
+        .map_err(|e| anyhow::anyhow!("{e:#}: a sealed file must be the file recorded ({hint})"))?;
+    if let Some(p) = found {
         let (parent, file) = (
             p.parent().unwrap_or(Path::new(".")),
             p.file_name().unwrap_or_default(),
@@ -157,11 +292,19 @@ pub fn check_sealed_file(
     Ok(())
 }
 
-/// Makes a freshly sealed record lean: each bed moves to the store (or is dropped when
-/// the store already holds its bytes), each regenerable file is dropped once writing
-/// it again gives its sealed sha256 exactly (else it is kept, and said so). Returns one
-/// line per thing done. The seal is not touched.
-pub fn make_lean(record_root: &Path, seal: &Seal, regenerate: Regenerate) -> Result<Vec<String>> {
+/// Makes a sealed record lean: each bed moves to the store (or is dropped when the
+/// store already holds its bytes) or stays where it is ([`BedPlacement`]), each
+/// regenerable file is dropped once writing it again gives its sealed sha256 exactly
+/// (else it is kept, and said so), and each file left of at least
+/// [`COMPRESS_AT_LEAST`] bytes is kept compressed once its compressed form
+/// decompresses to the sealed sha256. Returns one line per thing done. The seal is not
+/// touched.
+pub fn make_lean(
+    record_root: &Path,
+    seal: &Seal,
+    regenerate: Regenerate,
+    beds: BedPlacement,
+) -> Result<Vec<String>> {
     let mut lines = Vec::new();
     for (unit, sealed) in &seal.units {
         let dir = unit_dir(record_root, unit);
@@ -170,17 +313,18 @@ pub fn make_lean(record_root: &Path, seal: &Seal, regenerate: Regenerate) -> Res
             if !path.is_file() {
                 continue;
             }
-            if is_bed_file(name) {
+            if is_bed_file(name) && beds == BedPlacement::Store {
                 let Some(to) = stored_bed(record_root, sha) else {
                     continue;
                 };
-                if to.is_file() && &Sha256::of_file(&to)? == sha {
+                let have = in_store(record_root, sha)?;
+                if let Some(have) = have.filter(|p| Sha256::of_file(p).is_ok_and(|s| &s == sha)) {
                     std::fs::remove_file(&path)
                         .with_context(|| format!("cannot remove {}", path.display()))?;
                     lines.push(format!(
                         "{}: already in the bed store as {}",
                         path.display(),
-                        to.display()
+                        have.display()
                     ));
                 } else {
                     let store = to.parent().unwrap_or(Path::new("."));
@@ -188,8 +332,11 @@ pub fn make_lean(record_root: &Path, seal: &Seal, regenerate: Regenerate) -> Res
                         .with_context(|| format!("cannot create {}", store.display()))?;
                     move_file(&path, &to)?;
                     lines.push(format!("{}: moved to {}", path.display(), to.display()));
+                    lines.extend(pack(&to, sha)?);
                 }
-            } else if let Some(bytes) = regenerate(unit, name) {
+                continue;
+            }
+            if let Some(bytes) = regenerate(unit, name) {
                 match bytes {
                     Ok(b) if &Sha256::of(&b) == sha => {
                         std::fs::remove_file(&path)
@@ -198,6 +345,7 @@ pub fn make_lean(record_root: &Path, seal: &Seal, regenerate: Regenerate) -> Res
                             "{}: left out of the record (written again from the bed on use, sha256 {sha} checked)",
                             path.display()
                         ));
+                        continue;
                     }
                     Ok(b) => lines.push(format!(
                         "{}: KEPT in the record: written again it has sha256 {}, not the sealed {sha}",
@@ -210,9 +358,47 @@ pub fn make_lean(record_root: &Path, seal: &Seal, regenerate: Regenerate) -> Res
                     )),
                 }
             }
+            lines.extend(pack(&path, sha)?);
         }
     }
     Ok(lines)
+}
+
+/// Keeps `path` (sealed as `sha`) compressed when it is large enough: the compressed
+/// form is written beside it, decompressed again and hashed, and only then is the
+/// original removed. Returns what was done.
+fn pack(path: &Path, sha: &Sha256) -> Result<Option<String>> {
+    let size = std::fs::metadata(path)
+        .with_context(|| format!("cannot read {}", path.display()))?
+        .len();
+    if size < COMPRESS_AT_LEAST {
+        return Ok(None);
+    }
+    let name = path
+        .file_name()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .into_owned();
+    let packed = path.with_file_name(packed_name(&name));
+    let bytes = compress(path)?;
+    std::fs::write(&packed, &bytes)
+        .with_context(|| format!("cannot write {}", packed.display()))?;
+    let back = zstd::stream::decode_all(bytes.as_slice())
+        .with_context(|| format!("{}: cannot decompress what was written", packed.display()))?;
+    if &Sha256::of(&back) != sha {
+        std::fs::remove_file(&packed).ok();
+        bail!(
+            "{}: decompressed it does not hash to the sealed {sha}; the original is kept",
+            packed.display()
+        );
+    }
+    std::fs::remove_file(path).with_context(|| format!("cannot remove {}", path.display()))?;
+    Ok(Some(format!(
+        "{}: kept compressed as {} ({size} -> {} bytes)",
+        path.display(),
+        packed.file_name().unwrap_or_default().to_string_lossy(),
+        bytes.len()
+    )))
 }
 
 /// A rename, or a copy and remove across file systems.
@@ -315,7 +501,7 @@ mod tests {
     fn a_lean_record_verifies_with_its_unchanged_seal() {
         let (_d, root, seal, units) = sealed();
         let seal_text = std::fs::read(root.join(SEAL_FILE)).unwrap();
-        let lines = make_lean(&root, &seal, &writer).unwrap();
+        let lines = make_lean(&root, &seal, &writer, BedPlacement::Store).unwrap();
         assert_eq!(lines.len(), 4, "{lines:?}");
         assert_eq!(std::fs::read(root.join(SEAL_FILE)).unwrap(), seal_text);
         for UnitKey { name: u, .. } in &units {
@@ -354,7 +540,7 @@ mod tests {
     #[test]
     fn a_lean_record_refuses_what_does_not_hash_to_the_seal() {
         let (_d, root, seal, units) = sealed();
-        make_lean(&root, &seal, &writer).unwrap();
+        make_lean(&root, &seal, &writer, BedPlacement::Store).unwrap();
         let changed = |u: &str, f: &str| {
             (f == "data.bed").then(|| Ok(data_of(u).replace("2500", "2500.0").into_bytes()))
         };
@@ -393,11 +579,97 @@ mod tests {
     fn a_file_that_does_not_regenerate_exactly_is_kept() {
         let (_d, root, seal, units) = sealed();
         let other = |u: &str, f: &str| (f == "data.bed").then(|| Ok(format!("{u}\n").into_bytes()));
-        let lines = make_lean(&root, &seal, &other).unwrap();
+        let lines = make_lean(&root, &seal, &other, BedPlacement::Store).unwrap();
         assert!(lines.iter().any(|l| l.contains("KEPT")), "{lines:?}");
         for UnitKey { name: u, .. } in &units {
             assert!(unit_dir(&root, u).join("data.bed").is_file());
         }
         check(&root, &units, &nothing_regenerable).unwrap();
+    }
+
+    /// A large sealed file is kept compressed: the record verifies with its unchanged
+    /// seal, readers get the engine's bytes (through the cache, and as a whole unit
+    /// directory), and a compressed file that was altered, truncated or is not zstd at
+    /// all is refused naming it.
+    #[test]
+    fn a_large_file_is_kept_compressed_and_read_back_exactly() {
+        let (_d, root, _, units) = sealed();
+        let big: String = (0..20_000)
+            .map(|i| format!("{i} {:.6e}\n", i as f64 * 0.37))
+            .collect();
+        for UnitKey { name: u, .. } in &units {
+            std::fs::write(unit_dir(&root, u).join("force.txt"), &big).unwrap();
+        }
+        // Sealed again with the large force file, as a recording would be.
+        let seal = reference::write(
+            &root,
+            "c",
+            "penetration",
+            Path::new("c.toml"),
+            &Sha256::of(b"case"),
+            EngineKind::Liggghts,
+            "LIGGGHTS (Version x)",
+            &units,
+        )
+        .unwrap();
+        let lines = make_lean(&root, &seal, &writer, BedPlacement::InPlace).unwrap();
+        assert!(
+            lines
+                .iter()
+                .filter(|l| l.contains("kept compressed as force.txt.zst"))
+                .count()
+                == 2,
+            "{lines:?}"
+        );
+        let dir0 = unit_dir(&root, "bed-0");
+        assert!(!dir0.join("force.txt").exists() && dir0.join("force.txt.zst").is_file());
+        assert!(
+            dir0.join(BED).is_file(),
+            "InPlace leaves the bed in its unit"
+        );
+        assert!(
+            std::fs::metadata(dir0.join("force.txt.zst")).unwrap().len() < big.len() as u64 / 2
+        );
+        let v = verify(
+            &root,
+            Path::new("c.toml"),
+            &Sha256::of(b"case"),
+            EngineKind::Liggghts,
+            &units,
+            &writer,
+        )
+        .unwrap();
+        assert_eq!(
+            std::fs::read_to_string(v.file("bed-0", "force.txt").unwrap()).unwrap(),
+            big
+        );
+        let whole = v.unit_files("bed-0").unwrap();
+        assert_ne!(whole, dir0);
+        assert_eq!(
+            std::fs::read_to_string(whole.join("force.txt")).unwrap(),
+            big
+        );
+        assert!(whole.join(BED).is_file());
+
+        // Negative controls: verifying decompresses the record's own bytes, so a copy
+        // already in the cache does not hide a damaged compressed file.
+        let packed = dir0.join("force.txt.zst");
+        let good = std::fs::read(&packed).unwrap();
+        let other: String = big.replacen("1 3.7", "1 3.8", 1);
+        let cases: [(&str, Vec<u8>); 3] = [
+            (
+                "another force curve",
+                zstd::stream::encode_all(other.as_bytes(), 3).unwrap(),
+            ),
+            ("truncated", good[..good.len() / 2].to_vec()),
+            ("not zstd", b"force.txt".to_vec()),
+        ];
+        for (what, bytes) in cases {
+            std::fs::write(&packed, bytes).unwrap();
+            let e = format!("{:#}", check(&root, &units, &writer).unwrap_err());
+            assert!(e.contains("force.txt"), "{what}: {e}");
+        }
+        std::fs::write(&packed, good).unwrap();
+        check(&root, &units, &writer).unwrap();
     }
 }
