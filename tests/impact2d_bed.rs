@@ -392,10 +392,17 @@ fn records_carry_their_beds_and_a_changed_bed_is_refused() {
         stored[1].as_ref().unwrap(),
     )
     .unwrap();
+    let sealed = &seal.units[&exp.unit_name(&plain[1])].files[stored[1].as_ref().unwrap()];
+    let in_store =
+        granval::experiments::reference::store::stored_bed_file(&record, sealed).unwrap();
     assert!(
-        kept.starts_with(reference_root.join("beds")),
+        in_store.starts_with(reference_root.join("beds")),
         "{}",
-        kept.display()
+        in_store.display()
+    );
+    assert_eq!(
+        &granval::rundata::provenance::Sha256::of_file(&kept).unwrap(),
+        sealed
     );
     let mut b: Bed = serde_json::from_slice(&std::fs::read(kept).unwrap()).unwrap();
     one_ulp(&mut b);

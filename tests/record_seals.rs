@@ -91,22 +91,60 @@ fn every_record_verifies_with_its_engine_input_and_provenance() {
             with_experiment!(c, false, |exp| {
                 let root = reference::record_root(&reference_root, exp.kind(), exp.name());
                 if root.join(reference::SEAL_FILE).exists() {
-                    reference::verify(
-                        &root,
-                        exp.source(),
-                        &exp.canonical_hash(),
-                        exp.reference_engine(),
-                        &keys_from_seal(&root, exp.kind()),
-                        // Records written before the lean store hold every file.
-                        &granval::experiments::reference::store::nothing_regenerable,
-                    )
-                    .unwrap_or_else(|err| panic!("{}: {err:#}", root.display()));
+                    if holds_its_beds(&root) {
+                        // A lean record: its units are built from the beds it holds
+                        // (cheap), and the data files it leaves out are written again
+                        // from them and checked.
+                        verify_lean(&exp, &root)
+                            .unwrap_or_else(|err| panic!("{}: {err:#}", root.display()));
+                    } else {
+                        reference::verify(
+                            &root,
+                            exp.source(),
+                            &exp.canonical_hash(),
+                            exp.reference_engine(),
+                            &keys_from_seal(&root, exp.kind()),
+                            // Records without their beds hold every file.
+                            &granval::experiments::reference::store::nothing_regenerable,
+                        )
+                        .unwrap_or_else(|err| panic!("{}: {err:#}", root.display()));
+                    }
                     checked += 1;
                 }
             });
         }
     }
     assert!(checked >= 50, "only {checked} records verified");
+}
+
+/// Whether every unit of the record at `root` holds the bed its reference run started
+/// from (only such records are made lean: `granval reference lean`).
+fn holds_its_beds(root: &Path) -> bool {
+    let seal: reference::Seal =
+        serde_json::from_str(&std::fs::read_to_string(root.join(reference::SEAL_FILE)).unwrap())
+            .unwrap();
+    seal.units
+        .values()
+        .all(|u| u.files.keys().any(|f| reference::store::is_bed_file(f)))
+}
+
+/// Verifies a record that holds its beds as a recorded comparison does: units from
+/// those beds, left-out data files written again and checked.
+fn verify_lean<E: Experiment>(exp: &E, root: &Path) -> anyhow::Result<reference::Verified> {
+    let units = exp.units(&Options {
+        recorded_inputs: Some(root.to_path_buf()),
+        ..Options::default()
+    })?;
+    let keys = reference::unit_keys(exp, &units)?;
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    reference::verify(
+        root,
+        exp.source(),
+        &exp.canonical_hash(),
+        exp.reference_engine(),
+        &keys,
+        &granval::experiments::runner::regenerator(exp, &units, &names),
+    )
 }
 
 /// Verifies the record of `case` under `reference_root` as `compare` does.
@@ -239,10 +277,37 @@ fn every_penetration_record_holds_the_outputs_of_its_own_deck() {
             if !root.join(reference::SEAL_FILE).exists() {
                 continue;
             }
+            // A lean record leaves its data files out and keeps large files
+            // compressed: its beds come from the bed files it holds, its outputs from
+            // the unit directories the seal gives back.
+            let lean = (!root.join("bed-0").join("data.bed").exists() && holds_its_beds(&root))
+                .then(|| {
+                    let exp = granval::experiments::penetration::Penetration {
+                        case: c.clone(),
+                        stress: false,
+                    };
+                    let v = verify_lean(&exp, &root).unwrap();
+                    let units = exp
+                        .units(&Options {
+                            recorded_inputs: Some(root.clone()),
+                            ..Options::default()
+                        })
+                        .unwrap();
+                    (v, units)
+                });
             for k in 0..c.ensemble_beds {
                 let ck = c.realisation(k);
-                let d = root.join(format!("bed-{k}"));
-                let bed = deck_dir::read_bed(&ck, &d).unwrap();
+                let (d, bed) = match &lean {
+                    Some((v, units)) => (
+                        v.unit_files(&format!("bed-{k}")).unwrap(),
+                        units[k].bed.clone(),
+                    ),
+                    None => {
+                        let d = root.join(format!("bed-{k}"));
+                        let bed = deck_dir::read_bed(&ck, &d).unwrap();
+                        (d, bed)
+                    }
+                };
                 reduce_liggghts_dir(&ck, &bed, &d)
                     .unwrap_or_else(|e| panic!("{}: {e:#}", d.display()));
                 n += 1;

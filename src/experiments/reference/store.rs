@@ -181,6 +181,14 @@ fn in_store(record_root: &Path, sha: &Sha256) -> Result<Option<PathBuf>> {
     Ok(None)
 }
 
+/// The store's own file of the bed sealed as `sha` (plain `<sha>.json` or compressed
+/// `<sha>.json.zst`), as it lies on disk; `None` when the store does not hold it.
+pub fn stored_bed_file(record_root: &Path, sha: &Sha256) -> Option<PathBuf> {
+    let plain = stored_bed(record_root, sha)?;
+    let packed = plain.with_file_name(packed_name(&format!("{}.json", sha.hex())));
+    [plain, packed].into_iter().find(|p| p.is_file())
+}
+
 /// Whether sealed file `name` of `unit` is kept compressed in its unit directory.
 pub fn is_packed(record_root: &Path, unit: &str, name: &str) -> bool {
     unit_dir(record_root, unit).join(packed_name(name)).exists()
