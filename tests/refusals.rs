@@ -1,4 +1,4 @@
-//! What granval refuses on the file system and its command line (README "What granval
+//! What granval refuses on the file system and its command line (docs/commands.md "What granval
 //! refuses"): output directories that are not granval's own, files that are not regular
 //! or too large, switches that are not switches, a closed stdout, names and paths that
 //! could only be meant one way but were taken another. Each probe is what a careless or

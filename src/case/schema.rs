@@ -127,7 +127,7 @@ pub enum Wall {
     },
 }
 
-/// Tolerances of the trajectory comparison. Defaults (documented in the README) are the
+/// Tolerances of the trajectory comparison. Defaults (documented in docs/cases.md) are the
 /// project's acceptance criteria: 1e-6 relative in velocities and angular velocities,
 /// 1e-6 of the smallest radius in positions.
 #[derive(Debug, Deserialize)]

@@ -38,7 +38,7 @@ pub struct Frame {
     pub bodies: Vec<BodyState>,
 }
 
-/// Column order of `particles.csv`, fixed (documented in the README) so scripts can rely on it.
+/// Column order of `particles.csv`, fixed (documented in docs/commands.md) so scripts can rely on it.
 pub const CSV_HEADER: [&str; 14] = [
     "t", "id", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz",
 ];
