@@ -621,6 +621,10 @@ fn real_main() -> Result<ExitCode> {
             let _out = claim(&report, "--report", common.force, &keep)?;
             let mut opts = options(&common);
             opts.reference_root = s.reference_root(&opts.reference_root);
+            // Which rules came before their records, decided before anything runs
+            // (docs/statistics.md, "Registration").
+            let registration =
+                granval::experiments::registration::of_suite(&s, &opts.reference_root)?;
             let started = std::time::Instant::now();
             let mut outcomes = Vec::new();
             for e in &entries {
@@ -653,7 +657,16 @@ fn real_main() -> Result<ExitCode> {
                 ..CaseOutcome::default()
             });
             let (figure_notes, claim_sections) = suite::claim_sections(&s, &dirs, &report);
+            if let Some(reg) = &registration {
+                for o in &mut outcomes {
+                    reg.apply(&mut o.checks);
+                }
+            }
             let mut r = report_of(outcomes);
+            if let Some(reg) = &registration {
+                r.notes.extend(reg.notes());
+                r.sections.push(reg.section());
+            }
             r.notes.extend(figure_notes);
             r.sections.extend(claim_sections);
             r.sections.extend(malt_section);

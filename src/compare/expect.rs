@@ -91,12 +91,28 @@ impl GateOutcome {
 
 /// Judges `checks` against `expectations` (a check without one is expected to pass).
 /// `complete`: the whole suite ran, so a registered check that did not run is a change;
-/// with a subset (`--only`), it is listed and does not count.
+/// with a subset (`--only`), it is listed and does not count. An EXPLORATORY check
+/// (docs/statistics.md, "Registration") is not judged: it needs no expectation, and one
+/// it has is listed as not counted; its ERROR still counts ([`Check::counts`]).
 pub fn release_gate(checks: &[Check], expectations: &[Expectation], complete: bool) -> GateOutcome {
     let mut rows = Vec::new();
     let mut exit = 0;
     let mut raise = |code: i32| exit = exit.max(code);
-    for c in checks {
+    for c in checks.iter().filter(|c| !c.counts()) {
+        if let Some(e) = expectations.iter().find(|e| e.check == c.name) {
+            rows.push(GateRow {
+                check: c.name.clone(),
+                expected: e.verdict,
+                got: Some(c.status),
+                holds: true,
+                why: format!(
+                    "EXPLORATORY, not gated ({}); the expectation is not counted",
+                    c.exploratory.as_deref().unwrap_or_default()
+                ),
+            });
+        }
+    }
+    for c in checks.iter().filter(|c| c.counts()) {
         let e = expectations.iter().find(|e| e.check == c.name);
         let expected = e.map_or(Status::Pass, |e| e.verdict);
         let mut why = Vec::new();
@@ -158,6 +174,9 @@ pub fn release_gate(checks: &[Check], expectations: &[Expectation], complete: bo
     if checks.is_empty() {
         // A gate over nothing gated nothing: exit 1, as a report without checks does.
         raise(1);
+    } else if checks.iter().all(|c| c.exploratory.is_some()) {
+        // Checks ran, every one EXPLORATORY: nothing was gated (NO GATED CHECKS).
+        raise(2);
     }
     GateOutcome {
         rows,

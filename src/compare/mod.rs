@@ -175,6 +175,14 @@ pub struct Check {
     /// JUnit's `time`. The engine runs a case's checks share are its `CaseRun` times.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_s: Option<f64>,
+    /// The sha256 of the rules this check is judged by (its case's or its claim's), in a
+    /// suite that registers them (docs/statistics.md, "Registration"). Set by the suite.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rules_sha256: Option<String>,
+    /// Why the check is EXPLORATORY (its rules were not committed before the record it
+    /// judges was sealed): its verdict is printed, never gated. Absent: gated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exploratory: Option<String>,
 }
 
 /// serde_json writes a non-finite f64 as `null`; read `null` back as NaN so that every
@@ -204,7 +212,22 @@ impl Check {
             detail: detail.into(),
             case: String::new(),
             time_s: None,
+            rules_sha256: None,
+            exploratory: None,
         }
+    }
+
+    /// Whether the verdict counts toward the exit code and the release gate: it does
+    /// unless the check is EXPLORATORY, and an ERROR always does (a run that failed is a
+    /// failed run whatever its rules).
+    pub fn counts(&self) -> bool {
+        self.exploratory.is_none() || self.status == Status::Error
+    }
+
+    /// Marks the check EXPLORATORY for `why`.
+    pub fn mark_exploratory(mut self, why: impl Into<String>) -> Check {
+        self.exploratory = Some(why.into());
+        self
     }
 
     /// Passes when `value <= tolerance`. NaN never passes.

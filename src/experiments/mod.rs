@@ -16,6 +16,7 @@ pub mod micro;
 pub mod output_dir;
 pub mod penetration;
 pub mod reference;
+pub mod registration;
 pub mod runner;
 pub mod suite;
 pub mod triaxial;

@@ -3,6 +3,8 @@
 //! ```toml
 //! description = "what the suite verifies"
 //! reference = "release"        # optional: its recorded runs live under reference/release/
+//! registration = "git"         # optional: checks whose rules changed after their record
+//!                              # was sealed are EXPLORATORY (experiments::registration)
 //! [[case]]
 //! path = "micro/*.toml"        # relative to cases/; `dir/*.toml` takes every case there
 //! [[case]]
@@ -51,6 +53,17 @@ struct File {
     /// Families of cases for the engine agreement against chaos (docs/statistics.md).
     #[serde(default, rename = "family")]
     families: Vec<FamilyEntry>,
+    /// `registration = "git"`: its checks' rules are registered by git history.
+    #[serde(default)]
+    registration: Option<RegistrationSource>,
+}
+
+/// Where a suite's registration is read from (docs/statistics.md, "Registration"): the
+/// git history of its case files and suite file against its records' seal times.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RegistrationSource {
+    Git,
 }
 
 /// `[[family]]`: cases whose engine differences are pooled and judged against the chaos
@@ -152,6 +165,10 @@ pub struct Suite {
     /// `[[family]]`: the families of the engine agreement against chaos, with their case
     /// files and chaos records resolved to paths.
     pub families: Vec<Family>,
+    /// `registration = "git"` (None: its checks are all gated, as before registration).
+    pub registration: Option<RegistrationSource>,
+    /// The suite file (`cases/suites/<name>.toml`).
+    pub file: PathBuf,
     reference: Option<PathBuf>,
 }
 
@@ -398,6 +415,8 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         claims,
         expectations: f.expectations,
         families,
+        registration: f.registration,
+        file: path,
         reference,
     })
 }

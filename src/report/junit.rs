@@ -27,8 +27,11 @@ impl Report {
                 None => cases.push((class, vec![c])),
             }
         }
-        let count =
-            |cs: &[&Check], f: fn(Status) -> bool| cs.iter().filter(|c| f(c.status)).count();
+        // An EXPLORATORY check is `<skipped>` (not gated), unless it is an error.
+        let count = |cs: &[&Check], f: fn(Status) -> bool| {
+            cs.iter().filter(|c| c.counts() && f(c.status)).count()
+        };
+        let skipped = |cs: &[&Check]| cs.iter().filter(|c| !c.counts()).count();
         let failure = |s: Status| s == Status::Fail;
         let error = |s: Status| s.undecided();
         let all: Vec<&Check> = self.checks.iter().collect();
@@ -39,11 +42,12 @@ impl Report {
             .sum::<f64>()
             + self.checks.iter().filter_map(|c| c.time_s).sum::<f64>();
         let mut s = format!(
-            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"{}\" tests=\"{}\" failures=\"{}\" errors=\"{}\" time=\"{}\">\n",
+            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"{}\" tests=\"{}\" failures=\"{}\" errors=\"{}\" skipped=\"{}\" time=\"{}\">\n",
             xml(title, true),
             all.len(),
             count(&all, failure),
             count(&all, error),
+            skipped(&all),
             seconds(total_time)
         );
         for (class, checks) in &cases {
@@ -57,11 +61,12 @@ impl Report {
             let own: f64 = checks.iter().filter_map(|c| c.time_s).sum();
             let _ = writeln!(
                 s,
-                "  <testsuite name=\"{}\" tests=\"{}\" failures=\"{}\" errors=\"{}\" time=\"{}\">",
+                "  <testsuite name=\"{}\" tests=\"{}\" failures=\"{}\" errors=\"{}\" skipped=\"{}\" time=\"{}\">",
                 xml(class, true),
                 checks.len(),
                 count(checks, failure),
                 count(checks, error),
+                skipped(checks),
                 seconds(runs + own)
             );
             if let Some(r) = self.runs.iter().find(|r| r.case == *class) {
@@ -111,6 +116,15 @@ fn testcase(s: &mut String, class: &str, c: &Check) {
         tolerance(c)
     );
     match c.status {
+        _ if !c.counts() => {
+            let why = c.exploratory.as_deref().unwrap_or_default();
+            let _ = write!(
+                s,
+                "<skipped message=\"{}\">{}</skipped>",
+                xml(&format!("EXPLORATORY, not gated ({why}); {message}"), true),
+                xml(&c.detail, false)
+            );
+        }
         Status::Pass => {}
         Status::Fail => {
             let _ = write!(

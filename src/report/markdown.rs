@@ -16,8 +16,25 @@ pub fn verdict_cell(status: Status) -> String {
 }
 
 impl Report {
+    /// Checks with verdict `st`, EXPLORATORY ones included (the tally shows every verdict).
     pub(super) fn count(&self, st: Status) -> usize {
         self.checks.iter().filter(|c| c.status == st).count()
+    }
+
+    /// Checks with verdict `st` that count ([`crate::compare::Check::counts`]).
+    fn count_counted(&self, st: Status) -> usize {
+        self.checks
+            .iter()
+            .filter(|c| c.status == st && c.counts())
+            .count()
+    }
+
+    /// EXPLORATORY checks: printed, not gated.
+    pub(super) fn exploratory(&self) -> usize {
+        self.checks
+            .iter()
+            .filter(|c| c.exploratory.is_some())
+            .count()
     }
 
     /// The report's one-word verdict. An undecidable gate (NOT COMPARED) exits 2 like an
@@ -26,9 +43,12 @@ impl Report {
     pub fn verdict(&self) -> &'static str {
         if self.count(Status::Error) > 0 {
             "ERROR"
+        } else if self.nothing_gated() {
+            // Every check EXPLORATORY: their verdicts are printed, none decides (exit 2).
+            "NO GATED CHECKS"
         } else if self.errored
-            && self.count(Status::NotCompared) == 0
-            && self.count(Status::Inconclusive) > 0
+            && self.count_counted(Status::NotCompared) == 0
+            && self.count_counted(Status::Inconclusive) > 0
         {
             // Every gate was decided or under-resolved: the data could not tell.
             "INCONCLUSIVE"
@@ -44,10 +64,15 @@ impl Report {
         }
     }
 
-    /// "N checks: a pass, b FAIL, ... (exit c)."
+    /// "N checks: a pass, b FAIL, ... (exit c).", with "; k EXPLORATORY, not gated" before
+    /// the exit code when there are any.
     pub fn tally(&self) -> String {
+        let exploratory = match self.exploratory() {
+            0 => String::new(),
+            k => format!("; {k} of them EXPLORATORY, not gated"),
+        };
         format!(
-            "{} checks: {} pass, {} FAIL, {} INCONCLUSIVE, {} NOT COMPARED, {} ERROR (exit {}).",
+            "{} checks: {} pass, {} FAIL, {} INCONCLUSIVE, {} NOT COMPARED, {} ERROR{exploratory} (exit {}).",
             self.checks.len(),
             self.count(Status::Pass),
             self.count(Status::Fail),
@@ -89,15 +114,20 @@ impl Report {
         );
         let _ = writeln!(s, "|---|---|---|---|---|---|");
         for c in &self.checks {
+            let (verdict, detail) = match &c.exploratory {
+                None => (verdict_cell(c.status), md_cell(&c.detail)),
+                Some(why) => (
+                    format!("{} (EXPLORATORY, not gated)", verdict_cell(c.status)),
+                    md_cell(&format!("EXPLORATORY: {why}; {}", c.detail)),
+                ),
+            };
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {verdict} | {detail} |",
                 md_cell(&c.name),
                 md_cell(&c.metric),
                 md_cell(&value(c)),
                 md_cell(&tolerance(c)),
-                verdict_cell(c.status),
-                md_cell(&c.detail)
             );
         }
         if let Some(g) = &self.gate

@@ -77,10 +77,13 @@ pub struct Section {
 }
 
 impl Report {
+    /// `passed` and `errored` are of the checks that count ([`Check::counts`]): an
+    /// EXPLORATORY verdict is printed, never gated (docs/statistics.md, "Registration").
     pub fn new(checks: Vec<Check>, runs: Vec<CaseRun>, notes: Vec<String>) -> Report {
-        let errored = checks.iter().any(|c| c.status.undecided());
+        let counted: Vec<&Check> = checks.iter().filter(|c| c.counts()).collect();
+        let errored = counted.iter().any(|c| c.status.undecided());
         let passed =
-            !errored && !checks.is_empty() && checks.iter().all(|c| c.status == Status::Pass);
+            !errored && !counted.is_empty() && counted.iter().all(|c| c.status == Status::Pass);
         Report {
             passed,
             checks,
@@ -98,9 +101,19 @@ impl Report {
         self.gate = Some(release_gate(&self.checks, expectations, complete));
     }
 
-    /// 0 all passed, 1 some check failed, 2 something errored or could not be decided;
-    /// with a release gate, the gate's code (every verdict as registered: 0).
+    /// Checks ran and every one is EXPLORATORY: nothing was gated.
+    pub fn nothing_gated(&self) -> bool {
+        !self.checks.is_empty() && self.checks.iter().all(|c| c.exploratory.is_some())
+    }
+
+    /// 0 all passed, 1 some check failed, 2 something errored or could not be decided
+    /// (or every check was EXPLORATORY: nothing was gated); with a release gate, the
+    /// gate's code (every verdict as registered: 0). EXPLORATORY verdicts other than an
+    /// ERROR do not count.
     pub fn exit_code(&self) -> i32 {
+        if self.nothing_gated() {
+            return 2;
+        }
         if let Some(g) = &self.gate {
             return g.exit_code;
         }

@@ -21,6 +21,9 @@ pub struct MachineSummary<'a> {
     pub inconclusive: usize,
     pub not_compared: usize,
     pub error: usize,
+    /// Checks printed but not gated (docs/statistics.md, "Registration").
+    #[serde(skip_serializing_if = "is_zero")]
+    pub exploratory: usize,
     /// The release gate's verdict, when the suite has one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub release_gate: Option<&'static str>,
@@ -35,6 +38,13 @@ pub struct NotPassed<'a> {
     pub name: &'a str,
     pub case: &'a str,
     pub status: Status,
+    /// Why the check is EXPLORATORY (not gated), when it is.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exploratory: Option<&'a str>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 impl Report {
@@ -79,6 +89,9 @@ impl Report {
         }
         for c in bad {
             let mut detail = visible(&c.detail).replace('\n', " ");
+            if let Some(why) = &c.exploratory {
+                detail = format!("EXPLORATORY, not gated: {}; {detail}", visible(why));
+            }
             // An error's detail is why the run failed (an engine's own message, a
             // remedy): printed whole. Other details are cut; report.md has them all.
             if c.status != Status::Error && detail.chars().count() > width {
@@ -121,6 +134,7 @@ impl Report {
             inconclusive: self.count(Status::Inconclusive),
             not_compared: self.count(Status::NotCompared),
             error: self.count(Status::Error),
+            exploratory: self.exploratory(),
             release_gate: self
                 .gate
                 .as_ref()
@@ -134,6 +148,7 @@ impl Report {
                     name: &c.name,
                     case: &c.case,
                     status: c.status,
+                    exploratory: c.exploratory.as_deref(),
                 })
                 .collect(),
         };
