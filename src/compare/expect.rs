@@ -269,6 +269,36 @@ mod tests {
         assert_eq!(g.exit_code, 2);
     }
 
+    /// An EXPLORATORY check is not judged by the gate: its FAIL needs no expectation, an
+    /// expectation it has is listed and not counted, and a run of nothing else exits 2.
+    #[test]
+    fn the_gate_ignores_exploratory_checks() {
+        let why = "claim table changed after the record of a was sealed";
+        let checks = [pass("a"), fail("b", 2.0)];
+        assert_eq!(release_gate(&checks, &[], true).exit_code, 1);
+        let checks = [pass("a"), fail("b", 2.0).mark_exploratory(why)];
+        let g = release_gate(&checks, &[], true);
+        assert_eq!(g.exit_code, 0, "{g:?}");
+        assert!(g.rows.is_empty(), "{g:?}");
+        // A pinned finding that moved would fail the gate; EXPLORATORY, it is not counted.
+        let e = [expect("b", Status::Fail, Some([1.5, 1.8]))];
+        assert_eq!(
+            release_gate(&[pass("a"), fail("b", 2.0)], &e, true).exit_code,
+            1
+        );
+        let g = release_gate(&checks, &e, true);
+        assert_eq!(g.exit_code, 0, "{g:?}");
+        assert!(g.rows[0].why.contains("EXPLORATORY") && g.rows[0].why.contains(why));
+        let g = release_gate(&[fail("b", 2.0).mark_exploratory(why)], &[], true);
+        assert_eq!(g.exit_code, 2, "nothing gated");
+        let g = release_gate(
+            &[pass("a"), Check::error("b", "crash").mark_exploratory(why)],
+            &[],
+            true,
+        );
+        assert_eq!(g.exit_code, 2, "an error counts: {g:?}");
+    }
+
     #[test]
     fn expectations_name_their_mistakes() {
         let mut e = expect("b", Status::Error, None);

@@ -648,3 +648,339 @@ fn run_git(dir: &Path, args: &[&str]) -> std::result::Result<String, String> {
     }
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::compare::{Gate, Status};
+
+    /// A git repository in a temporary directory with a suite `s` of cases `a` and `b`
+    /// and a claim over both; commits are made at given times (Unix s).
+    struct Repo {
+        dir: tempfile::TempDir,
+    }
+
+    const T0: i64 = 1_764_000_000;
+
+    const CASE: &str = "[case]\nname = \"NAME\"\nkind = \"penetration\"\ndescription = \"d\"\n\n[compare]\ntolerance = 3e-5\nwindow = [1, 2]\n";
+
+    const SUITE: &str = "description = \"s\"\nreference = \"release\"\nregistration = \"git\"\n[[case]]\npath = \"release/a.toml\"\n[[case]]\npath = \"release/b.toml\"\n\n[[claim]]\nname = \"c\"\nsource = \"a paper\"\ncases = [\"release/a.toml\", \"release/b.toml\"]\nx = [1.0, 2.0]\nkind = \"ratio_at_least\"\nquantity = \"k_phi\"\nratio = 2.0\n";
+
+    impl Repo {
+        fn new() -> Repo {
+            let r = Repo {
+                dir: tempfile::tempdir().unwrap(),
+            };
+            r.git(&["init", "-q"], T0);
+            r
+        }
+
+        fn path(&self, rel: &str) -> PathBuf {
+            self.dir.path().join(rel)
+        }
+
+        fn write(&self, rel: &str, text: &str) {
+            let p = self.path(rel);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, text).unwrap();
+        }
+
+        fn case(&self, name: &str) {
+            self.write(
+                &format!("cases/release/{name}.toml"),
+                &CASE.replace("NAME", name),
+            );
+        }
+
+        /// A record of case `name` sealed at `sealed`.
+        fn record(&self, name: &str, sealed: i64) {
+            self.write(
+                &format!("reference/release/penetration/{name}/seal.json"),
+                &format!(
+                    "{{\"case_name\": \"{name}\", \"sealed\": \"{}\"}}",
+                    date(sealed)
+                ),
+            );
+        }
+
+        fn git(&self, args: &[&str], at: i64) {
+            let when = format!("@{at} +0000");
+            let out = Command::new("git")
+                .arg("-C")
+                .arg(self.dir.path())
+                .args([
+                    "-c",
+                    "user.name=t",
+                    "-c",
+                    "user.email=t@t",
+                    "-c",
+                    "commit.gpgsign=false",
+                ])
+                .args(args)
+                .env("GIT_AUTHOR_DATE", &when)
+                .env("GIT_COMMITTER_DATE", &when)
+                .output()
+                .unwrap();
+            assert!(out.status.success(), "git {args:?}: {out:?}");
+        }
+
+        fn commit(&self, at: i64) {
+            self.git(&["add", "-A"], at);
+            self.git(&["commit", "-q", "-m", "m"], at);
+        }
+
+        fn registration(&self) -> Registration {
+            let cases = self.path("cases");
+            let s = super::super::suite::load(&cases, "s").unwrap();
+            of_suite(&s, &s.reference_root(&self.path("reference")))
+                .unwrap()
+                .expect("the suite registers")
+        }
+    }
+
+    fn case<'a>(r: &'a Registration, name: &str) -> &'a Standing {
+        r.cases.iter().find(|s| s.name == name).unwrap()
+    }
+
+    /// Cases and the suite committed at T0, both records sealed at T0 + 100 and
+    /// committed at T0 + 200.
+    fn registered() -> Repo {
+        let r = Repo::new();
+        r.case("a");
+        r.case("b");
+        r.write("cases/suites/s.toml", SUITE);
+        r.commit(T0);
+        r.record("a", T0 + 100);
+        r.record("b", T0 + 100);
+        r.commit(T0 + 200);
+        r
+    }
+
+    /// (a) A case committed before its record was sealed and unchanged since is
+    /// registered, and so is the claim over it.
+    #[test]
+    fn a_case_committed_before_its_seal_is_registered() {
+        let r = registered();
+        let g = r.registration();
+        assert_eq!(g.unavailable, None);
+        for s in g.cases.iter().chain(&g.claims) {
+            assert_eq!(s.exploratory, None, "{s:?}");
+            assert_eq!(s.rules_sha256.len(), 64);
+        }
+        assert!(
+            case(&g, "a")
+                .basis
+                .contains("before its record was sealed on"),
+            "{:?}",
+            case(&g, "a")
+        );
+    }
+
+    /// (b) A rule changed after the seal makes the case EXPLORATORY, naming the seal's
+    /// date and the commit; the claim over it follows. An uncommitted change does too.
+    #[test]
+    fn a_case_changed_after_its_seal_is_exploratory() {
+        let r = registered();
+        r.write(
+            "cases/release/a.toml",
+            &CASE.replace("NAME", "a").replace("3e-5", "4e-5"),
+        );
+        let g = r.registration();
+        let why = case(&g, "a").exploratory.clone().unwrap();
+        assert!(
+            why.contains("case file changed after its record was sealed on")
+                && why.contains(&date(T0 + 100))
+                && why.contains("uncommitted change"),
+            "{why}"
+        );
+        r.commit(T0 + 300);
+        let g = r.registration();
+        let why = case(&g, "a").exploratory.clone().unwrap();
+        assert!(
+            why.contains(&date(T0 + 300)) && why.contains("commit "),
+            "{why}"
+        );
+        assert_eq!(case(&g, "b").exploratory, None);
+        let claim = g.claims[0].exploratory.clone().unwrap();
+        assert!(
+            claim.contains("reads case a, which is EXPLORATORY"),
+            "{claim}"
+        );
+    }
+
+    /// (c) A case and its record first committed in one commit were not registered
+    /// before the run, even when that commit's date is before the seal's.
+    #[test]
+    fn a_case_committed_with_its_record_is_exploratory() {
+        let r = registered();
+        r.case("c");
+        r.record("c", T0 + 400);
+        r.write(
+            "cases/suites/s.toml",
+            &SUITE.replace(
+                "[[claim]]",
+                "[[case]]\npath = \"release/c.toml\"\n\n[[claim]]",
+            ),
+        );
+        // Committed with a date before the seal: only the shared commit tells.
+        r.commit(T0 + 300);
+        let g = r.registration();
+        let why = case(&g, "c").exploratory.clone().unwrap();
+        assert!(
+            why.contains("case file and its record first committed together in commit"),
+            "{why}"
+        );
+        assert_eq!(case(&g, "a").exploratory, None);
+    }
+
+    /// (d) Comments, key order, blank lines, number notation and the description are
+    /// not rules: a case edited only in those after its seal stays registered.
+    #[test]
+    fn a_layout_only_edit_after_the_seal_keeps_a_case_registered() {
+        let r = registered();
+        let before = registered().registration();
+        r.write(
+            "cases/release/a.toml",
+            "# a comment\n[compare]\nwindow = [ 1, 2 ]   # same\ntolerance = 3.0e-5\n\n[case]\nkind = \"penetration\"\nname = \"a\"\ndescription = \"another description\"\n",
+        );
+        r.commit(T0 + 300);
+        let g = r.registration();
+        assert_eq!(case(&g, "a").exploratory, None, "{:?}", case(&g, "a"));
+        assert_eq!(case(&g, "a").rules_sha256, case(&before, "a").rules_sha256);
+        // The negative control: an integer where a float was is another value.
+        r.write(
+            "cases/release/a.toml",
+            &CASE.replace("NAME", "a").replace("[1, 2]", "[1.0, 2]"),
+        );
+        assert!(case(&r.registration(), "a").exploratory.is_some());
+    }
+
+    /// (e) A claim table changed after a record it reads is EXPLORATORY; its
+    /// descriptive keys (source, x) are not rules.
+    #[test]
+    fn a_claim_changed_after_a_record_it_reads_is_exploratory() {
+        let r = registered();
+        r.write(
+            "cases/suites/s.toml",
+            &SUITE
+                .replace("a paper", "another citation")
+                .replace("x = [1.0, 2.0]", "x = [0.5, 2.0]\nx_label = \"v\""),
+        );
+        r.commit(T0 + 300);
+        assert_eq!(r.registration().claims[0].exploratory, None);
+        r.write(
+            "cases/suites/s.toml",
+            &SUITE.replace("ratio = 2.0", "ratio = 1.5"),
+        );
+        r.commit(T0 + 400);
+        let g = r.registration();
+        let why = g.claims[0].exploratory.clone().unwrap();
+        assert!(
+            why.contains("claim table changed after the record of a was sealed on")
+                && why.contains(&date(T0 + 400)),
+            "{why}"
+        );
+        assert!(g.cases.iter().all(|s| s.exploratory.is_none()));
+        // A claim added after the records it reads were sealed was never registered.
+        let renamed = SUITE.replace("name = \"c\"", "name = \"d\"");
+        r.write("cases/suites/s.toml", &renamed);
+        r.commit(T0 + 500);
+        let why = r.registration().claims[0].exploratory.clone().unwrap();
+        assert!(why.contains("was not in the suite file"), "{why}");
+    }
+
+    /// A case without a record is registered when its rules are committed, EXPLORATORY
+    /// while they are not.
+    #[test]
+    fn a_case_without_a_record_needs_committed_rules() {
+        let r = Repo::new();
+        r.case("a");
+        r.case("b");
+        r.write("cases/suites/s.toml", SUITE);
+        r.commit(T0);
+        let g = r.registration();
+        assert!(case(&g, "a").basis.contains("no record yet"), "{g:?}");
+        assert_eq!(g.claims[0].exploratory, None);
+        r.write(
+            "cases/release/b.toml",
+            &CASE.replace("NAME", "b").replace("[1, 2]", "[1, 3]"),
+        );
+        let why = case(&r.registration(), "b").exploratory.clone().unwrap();
+        assert!(why.contains("uncommitted changes"), "{why}");
+    }
+
+    /// (f) Without git history (here: not a git checkout) nothing is EXPLORATORY, the
+    /// rules are still hashed, and one note says why registration was not checked.
+    #[test]
+    fn without_git_nothing_is_exploratory_and_a_note_says_why() {
+        let r = registered();
+        std::fs::remove_dir_all(r.path(".git")).unwrap();
+        // Changed after the seal: with history this would be EXPLORATORY.
+        r.write(
+            "cases/release/a.toml",
+            &CASE.replace("NAME", "a").replace("3e-5", "4e-5"),
+        );
+        let g = r.registration();
+        let why = g.unavailable.clone().expect("no checkout");
+        assert!(why.contains("git"), "{why}");
+        assert!(
+            g.cases
+                .iter()
+                .chain(&g.claims)
+                .all(|s| s.exploratory.is_none() && s.rules_sha256.len() == 64)
+        );
+        let notes = g.notes();
+        assert_eq!(notes.len(), 1);
+        assert!(
+            notes[0].contains("registration could not be checked"),
+            "{notes:?}"
+        );
+        let mut checks = vec![Check::failed("a: k", Gate::KPhi, "m", 1.0, "")];
+        checks[0].case = "a".into();
+        g.apply(&mut checks);
+        assert!(checks[0].exploratory.is_none() && checks[0].rules_sha256.is_some());
+    }
+
+    /// Checks are matched to their case by `case` and to their claim by name.
+    #[test]
+    fn checks_take_the_standing_of_their_case_or_claim() {
+        let r = registered();
+        r.write(
+            "cases/suites/s.toml",
+            &SUITE.replace("ratio = 2.0", "ratio = 1.5"),
+        );
+        r.commit(T0 + 300);
+        let g = r.registration();
+        let mut of_a = Check::failed("a: K_phi", Gate::KPhi, "m", 1.0, "");
+        of_a.case = "a".into();
+        let mut checks = vec![
+            of_a,
+            Check::failed("c (native)", Gate::Claim, "m", 1.0, ""),
+            Check::failed(
+                "c: negative control \"x\"",
+                Gate::NegativeControl,
+                "m",
+                1.0,
+                "",
+            ),
+            Check::failed("cc (native)", Gate::Claim, "m", 1.0, ""),
+        ];
+        g.apply(&mut checks);
+        assert!(checks[0].exploratory.is_none());
+        assert_eq!(
+            checks[0].rules_sha256.as_deref(),
+            Some(case(&g, "a").rules_sha256.as_str())
+        );
+        assert!(checks[1].exploratory.is_some() && checks[2].exploratory.is_some());
+        assert!(checks[3].exploratory.is_none() && checks[3].rules_sha256.is_none());
+        assert_eq!(checks[1].status, Status::Fail, "the verdict is kept");
+    }
+
+    /// Canonical rules: key order and float notation do not change the hash; values do.
+    #[test]
+    fn rules_hash_values_not_text() {
+        let a = case_rules("x = 3e-5\ny = \"s\"\n").unwrap();
+        assert_eq!(a, case_rules("y = 's'   # c\nx = 0.00003\n").unwrap());
+        assert_ne!(a, case_rules("x = 3e-5\ny = \"t\"\n").unwrap());
+    }
+}

@@ -167,6 +167,79 @@ mod tests {
         assert_eq!(serde_json::to_string_pretty(&back).unwrap(), text);
     }
 
+    /// An EXPLORATORY verdict (docs/statistics.md, "Registration") is printed with its
+    /// reason in every report file and never gated: a FAIL that exits 1 when registered
+    /// exits 0 when EXPLORATORY; a run of EXPLORATORY checks only gated nothing (exit 2);
+    /// an EXPLORATORY ERROR still exits 2.
+    #[test]
+    fn exploratory_verdicts_are_printed_never_gated() {
+        let pass = || Check::at_most("p", Gate::KPhi, "|x|", 0.5, 1.0, "");
+        let fail = || Check::at_most("f", Gate::KPhi, "|x|", 2.0, 1.0, "off by two");
+        let why = "case file changed after its record was sealed on 2026-11-24T19:48:27Z";
+        let registered = Report::new(vec![pass(), fail()], Vec::new(), Vec::new());
+        assert_eq!(registered.exit_code(), 1);
+        let mut f = fail().mark_exploratory(why);
+        f.rules_sha256 = Some("ab".repeat(32));
+        let r = Report::new(vec![pass(), f], Vec::new(), Vec::new());
+        assert_eq!((r.exit_code(), r.verdict()), (0, "PASS"));
+        assert!(r.passed && !r.errored);
+        let md = r.markdown("t");
+        assert!(
+            md.contains("**FAIL** (EXPLORATORY, not gated)")
+                && md.contains(&format!("EXPLORATORY: {why}; off by two"))
+                && md.contains("2 checks: 1 pass, 1 FAIL, 0 INCONCLUSIVE, 0 NOT COMPARED, 0 ERROR; 1 of them EXPLORATORY, not gated (exit 0)."),
+            "{md}"
+        );
+        let json = serde_json::to_string(&r).unwrap();
+        assert!(
+            json.contains(&format!("\"exploratory\":\"{why}\"")),
+            "{json}"
+        );
+        assert!(json.contains(&format!("\"rules_sha256\":\"{}\"", "ab".repeat(32))));
+        let back: Report = serde_json::from_str(&json).unwrap();
+        assert_eq!(back.checks[1].exploratory.as_deref(), Some(why));
+        assert_eq!(back.exit_code(), 0);
+        let xml = r.junit("t");
+        let doc = roxmltree::Document::parse(&xml).unwrap();
+        let skipped = doc
+            .descendants()
+            .find(|n| n.has_tag_name("skipped"))
+            .expect("an EXPLORATORY check is <skipped>");
+        assert!(skipped.attribute("message").unwrap().contains(why), "{xml}");
+        let root = doc.root_element();
+        assert_eq!(
+            (root.attribute("failures"), root.attribute("skipped")),
+            (Some("0"), Some("1"))
+        );
+        assert!(!xml.contains("<failure"), "{xml}");
+        assert!(
+            r.summary("t", 200)
+                .contains(&format!("EXPLORATORY, not gated: {why}"))
+        );
+        // Every check EXPLORATORY: nothing gated, exit 2, whatever the verdicts.
+        let none = Report::new(
+            vec![pass().mark_exploratory(why), fail().mark_exploratory(why)],
+            Vec::new(),
+            Vec::new(),
+        );
+        assert_eq!((none.exit_code(), none.verdict()), (2, "NO GATED CHECKS"));
+        // An ERROR counts whatever its rules.
+        let crashed = Report::new(
+            vec![
+                pass(),
+                Check::error("engine", "exit 1").mark_exploratory(why),
+            ],
+            Vec::new(),
+            Vec::new(),
+        );
+        assert_eq!((crashed.exit_code(), crashed.verdict()), (2, "ERROR"));
+        let xml = crashed.junit("t");
+        assert!(
+            xml.contains("<error ") && !xml.contains("<skipped"),
+            "{xml}"
+        );
+    }
+
     /// The heading tells an engine error from a gate the data could not decide (both
     /// exit 2), and the tally under it counts every verdict.
     #[test]
