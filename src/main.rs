@@ -429,8 +429,22 @@ fn finish(report: &Report, dir: &Path, title: &str) -> Result<ExitCode> {
     Ok(ExitCode::from(report.exit_code() as u8))
 }
 
+/// A case file, its plausibility warnings printed on stderr (they never change the
+/// exit code; [`granval::case::plausible`]).
 fn load(path: &Path) -> Result<AnyCase> {
-    Ok(AnyCase::load(path)?)
+    let c = AnyCase::load(path)?;
+    for w in warnings(&c, path) {
+        eprintln!("{w}");
+    }
+    Ok(c)
+}
+
+/// The case's plausibility warnings as printed and as kept in the report's notes.
+fn warnings(c: &AnyCase, path: &Path) -> Vec<String> {
+    c.warnings()
+        .iter()
+        .map(|w| format!("warning: {}: {w}", path.display()))
+        .collect()
 }
 
 /// `compare` of one case file into `out/<case name>/`.
@@ -446,9 +460,14 @@ fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOut
         .for_case(&path.display().to_string()),
         Ok(case) => {
             say!("== {} ({})", case.name(), path.display());
+            let warned = warnings(&case, path);
+            for w in &warned {
+                eprintln!("{w}");
+            }
             let name = case.name().to_string();
             let dir = out.join(&name);
             let mut o = with_experiment!(case, stress, |exp| runner::compare(&exp, opts, &dir));
+            o.notes.splice(0..0, warned);
             // The case's figures are under its own directory of the report.
             for s in &mut o.sections {
                 for f in &mut s.figures {
@@ -915,7 +934,8 @@ fn real_main() -> Result<ExitCode> {
                     dir.display()
                 )
             })?;
-            let o = match c {
+            let warned = warnings(&c, &case_file);
+            let mut o = match c {
                 AnyCase::Penetration(_) => granval::experiments::penetration::deck_dir::analyze(
                     &dir,
                     !no_native,
@@ -937,6 +957,7 @@ fn real_main() -> Result<ExitCode> {
                     ))
                 }
             };
+            o.notes.splice(0..0, warned);
             let r = report_of(vec![o]);
             let code = finish(&r, &report, &format!("granval analyze {}", dir.display()))?;
             if no_native

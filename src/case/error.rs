@@ -24,6 +24,31 @@ pub enum CaseError {
     },
 }
 
+impl CaseError {
+    /// This error with the plausibility warnings of the same file appended: a value in
+    /// the wrong unit is the likely cause of a refusal that names another field (a
+    /// density in g/cm^3 shrinks the Rayleigh time, and the time step is refused).
+    pub(crate) fn noting(self, warnings: &[String]) -> CaseError {
+        match self {
+            CaseError::Invalid {
+                file,
+                field,
+                value,
+                reason,
+            } if !warnings.is_empty() => CaseError::Invalid {
+                file,
+                field,
+                value,
+                reason: format!(
+                    "{reason} (likely cause, an implausible input: {})",
+                    warnings.join("; ")
+                ),
+            },
+            e => e,
+        }
+    }
+}
+
 /// Collects the location once so validation code can say `ctx.bad("field", v, "why")`.
 #[derive(Debug, Clone)]
 pub struct Ctx {

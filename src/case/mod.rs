@@ -5,7 +5,9 @@ pub mod clumps;
 mod error;
 mod fields;
 pub mod impact2d;
+mod parse;
 pub mod penetration;
+pub mod plausible;
 pub(crate) mod schema;
 pub mod triaxial;
 pub(crate) mod validate;
@@ -93,10 +95,7 @@ impl AnyCase {
         struct PeekCase {
             kind: String,
         }
-        let peek: Peek = toml::from_str(text).map_err(|e| CaseError::Parse {
-            file: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+        let peek: Peek = parse::from_toml(text, path)?;
         match peek.case.kind.as_str() {
             "micro" => Case::from_toml_str(text, path).map(AnyCase::Micro),
             "penetration" => {
@@ -112,6 +111,18 @@ impl AnyCase {
                 other,
                 "supported kinds: \"micro\", \"penetration\", \"impact2d\", \"triaxial\"",
             )),
+        }
+    }
+
+    /// Plausibility warnings of the file as written ([`plausible`]), each naming its
+    /// field (the file is the caller's to name). Impact2d cases are dimensionless (units
+    /// of d and m) and have none.
+    pub fn warnings(&self) -> &[String] {
+        match self {
+            AnyCase::Micro(c) => &c.warnings,
+            AnyCase::Penetration(c) => &c.warnings,
+            AnyCase::Impact2d(_) => &[],
+            AnyCase::Triaxial(c) => &c.warnings,
         }
     }
 
@@ -264,6 +275,29 @@ pub struct Case {
     /// Rayleigh time of the smallest/softest grain (Feng Sec. 2), for reports.
     pub rayleigh_time: f64,
     pub negative_controls: Vec<NegativeControl>,
+    /// What the comparison must observe for its gates to mean anything
+    /// (`[compare] expect`; see [`Observation`]).
+    pub expect: Vec<Observation>,
+    /// Plausibility warnings of the file as written ([`plausible`]): values that run but
+    /// are probably in the wrong unit. Not part of the case's physics or hash.
+    #[serde(skip)]
+    pub warnings: Vec<String>,
+}
+
+/// Something a micro comparison must see happen, or its gates are NOT COMPARED.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Observation {
+    /// A contact forms (some frame of each run carries a contact force): a collision
+    /// case whose grains miss each other has compared free flight, not a contact law.
+    Contact,
+}
+
+impl Observation {
+    pub fn name(self) -> &'static str {
+        match self {
+            Observation::Contact => "contact",
+        }
+    }
 }
 
 impl Case {
@@ -273,11 +307,11 @@ impl Case {
     }
 
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Case, CaseError> {
-        let raw: schema::CaseFile = toml::from_str(text).map_err(|e| CaseError::Parse {
-            file: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-        validate::validate(raw, path)
+        let raw: schema::CaseFile = parse::from_toml(text, path)?;
+        let warnings = plausible::micro(&raw);
+        let mut case = validate::validate(raw, path).map_err(|e| e.noting(&warnings))?;
+        case.warnings = warnings;
+        Ok(case)
     }
 
     pub fn n_types(&self) -> usize {

@@ -439,6 +439,9 @@ pub struct PenetrationCase {
     pub negative_controls: Vec<NegativeControl>,
     pub k_phi_range: KPhiRange,
     pub phi_estimator: PhiEstimator,
+    /// Plausibility warnings of the file as written ([`super::plausible`]); not physics.
+    #[serde(skip)]
+    pub warnings: Vec<String>,
 }
 
 /// Gates a penetration comparison produces (what its negative controls may name).
@@ -521,6 +524,13 @@ impl PenetrationCase {
     pub fn from_toml_str(text: &str, path: &Path) -> Result<PenetrationCase, CaseError> {
         let (raw, ctx) =
             super::validate::parse_kind(text, path, "penetration", |r: &File| &r.case)?;
+        let warnings = plausibility(&raw);
+        let mut case = Self::validated(raw, ctx, path).map_err(|e| e.noting(&warnings))?;
+        case.warnings = warnings;
+        Ok(case)
+    }
+
+    fn validated(raw: File, ctx: Ctx, path: &Path) -> Result<PenetrationCase, CaseError> {
         let (rolling, materials, bed_pairs) =
             physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
         let n_types = materials.len();
@@ -921,8 +931,26 @@ impl PenetrationCase {
             rayleigh_time: rayleigh,
             k_phi_range,
             phi_estimator,
+            warnings: Vec::new(),
         })
     }
+}
+
+/// Plausibility warnings of a penetration case as written ([`super::plausible`]).
+fn plausibility(raw: &File) -> Vec<String> {
+    use super::plausible::{density, materials, size, templates};
+    let mut w = materials(&raw.materials);
+    w.extend(density("bed.density", raw.bed.density));
+    let d = match raw.bed.diameter {
+        Diameter::Constant { value } => ("bed.diameter.value", value),
+        Diameter::Gaussian { mean, .. } | Diameter::Uniform { mean, .. } => {
+            ("bed.diameter.mean", mean)
+        }
+    };
+    w.extend(size(d.0, d.1));
+    w.extend(size("intruder.diameter", raw.intruder.diameter));
+    w.extend(templates(&raw.clump_templates));
+    w
 }
 
 /// The clump template of a bed of non-spherical grains, checked against `[bed]`: the

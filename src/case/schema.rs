@@ -137,4 +137,7 @@ pub struct Compare {
     pub position_frac_radius: Option<f64>,
     /// Clump cases: largest rotation angle (rad) between the engines' body orientations.
     pub orientation_rad: Option<f64>,
+    /// What both runs must show for the gates to mean anything: `["contact"]` or `[]`.
+    /// Default: `["contact"]` for two bodies approaching each other at t = 0, else `[]`.
+    pub expect: Option<Vec<String>>,
 }

@@ -163,6 +163,9 @@ pub struct TriaxialCase {
     pub tolerances: Tolerances,
     pub rayleigh_time: f64,
     pub negative_controls: Vec<NegativeControl>,
+    /// Plausibility warnings of the file as written ([`super::plausible`]); not physics.
+    #[serde(skip)]
+    pub warnings: Vec<String>,
 }
 
 impl TriaxialCase {
@@ -209,6 +212,25 @@ impl TriaxialCase {
 
     pub fn from_toml_str(text: &str, path: &Path) -> Result<TriaxialCase, CaseError> {
         let (raw, ctx) = super::validate::parse_kind(text, path, "triaxial", |r: &File| &r.case)?;
+        let mut warnings = super::plausible::materials(&raw.materials);
+        warnings.extend(super::plausible::density(
+            "sample.density",
+            raw.sample.density,
+        ));
+        warnings.extend(super::plausible::size(
+            "sample.diameter",
+            raw.sample.diameter,
+        ));
+        let mut case = Self::validated(raw, ctx, path).map_err(|e| e.noting(&warnings))?;
+        case.warnings = warnings;
+        Ok(case)
+    }
+
+    fn validated(
+        raw: File,
+        ctx: super::error::Ctx,
+        path: &Path,
+    ) -> Result<TriaxialCase, CaseError> {
         let (rolling, materials, pairs) =
             physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
         let n_types = materials.len();
@@ -391,6 +413,7 @@ impl TriaxialCase {
                 n_types,
                 TRIAXIAL_GATES,
             )?,
+            warnings: Vec::new(),
         };
         super::control::check_applicable(
             &ctx,

@@ -3,7 +3,9 @@
 
 use super::error::{CaseError, Ctx};
 use super::schema;
-use super::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances, Wall};
+use super::{
+    Axis, Case, Material, Observation, PairTable, Particle, RollingModel, Tolerances, Wall,
+};
 use std::path::Path;
 
 /// Gates a micro comparison produces (what its negative controls may name).
@@ -28,10 +30,7 @@ pub(super) fn parse_kind<T: serde::de::DeserializeOwned>(
     kind: &str,
     meta: impl Fn(&T) -> &schema::Meta,
 ) -> Result<(T, Ctx), CaseError> {
-    let raw: T = toml::from_str(text).map_err(|e| CaseError::Parse {
-        file: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    let raw: T = super::parse::from_toml(text, path)?;
     let ctx = Ctx {
         file: path.to_path_buf(),
     };
@@ -568,6 +567,11 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         },
     };
 
+    let expect = match raw.compare.as_ref().and_then(|c| c.expect.as_ref()) {
+        Some(list) => observations(&ctx, list)?,
+        None => default_expect(&particles, &clumps.bodies),
+    };
+
     let negative_controls = super::control::controls(
         &ctx,
         &raw.negative_control,
@@ -609,5 +613,55 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         clumps,
         tolerances,
         rayleigh_time: rayleigh,
+        expect,
+        warnings: Vec::new(),
     })
+}
+
+/// `[compare] expect` as written: known names, each once.
+fn observations(ctx: &Ctx, list: &[String]) -> Result<Vec<Observation>, CaseError> {
+    let mut out = Vec::new();
+    for (k, name) in list.iter().enumerate() {
+        let o = match name.as_str() {
+            "contact" => Observation::Contact,
+            other => {
+                return Err(ctx.bad(
+                    format!("compare.expect[{k}]"),
+                    other,
+                    "supported: \"contact\" (or an empty list: nothing is required)",
+                ));
+            }
+        };
+        if out.contains(&o) {
+            return Err(ctx.bad(format!("compare.expect[{k}]"), name, "listed twice"));
+        }
+        out.push(o);
+    }
+    Ok(out)
+}
+
+/// What a case that does not say tests: a contact, for exactly two bodies (free spheres
+/// or clumps) whose centres approach at t = 0 ((v_b - v_a) . (x_b - x_a) < 0): a
+/// collision case. Anything else (one grain on a wall, a cluster, bodies at rest)
+/// expects nothing beyond the coverage rule's motion.
+pub(crate) fn default_expect(
+    particles: &[Particle],
+    bodies: &[super::clumps::Clump],
+) -> Vec<Observation> {
+    let states: Vec<([f64; 3], [f64; 3])> = particles
+        .iter()
+        .map(|p| (p.x, p.v))
+        .chain(bodies.iter().map(|b| (b.x, b.v)))
+        .collect();
+    match states.as_slice() {
+        [(xa, va), (xb, vb)] => {
+            use crate::numerics::vec3::{dot, sub};
+            if dot(sub(*vb, *va), sub(*xb, *xa)) < 0.0 {
+                vec![Observation::Contact]
+            } else {
+                Vec::new()
+            }
+        }
+        _ => Vec::new(),
+    }
 }

@@ -6,12 +6,16 @@
 //! - micro: at least [`MIN_FRAMES_AFTER_START`] output frames after step 0, and either a
 //!   frame with a contact force (some |f_i - m_i g| above [`CONTACT_FORCE_FRAC`] of the
 //!   case's force scale m max(|g|, V^2 / r_min)) or, for a contact-free case, measurable
-//!   motion (some grain displaced by at least [`MIN_MOTION_FRAC`] of r_min);
+//!   motion (some grain displaced by at least [`MIN_MOTION_FRAC`] of r_min); and, when
+//!   the case expects a contact (`[compare] expect = ["contact"]`, the default for two
+//!   bodies approaching each other at t = 0), a frame with a contact force in each run,
+//!   the native one and the reference: free flight of a collision case that misses
+//!   moves the grains but compares no contact law;
 //! - fitted ranges (penetration, impact): at least [`MIN_FIT_POINTS`] points in every
 //!   fitted range ([`fit_points`]).
 
 use super::{Check, Gate};
-use crate::case::Case;
+use crate::case::{Case, Observation};
 use crate::numerics::vec3::{norm, scale, sub};
 use crate::rundata::frames::Frame;
 
@@ -88,7 +92,31 @@ impl<'a> MicroCoverage<'a> {
         a > 0.0 && residual > CONTACT_FORCE_FRAC * a
     }
 
-    pub fn check(&self, name: &str) -> Check {
+    /// The coverage check of a comparison: `self` fed the reference frames, `native` the
+    /// native run's (for the contact a case expects, which both runs must show).
+    pub fn check(&self, name: &str, native: &MicroCoverage) -> Check {
+        if self.case.expect.contains(&Observation::Contact) {
+            let missing: Vec<&str> = [("the native run", native), ("the reference run", self)]
+                .into_iter()
+                .filter(|(_, c)| c.frames > 0 && c.contact_frames == 0)
+                .map(|(what, _)| what)
+                .collect();
+            if !missing.is_empty() {
+                let grains = if self.case.clumps.is_empty() {
+                    "spheres"
+                } else {
+                    "bodies"
+                };
+                return Check::not_compared(
+                    name,
+                    Gate::Coverage,
+                    format!(
+                        "the {grains} never touch: the case expects a contact ([compare] expect; by default for two bodies approaching at t = 0), and no output frame of {} carries a contact force",
+                        missing.join(" or ")
+                    ),
+                );
+            }
+        }
         let after_start = self.frames.saturating_sub(1);
         let r_min = self.case.min_radius();
         let moved = self.max_displacement >= MIN_MOTION_FRAC * r_min;

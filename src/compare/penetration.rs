@@ -227,9 +227,8 @@ impl FitRange {
             })
             .collect();
         format!(
-            "rule 3 fit range: h in [{:.3}, {:.3}] (bed height {:.4e} m, c = 3 d = {:.2e} m, h_final {:.3}); {}{}",
-            self.h_start,
-            self.h_end,
+            "rule 3 fit range: h in {} (bed height {:.4e} m, c = 3 d = {:.2e} m, h_final {:.3}); {}{}",
+            crate::numerics::fmt::interval(self.h_start, self.h_end, 3),
             self.bed_height,
             self.clearance,
             self.h_final,
@@ -372,7 +371,7 @@ pub fn k_phi_check(
     let logs = paired_log_k(test, reference);
     let open = case.k_phi_range == crate::case::penetration::KPhiRange::Open;
     let detail = format!(
-        "mean FDRs: K_test = {:.3} +- {:.3} (regression SE; R^2 {:.4}; {}), K_ref = {:.3} +- {:.3} (R^2 {:.4}; {}), fitted on h in [{:.3}, {:.3}], K_test / K_ref - 1 = {:+.4}; {}",
+        "mean FDRs: K_test = {:.3} +- {:.3} (regression SE; R^2 {:.4}; {}), K_ref = {:.3} +- {:.3} (R^2 {:.4}; {}), fitted on h in {}, K_test / K_ref - 1 = {:+.4}; {}",
         test.fit.k_phi,
         test.fit.se_k,
         test.fit.r2,
@@ -381,8 +380,7 @@ pub fn k_phi_check(
         reference.fit.se_k,
         reference.fit.r2,
         reference.members_text(),
-        test.fit.h_lo,
-        test.fit.h_hi,
+        crate::numerics::fmt::interval(test.fit.h_lo, test.fit.h_hi, 3),
         test.fit.k_phi / reference.fit.k_phi - 1.0,
         range.text()
     );

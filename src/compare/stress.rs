@@ -239,7 +239,7 @@ pub fn phi_v2_check(
     let sd = paired_sd(test, reference);
     let unpaired = test.sd_deg.hypot(reference.sd_deg);
     let detail = format!(
-        "phi v2: {} {:.2} +- {:.2} deg, {} {:.2} +- {:.2} deg (bootstrap sd; {} beds, {} snapshots, h in [{:.3}, {:.3}]); paired sd of the difference {}, unpaired {:.2}; admitted cells {} / {} (band {}) and {} / {} (band {}); gamma_max at r/R {:.2}, depth {:.2} R and r/R {:.2}, depth {:.2} R",
+        "phi v2: {} {:.2} +- {:.2} deg, {} {:.2} +- {:.2} deg (bootstrap sd; {} beds, {} snapshots, h in {}); paired sd of the difference {}, unpaired {:.2}; admitted cells {} / {} (band {}) and {} / {} (band {}); gamma_max at r/R {:.2}, depth {:.2} R and r/R {:.2}, depth {:.2} R",
         test.engine,
         test.phi_deg,
         test.sd_deg,
@@ -248,8 +248,7 @@ pub fn phi_v2_check(
         reference.sd_deg,
         test.n_beds,
         test.n_snapshots,
-        test.h_lo,
-        test.h_hi,
+        crate::numerics::fmt::interval(test.h_lo, test.h_hi, 3),
         sd.map_or("undefined (different draws)".to_string(), |s| format!(
             "{s:.2}"
         )),

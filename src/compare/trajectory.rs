@@ -53,6 +53,8 @@ pub struct Trajectory<'a> {
     wmax_ref: f64,
     frames: usize,
     coverage: MicroCoverage<'a>,
+    /// The native run's frames, for the contact a case expects.
+    native_coverage: MicroCoverage<'a>,
     mismatch: Option<String>,
 }
 
@@ -68,6 +70,7 @@ impl<'a> Trajectory<'a> {
             wmax_ref: 0.0,
             frames: 0,
             coverage: MicroCoverage::new(case),
+            native_coverage: MicroCoverage::new(case),
             mismatch: None,
         }
     }
@@ -123,6 +126,7 @@ impl<'a> Trajectory<'a> {
             self.wmax_ref = self.wmax_ref.max(norm(q.omega));
         }
         self.coverage.push(b);
+        self.native_coverage.push(a);
         self.frames += 1;
     }
 
@@ -146,7 +150,9 @@ impl<'a> Trajectory<'a> {
         if let Some(m) = self.mismatch {
             return vec![Check::error(name("frames"), m)];
         }
-        let coverage = self.coverage.check(&name("coverage"));
+        let coverage = self
+            .coverage
+            .check(&name("coverage"), &self.native_coverage);
         let gates = [
             (Gate::Position, "position", "max |dx| / r_min"),
             (Gate::Velocity, "velocity", "max |dv| / max|v_ref|"),

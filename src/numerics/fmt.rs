@@ -28,9 +28,49 @@ pub fn number(x: f64) -> String {
     format!("{x:.3e}")
 }
 
+/// A number as it would be typed into a case file: plain for moderate magnitudes (up to
+/// 6 decimals, trailing zeros dropped), else the shortest scientific form (`6.3e10`).
+pub fn typed(x: f64) -> String {
+    let a = x.abs();
+    if a == 0.0 || (1e-3..1e5).contains(&a) {
+        let s = format!("{x:.6}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// An interval `[lo, hi]` with `decimals` decimals; an empty one (hi < lo, or either end
+/// not a number) says so, "empty (from 0.500 to 0.323)", instead of printing its ends as
+/// if they bounded something.
+pub fn interval(lo: f64, hi: f64, decimals: usize) -> String {
+    if lo <= hi {
+        format!("[{lo:.decimals$}, {hi:.decimals$}]")
+    } else {
+        format!("empty (from {lo:.decimals$} to {hi:.decimals$})")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_inverted_interval_is_empty() {
+        assert_eq!(interval(0.1, 0.5, 3), "[0.100, 0.500]");
+        assert_eq!(interval(0.5, 0.323, 3), "empty (from 0.500 to 0.323)");
+        assert_eq!(interval(f64::NAN, 0.3, 3), "empty (from NaN to 0.300)");
+        assert_eq!(interval(0.3, 0.3, 1), "[0.3, 0.3]");
+    }
+
+    #[test]
+    fn numbers_read_as_typed() {
+        assert_eq!(typed(63.0), "63");
+        assert_eq!(typed(6.3e10), "6.3e10");
+        assert_eq!(typed(0.002), "0.002");
+        assert_eq!(typed(2500.0), "2500");
+        assert_eq!(typed(1e-6), "1e-6");
+    }
 
     #[test]
     fn numbers_read_as_a_person_expects() {

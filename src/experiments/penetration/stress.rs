@@ -534,10 +534,9 @@ fn fit_range(
     );
     let h_max = super::k_phi_fit_end(case, &range);
     let origin = format!(
-        "mean FDR of the {} bed(s) of this run, fitted on h in [{:.3}, {:.3}] (rule 3)",
+        "mean FDR of the {} bed(s) of this run, fitted on h in {} (rule 3)",
         units.len(),
-        range.h_start,
-        range.h_end
+        crate::numerics::fmt::interval(range.h_start, range.h_end, 3)
     );
     (range, h_max, origin)
 }

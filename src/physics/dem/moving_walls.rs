@@ -133,6 +133,8 @@ mod tests {
             clumps: Default::default(),
             rayleigh_time: 1.0,
             negative_controls: vec![],
+            expect: Vec::new(),
+            warnings: Vec::new(),
         }
     }
 

@@ -143,6 +143,8 @@ pub fn container_case_with(
         },
         rayleigh_time: case.rayleigh_time,
         negative_controls: vec![],
+        expect: Vec::new(),
+        warnings: Vec::new(),
     }
 }
 
@@ -436,25 +438,44 @@ pub fn packing_fraction(
     vol / (std::f64::consts::PI * rr * rr * (z1 - z0))
 }
 
-/// For `Bed` files written next to a run: where the bed came from.
+/// For `Bed` files written next to a run: where the bed came from. A bed read back from
+/// files (a deck directory's data file or bed dump, a sealed record) carries no settle
+/// time or KE ratio: the note says so instead of printing NaN as a time.
 pub fn bed_note(case: &PenetrationCase, bed: &Bed) -> String {
-    format!(
-        "bed of {} grains prepared natively from {} (seed {}): settled after {:.3} s, KE ratio {:.2e}, surface z = {:.6e} m, psi = {:.4}",
-        bed.n_grains(),
-        PathBuf::from(&case.source).display(),
-        case.seed,
-        bed.settle_time,
-        bed.ke_ratio,
-        bed.surface_z,
-        bed.psi
-    )
+    if bed.settle_time.is_finite() {
+        format!(
+            "bed of {} grains prepared natively from {} (seed {}): settled after {:.3} s, KE ratio {:.2e}, surface z = {:.6e} m, psi = {:.4}",
+            bed.n_grains(),
+            PathBuf::from(&case.source).display(),
+            case.seed,
+            bed.settle_time,
+            bed.ke_ratio,
+            bed.surface_z,
+            bed.psi
+        )
+    } else {
+        format!(
+            "bed of {} grains for {} (seed {}), read from files: settled: n/a (the files keep no settle time or KE ratio), surface z = {:.6e} m, psi = {}",
+            bed.n_grains(),
+            PathBuf::from(&case.source).display(),
+            case.seed,
+            bed.surface_z,
+            if bed.psi.is_finite() {
+                format!("{:.4}", bed.psi)
+            } else {
+                "n/a".into()
+            }
+        )
+    }
 }
 
 /// Whether two [`bed_note`]s describe the same bed: the same text except the case file's
 /// path, which names the same file however it was typed (relative, absolute).
 pub fn same_bed_note(a: &str, b: &str) -> bool {
     let key = |n: &str| -> Option<(String, String)> {
-        let (head, rest) = n.split_once(" prepared natively from ")?;
+        let (head, rest) = n
+            .split_once(" prepared natively from ")
+            .or_else(|| n.split_once(" grains for "))?;
         let (_, tail) = rest.split_once(" (seed ")?;
         Some((head.to_string(), tail.to_string()))
     };
@@ -574,6 +595,8 @@ pub fn lattice_case(n: usize, seed: u64) -> Case {
         clumps: Default::default(),
         rayleigh_time: rayleigh,
         negative_controls: vec![],
+        expect: Vec::new(),
+        warnings: Vec::new(),
     }
 }
 

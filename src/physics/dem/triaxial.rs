@@ -162,6 +162,8 @@ pub fn box_case(case: &TriaxialCase, particles: Vec<Particle>, hi: [f64; 3], sid
         clumps: Default::default(),
         rayleigh_time: case.rayleigh_time,
         negative_controls: vec![],
+        expect: Vec::new(),
+        warnings: Vec::new(),
     }
 }
 
