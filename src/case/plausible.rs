@@ -185,15 +185,19 @@ pub(super) fn micro(raw: &super::schema::CaseFile) -> Vec<String> {
         w.extend(size(&format!("particles[{k}].radius"), p.radius));
         w.extend(density(&format!("particles[{k}].density"), p.density));
     }
-    for (i, a) in ps.iter().enumerate() {
-        for (j, b) in ps.iter().enumerate().skip(i + 1) {
-            let d = crate::numerics::vec3::norm(crate::numerics::vec3::sub(a.x, b.x));
-            w.extend(overlap(
-                &format!("particles[{i}] and particles[{j}]"),
-                a.radius + b.radius - d,
-                a.radius.min(b.radius),
-            ));
-        }
+    // The first pair only, found on a hash grid (O(N): a case of 1e5 grains is checked
+    // as fast as one of two).
+    let x: Vec<[f64; 3]> = ps.iter().map(|p| p.x).collect();
+    let r: Vec<f64> = ps.iter().map(|p| p.radius).collect();
+    if let Some((i, j, delta)) =
+        crate::physics::dem::overlap::first_overlap(&x, &r, MAX_INITIAL_OVERLAP_FRAC)
+    {
+        let (i, j) = (i.min(j), i.max(j));
+        w.extend(overlap(
+            &format!("particles[{i}] and particles[{j}]"),
+            delta,
+            r[i].min(r[j]),
+        ));
     }
     let axis = |s: &str| match s {
         "x" => Some(0),

@@ -95,6 +95,14 @@ impl<'a> MicroCoverage<'a> {
     /// The coverage check of a comparison: `self` fed the reference frames, `native` the
     /// native run's (for the contact a case expects, which both runs must show).
     pub fn check(&self, name: &str, native: &MicroCoverage) -> Check {
+        let after_start = self.frames.saturating_sub(1);
+        let r_min = self.case.min_radius();
+        let moved = self.max_displacement >= MIN_MOTION_FRAC * r_min;
+        let detail = format!(
+            "{after_start} frames after step 0 (need >= {MIN_FRAMES_AFTER_START}); {} with a contact force; largest displacement {:.3e} r_min (need a contact or >= {MIN_MOTION_FRAC})",
+            self.contact_frames,
+            self.max_displacement / r_min
+        );
         if self.case.expect.contains(&Observation::Contact) {
             let missing: Vec<&str> = [("the native run", native), ("the reference run", self)]
                 .into_iter()
@@ -111,20 +119,12 @@ impl<'a> MicroCoverage<'a> {
                     name,
                     Gate::Coverage,
                     format!(
-                        "the {grains} never touch: the case expects a contact ([compare] expect; by default for two bodies approaching at t = 0), and no output frame of {} carries a contact force",
+                        "the {grains} never touch: the case expects a contact ([compare] expect; by default for two bodies approaching at t = 0), and no output frame of {} carries a contact force; {detail}",
                         missing.join(" or ")
                     ),
                 );
             }
         }
-        let after_start = self.frames.saturating_sub(1);
-        let r_min = self.case.min_radius();
-        let moved = self.max_displacement >= MIN_MOTION_FRAC * r_min;
-        let detail = format!(
-            "{after_start} frames after step 0 (need >= {MIN_FRAMES_AFTER_START}); {} with a contact force; largest displacement {:.3e} r_min (need a contact or >= {MIN_MOTION_FRAC})",
-            self.contact_frames,
-            self.max_displacement / r_min
-        );
         let ok = after_start >= MIN_FRAMES_AFTER_START && (self.contact_frames > 0 || moved);
         if ok {
             Check::at_least(

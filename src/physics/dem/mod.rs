@@ -11,7 +11,7 @@ pub mod intruder;
 mod lanes;
 mod moving_walls;
 pub mod neighbor;
-mod overlap;
+pub(crate) mod overlap;
 pub mod packing;
 mod pairs;
 mod par;
