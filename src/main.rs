@@ -111,6 +111,11 @@ impl EngineName {
     }
 }
 
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum SchedulerName {
+    Slurm,
+}
+
 #[derive(Subcommand)]
 enum Cmd {
     /// Run one case in one engine; outputs (per unit: the case, a bed, a variant) under OUT.
@@ -158,10 +163,36 @@ enum Cmd {
     /// Write the reference engine's input for a case (one directory per unit), ready to
     /// run here or on a cluster; README with the one-core and mpirun commands (`--np N`
     /// sets N in it), the expected outputs and the `granval analyze` command.
+    ///
+    /// With `--suite NAME --scheduler slurm` instead of a case: every case of the suite
+    /// (or `--only` these) under OUT/cases/, with OUT/units.tsv (one line per engine run),
+    /// OUT/suite.json and OUT/submit.sh (one Slurm job array per engine, then the
+    /// analysis job); docs/cluster.md.
     Deck {
-        case: PathBuf,
+        #[arg(required_unless_present = "suite", conflicts_with = "suite")]
+        case: Option<PathBuf>,
         #[arg(short = 'o', long = "out")]
         out: PathBuf,
+        /// Every case of this suite (cases/suites/NAME.toml), for a cluster (needs
+        /// `--scheduler`).
+        #[arg(long, requires = "scheduler")]
+        suite: Option<String>,
+        /// With `--suite`: only these case files of the suite (repeatable).
+        #[arg(long, requires = "suite")]
+        only: Vec<PathBuf>,
+        /// With `--suite`: where the suites and cases are.
+        #[arg(long, default_value = "cases", requires = "suite")]
+        cases: PathBuf,
+        /// With `--suite`: write job scripts for this scheduler (`slurm`).
+        #[arg(long, value_enum, requires = "suite")]
+        scheduler: Option<SchedulerName>,
+        /// With `--scheduler`: the partition the jobs ask for (default: the cluster's).
+        #[arg(long, requires = "scheduler")]
+        partition: Option<String>,
+        /// With `--scheduler`: each job's time limit, `auto` (from the case's estimate,
+        /// as granval's own engine timeout: docs/cluster.md) or HH:MM:SS.
+        #[arg(long, default_value = "auto", requires = "scheduler")]
+        time: String,
         /// The engine the deck is for; it must be the case kind's reference engine
         /// (micro and penetration: liggghts; impact2d: lammps). Default: that engine.
         #[arg(long, value_enum)]
@@ -186,6 +217,16 @@ enum Cmd {
         no_native: bool,
         #[command(flatten)]
         common: Common,
+    },
+    /// Where the units of a suite directory (`granval deck --suite`) stand: done, running
+    /// (Slurm's word when `squeue` is here), failed (with the last lines of its log) or
+    /// missing. Exit 0 when every unit is done, 1 otherwise.
+    Status {
+        dir: PathBuf,
+        /// Print only the indices of ENGINE's units that are neither done nor queued,
+        /// comma-separated (what `submit.sh --missing` submits).
+        #[arg(long, value_name = "ENGINE")]
+        not_done: Option<String>,
     },
     /// Validate a case file without running anything and print what follows from it:
     /// grain count, Rayleigh (or collision) time and the time step's fraction of it,
@@ -543,6 +584,316 @@ fn named(o: CaseOutcome) -> CaseOutcome {
     }
 }
 
+/// The report of a suite from its cases' outcomes: the claims across cases, the MALT
+/// verdict and the chaos section from the case summaries in `dirs` (this run's `report`
+/// first), then the release gate of the suite's registered expectations (every verdict
+/// as registered, docs/statistics.md) when the whole suite ran (`partial`: a subset).
+/// `check --suite` and `analyze` of a suite directory both end here.
+fn suite_report(
+    s: &suite::Suite,
+    mut outcomes: Vec<CaseOutcome>,
+    dirs: &[PathBuf],
+    report: &Path,
+    partial: bool,
+    registration: Option<&granval::experiments::registration::Registration>,
+    n_cases: usize,
+    started: std::time::Instant,
+) -> Report {
+    let (claim_checks, claim_notes) = suite::evaluate_claims(s, dirs, partial);
+    let (malt_notes, malt_section) = suite::malt_verdict(s, dirs, report);
+    let (chaos_notes, chaos_section) = suite::chaos_section(s, dirs);
+    outcomes.push(CaseOutcome {
+        checks: claim_checks,
+        run: None,
+        notes: claim_notes
+            .into_iter()
+            .chain(malt_notes)
+            .chain(chaos_notes)
+            .collect(),
+        ..CaseOutcome::default()
+    });
+    let (figure_notes, claim_sections) = suite::claim_sections(s, dirs, report);
+    if let Some(reg) = registration {
+        for o in &mut outcomes {
+            reg.apply(&mut o.checks);
+        }
+    }
+    let mut r = report_of(outcomes);
+    if let Some(reg) = registration {
+        r.notes.extend(reg.notes());
+        r.sections.push(reg.section());
+    }
+    r.notes.extend(figure_notes);
+    r.sections.extend(claim_sections);
+    r.sections.extend(malt_section);
+    r.sections.extend(chaos_section);
+    if !s.expectations.is_empty() {
+        r.apply_gate(&s.expectations, !partial);
+    }
+    r.notes.push(format!(
+        "suite {}: {} ({n_cases} case(s), {:.0} s)",
+        s.name,
+        s.description,
+        started.elapsed().as_secs_f64()
+    ));
+    r
+}
+
+/// `granval deck --suite NAME --scheduler slurm -o OUT` (docs/cluster.md).
+#[allow(clippy::too_many_arguments)]
+fn deck_suite(
+    name: &str,
+    cases: &Path,
+    only: &[PathBuf],
+    out: &Path,
+    partition: Option<String>,
+    time: &str,
+    common: &Common,
+    opts: &Options,
+) -> Result<ExitCode> {
+    use granval::experiments::suite_deck;
+    let s = suite::load(cases, name)?;
+    let entries = if only.is_empty() {
+        s.cases.clone()
+    } else {
+        only_entries(&s, only)?
+    };
+    let time = suite_deck::parse_time(time)?;
+    if let Some(p) = &partition
+        && (p.is_empty()
+            || !p
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "_-.,".contains(c)))
+    {
+        bail!("--partition {p:?}: a Slurm partition name (letters, digits, _ - . ,)");
+    }
+    let mut keep = protected(common)
+        .input(suite::manifest(cases, name))
+        .input(cases);
+    for e in &s.cases {
+        keep = keep.input(&e.path);
+    }
+    let _out = claim(out, "-o", common.force, &keep)?;
+    let sched = suite_deck::Scheduler {
+        np: opts.mpi_procs,
+        partition,
+        time,
+        granval: std::env::current_exe().context("the path of this granval binary")?,
+    };
+    let rows = suite_deck::write(
+        &s,
+        &suite::manifest(cases, name),
+        &entries,
+        only,
+        out,
+        &sched,
+        opts,
+    )?;
+    for (engine, ix) in suite_deck::by_engine(&rows) {
+        show!("{engine}: {} unit(s)", ix.len());
+    }
+    show!(
+        "{} unit(s) of {} case(s) in {}; submit with {}",
+        rows.len(),
+        entries.len(),
+        out.display(),
+        out.join(suite_deck::SUBMIT_FILE).display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `granval status DIR` of a suite directory: one line per unit (and the last lines of a
+/// failed unit's log); with `not_done`, only that engine's units to submit again.
+fn status(dir: &Path, not_done: Option<&str>) -> Result<ExitCode> {
+    use granval::experiments::suite_deck::{self, UnitState};
+    if suite_deck::read_record(dir)?.is_none() {
+        bail!(
+            "{}: not a suite directory (no {}; `granval deck --suite S --scheduler slurm -o DIR` writes one)",
+            dir.display(),
+            suite_deck::SUITE_FILE
+        );
+    }
+    let rows = suite_deck::read_units(dir)?;
+    let queued = suite_deck::slurm_tasks(dir);
+    let states = suite_deck::status(dir, &rows, queued.as_deref());
+    if let Some(engine) = not_done {
+        if !rows.iter().any(|r| r.engine == engine) {
+            bail!(
+                "--not-done {engine}: no unit of {} runs {engine} (engines: {})",
+                dir.display(),
+                suite_deck::by_engine(&rows)
+                    .into_iter()
+                    .map(|(e, _)| e)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        let ids: Vec<String> = rows
+            .iter()
+            .zip(&states)
+            .filter(|(r, st)| {
+                r.engine == engine && matches!(st, UnitState::Failed(_) | UnitState::Missing)
+            })
+            .map(|(r, _)| r.index.to_string())
+            .collect();
+        outln!("{}", ids.join(","));
+        return Ok(ExitCode::SUCCESS);
+    }
+    let w = rows.iter().map(|r| r.id.len()).max().unwrap_or(4).max(4);
+    show!("{:>5}  {:<w$}  {:<8}  state", "index", "unit", "engine");
+    let mut count = std::collections::BTreeMap::<&str, usize>::new();
+    for (r, st) in rows.iter().zip(&states) {
+        *count.entry(st.label()).or_default() += 1;
+        let extra = match st {
+            UnitState::Running(s) => format!(" ({s})"),
+            _ => String::new(),
+        };
+        show!(
+            "{:>5}  {:<w$}  {:<8}  {}{extra}",
+            r.index,
+            r.id,
+            r.engine,
+            st.label()
+        );
+        if let UnitState::Failed(why) = st {
+            for l in why.lines() {
+                show!("{:>5}  | {l}", "");
+            }
+        }
+    }
+    show!(
+        "{} unit(s): {}{}",
+        rows.len(),
+        ["done", "running", "failed", "missing"]
+            .iter()
+            .map(|k| format!("{} {k}", count.get(k).copied().unwrap_or(0)))
+            .collect::<Vec<_>>()
+            .join(", "),
+        if queued.is_some() {
+            "; running as squeue lists it"
+        } else {
+            "; from the files (no squeue or no job submitted)"
+        }
+    );
+    let all_done = states.iter().all(|s| *s == UnitState::Done);
+    Ok(ExitCode::from(if all_done { 0 } else { 1 }))
+}
+
+/// One case directory of a suite directory analysed into `out` (`analyze` of a deck
+/// directory), any error an error check of the case, as `check` makes it.
+fn analyze_case(dir: &Path, out: &Path, no_native: bool, opts: &Options) -> CaseOutcome {
+    let case_file = dir.join("case.toml");
+    let run = || -> Result<CaseOutcome> {
+        let c = load(&case_file)?;
+        let name = c.name().to_string();
+        let mut o = match c {
+            AnyCase::Penetration(_) => {
+                granval::experiments::penetration::deck_dir::analyze(dir, !no_native, opts, out)?
+            }
+            c => {
+                if no_native {
+                    bail!(
+                        "--no-native: only for penetration cases; {} is another kind",
+                        case_file.display()
+                    );
+                }
+                with_experiment!(c, false, |exp| runner::analyze(&exp, opts, dir, out))
+            }
+        };
+        for s in &mut o.sections {
+            for f in &mut s.figures {
+                *f = format!("{name}/{f}");
+            }
+        }
+        Ok(o)
+    };
+    match run() {
+        Ok(o) => o,
+        Err(e) => CaseOutcome {
+            checks: vec![granval::compare::Check::error(
+                case_file.display().to_string(),
+                format!("{e:#}"),
+            )],
+            ..CaseOutcome::default()
+        }
+        .for_case(&dir.file_name().unwrap_or_default().to_string_lossy()),
+    }
+}
+
+/// `granval analyze DIR` of a suite directory: every case from its units, then the
+/// suite's claims and release gate: the report and exit code of `granval check --suite`
+/// on the same cases (docs/cluster.md).
+fn analyze_suite(
+    dir: &Path,
+    rec: granval::experiments::suite_deck::SuiteRecord,
+    report: &Path,
+    no_native: bool,
+    common: &Common,
+) -> Result<ExitCode> {
+    use granval::experiments::suite_deck;
+    let rows = suite_deck::read_units(dir)?;
+    suite_deck::check_cases(dir, &rec, &rows)?;
+    // The suite file the decks were written from, for its claims and expectations.
+    let cases_root = Path::new(&rec.cases_root);
+    let s = suite::load(cases_root, &rec.suite).with_context(|| {
+        format!(
+            "the suite {} that {} was written from",
+            rec.suite,
+            dir.join(suite_deck::SUITE_FILE).display()
+        )
+    })?;
+    let manifest = suite::manifest(cases_root, &rec.suite);
+    let sha = granval::rundata::provenance::Sha256::of_file(&manifest)?.to_string();
+    if sha != rec.suite_file_sha256 {
+        bail!(
+            "{}: sha256 {sha}, but {} was written from the suite file of sha256 {}: the suite changed since; write the decks again",
+            manifest.display(),
+            dir.join(suite_deck::SUITE_FILE).display(),
+            rec.suite_file_sha256
+        );
+    }
+    let mut keep = protected(common);
+    for c in &rec.cases {
+        keep = keep.store(dir.join(&c.dir), "a case directory being analysed");
+    }
+    let _out = claim(report, "--report", common.force, &keep)?;
+    let opts = options(common);
+    let started = std::time::Instant::now();
+    let mut outcomes = Vec::new();
+    for c in &rec.cases {
+        say!("== {} ({})", c.name, dir.join(&c.dir).display());
+        let o = Options {
+            gate_theory: c.theory,
+            ..opts.clone()
+        };
+        outcomes.push(analyze_case(
+            &dir.join(&c.dir),
+            &report.join(&c.name),
+            no_native,
+            &o,
+        ));
+    }
+    let partial = !rec.only.is_empty();
+    // Registration as `check --suite` reads it (docs/statistics.md, "Registration").
+    let registration =
+        granval::experiments::registration::of_suite(&s, &s.reference_root(&opts.reference_root))?;
+    let r = suite_report(
+        &s,
+        outcomes,
+        &[report.to_path_buf()],
+        report,
+        partial,
+        registration.as_ref(),
+        rec.cases.len(),
+        started,
+    );
+    finish(
+        &r,
+        report,
+        &format!("granval analyze {} (suite {})", dir.display(), rec.suite),
+    )
+}
+
 fn real_main() -> Result<ExitCode> {
     let cli = Cli::parse();
     // A switch that is not one (GRANVAL_REQUIRE_LIVE=ture) is refused before anything.
@@ -661,45 +1012,16 @@ fn real_main() -> Result<ExitCode> {
             }
             let mut dirs = vec![report.clone()];
             dirs.extend(runs);
-            let (claim_checks, claim_notes) =
-                suite::evaluate_claims(&s, &dirs, claims_only || !only.is_empty());
-            let (malt_notes, malt_section) = suite::malt_verdict(&s, &dirs, &report);
-            let (chaos_notes, chaos_section) = suite::chaos_section(&s, &dirs);
-            outcomes.push(CaseOutcome {
-                checks: claim_checks,
-                run: None,
-                notes: claim_notes
-                    .into_iter()
-                    .chain(malt_notes)
-                    .chain(chaos_notes)
-                    .collect(),
-                ..CaseOutcome::default()
-            });
-            let (figure_notes, claim_sections) = suite::claim_sections(&s, &dirs, &report);
-            if let Some(reg) = &registration {
-                for o in &mut outcomes {
-                    reg.apply(&mut o.checks);
-                }
-            }
-            let mut r = report_of(outcomes);
-            if let Some(reg) = &registration {
-                r.notes.extend(reg.notes());
-                r.sections.push(reg.section());
-            }
-            r.notes.extend(figure_notes);
-            r.sections.extend(claim_sections);
-            r.sections.extend(malt_section);
-            r.sections.extend(chaos_section);
-            if !s.expectations.is_empty() {
-                // The release gate: every verdict as registered (docs/statistics.md).
-                r.apply_gate(&s.expectations, only.is_empty() && !claims_only);
-            }
-            r.notes.push(format!(
-                "suite {suite}: {} ({} case(s), {:.0} s)",
-                s.description,
+            let r = suite_report(
+                &s,
+                outcomes,
+                &dirs,
+                &report,
+                claims_only || !only.is_empty(),
+                registration.as_ref(),
                 entries.len(),
-                started.elapsed().as_secs_f64()
-            ));
+                started,
+            );
             finish(&r, &report, &format!("granval check --suite {suite}"))
         }
         Cmd::Reference {
@@ -821,6 +1143,7 @@ fn real_main() -> Result<ExitCode> {
             show!("{verified} record(s) verified");
             Ok(ExitCode::SUCCESS)
         }
+        Cmd::Status { dir, not_done } => status(&dir, not_done.as_deref()),
         Cmd::Validate { case, allow_large } => {
             let c = load(&case)?;
             let (kind, engine) = match &c {
@@ -873,11 +1196,33 @@ fn real_main() -> Result<ExitCode> {
         Cmd::Deck {
             case,
             out,
+            suite,
+            only,
+            cases,
+            scheduler,
+            partition,
+            time,
             engine,
             bed,
             common,
         } => {
             let opts = options(&common);
+            if let Some(suite) = suite {
+                if engine.is_some()
+                    || bed != granval::experiments::penetration::deck_dir::BedBy::Native
+                {
+                    bail!(
+                        "--suite: each case's deck is for its reference engine with natively prepared beds; drop --engine and --bed"
+                    );
+                }
+                let Some(SchedulerName::Slurm) = scheduler else {
+                    bail!("--suite needs --scheduler slurm");
+                };
+                return deck_suite(
+                    &suite, &cases, &only, &out, partition, &time, &common, &opts,
+                );
+            }
+            let case = case.context("give a case file or --suite NAME")?;
             let c = load(&case)?;
             let (kind, wanted) = match &c {
                 AnyCase::Micro(_) => ("micro", EngineName::Liggghts),
@@ -919,6 +1264,9 @@ fn real_main() -> Result<ExitCode> {
             no_native,
             common,
         } => {
+            if let Some(rec) = granval::experiments::suite_deck::read_record(&dir)? {
+                return analyze_suite(&dir, rec, &report, no_native, &common);
+            }
             let case_file = dir.join("case.toml");
             let _out = claim(
                 &report,

@@ -19,6 +19,7 @@ pub mod reference;
 pub mod registration;
 pub mod runner;
 pub mod suite;
+pub mod suite_deck;
 pub mod triaxial;
 
 use crate::case::{NegativeControl, Perturbation, ValidatedCase};
