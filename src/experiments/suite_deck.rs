@@ -483,7 +483,10 @@ pub fn run_unit_script() -> String {
 # already (state/INDEX.done, its log complete and its main output non-empty) is not run
 # again. Usage: run-unit.sh INDEX (a Slurm array task takes its SLURM_ARRAY_TASK_ID).
 set -u
-DIR=$(cd "$(dirname "${{BASH_SOURCE[0]}}")" && pwd)
+here=$(cd "$(dirname "${{BASH_SOURCE[0]}}")" && pwd)
+# Slurm runs a copy of this script from its spool directory, in --chdir (the suite
+# directory): units.tsv is found beside the script, else in the working directory.
+if [ -f "$here/{UNITS_FILE}" ]; then DIR=$here; else DIR=$(pwd); fi
 i=${{1:-${{SLURM_ARRAY_TASK_ID:-}}}}
 if [ -z "$i" ]; then echo "run-unit.sh: give a unit index (a line of units.tsv)" >&2; exit 2; fi
 row=$(awk -F'\t' -v i="$i" 'NR > 1 && $1 == i' "$DIR/{UNITS_FILE}")
@@ -579,7 +582,7 @@ ids={all}
 if [ "$missing" = 1 ]; then ids=$("$GRANVAL" status "$DIR" --not-done {engine}); fi
 if [ -n "$ids" ]; then
   id=$(sbatch --parsable --job-name={job} --array="$ids" --ntasks={np} --time={time}{partition} \
-    --output="$DIR/{STATE_DIR}/%a.out" "$DIR/{RUN_UNIT_FILE}")
+    --chdir="$DIR" --output="$DIR/{STATE_DIR}/%a.out" "$DIR/{RUN_UNIT_FILE}")
   id=${{id%%;*}}
   echo "{engine}: array job $id, units $ids"
   printf '%s\t%s\n' {engine} "$id" >>"$DIR/{STATE_DIR}/{JOBS_FILE}.new"
@@ -600,7 +603,7 @@ mv "$DIR/{STATE_DIR}/{JOBS_FILE}.new" "$DIR/{STATE_DIR}/{JOBS_FILE}"
 dep=""
 if [ -n "$deps" ]; then dep="--dependency=afterany$deps"; fi
 id=$(sbatch --parsable --job-name={job} $dep --ntasks=1 --time={time}{partition} \
-  --output="$DIR/{STATE_DIR}/analyze.out" \
+  --chdir="$DIR" --output="$DIR/{STATE_DIR}/analyze.out" \
   --wrap="$(printf '%q ' "$GRANVAL" analyze "$DIR" --report "$DIR/report" --force)")
 id=${{id%%;*}}
 printf '%s\t%s\n' analyze "$id" >>"$DIR/{STATE_DIR}/{JOBS_FILE}"
