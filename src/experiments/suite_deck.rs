@@ -666,20 +666,33 @@ pub fn slurm_tasks(dir: &Path) -> Option<Vec<(usize, String)>> {
     if ids.is_empty() {
         return None;
     }
+    // Every job squeue lists (one line per array task): asking for the ids alone errors
+    // once Slurm has forgotten one of them.
     let out = std::process::Command::new("squeue")
-        .args(["-h", "-r", "-o", "%K %T", "-j", &ids.join(",")])
+        .args(["-h", "-r", "-o", "%F %K %T"])
         .output()
         .ok()?;
-    // squeue errors for job ids it has forgotten: nothing of them is queued.
+    if !out.status.success() {
+        return None;
+    }
     let text = String::from_utf8_lossy(&out.stdout);
-    Some(
-        text.lines()
-            .filter_map(|l| {
-                let (k, st) = l.trim().split_once(' ')?;
-                Some((k.parse().ok()?, st.to_string()))
-            })
-            .collect(),
-    )
+    Some(parse_squeue(&text, &ids))
+}
+
+/// The unit indices and states of the lines `squeue -h -r -o "%F %K %T"` prints (array
+/// job id, task id, state) that belong to the array jobs `ids`.
+pub fn parse_squeue(text: &str, ids: &[&str]) -> Vec<(usize, String)> {
+    text.lines()
+        .filter_map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            let [job, task, state] = f[..] else {
+                return None;
+            };
+            ids.contains(&job)
+                .then(|| Some((task.parse().ok()?, state.to_string())))
+                .flatten()
+        })
+        .collect()
 }
 
 /// The last `n` lines of a file (lossy), or `None` when it is absent or empty.
@@ -803,6 +816,20 @@ mod tests {
         assert_eq!(auto_time(0.0), "00:10:00");
         assert_eq!(auto_time(5e5 * 3600.0), "01:00:00");
         assert_eq!(auto_time(5e5 * 3601.0), "01:01:00");
+    }
+
+    #[test]
+    fn squeue_lines_of_other_jobs_are_not_ours() {
+        let text = "17 1 RUNNING\n17 2 PENDING\n18 3 RUNNING\n99 1 RUNNING\n20 N/A RUNNING\n";
+        assert_eq!(
+            parse_squeue(text, &["17", "18"]),
+            vec![
+                (1, "RUNNING".to_string()),
+                (2, "PENDING".to_string()),
+                (3, "RUNNING".to_string())
+            ]
+        );
+        assert!(parse_squeue(text, &["5"]).is_empty());
     }
 
     #[test]
