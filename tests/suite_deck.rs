@@ -330,3 +330,23 @@ fn edit_a_number(case: &str) -> String {
     assert!(done, "no `duration = ` line in:\n{case}");
     out.join("\n") + "\n"
 }
+
+/// A suite entry with stress = true (contact snapshots) has no deck `granval deck`
+/// writes: refused, naming it, before any case is prepared; `--suite` needs a scheduler.
+#[test]
+fn deck_suite_refuses_stress_entries_and_a_missing_scheduler() {
+    let t = tempfile::tempdir().unwrap();
+    let o = granval()
+        .args(["deck", "--suite", "ci", "--scheduler", "slurm", "-o"])
+        .arg(t.path().join("ci"))
+        .output()
+        .unwrap();
+    expect(&o, 2, &["penetration/ci.toml", "stress = true", "--only"]);
+    assert!(!t.path().join("ci/units.tsv").exists());
+    let o = granval()
+        .args(["deck", "--suite", "slurm-test", "-o"])
+        .arg(t.path().join("x"))
+        .output()
+        .unwrap();
+    expect(&o, 2, &["--scheduler"]);
+}
