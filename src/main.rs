@@ -288,9 +288,11 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
     },
-    /// The chaos baseline (docs/statistics.md): every bed of a penetration case runs
-    /// natively twice, as prepared and with every grain moved by one ulp; writes
-    /// OUT/chaos.json with each bed's K_phi pair and the chaos spread of ln K_phi.
+    /// The chaos baseline (docs/statistics.md): every bed of a penetration case (every
+    /// variant of an impact2d case) runs natively twice, as prepared and with every grain
+    /// moved by one ulp; writes OUT/chaos.json with each bed's K_phi pair and the chaos
+    /// spread of ln K_phi (each variant's final depth pair and the spread of their
+    /// difference in d).
     Chaos {
         case: PathBuf,
         #[arg(long)]
@@ -1385,11 +1387,30 @@ fn real_main() -> Result<ExitCode> {
             family,
             common,
         } => {
-            let AnyCase::Penetration(pc) = load(&case)? else {
-                bail!(
-                    "{}: `granval chaos` takes a penetration case",
-                    case.display()
-                );
+            use granval::experiments::chaos;
+            /// The experiments `granval chaos` replicates.
+            enum Chaotic {
+                Penetration(granval::experiments::penetration::Penetration),
+                Impact2d(granval::experiments::impact2d::Impact2d),
+            }
+            let exp = match load(&case)? {
+                AnyCase::Penetration(pc) => {
+                    Chaotic::Penetration(granval::experiments::penetration::Penetration {
+                        case: pc,
+                        stress: false,
+                    })
+                }
+                AnyCase::Impact2d(ic) => {
+                    Chaotic::Impact2d(granval::experiments::impact2d::Impact2d { case: ic })
+                }
+                other => bail!(
+                    "{}: `granval chaos` takes a penetration or impact2d case, not a {} case: the chaos baseline (docs/statistics.md) is a spread over the beds of a granular flow, which such a case has not",
+                    case.display(),
+                    match other {
+                        AnyCase::Micro(_) => "micro",
+                        _ => "triaxial",
+                    }
+                ),
             };
             let _out = claim(
                 &out,
@@ -1397,23 +1418,22 @@ fn real_main() -> Result<ExitCode> {
                 common.force,
                 &protected(&common).input(&case),
             )?;
-            let exp = granval::experiments::penetration::Penetration {
-                case: pc,
-                stress: false,
+            let r = match &exp {
+                Chaotic::Penetration(e) => chaos::penetration(e, &family, &options(&common), &out)?,
+                Chaotic::Impact2d(e) => chaos::impact2d(e, &family, &options(&common), &out)?,
             };
-            let r =
-                granval::experiments::chaos::penetration(&exp, &family, &options(&common), &out)?;
             r.write(&out)?;
             let (s, n) = r.spread();
             show!(
-                "{}: chaos spread of ln K_phi s_c = {s:.4} over {n} beds (per bed: {}); {}",
+                "{}: chaos spread of {} s_c = {s:.4} over {n} beds (per bed: {}); {}",
                 r.case,
-                r.log_ratio
+                r.quantity(),
+                r.values()
                     .iter()
                     .map(|c| format!("{c:+.4}"))
                     .collect::<Vec<_>>()
                     .join(", "),
-                out.join(granval::experiments::chaos::CHAOS_FILE).display()
+                out.join(chaos::CHAOS_FILE).display()
             );
             Ok(ExitCode::SUCCESS)
         }

@@ -4,11 +4,14 @@
 //! engine gate reduces a native and a reference run (rule 3's common fit range, each bed
 //! fitted alone on it). The per-bed log ratios c_k = ln(K_k / K'_k) are what two runs of
 //! the same physics do to each other; an engine difference is evidence of different
-//! physics only beyond them.
+//! physics only beyond them. A Kondic (2D) case does the same per variant: its scene as
+//! built and with every bed disk moved by one ulp in x, reduced to the gated final depth,
+//! c_k = (D_k - D'_k) / d (a difference, not a log ratio; docs/statistics.md says why).
 //!
 //! `granval chaos CASE --out DIR` writes `DIR/chaos.json` ([`ChaosRecord`]); the release
 //! report's "Engine agreement against chaos" section reads such records.
 
+use super::impact2d::{Impact2d, label_dir, observe};
 use super::penetration::{Penetration, fit_range_of};
 use super::{Experiment, Options, Role};
 use crate::case::Perturbation;
@@ -20,6 +23,16 @@ use std::path::Path;
 /// File name of a chaos record inside its output directory.
 pub const CHAOS_FILE: &str = "chaos.json";
 
+/// Kind of a chaos record of a penetration case (and of every record written before
+/// 2D records existed).
+pub const PENETRATION: &str = "penetration";
+/// Kind of a chaos record of a Kondic (2D) case.
+pub const IMPACT2D: &str = "impact2d";
+
+fn penetration_kind() -> String {
+    PENETRATION.to_string()
+}
+
 /// One case's chaos replicas.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct ChaosRecord {
@@ -28,24 +41,65 @@ pub struct ChaosRecord {
     /// The family the case belongs to (spheres at CI scale, dense, clumps, soft, stiff,
     /// ...), as `granval chaos --family` named it.
     pub family: String,
-    /// sha256 of each bed, in bed order.
+    /// [`PENETRATION`] (c_k = ln(K_k / K'_k)) or [`IMPACT2D`] (c_k = (D_k - D'_k) / d):
+    /// a family pools records of one kind only, since the two c_k are not the same
+    /// quantity.
+    #[serde(default = "penetration_kind")]
+    pub kind: String,
+    /// Penetration: sha256 of each bed, in bed order. 2D: each variant's scene
+    /// fingerprint (its bed, walls and intruder, the input the seal records), in variant
+    /// order.
     pub bed_hashes: Vec<String>,
-    /// Rule 3's common fit range of the two sets of runs (h_C,start, h_C,end).
-    pub fit_h: (f64, f64),
-    /// K_phi of each bed as prepared and as nudged.
+    /// 2D: the variant of each entry.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub variants: Vec<String>,
+    /// Penetration: rule 3's common fit range of the two sets of runs (h_C,start,
+    /// h_C,end).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_h: Option<(f64, f64)>,
+    /// Penetration: K_phi of each bed as prepared and as nudged.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub k_phi: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub k_phi_nudged: Vec<f64>,
-    /// ln(K_k / K'_k).
+    /// Penetration: ln(K_k / K'_k).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub log_ratio: Vec<f64>,
+    /// 2D: the final depth (in d) of each variant as built and as nudged.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub final_depth: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub final_depth_nudged: Vec<f64>,
+    /// 2D: (D_k - D'_k) / d.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub depth_difference: Vec<f64>,
     /// The granval version that ran them.
     pub granval: String,
 }
 
 impl ChaosRecord {
-    /// s_c = sqrt(mean c_k^2): the chaos spread of a per-bed log ratio between two runs
-    /// of one engine, with as many degrees of freedom as beds (the expected mean is zero).
+    /// The per-bed chaos values c_k of the record's kind.
+    pub fn values(&self) -> &[f64] {
+        if self.kind == IMPACT2D {
+            &self.depth_difference
+        } else {
+            &self.log_ratio
+        }
+    }
+
+    /// s_c = sqrt(mean c_k^2): the chaos spread of a per-bed value between two runs of
+    /// one engine, with as many degrees of freedom as beds (the expected mean is zero).
     pub fn spread(&self) -> (f64, usize) {
-        crate::numerics::stats::root_mean_square(&self.log_ratio)
+        crate::numerics::stats::root_mean_square(self.values())
+    }
+
+    /// What c_k is, for messages and tables.
+    pub fn quantity(&self) -> &'static str {
+        if self.kind == IMPACT2D {
+            "(D - D') / d"
+        } else {
+            "ln(K_phi / K_phi')"
+        }
     }
 
     pub fn write(&self, dir: &Path) -> Result<()> {
@@ -86,10 +140,7 @@ pub fn penetration(
         units.len()
     );
     let same = Perturbation::default();
-    let nudge = Perturbation {
-        nudge_one_ulp: true,
-        ..Perturbation::default()
-    };
+    let nudge = one_ulp();
     let mut prepared = Vec::new();
     let mut nudged = Vec::new();
     for u in &units {
@@ -144,10 +195,101 @@ pub fn penetration(
         canonical_hash: case.canonical_hash().to_string(),
         family: family.to_string(),
         bed_hashes: units.iter().map(|u| u.bed_hash.to_string()).collect(),
-        fit_h: (range.h_start, h_max.min(range.h_final)),
+        kind: PENETRATION.to_string(),
+        variants: Vec::new(),
+        fit_h: Some((range.h_start, h_max.min(range.h_final))),
         k_phi,
         k_phi_nudged,
         log_ratio,
+        final_depth: Vec::new(),
+        final_depth_nudged: Vec::new(),
+        depth_difference: Vec::new(),
+        granval: env!("CARGO_PKG_VERSION").to_string(),
+    })
+}
+
+/// The one-ulp replica of docs/statistics.md: every grain (every bed disk in 2D) moved
+/// by one ulp in x.
+pub fn one_ulp() -> Perturbation {
+    Perturbation {
+        nudge_one_ulp: true,
+        ..Perturbation::default()
+    }
+}
+
+/// Runs the replicas of every variant of a Kondic (2D) case into `out/prepared/LABEL`
+/// and `out/nudged/LABEL`: each scene as built and with [`one_ulp`].
+pub fn impact2d(exp: &Impact2d, family: &str, opts: &Options, out: &Path) -> Result<ChaosRecord> {
+    impact2d_replicas(exp, family, &one_ulp(), opts, out)
+}
+
+/// [`impact2d`] with `replica` as the second run's perturbation. With no perturbation
+/// the replica is the original run again and every c_k must be exactly 0 (the engine is
+/// deterministic, so any chaos the one-ulp replica shows is the nudge's).
+pub fn impact2d_replicas(
+    exp: &Impact2d,
+    family: &str,
+    replica: &Perturbation,
+    opts: &Options,
+    out: &Path,
+) -> Result<ChaosRecord> {
+    let case = &exp.case;
+    // Beds a record holds are read, not settled again (as for penetration beds).
+    let root = super::reference::record_root(&opts.reference_root, exp.kind(), exp.name());
+    let unit_opts = Options {
+        recorded_inputs: root.is_dir().then_some(root),
+        ..opts.clone()
+    };
+    let units = exp.units(&unit_opts)?;
+    ensure!(
+        units.len() >= 2,
+        "{}: a chaos spread needs at least two variants (a sweep or seed ensemble); the case has {}",
+        case.source.display(),
+        units.len()
+    );
+    let same = Perturbation::default();
+    let (mut depth, mut depth_nudged) = (Vec::new(), Vec::new());
+    for u in &units {
+        let t = std::time::Instant::now();
+        let name = label_dir(&u.variant);
+        let final_depth = |role: Role, dir: &str| -> Result<f64> {
+            let run = exp.run_native(u, role, &out.join(dir).join(&name), opts)?;
+            let (o, _) = observe(case, &u.variant, &u.scene, &run)
+                .with_context(|| format!("{}: variant {}", case.name, u.variant.label))?;
+            Ok(o.final_depth)
+        };
+        let a = final_depth(Role::Control(&same), "prepared")?;
+        let b = final_depth(Role::Control(replica), "nudged")?;
+        eprintln!(
+            "   {}: both replicas in {:.0} s",
+            u.variant.label,
+            t.elapsed().as_secs_f64()
+        );
+        depth.push(a);
+        depth_nudged.push(b);
+    }
+    let depth_difference = depth
+        .iter()
+        .zip(&depth_nudged)
+        .map(|(a, b)| a - b)
+        .collect();
+    Ok(ChaosRecord {
+        case: case.name.clone(),
+        canonical_hash: case.canonical_hash().to_string(),
+        family: family.to_string(),
+        kind: IMPACT2D.to_string(),
+        bed_hashes: units
+            .iter()
+            .map(|u| super::impact2d::scene_hash(&u.scene).to_string())
+            .collect(),
+        variants: units.iter().map(|u| u.variant.label.clone()).collect(),
+        fit_h: None,
+        k_phi: Vec::new(),
+        k_phi_nudged: Vec::new(),
+        log_ratio: Vec::new(),
+        final_depth: depth,
+        final_depth_nudged: depth_nudged,
+        depth_difference,
         granval: env!("CARGO_PKG_VERSION").to_string(),
     })
 }

@@ -516,7 +516,12 @@ impl Experiment for Impact2d {
             if let Err(e) = field_plots(case, &native_obs, &ref_obs, out) {
                 notes.push(format!("field plots not written: {e:#}"));
             }
-            let mut depths = serde_json::json!({"native": native_obs, "lammps": ref_obs});
+            let mut depths = serde_json::json!({
+                "case": case.name,
+                "canonical_hash": crate::case::ValidatedCase::canonical_hash(case).to_string(),
+                "native": native_obs,
+                "lammps": ref_obs,
+            });
             if case.is_ensemble() {
                 let fd = |o: &VariantObs| o.final_depth;
                 match (
@@ -538,7 +543,7 @@ impl Experiment for Impact2d {
                 }
             }
             if let Err(e) = std::fs::write(
-                out.join("final_depths.json"),
+                out.join(FINAL_DEPTHS_FILE),
                 serde_json::to_string_pretty(&depths).unwrap_or_default(),
             ) {
                 notes.push(format!("final_depths.json not written: {e}"));
@@ -551,6 +556,60 @@ impl Experiment for Impact2d {
             ..Verdict::default()
         }
     }
+}
+
+/// Every variant's observables in both engines, as the comparison found them.
+pub const FINAL_DEPTHS_FILE: &str = "final_depths.json";
+
+/// (label, D_native, D_lammps), final depths in d, of every variant in a
+/// [`FINAL_DEPTHS_FILE`] written by the version `canonical_hash` of its case; another
+/// version's file (or one written before the file named its version) is refused.
+pub fn read_final_depths(path: &Path, canonical_hash: &str) -> Result<Vec<(String, f64, f64)>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a final-depth file", path.display()))?;
+    let written = v.get("canonical_hash").and_then(|h| h.as_str());
+    anyhow::ensure!(
+        written == Some(canonical_hash),
+        "{}: written by another version of the case (canonical hash {}, the case file's is {canonical_hash})",
+        path.display(),
+        written.unwrap_or("not recorded")
+    );
+    let depths = |engine: &str| -> Result<Vec<(String, f64)>> {
+        v.get(engine)
+            .and_then(|a| a.as_array())
+            .with_context(|| format!("{}: no {engine} variants", path.display()))?
+            .iter()
+            .map(|o| {
+                let label = o.get("label").and_then(|l| l.as_str());
+                let d = o.get("final_depth").and_then(|d| d.as_f64());
+                label
+                    .zip(d)
+                    .map(|(l, d)| (l.to_string(), d))
+                    .with_context(|| {
+                        format!(
+                            "{}: a {engine} variant without label or final depth",
+                            path.display()
+                        )
+                    })
+            })
+            .collect()
+    };
+    let lammps = depths("lammps")?;
+    depths("native")?
+        .into_iter()
+        .map(|(label, a)| {
+            let b = lammps
+                .iter()
+                .find(|(l, _)| *l == label)
+                .map(|p| p.1)
+                .with_context(|| {
+                    format!("{}: variant {label} has no LAMMPS run", path.display())
+                })?;
+            Ok((label, a, b))
+        })
+        .collect()
 }
 
 /// The figure file of a seed ensemble's final depths.

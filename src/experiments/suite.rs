@@ -785,62 +785,50 @@ fn claim_figures(
     Ok(vec![fdr_rel, k_rel])
 }
 
-/// The cross-scale MALT verdict (docs/stress.md rule 6) of the suite's stress cases whose
-/// `malt_points.json` is found in `dirs`: a report section with the table and, when any
-/// point exists, the figure `malt_verdict.svg` written into `out`. A run of another
-/// version of a case (canonical hash) is named in a note and left out. Reporting only:
-/// every gate stays in its case.
 /// "Engine agreement against chaos" (docs/statistics.md): per family, the per-bed
 /// ln(K_native / K_liggghts) of every bed pair in the summaries found in `dirs` (each
-/// case version and bed once) against the family's chaos records. Reporting only.
+/// case version and bed once) against the family's chaos records; for a family of
+/// Kondic (2D) cases, the per-variant (D_native - D_lammps) / d of the runs' final
+/// depths against the 2D records' (D - D') / d. Reporting only.
 pub fn chaos_section(
     suite: &Suite,
     dirs: &[PathBuf],
 ) -> (Vec<String>, Option<crate::report::Section>) {
     use crate::compare::chaos::family_agreement;
-    use crate::experiments::chaos::ChaosRecord;
+    use crate::experiments::chaos::{ChaosRecord, IMPACT2D, PENETRATION};
     let (mut notes, mut rows) = (Vec::new(), Vec::new());
     for fam in &suite.families {
-        let mut seen = std::collections::BTreeSet::new();
-        let mut logs = Vec::new();
-        for p in &fam.cases {
-            let Ok(pc) = penetration_case(p) else {
-                continue;
-            };
-            let Some(d) = find_summary(dirs, &pc.name) else {
-                continue;
-            };
-            let s = match super::penetration::run_seal::verify(&d, &pc) {
-                Ok(v) => v.summary,
-                Err(e) => {
-                    notes.push(format!(
-                        "{}: left out of the chaos comparison: {e:#}",
-                        pc.name
-                    ));
-                    continue;
-                }
-            };
-            let (Some(n), Some(r)) = (s.engines.get("native"), s.engines.get("liggghts")) else {
-                continue;
-            };
-            for (k, (a, b)) in n.k_phi_beds.iter().zip(&r.k_phi_beds).enumerate() {
-                let bed = s
-                    .bed_hashes
-                    .get(k)
-                    .cloned()
-                    .unwrap_or_else(|| k.to_string());
-                if seen.insert((s.canonical_hash.clone(), bed)) {
-                    logs.push((a / b).ln());
-                }
-            }
-        }
         let mut chaos = Vec::new();
+        let mut kinds = std::collections::BTreeSet::new();
         for c in &fam.chaos {
             match ChaosRecord::read(c) {
-                Ok(r) => chaos.extend(r.log_ratio),
+                Ok(r) => {
+                    chaos.extend_from_slice(r.values());
+                    kinds.insert(r.kind);
+                }
                 Err(e) => notes.push(format!("family {:?}: {e:#}", fam.name)),
             }
         }
+        if kinds.len() > 1 {
+            notes.push(format!(
+                "family {:?}: chaos records of different kinds ({}); their c_k are not one quantity, not in the chaos section",
+                fam.name,
+                kinds.into_iter().collect::<Vec<_>>().join(", ")
+            ));
+            continue;
+        }
+        let kind = kinds.pop_first().unwrap_or_else(|| PENETRATION.to_string());
+        let (logs, quantity) = if kind == IMPACT2D {
+            (
+                impact2d_engine_differences(fam, dirs, &mut notes),
+                "(D_n - D_L) / d",
+            )
+        } else {
+            (
+                penetration_engine_logs(fam, dirs, &mut notes),
+                "ln(K_n / K_L)",
+            )
+        };
         if logs.is_empty() {
             notes.push(format!(
                 "family {:?}: no summary of its cases here; not in the chaos section",
@@ -848,17 +836,17 @@ pub fn chaos_section(
             ));
             continue;
         }
-        rows.push(family_agreement(&fam.name, &logs, &chaos));
+        rows.push((quantity, family_agreement(&fam.name, &logs, &chaos)));
     }
     if rows.is_empty() {
         return (notes, None);
     }
     let mut body = String::from(
-        "Per family, every bed pair native / LIGGGHTS of the cases that ran (each case version and bed once), against the chaos spread s_c of one engine against itself (two native runs of one bed, one ulp apart; `granval chaos`).\n\n| family | bed pairs | mean ln(K_n / K_L) | 95 % interval | sd per bed | chaos s_c (df) | F (p) | z vs chaos | verdict |\n|---|---|---|---|---|---|---|---|---|\n",
+        "Per family, every bed pair native / reference engine of the cases that ran (each case version and bed once; LIGGGHTS for penetration, LAMMPS per variant for the 2D cases), against the chaos spread s_c of one engine against itself (two native runs of one bed, one ulp apart; `granval chaos`).\n\n| family | per bed | bed pairs | mean | 95 % interval | sd per bed | chaos s_c (df) | F (p) | z vs chaos | verdict |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
-    for r in &rows {
+    for (q, r) in &rows {
         body.push_str(&format!(
-            "| {} | {} | {:+.4} | [{:+.4}, {:+.4}] | {:.4} | {:.4} ({}) | {:.2} ({:.3}) | {:+.2} | {} |\n",
+            "| {} | {q} | {} | {:+.4} | [{:+.4}, {:+.4}] | {:.4} | {:.4} ({}) | {:.2} ({:.3}) | {:+.2} | {} |\n",
             r.family,
             r.n_pairs,
             r.mean_log,
@@ -883,6 +871,94 @@ pub fn chaos_section(
     )
 }
 
+/// ln(K_native / K_liggghts) of every bed pair of the family's penetration cases in the
+/// sealed run summaries found in `dirs`, each case version and bed once.
+fn penetration_engine_logs(fam: &Family, dirs: &[PathBuf], notes: &mut Vec<String>) -> Vec<f64> {
+    let mut seen = std::collections::BTreeSet::new();
+    let mut logs = Vec::new();
+    for p in &fam.cases {
+        let Ok(pc) = penetration_case(p) else {
+            continue;
+        };
+        let Some(d) = find_summary(dirs, &pc.name) else {
+            continue;
+        };
+        let s = match super::penetration::run_seal::verify(&d, &pc) {
+            Ok(v) => v.summary,
+            Err(e) => {
+                notes.push(format!(
+                    "{}: left out of the chaos comparison: {e:#}",
+                    pc.name
+                ));
+                continue;
+            }
+        };
+        let (Some(n), Some(r)) = (s.engines.get("native"), s.engines.get("liggghts")) else {
+            continue;
+        };
+        for (k, (a, b)) in n.k_phi_beds.iter().zip(&r.k_phi_beds).enumerate() {
+            let bed = s
+                .bed_hashes
+                .get(k)
+                .cloned()
+                .unwrap_or_else(|| k.to_string());
+            if seen.insert((s.canonical_hash.clone(), bed)) {
+                logs.push((a / b).ln());
+            }
+        }
+    }
+    logs
+}
+
+/// (D_native - D_lammps) / d of every variant of the family's 2D cases, from the
+/// `final_depths.json` of their runs found in `dirs` (`DIR/<case name>/`), each case
+/// version and variant once. A file written by another version of the case (its
+/// canonical hash) is named in a note and left out.
+fn impact2d_engine_differences(
+    fam: &Family,
+    dirs: &[PathBuf],
+    notes: &mut Vec<String>,
+) -> Vec<f64> {
+    let mut seen = std::collections::BTreeSet::new();
+    let mut diffs = Vec::new();
+    for p in &fam.cases {
+        let Ok(crate::case::AnyCase::Impact2d(ic)) = crate::case::AnyCase::load(p) else {
+            notes.push(format!(
+                "{}: not an impact2d case, left out of a 2D family's chaos comparison",
+                p.display()
+            ));
+            continue;
+        };
+        let hash = ic.canonical_hash().to_string();
+        let Some(file) = dirs
+            .iter()
+            .map(|d| d.join(&ic.name).join(super::impact2d::FINAL_DEPTHS_FILE))
+            .find(|f| f.is_file())
+        else {
+            continue;
+        };
+        match super::impact2d::read_final_depths(&file, &hash) {
+            Ok(pairs) => {
+                for (label, a, b) in pairs {
+                    if seen.insert((hash.clone(), label)) {
+                        diffs.push(a - b);
+                    }
+                }
+            }
+            Err(e) => notes.push(format!(
+                "{}: left out of the chaos comparison: {e:#}",
+                ic.name
+            )),
+        }
+    }
+    diffs
+}
+
+/// The cross-scale MALT verdict (docs/stress.md rule 6) of the suite's stress cases whose
+/// `malt_points.json` is found in `dirs`: a report section with the table and, when any
+/// point exists, the figure `malt_verdict.svg` written into `out`. A run of another
+/// version of a case (canonical hash) is named in a note and left out. Reporting only:
+/// every gate stays in its case.
 pub fn malt_verdict(
     suite: &Suite,
     dirs: &[PathBuf],

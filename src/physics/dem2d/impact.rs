@@ -395,11 +395,21 @@ pub fn with_intruder_speed(scene: &Scene, factor: f64) -> Scene {
 /// The scene made wrong on purpose for a negative control (the reference engine always
 /// gets the untouched scene): friction model swapped (k_t = 0.8 k_n <-> 0) and/or
 /// friction coefficients scaled; the interface tracked on the frozen floor instead of
-/// the tracers (K Fig 12's control).
+/// the tracers (K Fig 12's control). Not a control: the chaos baseline's replica
+/// (docs/statistics.md, "The chaos baseline") moves every free disk of the bed by one
+/// ulp in x (not a wall disk, not the intruder, which a disk intruder also is).
 pub fn perturbed(scene: &Scene, pert: &crate::case::Perturbation) -> Scene {
     let mut s = scene.clone();
     if pert.interface_frozen_floor {
         s.tracers = floor_tracers(&s.sys, s.surface);
+    }
+    if pert.nudge_one_ulp {
+        let intruder = s.sys.intruder.clone();
+        for (k, g) in s.sys.disks.iter_mut().enumerate() {
+            if g.role == Role::Free && !intruder.contains(&k) {
+                g.x[0] = g.x[0].next_up();
+            }
+        }
     }
     for c in &mut s.sys.coeffs {
         if pert.swap_friction_model {
@@ -527,5 +537,52 @@ mod tests {
             e.contains("9 interface tracer(s)") && e.contains("at least 10"),
             "{e}"
         );
+    }
+
+    /// The chaos replica (docs/statistics.md) moves every free bed disk by exactly one
+    /// ulp in x and nothing else: not y, not a wall disk, not the (free) disk intruder;
+    /// without it the scene is the scene.
+    #[test]
+    fn the_chaos_replica_moves_every_bed_grain_one_ulp_in_x() {
+        let mut grains: Vec<Disk> = (0..5)
+            .map(|k| disk(10 + k, 0, [3.0 + 7.0 * k as f64, 2.0], Role::Free))
+            .collect();
+        grains.push(disk(20, 2, [20.0, 12.0], Role::Free));
+        let scene = Scene {
+            sys: system(grains),
+            surface: 10.0,
+            bottom_offset: 0.5,
+            intruder_mass: 21.0,
+            tracers: Vec::new(),
+        };
+        assert_eq!(scene.sys.intruder, vec![8]);
+        let same = perturbed(&scene, &crate::case::Perturbation::default());
+        let nudged = perturbed(
+            &scene,
+            &crate::case::Perturbation {
+                nudge_one_ulp: true,
+                ..Default::default()
+            },
+        );
+        let mut moved = 0;
+        for (k, ((a, s), b)) in scene
+            .sys
+            .disks
+            .iter()
+            .zip(&same.sys.disks)
+            .zip(&nudged.sys.disks)
+            .enumerate()
+        {
+            assert_eq!(s.x, a.x, "disk {k}");
+            assert_eq!(b.x[1], a.x[1], "disk {k}");
+            if a.role == Role::Free && k != 8 {
+                assert_eq!(b.x[0], a.x[0].next_up(), "disk {k}");
+                assert_ne!(b.x[0], a.x[0], "disk {k}");
+                moved += 1;
+            } else {
+                assert_eq!(b.x[0], a.x[0], "disk {k}");
+            }
+        }
+        assert_eq!(moved, 5);
     }
 }
