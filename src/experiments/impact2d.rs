@@ -1428,6 +1428,38 @@ fn label_dir_str(label: &str) -> String {
 mod tests {
     use super::*;
 
+    /// The engine pairs of a final-depth file: by label whatever the order, only from the
+    /// case version named; another version's file and one that names none are refused.
+    #[test]
+    fn final_depths_pair_by_variant_and_name_their_case_version() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join(FINAL_DEPTHS_FILE);
+        let obs = |l: &str, d: f64| serde_json::json!({"label": l, "final_depth": d});
+        let write = |hash: Option<&str>| {
+            let mut v = serde_json::json!({
+                "native": [obs("a", 13.0), obs("b", 12.5)],
+                "lammps": [obs("b", 12.25), obs("a", 13.5)],
+            });
+            if let Some(h) = hash {
+                v["canonical_hash"] = h.into();
+            }
+            std::fs::write(&f, v.to_string()).unwrap();
+        };
+        write(Some("abc"));
+        assert_eq!(
+            read_final_depths(&f, "abc").unwrap(),
+            vec![
+                ("a".to_string(), 13.0, 13.5),
+                ("b".to_string(), 12.5, 12.25)
+            ]
+        );
+        let e = format!("{:#}", read_final_depths(&f, "def").unwrap_err());
+        assert!(e.contains("another version") && e.contains("abc"), "{e}");
+        write(None);
+        let e = format!("{:#}", read_final_depths(&f, "abc").unwrap_err());
+        assert!(e.contains("not recorded"), "{e}");
+    }
+
     /// The ensemble figure and table: per engine mean +- SE and the seeds, a text sweep's
     /// axis saying which position is which value.
     #[test]
