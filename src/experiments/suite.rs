@@ -1095,6 +1095,100 @@ fn draw_malt_verdict(
 mod tests {
     use super::*;
 
+    /// A 2D family: each variant's D_native - D_lammps from the run's final-depth file
+    /// (of this case version only) against the 2D chaos record's (D - D') / d, in a row
+    /// that says what it compares; a family that mixes record kinds gets a note, no row.
+    #[test]
+    fn a_2d_family_pairs_final_depths_per_variant_against_its_chaos_record() {
+        use crate::experiments::chaos::{ChaosRecord, IMPACT2D, PENETRATION};
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+        let suite = load(&root, "release").unwrap();
+        let path = root.join("release/kondic-fig11-size.toml");
+        let Ok(crate::case::AnyCase::Impact2d(ic)) = crate::case::AnyCase::load(&path) else {
+            panic!("kondic-fig11-size.toml is an impact2d case");
+        };
+        let d = tempfile::tempdir().unwrap();
+        let record = |kind: &str, name: &str| {
+            let r = ChaosRecord {
+                case: ic.name.clone(),
+                canonical_hash: ic.canonical_hash().to_string(),
+                family: "k".into(),
+                kind: kind.into(),
+                bed_hashes: vec!["x".into(); 3],
+                variants: vec!["a".into(), "b".into(), "c".into()],
+                fit_h: None,
+                k_phi: Vec::new(),
+                k_phi_nudged: Vec::new(),
+                log_ratio: vec![0.1, -0.1, 0.05],
+                final_depth: vec![13.0; 3],
+                final_depth_nudged: vec![12.8, 13.3, 13.1],
+                depth_difference: vec![0.2, -0.3, -0.1],
+                granval: "0".into(),
+            };
+            let dir = d.path().join(name);
+            std::fs::create_dir_all(&dir).unwrap();
+            r.write(&dir).unwrap();
+            dir.join(crate::experiments::chaos::CHAOS_FILE)
+        };
+        let runs = d.path().join("runs");
+        std::fs::create_dir_all(runs.join(&ic.name)).unwrap();
+        let obs = |l: &str, x: f64| serde_json::json!({"label": l, "final_depth": x});
+        std::fs::write(
+            runs.join(&ic.name)
+                .join(super::super::impact2d::FINAL_DEPTHS_FILE),
+            serde_json::json!({
+                "canonical_hash": ic.canonical_hash().to_string(),
+                "native": [obs("a", 13.0), obs("b", 13.2), obs("c", 12.9)],
+                "lammps": [obs("a", 13.1), obs("b", 13.0), obs("c", 12.9)],
+            })
+            .to_string(),
+        )
+        .unwrap();
+        let family = |chaos: Vec<PathBuf>| Suite {
+            families: vec![Family {
+                name: "kondic-size".into(),
+                cases: vec![path.clone()],
+                chaos,
+            }],
+            ..suite.clone()
+        };
+        let dirs = vec![runs.clone()];
+        let (notes, section) = chaos_section(&family(vec![record(IMPACT2D, "2d")]), &dirs);
+        let body = section.expect("a 2D family row").body;
+        // Pairs -0.1, +0.2, 0.0 (mean +0.0333); chaos s_c = sqrt((0.04 + 0.09 + 0.01) / 3).
+        assert!(notes.is_empty(), "{notes:?}");
+        assert!(
+            body.contains("| kondic-size | (D_n - D_L) / d | 3 | +0.0333 |")
+                && body.contains("| 0.2160 (3) |"),
+            "{body}"
+        );
+        let (notes, section) = chaos_section(
+            &family(vec![record(IMPACT2D, "2d"), record(PENETRATION, "p")]),
+            &dirs,
+        );
+        assert!(section.is_none(), "{section:?}");
+        assert!(
+            notes.iter().any(|n| n.contains("different kinds")),
+            "{notes:?}"
+        );
+        // Another version of the case: left out, named.
+        let other = d.path().join("other");
+        std::fs::create_dir_all(other.join(&ic.name)).unwrap();
+        std::fs::write(
+            other
+                .join(&ic.name)
+                .join(super::super::impact2d::FINAL_DEPTHS_FILE),
+            serde_json::json!({"canonical_hash": "0", "native": [], "lammps": []}).to_string(),
+        )
+        .unwrap();
+        let (notes, section) = chaos_section(&family(vec![record(IMPACT2D, "2d")]), &[other]);
+        assert!(section.is_none(), "{section:?}");
+        assert!(
+            notes.iter().any(|n| n.contains("another version")),
+            "{notes:?}"
+        );
+    }
+
     fn write(dir: &Path, suite: &str) {
         std::fs::create_dir_all(dir.join("suites")).unwrap();
         std::fs::create_dir_all(dir.join("release")).unwrap();
