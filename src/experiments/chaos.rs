@@ -293,3 +293,30 @@ pub fn impact2d_replicas(
         granval: env!("CARGO_PKG_VERSION").to_string(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The first record, written before records had a kind, still reads as a penetration
+    /// record with its fit range and its spread (docs/statistics.md: s_c = 0.0585 over 3
+    /// beds), and writes back without any 2D field.
+    #[test]
+    fn a_record_without_a_kind_is_a_penetration_record() {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("docs/data/chaos")
+            .join("ci-seeds-20261200.json");
+        let r = ChaosRecord::read(&p).unwrap();
+        assert_eq!(r.kind, PENETRATION);
+        assert_eq!(r.fit_h, Some((1.0, 2.5)));
+        assert_eq!(r.values(), r.log_ratio.as_slice());
+        assert!(r.depth_difference.is_empty() && r.variants.is_empty());
+        let (s, n) = r.spread();
+        assert_eq!((format!("{s:.4}"), n), ("0.0585".to_string(), 3));
+        let back = serde_json::to_value(&r).unwrap();
+        for f in ["final_depth", "depth_difference", "variants"] {
+            assert!(back.get(f).is_none(), "{f} in {back}");
+        }
+        assert_eq!(back["fit_h"], serde_json::json!([1.0, 2.5]));
+    }
+}
