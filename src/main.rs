@@ -385,31 +385,46 @@ enum RefCmd {
     /// case, each unit's engine input and every sealed file (beds from the bed store,
     /// data files written again from the beds). Records that hold no beds settle them.
     Verify {
-        #[arg(long, default_value = "micro")]
-        suite: String,
-        #[arg(long, default_value = "cases")]
-        cases: PathBuf,
-        #[arg(long, default_value = "reference")]
-        reference: PathBuf,
-        /// Only this case file.
-        #[arg(long)]
-        only: Option<PathBuf>,
+        #[command(flatten)]
+        records: Records,
     },
     /// Make committed records lean in place (as `refresh` makes new ones): each record
     /// must verify first; engine data files are left out where the record holds the
     /// unit's bed (written again and checked on use), files of 64 KiB or more are kept
     /// zstd-compressed; seals unchanged; verified again after.
     Lean {
-        #[arg(long, default_value = "micro")]
-        suite: String,
-        #[arg(long, default_value = "cases")]
-        cases: PathBuf,
-        #[arg(long, default_value = "reference")]
-        reference: PathBuf,
-        /// Only this case file (repeatable).
-        #[arg(long)]
-        only: Vec<PathBuf>,
+        #[command(flatten)]
+        records: Records,
     },
+}
+
+/// The records `reference verify` and `reference lean` work on: every case of a suite,
+/// or only the named case files, under the suite's reference root.
+#[derive(clap::Args)]
+struct Records {
+    #[arg(long, default_value = "micro")]
+    suite: String,
+    #[arg(long, default_value = "cases")]
+    cases: PathBuf,
+    #[arg(long, default_value = "reference")]
+    reference: PathBuf,
+    /// Only this case file (repeatable).
+    #[arg(long)]
+    only: Vec<PathBuf>,
+}
+
+impl Records {
+    /// The suite's reference root and the case files to work on.
+    fn resolve(self) -> Result<(PathBuf, Vec<PathBuf>)> {
+        let s = suite::load(&self.cases, &self.suite)?;
+        let root = s.reference_root(&self.reference);
+        let paths = if self.only.is_empty() {
+            s.cases.into_iter().map(|e| e.path).collect()
+        } else {
+            self.only
+        };
+        Ok((root, paths))
+    }
 }
 
 fn options(c: &Common) -> Options {
@@ -591,6 +606,7 @@ fn named(o: CaseOutcome) -> CaseOutcome {
 /// first), then the release gate of the suite's registered expectations (every verdict
 /// as registered, docs/statistics.md) when the whole suite ran (`partial`: a subset).
 /// `check --suite` and `analyze` of a suite directory both end here.
+#[allow(clippy::too_many_arguments)]
 fn suite_report(
     s: &suite::Suite,
     mut outcomes: Vec<CaseOutcome>,
@@ -1062,24 +1078,13 @@ fn real_main() -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Reference {
-            cmd:
-                RefCmd::Lean {
-                    suite,
-                    cases,
-                    reference,
-                    only,
-                },
+            cmd: RefCmd::Lean { records },
         } => {
-            let s = suite::load(&cases, &suite)?;
+            let (reference_root, paths) = records.resolve()?;
             let opts = Options {
-                reference_root: s.reference_root(&reference),
+                reference_root,
                 progress: output().progress(),
                 ..Options::default()
-            };
-            let paths: Vec<PathBuf> = if only.is_empty() {
-                s.cases.into_iter().map(|e| e.path).collect()
-            } else {
-                only
             };
             for p in &paths {
                 let c = load(p)?;
@@ -1099,23 +1104,13 @@ fn real_main() -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Reference {
-            cmd:
-                RefCmd::Verify {
-                    suite,
-                    cases,
-                    reference,
-                    only,
-                },
+            cmd: RefCmd::Verify { records },
         } => {
-            let s = suite::load(&cases, &suite)?;
+            let (reference_root, paths) = records.resolve()?;
             let opts = Options {
-                reference_root: s.reference_root(&reference),
+                reference_root,
                 progress: true,
                 ..Options::default()
-            };
-            let paths: Vec<PathBuf> = match only {
-                Some(p) => vec![p],
-                None => s.cases.into_iter().map(|e| e.path).collect(),
             };
             let (mut verified, mut failed) = (0, 0);
             for p in &paths {

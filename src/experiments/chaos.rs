@@ -116,6 +116,17 @@ impl ChaosRecord {
     }
 }
 
+/// The units of `exp`'s case, their beds read from the case's record where it holds
+/// them (the ones its reference runs started from), not settled again; their hashes go
+/// into the chaos record either way.
+fn units_from_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<E::Unit>> {
+    let root = super::reference::record_root(&opts.reference_root, exp.kind(), exp.name());
+    exp.units(&Options {
+        recorded_inputs: root.is_dir().then_some(root),
+        ..opts.clone()
+    })
+}
+
 /// Runs the replicas of every bed of `exp`'s case into `out/prepared/bed-K` and
 /// `out/nudged/bed-K` and reduces them.
 pub fn penetration(
@@ -125,14 +136,7 @@ pub fn penetration(
     out: &Path,
 ) -> Result<ChaosRecord> {
     let case = &exp.case;
-    // Beds a record holds (the ones its reference runs started from) are read, not
-    // settled again; their hashes go into the record either way.
-    let root = super::reference::record_root(&opts.reference_root, exp.kind(), exp.name());
-    let unit_opts = Options {
-        recorded_inputs: root.is_dir().then_some(root),
-        ..opts.clone()
-    };
-    let units = exp.units(&unit_opts)?;
+    let units = units_from_record(exp, opts)?;
     ensure!(
         units.len() >= 2,
         "{}: a chaos spread needs at least two beds ([ensemble] beds = {})",
@@ -234,13 +238,7 @@ pub fn impact2d_replicas(
     out: &Path,
 ) -> Result<ChaosRecord> {
     let case = &exp.case;
-    // Beds a record holds are read, not settled again (as for penetration beds).
-    let root = super::reference::record_root(&opts.reference_root, exp.kind(), exp.name());
-    let unit_opts = Options {
-        recorded_inputs: root.is_dir().then_some(root),
-        ..opts.clone()
-    };
-    let units = exp.units(&unit_opts)?;
+    let units = units_from_record(exp, opts)?;
     ensure!(
         units.len() >= 2,
         "{}: a chaos spread needs at least two variants (a sweep or seed ensemble); the case has {}",

@@ -577,6 +577,38 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
     Ok(lines)
 }
 
+/// The units of a case's record as a recorded comparison prepares them (beds from the
+/// record, or settled natively for records that hold none), with their names and seal
+/// keys; `None` when the case has no record.
+struct RecordedUnits<U> {
+    root: PathBuf,
+    units: Vec<U>,
+    names: Vec<String>,
+    fingerprints: Vec<reference::UnitKey>,
+}
+
+fn recorded_units<E: Experiment>(
+    exp: &E,
+    opts: &Options,
+) -> Result<Option<RecordedUnits<E::Unit>>> {
+    let root = reference::record_root(&opts.reference_root, exp.kind(), exp.name());
+    if !root.join(reference::SEAL_FILE).exists() {
+        return Ok(None);
+    }
+    let units = exp.units(&Options {
+        recorded_inputs: Some(root.clone()),
+        ..opts.clone()
+    })?;
+    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
+    let fingerprints = reference::unit_keys(exp, &units)?;
+    Ok(Some(RecordedUnits {
+        root,
+        units,
+        names,
+        fingerprints,
+    }))
+}
+
 /// `granval reference lean`: a committed record made lean in place, as `refresh` makes
 /// a new one ([`record_store::make_lean`]). The record must verify first (nothing of a
 /// record that does not is touched) and verifies again after. Data files are left out
@@ -586,17 +618,15 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
 /// `None` when the case has no record.
 pub fn lean_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<String>>> {
     let name = exp.name();
-    let root = reference::record_root(&opts.reference_root, exp.kind(), name);
-    if !root.join(reference::SEAL_FILE).exists() {
+    let Some(RecordedUnits {
+        root,
+        units,
+        names,
+        fingerprints,
+    }) = recorded_units(exp, opts)?
+    else {
         return Ok(None);
-    }
-    let unit_opts = Options {
-        recorded_inputs: Some(root.clone()),
-        ..opts.clone()
     };
-    let units = exp.units(&unit_opts)?;
-    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
-    let fingerprints = reference::unit_keys(exp, &units)?;
     let regenerate = regenerator(exp, &units, &names);
     let check = |regenerate: record_store::Regenerate| {
         reference::verify(
@@ -653,17 +683,15 @@ pub fn lean_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<
 /// `None` when the case has no record at all (nothing to verify).
 pub fn verify_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<String>> {
     let name = exp.name();
-    let root = reference::record_root(&opts.reference_root, exp.kind(), name);
-    if !root.join(reference::SEAL_FILE).exists() {
+    let Some(RecordedUnits {
+        root,
+        units,
+        names,
+        fingerprints,
+    }) = recorded_units(exp, opts)?
+    else {
         return Ok(None);
-    }
-    let unit_opts = Options {
-        recorded_inputs: Some(root.clone()),
-        ..opts.clone()
     };
-    let units = exp.units(&unit_opts)?;
-    let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
-    let fingerprints = reference::unit_keys(exp, &units)?;
     let v = reference::verify(
         &root,
         exp.source(),
