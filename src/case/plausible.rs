@@ -190,7 +190,7 @@ pub(super) fn micro(raw: &super::schema::CaseFile) -> Vec<String> {
     let x: Vec<[f64; 3]> = ps.iter().map(|p| p.x).collect();
     let r: Vec<f64> = ps.iter().map(|p| p.radius).collect();
     if let Some((i, j, delta)) =
-        crate::physics::dem::overlap::first_overlap(&x, &r, MAX_INITIAL_OVERLAP_FRAC)
+        crate::numerics::overlap::first_overlap(&x, &r, MAX_INITIAL_OVERLAP_FRAC)
     {
         let (i, j) = (i.min(j), i.max(j));
         w.extend(overlap(

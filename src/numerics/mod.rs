@@ -1,9 +1,10 @@
 //! General numerics with no physics in them: 3-vectors, quadrature, root finding,
-//! minimisation, the decision statistics of docs/statistics.md. The bottom layer: it
+//! minimisation, the first overlapping pair of a set of spheres (a hash-grid search), the decision statistics of docs/statistics.md. The bottom layer: it
 //! imports nothing from the crate.
 
 pub mod fmt;
 pub mod minimize;
+pub mod overlap;
 pub mod quadrature;
 pub mod roots;
 pub mod stats;

@@ -11,7 +11,6 @@ pub mod intruder;
 mod lanes;
 mod moving_walls;
 pub mod neighbor;
-pub(crate) mod overlap;
 pub mod packing;
 mod pairs;
 mod par;
@@ -664,9 +663,11 @@ impl Simulation {
             // Clump cases: LIGGGHTS' insertion (overlapcheck yes) refuses a body touching
             // anything, so the start must be contact-free; members of one body overlap
             // by design and never interact (fix_multisphere.cpp:178-186).
-            if let Some((i, j, gap)) =
-                overlap::first_contact_across_bodies(&self.x, &self.radius, &self.body)
-            {
+            if let Some((i, j, gap)) = crate::numerics::overlap::first_contact_across_bodies(
+                &self.x,
+                &self.radius,
+                &self.body,
+            ) {
                 let kind = |k: usize| {
                     if self.body[k] >= 0 {
                         "clump"
@@ -686,7 +687,9 @@ impl Simulation {
         if let Some((i, j, overlap)) = self
             .bodies
             .is_empty()
-            .then(|| overlap::first_overlap(&self.x, &self.radius, MAX_INITIAL_OVERLAP))
+            .then(|| {
+                crate::numerics::overlap::first_overlap(&self.x, &self.radius, MAX_INITIAL_OVERLAP)
+            })
             .flatten()
         {
             anyhow::bail!(
