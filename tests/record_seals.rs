@@ -279,7 +279,23 @@ fn every_penetration_record_holds_the_outputs_of_its_own_deck() {
             }
             // A lean record leaves its data files out and keeps large files
             // compressed: its beds come from the bed files it holds, its outputs from
-            // the unit directories the seal gives back.
+            // the unit directories the seal gives back. A record without beds may be
+            // compressed too: its files (data file included) come back the same way.
+            let compressed = (!holds_its_beds(&root)).then(|| {
+                let exp = granval::experiments::penetration::Penetration {
+                    case: c.clone(),
+                    stress: false,
+                };
+                reference::verify(
+                    &root,
+                    exp.source(),
+                    &exp.canonical_hash(),
+                    exp.reference_engine(),
+                    &keys_from_seal(&root, "penetration"),
+                    &granval::experiments::reference::store::nothing_regenerable,
+                )
+                .unwrap_or_else(|err| panic!("{}: {err:#}", root.display()))
+            });
             let lean = (!root.join("bed-0").join("data.bed").exists() && holds_its_beds(&root))
                 .then(|| {
                     let exp = granval::experiments::penetration::Penetration {
@@ -303,7 +319,10 @@ fn every_penetration_record_holds_the_outputs_of_its_own_deck() {
                         units[k].bed.clone(),
                     ),
                     None => {
-                        let d = root.join(format!("bed-{k}"));
+                        let d = match &compressed {
+                            Some(v) => v.unit_files(&format!("bed-{k}")).unwrap(),
+                            None => root.join(format!("bed-{k}")),
+                        };
                         let bed = deck_dir::read_bed(&ck, &d).unwrap();
                         (d, bed)
                     }
@@ -366,4 +385,96 @@ fn outputs_of_another_bed_are_refused_not_reduced() {
     .unwrap();
     let e = format!("{:#}", reduce(d.path()).unwrap_err());
     assert!(e.contains("not this run's force file"), "{e}");
+}
+
+/// A copy of the CI penetration record (three beds, no bed stored) under a temporary
+/// reference root.
+fn ci_record_copy() -> (tempfile::TempDir, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = common::root().join("reference/penetration/penetration-ci");
+    let dst = tmp.path().join("penetration/penetration-ci");
+    copy_tree(&src, &dst);
+    (tmp, dst)
+}
+
+fn copy_tree(src: &Path, dst: &Path) {
+    std::fs::create_dir_all(dst).unwrap();
+    for e in std::fs::read_dir(src).unwrap() {
+        let e = e.unwrap();
+        let to = dst.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_tree(&e.path(), &to);
+        } else {
+            std::fs::copy(e.path(), to).unwrap();
+        }
+    }
+}
+
+/// `reference lean` of a record that holds no bed only compresses: its large files
+/// (force curves, engine data files) become `.zst`, nothing is left out, and the record
+/// still passes the full seal check. Negative control: a copy with one byte of a force
+/// curve changed is refused before anything is touched, and that file stays plain.
+#[test]
+fn a_record_without_beds_is_only_compressed_and_still_verifies() {
+    use granval::experiments::runner::lean_record;
+    let case = common::root().join("cases/penetration/ci.toml");
+    let lean = |reference_root: &Path| {
+        let c = AnyCase::load(&case).unwrap_or_else(|e| panic!("{e}"));
+        with_experiment!(c, false, |exp| {
+            lean_record(
+                &exp,
+                &Options {
+                    reference_root: reference_root.to_path_buf(),
+                    ..Options::default()
+                },
+            )
+        })
+    };
+
+    let (tmp, root) = ci_record_copy();
+    let lines = lean(tmp.path()).unwrap().expect("the record exists");
+    let packed: Vec<&String> = lines
+        .iter()
+        .filter(|l| l.contains("kept compressed"))
+        .collect();
+    assert!(
+        packed.len() >= 6,
+        "force.txt and data.bed of three beds should be compressed: {lines:#?}"
+    );
+    assert!(
+        !lines.iter().any(|l| l.contains("left out")),
+        "nothing may be left out of a record without beds: {lines:#?}"
+    );
+    for bed in ["bed-0", "bed-1", "bed-2"] {
+        for f in ["force.txt", "data.bed"] {
+            assert!(!root.join(bed).join(f).exists(), "{bed}/{f} still plain");
+            assert!(root.join(bed).join(format!("{f}.zst")).is_file());
+        }
+    }
+    let c = AnyCase::load(&case).unwrap_or_else(|e| panic!("{e}"));
+    with_experiment!(c, false, |exp| {
+        reference::verify(
+            &root,
+            exp.source(),
+            &exp.canonical_hash(),
+            exp.reference_engine(),
+            &keys_from_seal(&root, exp.kind()),
+            &granval::experiments::reference::store::nothing_regenerable,
+        )
+        .unwrap_or_else(|err| panic!("{}: {err:#}", root.display()));
+    });
+
+    let (bad, bad_root) = ci_record_copy();
+    let force = bad_root.join("bed-1/force.txt");
+    let mut bytes = std::fs::read(&force).unwrap();
+    let last = bytes.len() - 2;
+    bytes[last] = if bytes[last] == b'1' { b'2' } else { b'1' };
+    std::fs::write(&force, &bytes).unwrap();
+    let err = format!("{:#}", lean(bad.path()).unwrap_err());
+    assert!(
+        err.contains("force.txt") && err.contains("differs from the seal"),
+        "{err}"
+    );
+    assert!(force.is_file() && !bad_root.join("bed-1/force.txt.zst").exists());
+    assert!(!bad_root.join("bed-0/force.txt.zst").exists());
 }

@@ -241,20 +241,15 @@ fn rerecord_hint(case_file: &Path) -> String {
     )
 }
 
-/// Checks a record against the case it is about to stand in for: the case's canonical
-/// hash, each unit's fingerprint, every file's hash (file names checked to be plain
-/// names inside the record before any is opened), and that the record's engine input
-/// and its provenance agree with the fingerprint (a provenance or a stored deck that
-/// contradicts the seal is refused). `units`: the units the comparison needs, in order;
-/// `regenerate` writes again the files a lean record leaves out ([`store`]).
-pub fn verify(
+/// The seal of the record at `root`, checked for what does not need the units: that it
+/// parses, was made by `engine` for the case whose canonical hash is `case_hash`, and
+/// names only plain files inside the record.
+pub fn read_seal(
     root: &Path,
     case_file: &Path,
     case_hash: &Sha256,
     engine: EngineKind,
-    units: &[UnitKey],
-    regenerate: store::Regenerate,
-) -> Result<Verified> {
+) -> Result<Seal> {
     let hint = rerecord_hint(case_file);
     let path = root.join(SEAL_FILE);
     let text = crate::rundata::fsio::read_to_string(
@@ -299,6 +294,46 @@ pub fn verify(
                 .with_context(|| format!("{}: unit {name:?}: sealed file", path.display()))?;
         }
     }
+    Ok(seal)
+}
+
+/// Every file of every unit of the record at `root` checked against its seal, without
+/// the units' fingerprints: what a change of how files are kept (not of what they hold)
+/// must leave intact. No file is written again from a bed here, so every sealed file
+/// must be in the record (plain or compressed). Returns the seal.
+pub fn verify_files(
+    root: &Path,
+    case_file: &Path,
+    case_hash: &Sha256,
+    engine: EngineKind,
+) -> Result<Seal> {
+    let hint = rerecord_hint(case_file);
+    let seal = read_seal(root, case_file, case_hash, engine)?;
+    for (name, u) in &seal.units {
+        for (file, want) in &u.files {
+            store::check_sealed_file(root, name, file, want, &store::nothing_regenerable, &hint)?;
+        }
+    }
+    Ok(seal)
+}
+
+/// Checks a record against the case it is about to stand in for: the case's canonical
+/// hash, each unit's fingerprint, every file's hash (file names checked to be plain
+/// names inside the record before any is opened), and that the record's engine input
+/// and its provenance agree with the fingerprint (a provenance or a stored deck that
+/// contradicts the seal is refused). `units`: the units the comparison needs, in order;
+/// `regenerate` writes again the files a lean record leaves out ([`store`]).
+pub fn verify(
+    root: &Path,
+    case_file: &Path,
+    case_hash: &Sha256,
+    engine: EngineKind,
+    units: &[UnitKey],
+    regenerate: store::Regenerate,
+) -> Result<Verified> {
+    let hint = rerecord_hint(case_file);
+    let seal = read_seal(root, case_file, case_hash, engine)?;
+    let path = root.join(SEAL_FILE);
     for key in units {
         let (name, fingerprint) = (&key.name, &key.fingerprint);
         let Some(u) = seal.units.get(name) else {

@@ -614,10 +614,27 @@ fn recorded_units<E: Experiment>(
 /// record that does not is touched) and verifies again after. Data files are left out
 /// only in units whose bed the record holds: a unit whose bed is settled anew on every
 /// use would turn each later read of the record into a settling. Beds stay in their
-/// unit directories ([`record_store::BedPlacement::InPlace`]). Returns what was done, or
-/// `None` when the case has no record.
+/// unit directories ([`record_store::BedPlacement::InPlace`]); a record that holds no
+/// bed is only compressed ([`compress_record`]). Returns what was done, or `None` when
+/// the case has no record.
 pub fn lean_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<String>>> {
     let name = exp.name();
+    let root = reference::record_root(&opts.reference_root, exp.kind(), exp.name());
+    if root.join(reference::SEAL_FILE).exists() {
+        let seal = reference::read_seal(
+            &root,
+            exp.source(),
+            &exp.canonical_hash(),
+            exp.reference_engine(),
+        )?;
+        let holds_a_bed = seal
+            .units
+            .values()
+            .any(|u| u.files.keys().any(|f| record_store::is_bed_file(f)));
+        if !holds_a_bed {
+            return compress_record(exp, &root).map(Some);
+        }
+    }
     let Some(RecordedUnits {
         root,
         units,
@@ -673,6 +690,44 @@ pub fn lean_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<
         names.len()
     ));
     Ok(Some(lines))
+}
+
+/// A record that holds no bed made lean: nothing can be left out of it (each later use
+/// would settle its beds again to write a data file back), so its large files are only
+/// kept compressed. What is checked before and after is what compression could break,
+/// every sealed file's bytes against the seal ([`reference::verify_files`]); the units'
+/// fingerprints are not recomputed, which for a record without beds would mean settling
+/// every bed, and compression changes neither the seal nor any input it covers.
+fn compress_record<E: Experiment>(exp: &E, root: &Path) -> Result<Vec<String>> {
+    let name = exp.name();
+    let files = || {
+        reference::verify_files(
+            root,
+            exp.source(),
+            &exp.canonical_hash(),
+            exp.reference_engine(),
+        )
+    };
+    let seal = files().with_context(|| {
+        format!("{name}: the record does not verify, so nothing of it is made lean")
+    })?;
+    let mut lines = record_store::make_lean(
+        root,
+        &seal,
+        &record_store::nothing_regenerable,
+        record_store::BedPlacement::InPlace,
+    )?;
+    files().with_context(|| {
+        format!(
+            "{name}: after making it lean the record no longer verifies (restore it from git: `git checkout -- {}`)",
+            root.display()
+        )
+    })?;
+    lines.push(format!(
+        "{name}: holds no bed, so its files were only compressed; every sealed file verified before and after ({} unit(s))",
+        seal.units.len()
+    ));
+    Ok(lines)
 }
 
 /// `granval reference verify`: a case's record checked against its seal without
