@@ -201,7 +201,15 @@ fn analyze_of_a_deck_run_reproduces_compare() {
     }
     let _mpi = common::mpi_lock();
     let tmp = tempfile::tempdir().unwrap();
-    let case = tiny_case(tmp.path());
+    // With a negative control, so that analyze is seen to run it as compare does.
+    let case = {
+        let c = tiny_case(tmp.path());
+        let text = std::fs::read_to_string(&c.source).unwrap()
+            + "\n[[negative_control]]\nname = \"mu_gg = 0.1\"\nmust_fail = [\"k_phi\"]\nperturbation = { pair_friction = { types = [1, 1], value = 0.1 } }\n";
+        std::fs::write(&c.source, text).unwrap();
+        PenetrationCase::load(&c.source).unwrap_or_else(|e| panic!("{e}"))
+    };
+    assert_eq!(case.negative_controls.len(), 1);
     let opts = Options {
         reference_root: tmp.path().join("no-reference"),
         ref_mode: RefMode::Live,
@@ -245,6 +253,14 @@ fn analyze_of_a_deck_run_reproduces_compare() {
     }
     let analyzed = deck_dir::analyze(&deck, true, &opts, &tmp.path().join("analyze")).unwrap();
     same_checks(&analyzed.checks, &compared.checks);
+    assert!(
+        analyzed
+            .checks
+            .iter()
+            .any(|c| c.name.contains("negative control \"mu_gg = 0.1\"")),
+        "the negative control is not in analyze's report: {:?}",
+        analyzed.checks
+    );
     // `granval analyze` of the `compare` output itself (LIGGGHTS outputs in
     // OUT/bed-K/liggghts/) gives the same report too.
     let again =

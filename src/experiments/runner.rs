@@ -213,7 +213,6 @@ fn run_units<E: Experiment>(
     let name = exp.name().to_string();
     let engine = exp.reference_engine();
     let mut refs = Vec::with_capacity(units.len());
-    let mut natives = Vec::with_capacity(units.len());
     for (u, n) in units.iter().zip(names) {
         let r = match &source {
             Source::Live { .. } => exp.run_reference(u, &reference_out(out, n, engine), opts),
@@ -229,16 +228,47 @@ fn run_units<E: Experiment>(
                     .with_context(|| format!("run directory {}", d.display()))
             }
         };
-        let r = match r {
-            Ok(r) => r,
+        match r {
+            Ok(r) => refs.push(r),
             Err(e) => {
                 notes.push(format!(
                     "the {engine} reference failed for {name}: this is an error, not a pass"
                 ));
                 return CaseOutcome::error(&name, &unit_label(n, "reference run"), e, notes);
             }
-        };
-        refs.push(r);
+        }
+    }
+    judge(
+        exp,
+        opts,
+        out,
+        Inputs {
+            units,
+            names,
+            refs: &refs,
+        },
+        &source,
+        notes,
+    )
+}
+
+/// The native runs of every unit against reference runs already read, the checks and
+/// the negative controls: the part of a comparison after the reference side, shared by
+/// [`run_units`] and by readers of run directories that build their units from what
+/// the directory holds (a penetration deck directory holds its beds).
+pub(crate) fn judge<E: Experiment>(
+    exp: &E,
+    opts: &Options,
+    out: &Path,
+    inputs: Inputs<E>,
+    source: &Source,
+    mut notes: Vec<String>,
+) -> CaseOutcome {
+    let Inputs { units, names, refs } = inputs;
+    let name = exp.name().to_string();
+    let engine = exp.reference_engine();
+    let mut natives = Vec::with_capacity(units.len());
+    for (u, n) in units.iter().zip(names) {
         match exp.run_native(u, Role::Main, &unit_out(out, n).join("native"), opts) {
             Ok(r) => natives.push(r),
             Err(e) => return CaseOutcome::error(&name, &unit_label(n, "native run"), e, notes),
@@ -246,7 +276,7 @@ fn run_units<E: Experiment>(
     }
 
     let started = std::time::Instant::now();
-    let verdict = exp.checks(units, &natives, &refs, out, opts);
+    let verdict = exp.checks(units, &natives, refs, out, opts);
     let mut checks = verdict.checks;
     // One evaluation produced all these verdicts: each gets an equal share of its time.
     let share = started.elapsed().as_secs_f64() / checks.len().max(1) as f64;
@@ -266,11 +296,7 @@ fn run_units<E: Experiment>(
         let mut check = negative_control(
             exp,
             c,
-            Inputs {
-                units,
-                names,
-                refs: &refs,
-            },
+            Inputs { units, names, refs },
             &failed_here,
             &dir,
             opts,
@@ -310,10 +336,10 @@ fn unit_label(unit: &str, what: &str) -> String {
 }
 
 /// The units of a case, their names and the reference runs a control reuses.
-struct Inputs<'a, E: Experiment> {
-    units: &'a [E::Unit],
-    names: &'a [String],
-    refs: &'a [E::RefRun],
+pub(crate) struct Inputs<'a, E: Experiment> {
+    pub units: &'a [E::Unit],
+    pub names: &'a [String],
+    pub refs: &'a [E::RefRun],
 }
 
 /// One negative control: the native engine with wrong physics against the same

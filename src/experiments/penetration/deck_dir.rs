@@ -16,8 +16,8 @@ use super::inputs::InputManifest;
 use super::{Unit, bed_dir_name, fdr_checks, reduce_liggghts_dir};
 use crate::case::penetration::PenetrationCase;
 use crate::engines::liggghts::penetration::{self as lp, Units};
+use crate::experiments::Options;
 use crate::experiments::runner::CaseOutcome;
-use crate::experiments::{Options, Role};
 use crate::physics::dem::packing::{self, Bed};
 use crate::report::CaseRun;
 use anyhow::{Context, Result, bail, ensure};
@@ -301,7 +301,10 @@ pub fn check_case_inputs(
 
 /// `granval analyze DIR`: the deck directory after LIGGGHTS ran in it (here or on a
 /// cluster), reduced to the same checks as `granval compare`. With `native`, the native
-/// engine penetrates each `data.bed` as `compare` does. The LIGGGHTS outputs of bed K
+/// engine penetrates each `data.bed` and the case's negative controls run against the
+/// same LIGGGHTS runs, through the runner as `compare` does ([`crate::experiments::runner::judge`]), so
+/// the report is `check`'s; without, the LIGGGHTS side alone is reduced (its
+/// published-value checks). The LIGGGHTS outputs of bed K
 /// are read from `DIR/bed-K/` (a `granval deck` directory) or `DIR/bed-K/liggghts/` (a
 /// `granval compare` output directory). Every bed's inputs and outputs are checked
 /// ([`read_run`]) before anything runs; with `--no-native` too.
@@ -359,17 +362,36 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             study_plan: None,
         });
     }
-    let mut natives = Vec::new();
     if native {
-        for u in &units {
-            natives.push(exp.run_native(
-                u,
-                Role::Main,
-                &out_dir.join(bed_dir_name(u.k)).join("native"),
-                opts,
-            )?);
-        }
+        // The native runs, checks and negative controls of `check`, against these runs.
+        let names: Vec<String> = units.iter().map(|u| bed_dir_name(u.k)).collect();
+        let refs: Vec<super::RefRun> = reference
+            .into_iter()
+            .map(|run| super::RefRun {
+                run,
+                snapshots: None,
+                study_snapshots: None,
+            })
+            .collect();
+        std::fs::create_dir_all(out_dir)
+            .with_context(|| format!("cannot create {}", out_dir.display()))?;
+        return Ok(crate::experiments::runner::judge(
+            &exp,
+            opts,
+            out_dir,
+            crate::experiments::runner::Inputs {
+                units: &units,
+                names: &names,
+                refs: &refs,
+            },
+            &crate::experiments::reference::Source::RunDir {
+                dir: dir.to_path_buf(),
+            },
+            notes,
+        ));
     }
+    // `--no-native`: the reference side alone (its published-value checks).
+    let natives: Vec<super::NativeRun> = Vec::new();
     let (mut v, summary) = fdr_checks(
         &case,
         &units,
@@ -401,14 +423,14 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
         run: Some(CaseRun {
             case: case.name.clone(),
             case_file: dir.join(CASE_FILE).display().to_string(),
-            test_engine: if native { "native" } else { "none" }.into(),
+            test_engine: "none".into(),
             reference_engine: "LIGGGHTS".into(),
             reference_version: reference
                 .first()
                 .map(|r| r.provenance.version.clone())
                 .unwrap_or_default(),
             reference_source: format!("run directory {}", dir.display()),
-            wall_time_test_s: wall(&mut natives.iter().map(|r| r.run.provenance.wall_time_s)),
+            wall_time_test_s: 0.0,
             wall_time_reference_s: wall(&mut reference.iter().map(|r| r.provenance.wall_time_s)),
         }),
         notes,
