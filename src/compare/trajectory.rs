@@ -143,6 +143,22 @@ impl<'a> Trajectory<'a> {
         self.frames
     }
 
+    /// The scales the gates divide by: (smallest radius, largest reference speed V,
+    /// largest reference angular speed, or V / r_min if the reference never rotates);
+    /// `None` while the reference has not moved.
+    pub fn scales(&self) -> Option<(f64, f64, f64)> {
+        let r_min = self.case.min_radius();
+        let v = self.vmax_ref;
+        (v > 0.0).then(|| {
+            let w = if self.wmax_ref > 0.0 {
+                self.wmax_ref
+            } else {
+                v / r_min
+            };
+            (r_min, v, w)
+        })
+    }
+
     /// The checks of the case: coverage first, then position, velocity and angular
     /// velocity. Without coverage the trajectory gates are NOT COMPARED.
     pub fn finish(self) -> Vec<Check> {
@@ -173,17 +189,11 @@ impl<'a> Trajectory<'a> {
             }));
             return out;
         }
-        let vscale = self.vmax_ref;
-        if vscale <= 0.0 {
+        let Some((_, vscale, wscale)) = self.scales() else {
             return vec![Check::error(
                 name("frames"),
                 "reference run never moves: nothing to compare",
             )];
-        }
-        let wscale = if self.wmax_ref > 0.0 {
-            self.wmax_ref
-        } else {
-            vscale / self.case.min_radius()
         };
         let tol = &self.case.tolerances;
         let orientation = (!self.case.clumps.is_empty()).then(|| {

@@ -9,6 +9,7 @@ use crate::compare::Check;
 use crate::compare::trajectory::Trajectory;
 use crate::engines::liggghts::{self, DumpFrames, Liggghts};
 use crate::rundata::frames::{CsvFrames, Frame, JSONL_FILE, JsonlFrames};
+use crate::rundata::paired_frames::PairedWriter;
 use crate::rundata::provenance::{
     EngineKind, Provenance, Sha256, read_provenance, write_provenance,
 };
@@ -63,6 +64,21 @@ pub fn compare_streams(
     test: impl Iterator<Item = Result<Frame>>,
     reference: impl Iterator<Item = Result<Frame>>,
 ) -> Vec<Check> {
+    compare_streams_into(case, test, reference, None)
+}
+
+/// [`compare_streams`], also writing both trajectories in one schema and their
+/// deviation into `tables` ([`PairedWriter`]) as the frames pass. A table that cannot
+/// be written is an error check of its own: an output a user reads is never silently
+/// missing.
+pub fn compare_streams_into(
+    case: &Case,
+    test: impl Iterator<Item = Result<Frame>>,
+    reference: impl Iterator<Item = Result<Frame>>,
+    tables: Option<PairedWriter>,
+) -> Vec<Check> {
+    let mut tables = tables;
+    let mut table_error: Option<anyhow::Error> = None;
     let mut t = Trajectory::new(case);
     let (mut test, mut reference) = (test, reference);
     let (mut na, mut nb) = (0usize, 0usize);
@@ -79,6 +95,12 @@ pub fn compare_streams(
                 na += 1;
                 nb += 1;
                 t.push(&a, &b);
+                if let Some(w) = tables.as_mut()
+                    && let Err(e) = w.push(&a, &b)
+                {
+                    table_error = Some(e);
+                    tables = None;
+                }
             }
             (Some(Ok(_)), None) => {
                 na += 1;
@@ -94,7 +116,19 @@ pub fn compare_streams(
             }
         }
     }
-    t.finish()
+    if let Some(w) = tables
+        && let Err(e) = w.finish(t.scales())
+    {
+        table_error = Some(e);
+    }
+    let mut checks = t.finish();
+    if let Some(e) = table_error {
+        checks.push(Check::error(
+            format!("{}: tables", case.name),
+            format!("{e:#}"),
+        ));
+    }
+    checks
 }
 
 /// The files a micro record keeps: inputs, dumps, log.
@@ -356,11 +390,23 @@ impl Experiment for Micro {
         _units: &[()],
         native: &[MicroRun],
         reference: &[MicroRun],
-        _out: &Path,
+        out: &Path,
         _opts: &Options,
     ) -> Verdict {
         let checks = match (native[0].open(&self.case), reference[0].open(&self.case)) {
-            (Ok(a), Ok(b)) => compare_streams(&self.case, a, b),
+            (Ok(a), Ok(b)) => {
+                match PairedWriter::create(out, "native", reference[0].provenance.engine.label()) {
+                    Ok(w) => compare_streams_into(&self.case, a, b, Some(w)),
+                    Err(e) => {
+                        let mut c = compare_streams(&self.case, a, b);
+                        c.push(Check::error(
+                            format!("{}: tables", self.case.name),
+                            format!("{e:#}"),
+                        ));
+                        c
+                    }
+                }
+            }
             (Err(e), _) | (_, Err(e)) => vec![Check::error(
                 format!("{}: frames", self.case.name),
                 format!("{e:#}"),

@@ -7,6 +7,7 @@ pub mod force;
 pub mod frames;
 pub mod fsio;
 pub mod impact;
+pub mod paired_frames;
 pub mod provenance;
 pub mod snapshot;
 pub mod triaxial;
