@@ -421,7 +421,10 @@ impl Records {
         let paths = if self.only.is_empty() {
             s.cases.into_iter().map(|e| e.path).collect()
         } else {
-            self.only
+            only_entries(&s, &self.only)?
+                .into_iter()
+                .map(|e| e.path)
+                .collect()
         };
         Ok((root, paths))
     }
@@ -544,7 +547,19 @@ fn only_entries(s: &suite::Suite, only: &[PathBuf]) -> Result<Vec<suite::SuiteCa
     let mut picked: Vec<(usize, &Path)> = Vec::new();
     for o in only {
         let Some(r) = real(o) else {
-            bail!("--only {}: no such case file", o.display());
+            // A case name given where its file is meant: say which file it is.
+            let named = s.cases.iter().find(|e| {
+                e.path.file_stem().is_some_and(|f| Some(f) == o.file_name())
+                    || e.path.file_name().is_some_and(|f| Some(f) == o.file_name())
+            });
+            match named {
+                Some(e) => bail!(
+                    "--only {}: no such case file; give the case file: --only {}",
+                    o.display(),
+                    e.path.display()
+                ),
+                None => bail!("--only {}: no such case file", o.display()),
+            }
         };
         let Some(k) = s
             .cases

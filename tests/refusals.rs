@@ -657,3 +657,28 @@ fn a_clamped_control_is_not_applicable() {
         }
     }
 }
+
+/// `--only` names a case file; a case's name given instead is refused with the file it
+/// names (exit 2), for `reference verify` as for `check`, and a name that is no case of
+/// the suite says only that no such file exists.
+#[test]
+fn only_with_a_case_name_names_the_case_file() {
+    let run = |only: &str| {
+        common::granval()
+            .args(["reference", "verify", "--suite", "micro", "--only", only])
+            .output()
+            .unwrap()
+    };
+    let o = run("spin");
+    expect(
+        &o,
+        2,
+        &[
+            "--only spin: no such case file",
+            "--only cases/micro/spin.toml",
+        ],
+    );
+    let o = run("no-such-case");
+    expect(&o, 2, &["--only no-such-case: no such case file"]);
+    assert!(!text(&o).contains("give the case file"), "{}", text(&o));
+}
