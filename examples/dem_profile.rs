@@ -15,7 +15,9 @@
 //! dem_profile ci-pour CASE STEPS THREADS      time the first STEPS steps of the pour
 //! dem_profile ci-run CASE STATE STEPS THREADS time STEPS penetration steps from a state
 //! ```
-//! Every mode prints the per-phase wall times of `Simulation::step`.
+//! Every mode prints the per-phase wall times of `Simulation::step`. With
+//! `DEM_PROFILE_UNSORTED=1` the engine never sorts its particles in space (the engine
+//! before spatial sorting), for before/after comparisons from one build.
 
 use anyhow::{Context, Result, bail};
 use granval::case::penetration::PenetrationCase;
@@ -26,13 +28,14 @@ use std::io::{Read, Write};
 use std::path::Path;
 use std::time::Instant;
 
-/// Stored state: step, intruder bottom z (NaN: none), then x, v, omega per particle.
+/// Stored state: step, intruder bottom z (NaN: none), then x, v, omega per particle in
+/// case order (whatever order the engine stores them in).
 fn save(path: &Path, step: u64, z: f64, sim: &Simulation) -> Result<()> {
     let mut b = Vec::new();
     b.extend_from_slice(&(sim.x.len() as u64).to_le_bytes());
     b.extend_from_slice(&step.to_le_bytes());
     b.extend_from_slice(&z.to_le_bytes());
-    for k in 0..sim.x.len() {
+    for k in sim.case_order() {
         for v in sim.x[k].iter().chain(&sim.v[k]).chain(&sim.omega[k]) {
             b.extend_from_slice(&v.to_le_bytes());
         }
@@ -116,6 +119,13 @@ fn pool(threads: usize) -> Result<rayon::ThreadPool> {
 }
 
 /// The penetration simulation of `case` started from a stored state.
+/// Spatial sorting off when `DEM_PROFILE_UNSORTED=1`.
+fn sort_policy(sim: &mut Simulation) {
+    if std::env::var("DEM_PROFILE_UNSORTED").is_ok_and(|v| v == "1") {
+        sim.set_reorder(0, 0);
+    }
+}
+
 fn pen_sim(case: &PenetrationCase, st: &State) -> Result<Simulation> {
     let mut particles = packing::lattice(case)?;
     for (p, s) in particles.iter_mut().zip(&st.xvw) {
@@ -127,6 +137,7 @@ fn pen_sim(case: &PenetrationCase, st: &State) -> Result<Simulation> {
     let top = granval::physics::dem::penetration::box_top(case, &bed);
     let sim_case = packing::container_case(case, bed.particles, top);
     let mut sim = Simulation::from_case(&sim_case);
+    sort_policy(&mut sim);
     let z = if st.z.is_nan() {
         granval::physics::dem::penetration::start_z(case, &bed_of(case, sim_case.particles))
     } else {
@@ -172,6 +183,7 @@ fn main() -> Result<()> {
                 t.elapsed().as_secs_f64()
             );
             let mut sim = Simulation::from_case(&case);
+            sort_policy(&mut sim);
             sim.setup()?;
             save(Path::new(arg(3)?), 0, f64::NAN, &sim)?;
         }
@@ -186,6 +198,7 @@ fn main() -> Result<()> {
             }
             pool(threads)?.install(|| -> Result<()> {
                 let mut sim = Simulation::from_case(&case);
+                sort_policy(&mut sim);
                 sim.setup()?;
                 let (t, c, ca) = (Instant::now(), thread_cpu(), all_threads_cpu());
                 for _ in 0..steps {
@@ -249,6 +262,7 @@ fn main() -> Result<()> {
             // packing::prepare, step for step, with the phase times kept.
             let sim_case = packing::pour_case(&case)?;
             let mut sim = Simulation::from_case(&sim_case);
+            sort_policy(&mut sim);
             let t = Instant::now();
             sim.setup()?;
             let (ratio, _) = packing::settle(&mut sim, &case, |_, _| {})?;
@@ -260,14 +274,8 @@ fn main() -> Result<()> {
                 sim.neighbor_builds()
             );
             print_times("preparation", &sim.step_times(), sim.x.len());
-            // Stored in id order, as packing::prepare returns the bed.
-            let mut bed = sim.clone();
-            let mut order: Vec<usize> = (0..bed.x.len()).collect();
-            order.sort_by_key(|&k| sim.id[k]);
-            bed.x = order.iter().map(|&k| sim.x[k]).collect();
-            bed.v = order.iter().map(|&k| sim.v[k]).collect();
-            bed.omega = order.iter().map(|&k| sim.omega[k]).collect();
-            save(Path::new(arg(3)?), 0, f64::NAN, &bed)?;
+            // Stored in case (id) order, as packing::prepare returns the bed.
+            save(Path::new(arg(3)?), 0, f64::NAN, &sim)?;
             let st = load(Path::new(arg(3)?))?;
             let mut pen = pen_sim(&case, &st)?;
             let bed = bed_of(&case, {
@@ -283,13 +291,7 @@ fn main() -> Result<()> {
                 pen.step()?;
                 if pen.step == total / 2 {
                     let z = pen.intruder().unwrap().body.bottom_z();
-                    let mut snap = pen.clone();
-                    let mut order: Vec<usize> = (0..snap.x.len()).collect();
-                    order.sort_by_key(|&k| pen.id[k]);
-                    snap.x = order.iter().map(|&k| pen.x[k]).collect();
-                    snap.v = order.iter().map(|&k| pen.v[k]).collect();
-                    snap.omega = order.iter().map(|&k| pen.omega[k]).collect();
-                    save(Path::new(arg(4)?), pen.step, z, &snap)?;
+                    save(Path::new(arg(4)?), pen.step, z, &pen)?;
                 }
             }
             println!(
@@ -308,6 +310,7 @@ fn main() -> Result<()> {
             pool(threads)?.install(|| -> Result<()> {
                 let sim_case = packing::pour_case(&case)?;
                 let mut sim = Simulation::from_case(&sim_case);
+                sort_policy(&mut sim);
                 sim.setup()?;
                 let (t, c) = (Instant::now(), thread_cpu());
                 for _ in 0..steps {

@@ -34,8 +34,8 @@ pub fn settled_packing(n: usize, seed: u64, settle_time: f64) -> Result<(Case, f
         }
     }
     let ratio = sim.kinetic_energy() / ke_peak.max(f64::MIN_POSITIVE);
-    for (p, x) in case.particles.iter_mut().zip(&sim.x) {
-        p.x = *x;
+    for (p, k) in case.particles.iter_mut().zip(sim.case_order()) {
+        p.x = sim.x[k];
     }
     Ok((case, ratio))
 }

@@ -63,21 +63,39 @@ impl Simulation {
     /// Every contact that carried a force in the last force evaluation (`setup` or
     /// `step`), grain-grain pairs once each (i < j in neighbour-list order), then walls
     /// and the intruder in particle order. Deterministic for a given state.
+    ///
+    /// "Particle order" and "i < j" are case order (`i`, `j` stay storage indices): after
+    /// a spatial sort ([`Simulation::set_reorder`]) the records are put back into the
+    /// order, and each pair into the orientation, an unsorted run lists them in.
     pub fn contacts(&self) -> Vec<ContactRecord> {
         let mut out = Vec::new();
+        let case = &self.case_index;
+        let reordered = self.reordered();
         for k in 0..self.pairs.len().min(self.pair_touch.len()) {
             if !self.pair_touch[k] {
                 continue;
             }
-            let (i, j) = (self.pairs.i[k] as usize, self.pairs.j[k] as usize);
+            let (mut i, mut j) = (self.pairs.i[k] as usize, self.pairs.j[k] as usize);
+            let mut force_on_i = self.rev_out[self.pairs.rev_pos[k] as usize].f_i;
+            if case[i] > case[j] {
+                (i, j) = (j, i);
+                force_on_i = scale(force_on_i, -1.0);
+            }
             let frac = self.radius[i] / (self.radius[i] + self.radius[j]);
             out.push(ContactRecord {
                 i,
                 other: Touching::Grain(j),
                 point: add(self.x[i], scale(sub(self.x[j], self.x[i]), frac)),
-                force_on_i: self.rev_out[self.pairs.rev_pos[k] as usize].f_i,
+                force_on_i,
             });
         }
+        if reordered {
+            out.sort_by_key(|c| match c.other {
+                Touching::Grain(j) => (case[c.i], case[j]),
+                _ => unreachable!("only pairs so far"),
+            });
+        }
+        let n_pairs = out.len();
         let stride = self.walls_stride;
         for i in 0..self.x.len() {
             for k in 0..self.walls.len() {
@@ -112,6 +130,10 @@ impl Simulation {
                 }
             }
         }
+        if reordered {
+            // Stable: a grain's walls stay in wall order, and the intruder after them.
+            out[n_pairs..].sort_by_key(|c| (matches!(c.other, Touching::Intruder), case[c.i]));
+        }
         out
     }
 }
@@ -122,7 +144,9 @@ impl Simulation {
     /// fields are measured the same way.
     pub fn snapshot(&self, meta: SnapshotMeta) -> Snapshot {
         let sim = self;
-        let grains = (0..sim.x.len())
+        let grains = sim
+            .case_order()
+            .into_iter()
             .map(|k| Grain {
                 id: sim.id[k],
                 x: sim.x[k],

@@ -46,14 +46,14 @@ pub struct PairList {
 
 /// A uniform grid over the domain box; cell edge >= the largest interaction cutoff.
 #[derive(Debug, Clone, Copy)]
-struct Grid {
+pub(super) struct Grid {
     lo: V3,
     inv: f64,
     n: [usize; 3],
 }
 
 impl Grid {
-    fn new(lo: V3, hi: V3, cutoff: f64) -> Grid {
+    pub(super) fn new(lo: V3, hi: V3, cutoff: f64) -> Grid {
         let mut n = [1usize; 3];
         for k in 0..3 {
             n[k] = (((hi[k] - lo[k]) / cutoff).floor() as usize).clamp(1, 1 << 20);
@@ -71,7 +71,7 @@ impl Grid {
         }
     }
     #[inline]
-    fn coord(&self, x: V3) -> [usize; 3] {
+    pub(super) fn coord(&self, x: V3) -> [usize; 3] {
         let mut c = [0usize; 3];
         for k in 0..3 {
             let v = ((x[k] - self.lo[k]) * self.inv).floor();
@@ -113,7 +113,25 @@ impl PairList {
     /// the neighbour list (`neigh_modify exclude molecule`, neighbor.cpp:2174), and a
     /// pair that is not listed contributes nothing, exactly like a listed pair that
     /// never touches (the force sums skip it, its history stays zero).
-    pub fn build(&mut self, x: &[V3], radius: &[f64], body: &[i32], skin: f64, lo: V3, hi: V3) {
+    ///
+    /// `old_of_new`: the particles were renumbered since the last build (a spatial sort,
+    /// see [`super::reorder`]): new particle k was old particle `old_of_new[k]`. The
+    /// history of a persisting pair is then looked up under its old numbers; a pair whose
+    /// members swapped places (its first particle is now the one with the larger index)
+    /// gets it negated, because shear and EPSD2 rolling history are the displacement and
+    /// torque of the first particle relative to the second (LIGGGHTS flags both as
+    /// negated for the partner in its contact history).
+    #[allow(clippy::too_many_arguments)]
+    pub fn build(
+        &mut self,
+        x: &[V3],
+        radius: &[f64],
+        body: &[i32],
+        skin: f64,
+        lo: V3,
+        hi: V3,
+        old_of_new: Option<&[u32]>,
+    ) {
         let n = x.len();
         assert!(body.is_empty() || body.len() == n);
         let rmax = radius.iter().cloned().fold(0.0, f64::max);
@@ -255,6 +273,36 @@ impl PairList {
                     if !carry {
                         continue;
                     }
+                    if let Some(old) = old_of_new {
+                        for k in seg {
+                            let ju = nj[k] as usize;
+                            let d = [x[i][0] - x[ju][0], x[i][1] - x[ju][1], x[i][2] - x[ju][2]];
+                            let radsum = radius[i] + radius[ju];
+                            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= radsum * radsum {
+                                continue;
+                            }
+                            let (oi, oj) = (old[i], old[ju]);
+                            let (first, second, sign) = if oi < oj {
+                                (oi as usize, oj, 1.0)
+                            } else {
+                                (oj as usize, oi, -1.0)
+                            };
+                            let seg_old = old_start[first]..old_start[first + 1];
+                            if let Some(a) = old_j[seg_old.clone()]
+                                .iter()
+                                .position(|&j| j == second)
+                                .map(|p| seg_old.start + p)
+                            {
+                                let h = old_shear[a];
+                                ns[k] = [sign * h[0], sign * h[1], sign * h[2]];
+                                if carry_roll {
+                                    let h = old_roll[a];
+                                    nr[k] = [sign * h[0], sign * h[1], sign * h[2]];
+                                }
+                            }
+                        }
+                        continue;
+                    }
                     let (mut a, a_end) = (old_start[i], old_start[i + 1]);
                     for k in seg {
                         let j = nj[k];
@@ -360,7 +408,7 @@ mod tests {
         }
         let radius = vec![5e-4; x.len()];
         let mut l = PairList::default();
-        l.build(&x, &radius, &[], 2e-4, [0.0; 3], [0.02; 3]);
+        l.build(&x, &radius, &[], 2e-4, [0.0; 3], [0.02; 3], None);
         let mut brute = 0;
         for i in 0..x.len() {
             for j in i + 1..x.len() {
@@ -382,11 +430,11 @@ mod tests {
         let x = vec![[0.0, 0.0, 0.0], [1.9e-3, 0.0, 0.0], [5e-3, 5e-3, 5e-3]];
         let radius = vec![1e-3; 3];
         let mut l = PairList::default();
-        l.build(&x, &radius, &[], 5e-4, [-0.01; 3], [0.01; 3]);
+        l.build(&x, &radius, &[], 5e-4, [-0.01; 3], [0.01; 3], None);
         assert_eq!(l.len(), 1);
         l.shear[0] = [1.0, 2.0, 3.0];
         let x2 = vec![[0.0, 0.0, 0.0], [1.9e-3, 1e-4, 0.0], [3.5e-3, 1.5e-3, 0.0]];
-        l.build(&x2, &radius, &[], 5e-4, [-0.01; 3], [0.01; 3]);
+        l.build(&x2, &radius, &[], 5e-4, [-0.01; 3], [0.01; 3], None);
         let k = (l.start[0]..l.start[1])
             .find(|&k| l.j[k] == 1)
             .expect("pair 0-1 kept");
