@@ -15,6 +15,8 @@ use anyhow::{Context, Result};
 use std::path::Path;
 use std::time::Instant;
 
+pub mod scaling;
+
 /// The bench packing's starting lattice; it lives in the physics layer so the engine's
 /// own tests can use it without importing from `bench` (tests/architecture.rs).
 pub use crate::physics::dem::packing::lattice_case;

@@ -266,6 +266,21 @@ enum Cmd {
         /// `cases/penetration/ci-dimers.toml` (`--penetration` with that case).
         #[arg(long, conflicts_with = "penetration")]
         clumps: bool,
+        /// Throughput against bed size: settled packings of each N of `--ns` (cached
+        /// under $GRANVAL_BED_CACHE, else the temp dir), native 1 and 2 threads,
+        /// LIGGGHTS 1 process and `mpirun -np 2`, ratios and bytes per particle.
+        #[arg(long, conflicts_with_all = ["penetration", "clumps"])]
+        scaling: bool,
+        /// Bed sizes of `--scaling`, comma separated.
+        #[arg(long, value_delimiter = ',', default_values_t = granval::bench::scaling::DEFAULT_NS)]
+        ns: Vec<usize>,
+        /// With `--scaling`: also time the native engine without spatial sorting,
+        /// interleaved (the engine before it).
+        #[arg(long, requires = "scaling")]
+        unsorted: bool,
+        /// With `--scaling`: particle-steps per timed run (steps = this / N, 50..4000).
+        #[arg(long, requires = "scaling", default_value_t = granval::bench::scaling::DEFAULT_BUDGET)]
+        budget: f64,
     },
     /// Stress and velocity fields of a penetration case from both engines, every bed of
     /// its ensemble: phi per engine, (phi, K_phi) against MALT, CSV/VTK/SVG under OUT
@@ -1337,7 +1352,30 @@ fn real_main() -> Result<ExitCode> {
             reps,
             penetration,
             clumps,
+            scaling,
+            ns,
+            unsorted,
+            budget,
         } => {
+            if scaling {
+                if ns.is_empty() || ns.contains(&0) || budget.is_nan() || budget <= 0.0 || reps == 0
+                {
+                    eprintln!(
+                        "error: --ns needs bed sizes above 0, --budget a positive number and --reps at least 1 (got --ns {ns:?} --budget {budget} --reps {reps})"
+                    );
+                    return Ok(ExitCode::from(2));
+                }
+                granval::bench::scaling::run(&granval::bench::scaling::ScalingOptions {
+                    ns,
+                    budget,
+                    reps,
+                    seed: 1,
+                    unsorted,
+                    liggghts: true,
+                    cache: granval::bench::scaling::cache_dir(),
+                })?;
+                return Ok(ExitCode::SUCCESS);
+            }
             let penetration =
                 penetration.or(clumps.then(|| PathBuf::from(granval::bench::CLUMP_BENCH_CASE)));
             match penetration {
