@@ -119,10 +119,13 @@ fn pool(threads: usize) -> Result<rayon::ThreadPool> {
 }
 
 /// The penetration simulation of `case` started from a stored state.
-/// Spatial sorting off when `DEM_PROFILE_UNSORTED=1`.
+/// Spatial sorting (off by default in the engine) on, unless `DEM_PROFILE_UNSORTED=1`.
 fn sort_policy(sim: &mut Simulation) {
-    if std::env::var("DEM_PROFILE_UNSORTED").is_ok_and(|v| v == "1") {
-        sim.set_reorder(0, 0);
+    if !std::env::var("DEM_PROFILE_UNSORTED").is_ok_and(|v| v == "1") {
+        sim.set_reorder(
+            granval::physics::dem::reorder::DEFAULT_EVERY,
+            granval::physics::dem::reorder::DEFAULT_MIN_PARTICLES,
+        );
     }
 }
 

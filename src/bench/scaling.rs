@@ -171,8 +171,11 @@ pub struct ScalingRow {
 fn time_native(case: &Case, steps: u64, threads: usize, sort: bool) -> Result<(f64, f64)> {
     pool(threads)?.install(|| -> Result<(f64, f64)> {
         let mut sim = Simulation::from_case_perturbed(case, Perturbation::default());
-        if !sort {
-            sim.set_reorder(0, 0);
+        if sort {
+            sim.set_reorder(
+                crate::physics::dem::reorder::DEFAULT_EVERY,
+                crate::physics::dem::reorder::DEFAULT_MIN_PARTICLES,
+            );
         }
         sim.setup()?;
         let t = Instant::now();
