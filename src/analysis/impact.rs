@@ -126,6 +126,61 @@ pub fn power_law(p: &[Passage]) -> Result<(f64, f64, f64, usize)> {
     Ok((k, ln_c.exp(), r2, x.len()))
 }
 
+/// k of a ~ u^k at one depth on one bed (K Appendix: "find a(u) for fixed y"): the
+/// least-squares slope of ln a on ln u over the first passages of the bed's runs through
+/// the bin `y +- half` with a > 0, and the regression's own slope error (printed only:
+/// it knows nothing of the next bed, docs/statistics.md "One bed").
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthExponent {
+    pub y: f64,
+    pub k: f64,
+    /// Standard error of the slope within this bed's regression.
+    pub se_within: f64,
+    /// The passages with a > 0 the slope rests on.
+    pub used: Vec<Passage>,
+    /// Runs that crossed the bin with a <= 0 (left out).
+    pub dropped: usize,
+}
+
+/// [`DepthExponent`] of the runs `series` (one per impact speed, `(t, depth, downward
+/// speed)`) at depth `y`; an error naming the count when fewer than `min_passages`
+/// passages with a > 0 remain (at least 3: a slope with an error).
+pub fn exponent_at_depth(
+    series: &[&[(f64, f64, f64)]],
+    y: f64,
+    half: f64,
+    min_passages: usize,
+) -> std::result::Result<DepthExponent, String> {
+    let all: Vec<Passage> = series
+        .iter()
+        .flat_map(|s| passages(s, &[y], half))
+        .collect();
+    let used: Vec<Passage> = all
+        .iter()
+        .copied()
+        .filter(|q| q.decel > 0.0 && q.u > 0.0)
+        .collect();
+    let need = min_passages.max(3);
+    if used.len() < need {
+        return Err(format!(
+            "{} passage(s) with a > 0 through {y} +- {half} d (of {} runs): at least {need} are needed",
+            used.len(),
+            series.len()
+        ));
+    }
+    let x: Vec<f64> = used.iter().map(|q| q.u.ln()).collect();
+    let l: Vec<f64> = used.iter().map(|q| q.decel.ln()).collect();
+    let fit = crate::numerics::stats::Estimate::slope(&x, &l)
+        .ok_or_else(|| format!("no slope through {y} +- {half} d: no spread in u"))?;
+    Ok(DepthExponent {
+        y,
+        k: fit.value,
+        se_within: fit.se,
+        dropped: all.len() - used.len(),
+        used,
+    })
+}
+
 /// Test trajectory `(t, depth, downward speed)` of an intruder hitting at speed `v0`
 /// (from depth -1) and slowed by a = c u^k inside the bed, explicit Euler with step `dt`.
 #[cfg(test)]
@@ -359,5 +414,28 @@ mod tests {
             err.contains("energy.csv") && err.contains("line: 2"),
             "{err}"
         );
+    }
+
+    /// One depth of K Fig 29 on one bed: a = c u^k at four speeds gives k back (exactly
+    /// for k = 1, where the bin's mean deceleration is c times its mean speed); a steeper
+    /// law gives a steeper k; fewer passages than required are refused.
+    #[test]
+    fn exponent_at_one_depth() {
+        let runs = |k: f64| -> Vec<Vec<(f64, f64, f64)>> {
+            [0.3, 0.5, 0.7, 1.0]
+                .iter()
+                .map(|&v| power_law_trajectory(v, 0.02, k, 0.01))
+                .collect()
+        };
+        let one = runs(1.0);
+        let refs: Vec<&[(f64, f64, f64)]> = one.iter().map(Vec::as_slice).collect();
+        let e = exponent_at_depth(&refs, 2.0, 0.5, 4).unwrap();
+        assert!((e.k - 1.0).abs() < 1e-6 && e.used.len() == 4, "{e:?}");
+        let steep = runs(1.8);
+        let refs: Vec<&[(f64, f64, f64)]> = steep.iter().map(Vec::as_slice).collect();
+        let e = exponent_at_depth(&refs, 2.0, 0.5, 4).unwrap();
+        assert!(e.k > 1.6, "{e:?}");
+        assert!(exponent_at_depth(&refs[..3], 2.0, 0.5, 4).is_err());
+        assert!(exponent_at_depth(&refs, 500.0, 0.5, 4).is_err());
     }
 }

@@ -269,6 +269,23 @@ pub enum Claim {
         max: f64,
         engine_tol: f64,
     },
+    /// K Appendix, Fig 29, read per depth ("find a(u) for fixed y"; "for fixed u, a does
+    /// not appear to depend on y"), on a seed ensemble only (docs/impact2d.md, "Fig 29 per
+    /// depth"): at each depth of `depths` (bins +- `half_width` d) and on each bed, k is
+    /// the slope of ln a on ln u over that bed's first passages (at least
+    /// `min_passages`); per depth the mean k over the beds (at least `min_seeds`) with
+    /// its t interval must lie inside (`min`, `max`) for a pass, and fails when its
+    /// Bonferroni interval over the depths lies wholly outside. Native vs LAMMPS: per bed
+    /// and depth |k_native - k_ref| <= `engine_tol`. The sweep must be of the speed.
+    VelocityExponentPerDepth {
+        depths: Vec<f64>,
+        half_width: f64,
+        min: f64,
+        max: f64,
+        min_passages: usize,
+        min_seeds: usize,
+        engine_tol: f64,
+    },
     /// K Fig 21: "this force is very large immediately after impact, and then decreases
     /// significantly on a very short time scale". In every variant, with F(t) the
     /// contact force on the intruder along y averaged over bins of `bin` tau_c from the
@@ -1206,8 +1223,20 @@ impl Impact2dCase {
                     format!("claim[{k}].{f}")
                 }
             };
+            if seeds.is_empty() && matches!(claim, Claim::VelocityExponentPerDepth { .. }) {
+                return Err(ctx.bad(
+                    at("kind"),
+                    "velocity_exponent_per_depth",
+                    "judged over beds: needs a seed ensemble ([bed] seeds)",
+                ));
+            }
             if !seeds.is_empty()
-                && !matches!(claim, Claim::Increasing { .. } | Claim::Linear { .. })
+                && !matches!(
+                    claim,
+                    Claim::Increasing { .. }
+                        | Claim::Linear { .. }
+                        | Claim::VelocityExponentPerDepth { .. }
+                )
             {
                 let kind = serde_json::to_value(claim)
                     .ok()
@@ -1216,7 +1245,7 @@ impl Impact2dCase {
                 return Err(ctx.bad(
                     at("kind"),
                     kind,
-                    "not defined on a seed ensemble ([bed] seeds): only `increasing` and `linear` have a registered ensemble rule (docs/impact2d.md)",
+                    "not defined on a seed ensemble ([bed] seeds): only `increasing`, `linear` and `velocity_exponent_per_depth` have a registered ensemble rule (docs/impact2d.md)",
                 ));
             }
             match claim {
@@ -1279,6 +1308,61 @@ impl Impact2dCase {
                             at("kind"),
                             "velocity_exponent",
                             "a(u) needs a [sweep] of the speed with at least 3 values",
+                        ));
+                    }
+                }
+                Claim::VelocityExponentPerDepth {
+                    depths,
+                    half_width,
+                    min,
+                    max,
+                    min_passages,
+                    min_seeds,
+                    engine_tol,
+                } => {
+                    positive(&ctx, &at("half_width"), *half_width)?;
+                    positive(&ctx, &at("engine_tol"), *engine_tol)?;
+                    if depths.is_empty() {
+                        return Err(ctx.bad(at("depths"), "[]", "at least one depth bin"));
+                    }
+                    for (j, y) in depths.iter().enumerate() {
+                        if !(y.is_finite() && *y > *half_width) {
+                            return Err(ctx.bad(
+                                format!("{}[{j}]", at("depths")),
+                                y,
+                                "a bin must lie inside the bed: centre > half_width",
+                            ));
+                        }
+                    }
+                    if !(min.is_finite() && max.is_finite() && min < max) {
+                        return Err(ctx.bad(at("max"), max, format!("must exceed min = {min}")));
+                    }
+                    if *min_passages < 3 {
+                        return Err(ctx.bad(
+                            at("min_passages"),
+                            min_passages,
+                            "a slope with an error needs at least 3 passages",
+                        ));
+                    }
+                    if *min_seeds < 2 || *min_seeds > seeds.len() {
+                        return Err(ctx.bad(
+                            at("min_seeds"),
+                            min_seeds,
+                            format!(
+                                "an interval over beds needs at least 2, and the ensemble has {} seeds",
+                                seeds.len()
+                            ),
+                        ));
+                    }
+                    let param = raw.sweep.as_ref().map(|w| w.parameter.as_str());
+                    let values = raw.sweep.as_ref().map_or(0, |w| w.values.len());
+                    if param != Some("speed") || values < *min_passages {
+                        return Err(ctx.bad(
+                            at("kind"),
+                            "velocity_exponent_per_depth",
+                            format!(
+                                "a(u) needs a [sweep] of the speed with at least min_passages = {min_passages} values"
+                            ),
                         ));
                     }
                 }

@@ -5,8 +5,11 @@ use super::ensemble::{self, ValueStats};
 use super::{Check, Gate};
 use crate::analysis::affine::{AffineGrain, AffineSummary};
 use crate::analysis::force_network::{B0Curves, integral, relative_l1};
-use crate::analysis::impact::{ForceSummary, bins_rms, force_summary};
+use crate::analysis::impact::{
+    DepthExponent, ForceSummary, bins_rms, exponent_at_depth, force_summary,
+};
 use crate::case::impact2d::{Claim, ClaimQuantity, FieldQuantity, Impact2dCase};
+use crate::numerics::stats::Estimate;
 
 /// Why an `increasing` claim fails although every step met min_step: with min_step 0
 /// (and, on an ensemble, zero spread) a step that stays flat or falls meets the bound.
@@ -333,7 +336,12 @@ pub fn claim_checks(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Ve
         return case
             .claims
             .iter()
-            .map(|c| ensemble_claim_check(case, c, engine, obs))
+            .flat_map(|c| match c {
+                Claim::VelocityExponentPerDepth { .. } => {
+                    per_depth_exponent_checks(case, c, engine, obs)
+                }
+                _ => vec![ensemble_claim_check(case, c, engine, obs)],
+            })
             .collect();
     }
     case.claims
@@ -371,6 +379,7 @@ fn compares_conditions(c: &Claim) -> bool {
         Claim::Increasing { .. }
             | Claim::Linear { .. }
             | Claim::VelocityExponent { .. }
+            | Claim::VelocityExponentPerDepth { .. }
             | Claim::ForceSimilar { .. }
             | Claim::FieldOrder { .. }
     )
@@ -476,6 +485,11 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
             format!("{}: claim ({engine})", case.name),
             Gate::Claim,
             "field_order is evaluated per time (field_order_checks)",
+        ),
+        Claim::VelocityExponentPerDepth { .. } => Check::error_in(
+            format!("{}: claim ({engine})", case.name),
+            Gate::Claim,
+            "velocity_exponent_per_depth is judged over the beds of a seed ensemble (refused on one bed when the case loads)",
         ),
         Claim::ForceImpulsive {
             bin,
@@ -1045,6 +1059,22 @@ pub fn exponent_cross_checks(
     reference: &[VariantObs],
     engine: &str,
 ) -> Vec<Check> {
+    let per_depth = case.claims.iter().flat_map(|c| match c {
+        Claim::VelocityExponentPerDepth {
+            depths,
+            half_width,
+            min_passages,
+            engine_tol,
+            ..
+        } => per_depth_cross_checks(
+            case,
+            native,
+            reference,
+            engine,
+            (depths.as_slice(), *half_width, *min_passages, *engine_tol),
+        ),
+        _ => Vec::new(),
+    });
     case.claims
         .iter()
         .filter_map(|c| match c {
@@ -1075,6 +1105,217 @@ pub fn exponent_cross_checks(
                     crate::compare::Gate::Claim,
                     format!("native: {:?}; {engine}: {:?}", a.err(), b.err()),
                 ),
+            }
+        })
+        .chain(per_depth)
+        .collect()
+}
+
+/// One bed's seed and its exponent at one depth (or why it has none).
+type BedExponent = (u64, Result<DepthExponent, String>);
+
+/// Per bed (seed, in `case.seeds` order), the exponent at depth `y` of the bed's runs
+/// (docs/impact2d.md, "Fig 29 per depth"). Runs are matched to the case's variants by
+/// label, so a missing run is an error, not a smaller ensemble.
+fn exponents_per_bed(
+    case: &Impact2dCase,
+    obs: &[VariantObs],
+    y: f64,
+    half: f64,
+    min_passages: usize,
+) -> Result<Vec<BedExponent>, String> {
+    case.seeds
+        .iter()
+        .map(|&seed| {
+            let runs = case
+                .variants
+                .iter()
+                .filter(|v| case.bed_of(v).seed == seed)
+                .map(|v| {
+                    obs.iter()
+                        .find(|o| o.label == v.label)
+                        .map(|o| o.trajectory.as_slice())
+                        .ok_or_else(|| format!("run {} has no result", v.label))
+                })
+                .collect::<Result<Vec<_>, String>>()?;
+            Ok((seed, exponent_at_depth(&runs, y, half, min_passages)))
+        })
+        .collect()
+}
+
+fn describe_bed(seed: u64, r: &Result<DepthExponent, String>) -> String {
+    match r {
+        Ok(e) => format!(
+            "seed {seed}: k {:.3} (within-bed slope SE {:.3}, printed only; {} passages, {} with a <= 0 left out: {})",
+            e.k,
+            e.se_within,
+            e.used.len(),
+            e.dropped,
+            e.used
+                .iter()
+                .map(|q| format!("(u {:.3}, a {:.4})", q.u, q.decel))
+                .collect::<Vec<_>>()
+                .join(" ")
+        ),
+        Err(e) => format!("seed {seed}: no k ({e})"),
+    }
+}
+
+/// A `velocity_exponent_per_depth` claim in one engine: one statistical check per depth
+/// (docs/impact2d.md, "Fig 29 per depth"). The estimate is the mean over the beds of
+/// k - (min + max) / 2, judged as an equivalence within (max - min) / 2: PASS when the
+/// 90 % interval lies inside, FAIL when the Bonferroni interval over the depths lies
+/// wholly outside, otherwise INCONCLUSIVE; fewer than `min_seeds` beds with a k: NOT
+/// COMPARED.
+fn per_depth_exponent_checks(
+    case: &Impact2dCase,
+    claim: &Claim,
+    engine: &str,
+    obs: &[VariantObs],
+) -> Vec<Check> {
+    let Claim::VelocityExponentPerDepth {
+        depths,
+        half_width,
+        min,
+        max,
+        min_passages,
+        min_seeds,
+        ..
+    } = claim
+    else {
+        return Vec::new();
+    };
+    let centre = 0.5 * (min + max);
+    let margin = 0.5 * (max - min);
+    depths
+        .iter()
+        .map(|&y| {
+            let name = format!(
+                "{}: claim ({engine}): deceleration ~ u^k at depth {y} +- {half_width} d, k in [{min}, {max}] (over beds)",
+                case.name
+            );
+            let beds = match exponents_per_bed(case, obs, y, *half_width, *min_passages) {
+                Ok(b) => b,
+                Err(e) => return Check::error_in(name, Gate::Claim, e),
+            };
+            let listed = beds
+                .iter()
+                .map(|(s, r)| describe_bed(*s, r))
+                .collect::<Vec<_>>()
+                .join("; ");
+            let ks: Vec<f64> = beds
+                .iter()
+                .filter_map(|(_, r)| r.as_ref().ok().map(|e| e.k))
+                .collect();
+            if ks.len() < *min_seeds {
+                return Check::not_compared(
+                    name,
+                    Gate::Claim,
+                    format!(
+                        "{} bed(s) give a k at {y} d, at least min_seeds = {min_seeds} are needed; {listed}",
+                        ks.len()
+                    ),
+                );
+            }
+            let shifted: Vec<f64> = ks.iter().map(|k| k - centre).collect();
+            let estimate = Estimate::mean(&shifted);
+            let summary = estimate.map_or_else(String::new, |e| {
+                let (l, u) = e.decision_interval();
+                let (fl, fu) = e.failure_interval(depths.len());
+                format!(
+                    "mean k {:.3} over {} beds, 90 % interval [{:.3}, {:.3}], Bonferroni ({} depths) [{:.3}, {:.3}]; ",
+                    e.value + centre,
+                    e.n,
+                    l + centre,
+                    u + centre,
+                    depths.len(),
+                    fl + centre,
+                    fu + centre
+                )
+            });
+            Check::decided(
+                name,
+                Gate::Claim,
+                format!("mean k over beds - {centre}, must lie within +-{margin}"),
+                &[super::Comparison {
+                    what: format!("mean k - {centre} at {y} d"),
+                    estimate,
+                    rule: super::Rule::Equivalence { margin },
+                    m: depths.len(),
+                }],
+                format!("{summary}{listed}"),
+            )
+        })
+        .collect()
+}
+
+/// Native vs reference k per bed and depth of a `velocity_exponent_per_depth` claim
+/// (kind 1 of docs/statistics.md): one check per depth, its value the largest
+/// |k_native - k_ref| over the beds; a bed that gives a k in one engine only fails it.
+fn per_depth_cross_checks(
+    case: &Impact2dCase,
+    native: &[VariantObs],
+    reference: &[VariantObs],
+    engine: &str,
+    (depths, half, min_passages, tol): (&[f64], f64, usize, f64),
+) -> Vec<Check> {
+    depths
+        .iter()
+        .map(|&y| {
+            let name = format!(
+                "{}: velocity exponent k at depth {y} d native vs {engine} (per bed)",
+                case.name
+            );
+            let (a, b) = match (
+                exponents_per_bed(case, native, y, half, min_passages),
+                exponents_per_bed(case, reference, y, half, min_passages),
+            ) {
+                (Ok(a), Ok(b)) => (a, b),
+                (a, b) => {
+                    return Check::error_in(
+                        name,
+                        Gate::Claim,
+                        format!("native: {:?}; {engine}: {:?}", a.err(), b.err()),
+                    );
+                }
+            };
+            let mut worst = f64::NAN;
+            let mut one_sided = Vec::new();
+            let mut listed = Vec::new();
+            for ((seed, ra), (_, rb)) in a.iter().zip(&b) {
+                match (ra, rb) {
+                    (Ok(x), Ok(z)) => {
+                        let d = (x.k - z.k).abs();
+                        worst = if worst.is_nan() { d } else { worst.max(d) };
+                        listed.push(format!("seed {seed}: {:.3} vs {:.3}", x.k, z.k));
+                    }
+                    (Err(_), Err(_)) => listed.push(format!("seed {seed}: no k in either")),
+                    (x, z) => {
+                        one_sided.push(*seed);
+                        listed.push(format!(
+                            "seed {seed}: native {}, {engine} {}",
+                            x.as_ref()
+                                .map_or_else(|e| e.clone(), |e| format!("{:.3}", e.k)),
+                            z.as_ref()
+                                .map_or_else(|e| e.clone(), |e| format!("{:.3}", e.k))
+                        ));
+                    }
+                }
+            }
+            let detail = listed.join("; ");
+            let metric = "max over beds |k_native - k_ref|";
+            if !one_sided.is_empty() {
+                Check::failed(
+                    name,
+                    Gate::Claim,
+                    metric,
+                    worst,
+                    format!("a k in one engine only on seed(s) {one_sided:?}; {detail}"),
+                )
+            } else if worst.is_nan() {
+                Check::not_compared(name, Gate::Claim, format!("no bed gives a k; {detail}"))
+            } else {
+                Check::at_most(name, Gate::Claim, metric, worst, tol, detail)
             }
         })
         .collect()
@@ -1155,6 +1396,110 @@ mod tests {
         let few = with(1.0)[..2].to_vec();
         let k = one(&c, &few).unwrap();
         assert_eq!(k.status, crate::compare::Status::NotCompared, "{k:?}");
+    }
+
+    /// K Fig 29 per depth on four synthetic beds (docs/impact2d.md, "Fig 29 per depth"):
+    /// every bed slowed as a = c u^k with its own c. k = 1 on every bed passes at each
+    /// depth; k = 1.8 (the negative control: a force law outside the band) fails at each
+    /// depth; beds scattered between 0.7 and 1.3 around a mean of 1 are INCONCLUSIVE
+    /// (four beds cannot resolve the band); two speeds are NOT COMPARED; native vs
+    /// reference compares k bed by bed.
+    #[test]
+    fn velocity_exponent_per_depth_is_judged_over_beds() {
+        let c = ensemble(
+            "[claim]\nkind = \"velocity_exponent_per_depth\"\ndepths = [1.0, 2.0, 3.0]\nhalf_width = 0.5\nmin = 0.7\nmax = 1.3\nmin_passages = 4\nmin_seeds = 3\nengine_tol = 0.2",
+            "[sweep]\nparameter = \"speed\"\nvalues = [0.3, 0.5, 0.7, 1.0]",
+            "[1, 2, 3, 4]",
+        );
+        let with = |k: &dyn Fn(usize) -> f64| {
+            let mut out = Vec::new();
+            for g in c.ensemble_groups() {
+                for (j, &m) in g.members.iter().enumerate() {
+                    let v = &c.variants[m];
+                    let mut o = obs(&[v.x], &[5.0]).remove(0);
+                    o.label = v.label.clone();
+                    o.trajectory = crate::analysis::impact::power_law_trajectory(
+                        v.x,
+                        0.02 * (1.0 + 0.05 * j as f64),
+                        k(j),
+                        0.01,
+                    );
+                    out.push(o);
+                }
+            }
+            out
+        };
+        let status = |o: &[VariantObs]| {
+            claim_checks(&c, "x", o)
+                .iter()
+                .map(|k| k.status)
+                .collect::<Vec<_>>()
+        };
+        let right = with(&|_| 1.0);
+        assert_eq!(
+            status(&right),
+            vec![Status::Pass; 3],
+            "{:?}",
+            claim_checks(&c, "x", &right)
+        );
+        let wrong = with(&|_| 1.8);
+        assert_eq!(
+            status(&wrong),
+            vec![Status::Fail; 3],
+            "{:?}",
+            claim_checks(&c, "x", &wrong)
+        );
+        let scattered = with(&|j| if j % 2 == 0 { 0.7 } else { 1.3 });
+        assert_eq!(
+            status(&scattered),
+            vec![Status::Inconclusive; 3],
+            "{:?}",
+            claim_checks(&c, "x", &scattered)
+        );
+        // Runs that never reach the bins leave two passages per bed: no k anywhere.
+        let mut few = right.clone();
+        for o in few.iter_mut().filter(|o| o.x < 0.6) {
+            o.trajectory.clear();
+        }
+        let k = claim_checks(&c, "x", &few);
+        assert!(k.iter().all(|k| k.status == Status::NotCompared), "{k:?}");
+        // A missing run is an error, not a smaller ensemble.
+        let k = claim_checks(&c, "x", &right[1..]);
+        assert!(k.iter().all(|k| k.status == Status::Error), "{k:?}");
+        let k = exponent_cross_checks(&c, &right, &with(&|_| 1.1), "lammps");
+        assert!(k.len() == 3 && k.iter().all(|k| k.passed), "{k:?}");
+        let k = exponent_cross_checks(
+            &c,
+            &right,
+            &with(&|j| if j == 2 { 1.5 } else { 1.0 }),
+            "lammps",
+        );
+        assert!(k.iter().all(|k| k.status == Status::Fail), "{k:?}");
+    }
+
+    /// The per-depth claim is refused on one bed and with more required beds than seeds,
+    /// naming the field.
+    #[test]
+    fn velocity_exponent_per_depth_refusals() {
+        let base = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/cases/impact2d/ci.toml"
+        ))
+        .unwrap();
+        let claim = |seeds: &str| {
+            format!(
+                "{}\n[sweep]\nparameter = \"speed\"\nvalues = [0.3, 0.5, 0.7, 1.0]\n[claim]\nkind = \"velocity_exponent_per_depth\"\ndepths = [1.0, 2.0]\nhalf_width = 0.5\nmin = 0.7\nmax = 1.3\nmin_passages = 4\nmin_seeds = 3\nengine_tol = 0.2\n",
+                base.replace("seed = 7", seeds)
+            )
+        };
+        let e = Impact2dCase::from_toml_str(&claim("seed = 7"), Path::new("t.toml")).unwrap_err();
+        assert!(format!("{e:#}").contains("seed ensemble"), "{e:#}");
+        let e =
+            Impact2dCase::from_toml_str(&claim("seeds = [1, 2]"), Path::new("t.toml")).unwrap_err();
+        assert!(format!("{e:#}").contains("min_seeds"), "{e:#}");
+        assert!(
+            Impact2dCase::from_toml_str(&claim("seeds = [1, 2, 3]"), Path::new("t.toml")).is_ok()
+        );
     }
 
     /// The claims' checks as registered on one bed (the rule one_bed reports), or an
