@@ -123,9 +123,11 @@ fn holds_its_beds(root: &Path) -> bool {
     let seal: reference::Seal =
         serde_json::from_str(&std::fs::read_to_string(root.join(reference::SEAL_FILE)).unwrap())
             .unwrap();
+    // A bed shared by several units (a seed ensemble) is sealed once, with the first
+    // unit that uses it, so one unit holding a bed makes the record lean.
     seal.units
         .values()
-        .all(|u| u.files.keys().any(|f| reference::store::is_bed_file(f)))
+        .any(|u| u.files.keys().any(|f| reference::store::is_bed_file(f)))
 }
 
 /// Verifies a record that holds its beds as a recorded comparison does: units from
