@@ -3,6 +3,7 @@
 
 pub mod clumps;
 mod error;
+pub mod family;
 mod fields;
 pub mod impact2d;
 mod parse;
@@ -13,6 +14,7 @@ pub mod triaxial;
 pub(crate) mod validate;
 
 pub use error::CaseError;
+pub use family::{ContactFamily, LammpsModels, LammpsRolling};
 
 mod control;
 
@@ -263,6 +265,8 @@ pub struct Case {
     pub gravity: [f64; 3],
     pub neighbor_skin: f64,
     pub rolling: RollingModel,
+    /// Whose contact laws (LIGGGHTS' by default; LAMMPS' `pair_style granular`).
+    pub family: ContactFamily,
     pub domain_lo: [f64; 3],
     pub domain_hi: [f64; 3],
     pub materials: Vec<Material>,
@@ -337,6 +341,10 @@ impl Case {
             "particles": self.particles,
             "walls": self.walls,
         });
+        // Only LAMMPS-family cases carry the key, so every LIGGGHTS seal stays valid.
+        if let ContactFamily::Lammps(m) = &self.family {
+            view["lammps"] = serde_json::json!(m);
+        }
         // Only clump cases carry the key, so every sphere-only seal stays valid.
         if !self.clumps.is_empty() {
             view["clumps"] = serde_json::json!(self.clumps);

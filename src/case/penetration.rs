@@ -532,7 +532,7 @@ impl PenetrationCase {
 
     fn validated(raw: File, ctx: Ctx, path: &Path) -> Result<PenetrationCase, CaseError> {
         let (rolling, materials, bed_pairs) =
-            physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
+            physics(&ctx, &raw.models, &raw.materials, &raw.interactions, false)?;
         let n_types = materials.len();
         let (pairs, settle_pairs) = if raw.penetration_interactions.is_empty() {
             (bed_pairs, None)

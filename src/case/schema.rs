@@ -59,6 +59,12 @@ pub struct Models {
     pub normal: String,
     pub tangential: String,
     pub rolling: String,
+    /// Whose contact laws: "liggghts" (default: LIGGGHTS 3.8 `pair_style gran`) or
+    /// "lammps" (LAMMPS' `pair_style granular` sub-models; micro cases only).
+    pub family: Option<String>,
+    /// LAMMPS family: the tangential damping ratio `xt` of `tangential mindlin NULL xt
+    /// mu` (tangential damping = xt times the normal damping prefactor).
+    pub tangential_damping: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -88,6 +94,10 @@ pub struct Interaction {
     pub restitution: f64,
     pub friction: f64,
     pub rolling_friction: f64,
+    /// LAMMPS family, `rolling sds`: rolling spring stiffness k_roll (N/m).
+    pub rolling_stiffness: Option<f64>,
+    /// LAMMPS family, `rolling sds`: rolling damping gamma_roll (N s/m).
+    pub rolling_damping: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]

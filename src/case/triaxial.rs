@@ -232,7 +232,7 @@ impl TriaxialCase {
         path: &Path,
     ) -> Result<TriaxialCase, CaseError> {
         let (rolling, materials, pairs) =
-            physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
+            physics(&ctx, &raw.models, &raw.materials, &raw.interactions, false)?;
         let n_types = materials.len();
         let ty = |field: &str, t: usize| -> Result<usize, CaseError> {
             if t < 1 || t > n_types {

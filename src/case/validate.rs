@@ -1,6 +1,7 @@
 //! Turns the raw TOML into a [`Case`], refusing anything non-physical with a message
 //! that names file, field, value and reason.
 
+use super::ContactFamily;
 use super::error::{CaseError, Ctx};
 use super::schema;
 use super::{
@@ -109,13 +110,33 @@ pub(super) fn physics(
     models: &schema::Models,
     raw_materials: &[schema::Material],
     interactions: &[schema::Interaction],
+    lammps_allowed: bool,
 ) -> Result<(RollingModel, Vec<Material>, PairTable), CaseError> {
     let raw = Raw {
         models,
         materials: raw_materials,
         interactions,
     };
-    // Models: only the LIGGGHTS 3.8 combination the native engine reproduces exactly.
+    // The LAMMPS family names its own sub-models (micro cases only; see super::family).
+    let rolling = if super::family::is_lammps(ctx, models)? {
+        if !lammps_allowed {
+            return Err(ctx.bad(
+                "models.family",
+                "lammps",
+                "only micro cases can use the LAMMPS family",
+            ));
+        }
+        super::family::check_lammps_names(ctx, models)?;
+        RollingModel::None
+    } else {
+        super::family::refuse_lammps_fields(ctx, models, interactions)?;
+        liggghts_models(ctx, &raw)?
+    };
+    physics_tables(ctx, &raw).map(|(m, p)| (rolling, m, p))
+}
+
+/// Models: only the LIGGGHTS 3.8 combination the native engine reproduces exactly.
+fn liggghts_models(ctx: &Ctx, raw: &Raw) -> Result<RollingModel, CaseError> {
     if raw.models.normal != "hertz" {
         return Err(ctx.bad("models.normal", &raw.models.normal, "supported: \"hertz\""));
     }
@@ -138,7 +159,11 @@ pub(super) fn physics(
             ));
         }
     };
+    Ok(rolling)
+}
 
+/// Materials and pair coefficients, shared by both families.
+fn physics_tables(ctx: &Ctx, raw: &Raw) -> Result<(Vec<Material>, PairTable), CaseError> {
     // Materials: types 1..n, each exactly once.
     let n_types = raw.materials.len();
     if n_types == 0 {
@@ -232,7 +257,7 @@ pub(super) fn physics(
         }
     }
 
-    Ok((rolling, materials, pairs))
+    Ok((materials, pairs))
 }
 
 /// Validates one `[[interactions]]`-shaped entry (`field` names it in errors) and writes
@@ -320,7 +345,7 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
     case_name(&ctx, &raw.case.name)?;
 
     let (rolling, materials, pairs) =
-        physics(&ctx, &raw.models, &raw.materials, &raw.interactions)?;
+        physics(&ctx, &raw.models, &raw.materials, &raw.interactions, true)?;
     let n_types = materials.len();
 
     // Domain.
@@ -587,12 +612,31 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         &ctx,
         &negative_controls,
         &super::control::Targets {
-            spheres: Some((&pairs, &materials, rolling != RollingModel::None)),
+            spheres: Some((
+                &pairs,
+                &materials,
+                rolling != RollingModel::None || raw.models.rolling == "sds",
+            )),
             clumps: !clumps.is_empty(),
         },
     )?;
 
+    let family = if super::family::is_lammps(&ctx, &raw.models)? {
+        ContactFamily::Lammps(super::family::lammps_models(
+            &ctx,
+            &raw.models,
+            &raw.interactions,
+            n_types,
+            &particles,
+            &walls,
+            !clumps.is_empty(),
+        )?)
+    } else {
+        ContactFamily::Liggghts
+    };
+
     Ok(Case {
+        family,
         negative_controls,
         name: raw.case.name,
         kind: raw.case.kind,

@@ -6,6 +6,7 @@
 pub mod children;
 pub mod deck_text;
 pub mod lammps;
+pub mod lammps3d;
 pub mod liggghts;
 pub mod native;
 pub mod process;

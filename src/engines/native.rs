@@ -49,7 +49,11 @@ pub fn micro(
     on_step: impl FnMut(u64),
 ) -> Result<Provenance> {
     let start = Instant::now();
-    if case.clumps.is_empty() {
+    if case.lammps().is_some() {
+        let mut w = FrameWriter::create(csv)?;
+        dem::lammps_micro::run(case, *pert, on_step, |f| w.write(&f))?;
+        w.finish()?;
+    } else if case.clumps.is_empty() {
         let mut w = FrameWriter::create(csv)?;
         dem::run(case, *pert, on_step, |f| w.write(&f))?;
         w.finish()?;
@@ -64,7 +68,11 @@ pub fn micro(
         case.canonical_hash(),
         &case.source,
         start,
-        "3D DEM",
+        if case.lammps().is_some() {
+            "3D DEM, LAMMPS granular laws"
+        } else {
+            "3D DEM"
+        },
         pert,
         vec![],
     ))

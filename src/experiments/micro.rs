@@ -7,6 +7,7 @@ use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdic
 use crate::case::Case;
 use crate::compare::Check;
 use crate::compare::trajectory::Trajectory;
+use crate::engines::lammps3d::{self, Lammps3d};
 use crate::engines::liggghts::{self, DumpFrames, Liggghts};
 use crate::rundata::frames::{CsvFrames, Frame, JSONL_FILE, JsonlFrames};
 use crate::rundata::paired_frames::PairedWriter;
@@ -133,7 +134,14 @@ pub fn compare_streams_into(
 
 /// The files a micro record keeps: inputs, dumps, log.
 fn record_files(case: &Case) -> Vec<&'static str> {
-    if case.clumps.is_empty() {
+    if case.lammps().is_some() {
+        vec![
+            lammps3d::DECK_FILE,
+            lammps3d::DATA_FILE,
+            lammps3d::DUMP_FILE,
+            lammps3d::LOG_FILE,
+        ]
+    } else if case.clumps.is_empty() {
         vec![
             liggghts::DECK_FILE,
             liggghts::DATA_FILE,
@@ -166,7 +174,11 @@ impl Experiment for Micro {
         "micro"
     }
     fn reference_engine(&self) -> EngineKind {
-        EngineKind::Liggghts
+        if self.case.lammps().is_some() {
+            EngineKind::Lammps
+        } else {
+            EngineKind::Liggghts
+        }
     }
 
     fn estimate(&self) -> Estimate {
@@ -191,7 +203,17 @@ impl Experiment for Micro {
         }
     }
 
+    fn probe_reference(&self) -> Result<Option<String>> {
+        if self.case.lammps().is_some() {
+            return lammps3d::probe_reference();
+        }
+        super::reference::probe(self.reference_engine())
+    }
+
     fn preflight(&self) -> Result<()> {
+        if self.case.lammps().is_some() {
+            return lammps3d::write_deck(&self.case).map(|_| ());
+        }
         liggghts::check_liggghts_limits(&self.case)?;
         crate::physics::dem::Simulation::from_case(&self.case)
             .check_start()
@@ -252,9 +274,15 @@ impl Experiment for Micro {
         String::new()
     }
     fn fingerprint(&self, _unit: &()) -> Result<Sha256> {
+        if self.case.lammps().is_some() {
+            return lammps3d::micro_input_hash(&self.case);
+        }
         liggghts::micro_input_hash(&self.case)
     }
     fn engine_input(&self, _unit: &()) -> Result<Vec<(&'static str, String)>> {
+        if self.case.lammps().is_some() {
+            return lammps3d::micro_inputs(&self.case);
+        }
         liggghts::micro_inputs(&self.case)
     }
 
@@ -271,7 +299,7 @@ impl Experiment for Micro {
         bar.finish_and_clear();
         write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
         Ok(MicroRun {
-            frames: if self.case.clumps.is_empty() {
+            frames: if self.case.clumps.is_empty() || self.case.lammps().is_some() {
                 FrameFile::Csv(csv)
             } else {
                 FrameFile::Jsonl(dir.join(JSONL_FILE))
@@ -282,13 +310,32 @@ impl Experiment for Micro {
 
     fn write_deck(&self, _unit: &(), dir: &Path, _opts: &Options) -> Result<()> {
         std::fs::create_dir_all(dir)?;
-        for (name, text) in liggghts::micro_inputs(&self.case)? {
+        for (name, text) in self.engine_input(&())? {
             std::fs::write(dir.join(name), text)?;
         }
         Ok(())
     }
 
     fn run_reference(&self, _unit: &(), dir: &Path, opts: &Options) -> Result<MicroRun> {
+        if self.case.lammps().is_some() {
+            let Some(binary) = lammps3d::binary() else {
+                bail!(
+                    "LAMMPS {} is hidden ({}=none)",
+                    lammps3d::REQUIRED_VERSION,
+                    lammps3d::ENV_VAR
+                );
+            };
+            let lmp = Lammps3d {
+                binary,
+                limits: super::engine_limits(self, opts),
+            };
+            let provenance = lammps3d::micro(&lmp, &self.case, dir)?;
+            write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
+            return Ok(MicroRun {
+                frames: FrameFile::Dump(dir.join(lammps3d::DUMP_FILE)),
+                provenance,
+            });
+        }
         let lig = Liggghts {
             mpi_procs: opts.mpi_procs,
             limits: super::engine_limits(self, opts),
@@ -326,7 +373,9 @@ impl Experiment for Micro {
                 provenance.engine
             );
         }
-        let frames = if self.case.clumps.is_empty() {
+        let frames = if self.case.lammps().is_some() {
+            FrameFile::Dump(seal.file(name, lammps3d::DUMP_FILE)?)
+        } else if self.case.clumps.is_empty() {
             FrameFile::Dump(seal.file(name, liggghts::DUMP_FILE)?)
         } else {
             // Every recorded file is checked against the seal before the directory is used.
@@ -340,6 +389,12 @@ impl Experiment for Micro {
     }
 
     fn read_run_dir(&self, _unit: &(), dir: &Path) -> Result<MicroRun> {
+        if self.case.lammps().is_some() {
+            bail!(
+                "{}: reading a LAMMPS 2025 run made by hand is not supported yet; let granval run it",
+                dir.display()
+            );
+        }
         let provenance = liggghts::micro_finished(&self.case, dir)?;
         Ok(MicroRun {
             frames: FrameFile::Dump(dir.join(liggghts::DUMP_FILE)),
@@ -348,6 +403,27 @@ impl Experiment for Micro {
     }
 
     fn deck_files(&self) -> DeckFiles {
+        if self.case.lammps().is_some() {
+            return DeckFiles {
+                binary: lammps3d::DEFAULT_BINARY,
+                deck: lammps3d::DECK_FILE,
+                log: lammps3d::LOG_FILE,
+                inputs: &[(
+                    lammps3d::DATA_FILE,
+                    "the particles (read_data, atom_style sphere): box, and per atom id, type, diameter, density, position, velocity, angular velocity",
+                )],
+                outputs: &[
+                    (
+                        lammps3d::DUMP_FILE,
+                        "the trajectory: every output_every steps each particle's position, velocity, angular velocity, force and torque (%.17g)",
+                    ),
+                    (
+                        lammps3d::LOG_FILE,
+                        "LAMMPS' log (version, warnings, thermo lines)",
+                    ),
+                ],
+            };
+        }
         DeckFiles {
             binary: "liggghts",
             deck: liggghts::DECK_FILE,

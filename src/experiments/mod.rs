@@ -300,6 +300,12 @@ pub trait Experiment {
         self.case().source()
     }
     fn reference_engine(&self) -> EngineKind;
+    /// Whether this experiment's reference engine runs here ([`reference::probe`]):
+    /// its banner, `None` when absent, an error when present but broken. LAMMPS-family
+    /// micro cases probe LAMMPS 2025, not the 2D cases' `lmp`.
+    fn probe_reference(&self) -> Result<Option<String>> {
+        reference::probe(self.reference_engine())
+    }
     /// sha256 of the case's run-relevant content; a record is sealed to it.
     fn canonical_hash(&self) -> Sha256 {
         self.case().canonical_hash()

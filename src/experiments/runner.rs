@@ -65,13 +65,13 @@ pub fn resolve<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<String>>
     let engine = exp.reference_engine();
     match opts.ref_mode {
         RefMode::Recorded => Ok(None),
-        RefMode::Live => match reference::probe(engine)? {
+        RefMode::Live => match exp.probe_reference()? {
             Some(v) => Ok(Some(v)),
             None => bail!(
                 "{engine} is not installed but live engines are required (GRANVAL_REQUIRE_LIVE / --reference-mode live / --require-live)"
             ),
         },
-        RefMode::Auto => reference::probe(engine),
+        RefMode::Auto => exp.probe_reference(),
     }
 }
 
@@ -522,7 +522,7 @@ pub fn refresh<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<String>> {
         exp.source(),
         name,
     )?;
-    let version = reference::probe(engine)?.with_context(|| {
+    let version = exp.probe_reference()?.with_context(|| {
         format!("reference refresh needs a live {engine}: it records what the real engine computes")
     })?;
     let units = exp.units(opts)?;

@@ -8,6 +8,8 @@
 pub mod contact;
 pub mod contacts;
 pub mod intruder;
+pub mod lammps_granular;
+pub mod lammps_micro;
 mod lanes;
 mod moving_walls;
 pub mod neighbor;

@@ -97,6 +97,7 @@ mod tests {
             output_every: 1,
             gravity: [0.0; 3],
             neighbor_skin: 0.5e-3,
+            family: crate::case::ContactFamily::Liggghts,
             rolling: RollingModel::Cdt,
             domain_lo: [-0.01; 3],
             domain_hi: [0.01; 3],

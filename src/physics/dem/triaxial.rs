@@ -140,6 +140,7 @@ pub fn box_case(case: &TriaxialCase, particles: Vec<Particle>, hi: [f64; 3], sid
         output_every: 1,
         gravity: [0.0; 3],
         neighbor_skin: case.neighbor_skin,
+        family: crate::case::ContactFamily::Liggghts,
         rolling: case.rolling,
         domain_lo: lo,
         domain_hi: dhi,

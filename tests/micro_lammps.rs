@@ -1,0 +1,119 @@
+//! The LAMMPS-family micro suite (cases/suites/micro-lammps.toml): every case, native
+//! (LAMMPS' granular sub-models in Rust) vs live LAMMPS 22 Jul 2025, at every output
+//! step within the case's tolerances, and every case's negative control biting. Runs
+//! when LAMMPS 2025 is found (GRANVAL_LMP3D, else /opt/granval-lammps/bin/lmp); fails
+//! when GRANVAL_REQUIRE_LIVE=1 and it is not; says SKIPPED otherwise (no records yet).
+
+mod common;
+
+use granval::case::AnyCase;
+use granval::compare::Status;
+use granval::experiments::micro::Micro;
+use granval::experiments::runner;
+
+fn cases() -> Vec<granval::case::Case> {
+    granval::experiments::suite::load(&common::root().join("cases"), "micro-lammps")
+        .expect("micro-lammps suite")
+        .cases
+        .iter()
+        .map(
+            |e| match AnyCase::load(&e.path).unwrap_or_else(|e| panic!("{e}")) {
+                AnyCase::Micro(c) => c,
+                _ => panic!("{}: not a micro case", e.path.display()),
+            },
+        )
+        .collect()
+}
+
+#[test]
+fn every_lammps_micro_case_matches_lammps_2025() {
+    let test = "micro-lammps live";
+    let live = granval::engines::lammps3d::probe_reference()
+        .unwrap_or_else(|e| panic!("[{test}] {e:#}"))
+        .is_some();
+    if !live {
+        assert!(
+            !common::require_live(),
+            "[{test}] GRANVAL_REQUIRE_LIVE=1 but LAMMPS (22 Jul 2025) is not installed \
+             (GRANVAL_LMP3D or /opt/granval-lammps/bin/lmp)"
+        );
+        common::engineless(
+            test,
+            "SKIPPED: LAMMPS (22 Jul 2025) is not installed; the LAMMPS-family micro cases were not compared",
+        );
+        return;
+    }
+    eprintln!("[{test}] reference: LIVE LAMMPS (22 Jul 2025)");
+    let cases = cases();
+    assert!(
+        cases.len() >= 8,
+        "expected >= 8 cases, found {}",
+        cases.len()
+    );
+    let mut failures = Vec::new();
+    for case in cases {
+        assert!(case.lammps().is_some(), "{}: not LAMMPS family", case.name);
+        let out = tempfile::tempdir().unwrap();
+        let name = case.name.clone();
+        let o = runner::compare(&Micro { case }, &common::options(), out.path());
+        assert!(o.run.is_some(), "{name}: {:?}", o.checks);
+        let mut controls = 0;
+        for c in &o.checks {
+            eprintln!(
+                "  {:<56} {:>10.3e} (tol {:.0e}) {:?}",
+                c.name, c.value, c.tolerance, c.status
+            );
+            controls += usize::from(c.name.contains("negative control"));
+            if c.status != Status::Pass {
+                failures.push(format!(
+                    "{} = {:e} {:?} ({})",
+                    c.name, c.value, c.status, c.detail
+                ));
+            }
+            // The suite's promise: round-off agreement, far inside the 1e-6 gates.
+            if ["position", "velocity", "angular velocity"]
+                .iter()
+                .any(|g| c.name.ends_with(&format!(": {g}")))
+                && c.value > 1e-10
+            {
+                failures.push(format!("{}: {:e} > 1e-10", c.name, c.value));
+            }
+        }
+        assert!(controls >= 1, "{name}: no negative control ran");
+    }
+    assert!(
+        failures.is_empty(),
+        "LAMMPS-family micro comparison failed:\n{}",
+        failures.join("\n")
+    );
+}
+
+/// Bad family values are refused with file, field, value and reason.
+#[test]
+fn a_bad_family_is_refused_plainly() {
+    let path = common::root().join("cases/micro-lammps/head-on-e09.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    for (from, to, field) in [
+        (
+            "family = \"lammps\"",
+            "family = \"lammps2\"",
+            "models.family",
+        ),
+        (
+            "normal = \"hertz/material\"",
+            "normal = \"hertz\"",
+            "models.normal",
+        ),
+        (
+            "tangential_damping = 1.0",
+            "tangential_damping = -1.0",
+            "models.tangential_damping",
+        ),
+    ] {
+        let bad = text.replace(from, to);
+        let e = granval::case::Case::from_toml_str(&bad, &path)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(field) && e.contains("head-on-e09.toml"), "{e}");
+    }
+}
