@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 /// triaxial records the fingerprint is that of the engine input; an impact2d seal holds
 /// the scene's hash, and its input's fingerprint is the one its provenance names.
 fn keys_from_seal(dir: &Path, kind: &str) -> Vec<reference::UnitKey> {
-    use granval::engines::{lammps, liggghts};
+    use granval::engines::{lammps, lammps3d, liggghts};
     let seal: reference::Seal =
         serde_json::from_str(&std::fs::read_to_string(dir.join(reference::SEAL_FILE)).unwrap())
             .unwrap();
@@ -25,10 +25,16 @@ fn keys_from_seal(dir: &Path, kind: &str) -> Vec<reference::UnitKey> {
         .map(|(name, u)| {
             let has = |f: &str| u.files.contains_key(f);
             let input: Vec<&'static str> = match kind {
-                "micro" => [liggghts::DECK_FILE, "data.granval"]
-                    .into_iter()
-                    .filter(|f| has(f))
-                    .collect(),
+                // LIGGGHTS' deck and data file, or LAMMPS 2025's (LAMMPS-family cases)
+                "micro" => [
+                    liggghts::DECK_FILE,
+                    "data.granval",
+                    lammps3d::DECK_FILE,
+                    lammps3d::DATA_FILE,
+                ]
+                .into_iter()
+                .filter(|f| has(f))
+                .collect(),
                 "penetration" => {
                     use liggghts::penetration as lp;
                     let grains = if has(lp::DATA_FILE) {
