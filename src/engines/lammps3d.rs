@@ -414,6 +414,52 @@ pub fn micro(lmp: &Lammps3d, case: &Case, dir: &Path) -> Result<Provenance> {
     })
 }
 
+/// The provenance of a run made by hand in `dir` (a `granval deck` directory): the deck
+/// and data file there are the case's as LAMMPS reads them, no `ERROR` in its output,
+/// the log ends with `Total wall time` under LAMMPS 22 Jul 2025, and the dump holds
+/// every frame of every particle ([`micro`] checks the same after its own runs).
+pub fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
+    for (name, text) in micro_inputs(case)? {
+        deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
+    }
+    let tr = Transcript::read(TRANSCRIPT, dir);
+    if tr.log.is_empty() {
+        bail!(
+            "{}: no {LOG_FILE}: LAMMPS did not run here (run `lmp -in {DECK_FILE} -log {LOG_FILE}` in it first)",
+            dir.display()
+        );
+    }
+    if !tr.errors.is_empty() {
+        bail!(
+            "{}: ERROR in the LAMMPS output: {}",
+            dir.display(),
+            tr.errors.join(" | ")
+        );
+    }
+    if !tr.log.contains("Total wall time") {
+        bail!(
+            "{}: {LOG_FILE} does not end with `Total wall time`: LAMMPS stopped early (or is still running)",
+            dir.display()
+        );
+    }
+    let version = tr.version(VERSION_PREFIX);
+    check_banner(&version).map_err(|why| anyhow::anyhow!("{}: LAMMPS {why}", dir.display()))?;
+    check_dump(case, &dir.join(DUMP_FILE))?;
+    let mut notes = vec![format!("run directory: {} (run by hand)", dir.display())];
+    notes.extend(tr.warnings());
+    Ok(Provenance {
+        engine: EngineKind::Lammps,
+        version,
+        command: "run outside granval".into(),
+        input_hash: micro_input_hash(case)?,
+        date: now_utc(),
+        wall_time_s: f64::NAN,
+        threads: 1,
+        case_file: case.source.display().to_string(),
+        notes,
+    })
+}
+
 /// Every expected frame (step 0 and every output_every-th), each with every particle.
 fn check_dump(case: &Case, path: &Path) -> Result<()> {
     let expected = case.n_steps / case.output_every + 1;

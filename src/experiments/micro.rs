@@ -390,10 +390,11 @@ impl Experiment for Micro {
 
     fn read_run_dir(&self, _unit: &(), dir: &Path) -> Result<MicroRun> {
         if self.case.lammps().is_some() {
-            bail!(
-                "{}: reading a LAMMPS 2025 run made by hand is not supported yet; let granval run it",
-                dir.display()
-            );
+            let provenance = lammps3d::micro_finished(&self.case, dir)?;
+            return Ok(MicroRun {
+                frames: FrameFile::Dump(dir.join(lammps3d::DUMP_FILE)),
+                provenance,
+            });
         }
         let provenance = liggghts::micro_finished(&self.case, dir)?;
         Ok(MicroRun {
