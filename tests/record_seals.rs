@@ -123,8 +123,8 @@ fn every_record_verifies_with_its_engine_input_and_provenance() {
     assert!(checked >= 50, "only {checked} records verified");
 }
 
-/// Whether every unit of the record at `root` holds the bed its reference run started
-/// from (only such records are made lean: `granval reference lean`).
+/// Whether the record at `root` holds the beds its reference runs started from (only
+/// such records leave data files out: `granval reference lean`).
 fn holds_its_beds(root: &Path) -> bool {
     let seal: reference::Seal =
         serde_json::from_str(&std::fs::read_to_string(root.join(reference::SEAL_FILE)).unwrap())
