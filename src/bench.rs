@@ -48,10 +48,18 @@ fn pool(threads: usize) -> Result<rayon::ThreadPool> {
         .build()?)
 }
 
-/// Wall time of `steps` steps from `case`, and the engine's bytes per particle then.
-fn time_native(case: &Case, steps: u64, threads: usize) -> Result<(f64, f64)> {
+/// Wall time of `steps` steps from `case` (set-up excluded), and the engine's bytes per
+/// particle then; `sort`: with the spatial sorting `bench --scaling` measures
+/// (off in the engine by default).
+fn time_native(case: &Case, steps: u64, threads: usize, sort: bool) -> Result<(f64, f64)> {
     pool(threads)?.install(|| -> Result<(f64, f64)> {
         let mut sim = Simulation::from_case_perturbed(case, Perturbation::default());
+        if sort {
+            sim.set_reorder(
+                crate::physics::dem::reorder::DEFAULT_EVERY,
+                crate::physics::dem::reorder::DEFAULT_MIN_PARTICLES,
+            );
+        }
         sim.setup()?;
         let t = Instant::now();
         for _ in 0..steps {
@@ -240,10 +248,10 @@ pub fn measure_packing(case: &Case, steps: u64, reps: usize) -> Result<BenchResu
         liggghts_bytes: None,
     };
     for _ in 0..reps {
-        let (t, bytes) = time_native(&case, steps, 1)?;
+        let (t, bytes) = time_native(&case, steps, 1, false)?;
         r.native_1.push(t);
         r.native_bytes = bytes;
-        r.native_2.push(time_native(&case, steps, 2)?.0);
+        r.native_2.push(time_native(&case, steps, 2, false)?.0);
         if let Some(vl) = &mut r.liggghts_1 {
             let dir = tempfile::tempdir()?;
             liggghts::micro(&Liggghts::default(), &case, dir.path())

@@ -7,23 +7,12 @@
 
 mod common;
 
-use granval::case::AnyCase;
 use granval::compare::Status;
 use granval::experiments::micro::Micro;
 use granval::experiments::runner;
 
 fn cases() -> Vec<granval::case::Case> {
-    granval::experiments::suite::load(&common::root().join("cases"), "micro-lammps")
-        .expect("micro-lammps suite")
-        .cases
-        .iter()
-        .map(
-            |e| match AnyCase::load(&e.path).unwrap_or_else(|e| panic!("{e}")) {
-                AnyCase::Micro(c) => c,
-                _ => panic!("{}: not a micro case", e.path.display()),
-            },
-        )
-        .collect()
+    common::micro_suite_cases("micro-lammps")
 }
 
 #[test]

@@ -9,10 +9,9 @@
 //! a silently different packing. Steps per N keep the particle-steps per timing about
 //! equal, so the sweep runs in minutes.
 
-use super::{best, fmt_times, liggghts_memory_mb, loop_time, pool, round_ratios};
-use crate::case::{Case, Perturbation};
+use super::{best, fmt_times, liggghts_memory_mb, loop_time, pool, round_ratios, time_native};
+use crate::case::Case;
 use crate::engines::liggghts::{self, Liggghts};
-use crate::physics::dem::Simulation;
 use crate::rundata::provenance::{EngineKind, Sha256};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
@@ -165,26 +164,6 @@ pub struct ScalingRow {
     pub unsorted_bytes: f64,
     pub liggghts_bytes_1: Option<f64>,
     pub liggghts_bytes_2: Option<f64>,
-}
-
-/// Wall time of `steps` steps (set-up excluded) and bytes per particle.
-fn time_native(case: &Case, steps: u64, threads: usize, sort: bool) -> Result<(f64, f64)> {
-    pool(threads)?.install(|| -> Result<(f64, f64)> {
-        let mut sim = Simulation::from_case_perturbed(case, Perturbation::default());
-        if sort {
-            sim.set_reorder(
-                crate::physics::dem::reorder::DEFAULT_EVERY,
-                crate::physics::dem::reorder::DEFAULT_MIN_PARTICLES,
-            );
-        }
-        sim.setup()?;
-        let t = Instant::now();
-        for _ in 0..steps {
-            sim.step()?;
-        }
-        let el = t.elapsed().as_secs_f64();
-        Ok((el, sim.memory_bytes() as f64 / sim.x.len() as f64))
-    })
 }
 
 fn time_liggghts(case: &Case, procs: usize) -> Result<(f64, Option<f64>)> {

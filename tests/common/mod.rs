@@ -17,8 +17,13 @@ pub fn load(rel: &str) -> Case {
 }
 
 pub fn micro_cases() -> Vec<Case> {
-    granval::experiments::suite::load(&root().join("cases"), "micro")
-        .expect("micro suite")
+    micro_suite_cases("micro")
+}
+
+/// The cases of a suite of micro cases (`micro`, `micro-lammps`).
+pub fn micro_suite_cases(suite: &str) -> Vec<Case> {
+    granval::experiments::suite::load(&root().join("cases"), suite)
+        .unwrap_or_else(|e| panic!("{suite} suite: {e:#}"))
         .cases
         .iter()
         .map(
