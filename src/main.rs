@@ -243,6 +243,12 @@ enum Cmd {
         #[command(subcommand)]
         cmd: RefCmd,
     },
+    /// The release suite's status table (docs/release.md, "Status of every claim"),
+    /// generated from the reports that judged its cases.
+    Release {
+        #[command(subcommand)]
+        cmd: ReleaseCmd,
+    },
     /// Throughput of the native engine vs LIGGGHTS on the same dense settled packing
     /// (native 1 thread vs LIGGGHTS 1 process, native 2 threads vs 1 thread), or with
     /// `--penetration` on bed 0 of a penetration case (native 2 threads vs LIGGGHTS np 2),
@@ -376,6 +382,29 @@ struct EngineLimits {
     /// DURATION. Default: a tenth of the timeout, at least 10 min.
     #[arg(long, value_name = "DURATION", value_parser = granval::engines::process::parse_duration)]
     engine_stall: Option<std::time::Duration>,
+}
+
+#[derive(Subcommand)]
+enum ReleaseCmd {
+    /// Keep what the report in each REPORT_DIR (of `check --suite release`) said of
+    /// each release case and claim across cases it judged: one digest per case and
+    /// claim in docs/data/release/digests/, replacing the previous one.
+    Digest {
+        #[arg(required = true)]
+        report_dirs: Vec<PathBuf>,
+        /// The repository (its cases/, docs/).
+        #[arg(long, default_value = ".")]
+        repo: PathBuf,
+    },
+    /// Write the status table into docs/release.md from the digests and
+    /// docs/data/release/status-rows.toml; with `--check`, write nothing and exit 1
+    /// when the committed table differs from the generated one.
+    Table {
+        #[arg(long)]
+        check: bool,
+        #[arg(long, default_value = ".")]
+        repo: PathBuf,
+    },
 }
 
 #[derive(Subcommand)]
@@ -1171,6 +1200,7 @@ fn real_main() -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Status { dir, not_done } => status(&dir, not_done.as_deref()),
+        Cmd::Release { cmd } => release(cmd),
         Cmd::Validate { case, allow_large } => {
             let c = load(&case)?;
             let (kind, engine) = match &c {
@@ -1522,6 +1552,51 @@ fn real_main() -> Result<ExitCode> {
                 bail!("give --phi DEG, --k VALUE or --table");
             }
             Ok(ExitCode::SUCCESS)
+        }
+    }
+}
+
+/// `granval release digest|table` (docs/release.md, "Status of every claim").
+fn release(cmd: ReleaseCmd) -> Result<ExitCode> {
+    use granval::experiments::release_status as rs;
+    match cmd {
+        ReleaseCmd::Digest { report_dirs, repo } => {
+            let rules = rs::CurrentRules::read(&repo, "release")?;
+            let mut all = Vec::new();
+            for dir in &report_dirs {
+                all.extend(rs::digests_of_report(dir, &rules)?);
+            }
+            for p in rs::write_digests(&all, &repo.join(rs::DIGEST_DIR))? {
+                outln!("wrote {}", p.display());
+            }
+            outln!("now run `granval release table` to bring docs/release.md up to date");
+            Ok(ExitCode::SUCCESS)
+        }
+        ReleaseCmd::Table { check, repo } => {
+            let section = rs::generate(&repo)?;
+            let doc_path = repo.join(rs::DOC_FILE);
+            let doc = granval::rundata::fsio::read_to_string(
+                &doc_path,
+                granval::rundata::fsio::MAX_CASE_FILE,
+                "docs/release.md",
+            )?;
+            let new = rs::splice(&doc, &section)?;
+            if check {
+                if new == doc {
+                    outln!("{}: the status table is up to date", doc_path.display());
+                    Ok(ExitCode::SUCCESS)
+                } else {
+                    outln!(
+                        "{}: the status table is stale; run `granval release table`",
+                        doc_path.display()
+                    );
+                    Ok(ExitCode::from(1))
+                }
+            } else {
+                granval::rundata::fsio::write_atomic(&doc_path, new.as_bytes())?;
+                outln!("wrote the status table into {}", doc_path.display());
+                Ok(ExitCode::SUCCESS)
+            }
         }
     }
 }

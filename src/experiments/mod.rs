@@ -17,6 +17,7 @@ pub mod output_dir;
 pub mod penetration;
 pub mod reference;
 pub mod registration;
+pub mod release_status;
 pub mod runner;
 pub mod suite;
 pub mod suite_deck;

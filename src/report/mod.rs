@@ -63,6 +63,13 @@ pub struct Report {
     /// when present, it decides the exit code; the checks' verdicts are unchanged.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gate: Option<GateOutcome>,
+    /// The git commit granval was built from (absent: not built from a git work tree,
+    /// or a report written before the field existed): what judged these runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub granval_commit: Option<String>,
+    /// When the verdicts were decided (UTC, RFC 3339, seconds).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub made_utc: Option<String>,
 }
 
 /// A titled part of `report.md` after the checks.
@@ -92,6 +99,8 @@ impl Report {
             errored,
             sections: Vec::new(),
             gate: None,
+            granval_commit: crate::experiments::penetration::run_seal::git_commit(),
+            made_utc: Some(chrono::Utc::now().to_rfc3339_opts(chrono::SecondsFormat::Secs, true)),
         }
     }
 
