@@ -1236,7 +1236,11 @@ fn per_depth_exponent_checks(
             Check::decided(
                 name,
                 Gate::Claim,
-                format!("mean k over beds - {centre}, must lie within +-{margin}"),
+                format!(
+                    "mean k over beds - {}, must lie within +-{}",
+                    crate::numerics::fmt::number(centre),
+                    crate::numerics::fmt::number(margin)
+                ),
                 &[super::Comparison {
                     what: format!("mean k - {centre} at {y} d"),
                     estimate,

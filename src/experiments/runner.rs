@@ -454,7 +454,12 @@ fn unbitten(
                         k.status.label(),
                         k.detail.chars().take(400).collect::<String>()
                     ),
-                    _ => format!("{} = {:.3e} vs {:.1e}", k.metric, k.value, k.tolerance),
+                    _ => format!(
+                        "{} = {} vs {}",
+                        k.metric,
+                        crate::numerics::fmt::number(k.value),
+                        crate::numerics::fmt::number(k.tolerance)
+                    ),
                 })
                 .collect::<Vec<_>>()
                 .join("; ")
