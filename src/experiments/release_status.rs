@@ -538,16 +538,32 @@ fn summary(checks: &[&Check], d: &Digest) -> String {
             counts.push(format!("{n} {}", s.label()));
         }
     }
-    let exploratory = checks.len() - gated.len();
-    if exploratory > 0 {
-        counts.push(format!("{exploratory} EXPLORATORY"));
+    let exploratory: Vec<&&Check> = checks.iter().filter(|c| c.exploratory.is_some()).collect();
+    if !exploratory.is_empty() {
+        let of: Vec<String> = order
+            .iter()
+            .filter_map(|s| {
+                let n = exploratory.iter().filter(|c| c.status == *s).count();
+                (n > 0).then(|| format!("{n} {}", s.label()))
+            })
+            .collect();
+        counts.push(format!(
+            "{} EXPLORATORY, not gated: {}",
+            exploratory.len(),
+            of.join(", ")
+        ));
     }
     let mut out = counts.join(", ");
+    // The gated checks that did not pass; when every check is EXPLORATORY, its own.
+    let pool = if gated.is_empty() {
+        &exploratory
+    } else {
+        &gated
+    };
     let not_passed: Vec<&&&Check> = order
         .iter()
         .flat_map(|s| {
-            gated
-                .iter()
+            pool.iter()
                 .filter(move |c| c.status == *s && *s != Status::Pass)
         })
         .collect();
