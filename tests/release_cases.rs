@@ -611,3 +611,68 @@ fn every_release_case_has_a_record_of_its_own_version() {
     }
     assert_eq!(recorded, suite.cases.len() - LIVE_ONLY.len());
 }
+
+/// docs/malt-trial.md (c): each triaxial case of a Feng friction material is
+/// `triaxial-table2.toml` with only the registered edits: the grain pair's mu_gg and mu_r,
+/// one confining pressure (4 kPa), three seeds (20261500-02) and a mu_gg control. Checked
+/// on the parsed TOML values of both files, so no other setting (servo, compaction,
+/// shear, analysis, the 1.5 deg gate, the walls) can drift from rule 5's protocol.
+#[test]
+fn malt_trial_triaxial_cases_differ_from_triaxial_table2_only_as_registered() {
+    use granval::case::triaxial::TriaxialCase;
+    let root = common::root();
+    let read = |rel: &str| -> toml::Table {
+        toml::from_str(&std::fs::read_to_string(root.join(rel)).unwrap()).unwrap()
+    };
+    let base = read("cases/release/triaxial-table2.toml");
+    for (name, mu, mur, control) in [
+        ("triaxial-mugg-0", 0.0, 0.01, 0.3),
+        ("triaxial-mugg-1.5", 1.5, 0.01, 0.3),
+        ("triaxial-mur-0.03", 0.5, 0.03, 0.1),
+        ("triaxial-mugg-1.1", 1.1, 0.01, 0.3),
+    ] {
+        let rel = format!("cases/release/{name}.toml");
+        let got = read(&rel);
+        let mut want = base.clone();
+        let case = want["case"].as_table_mut().unwrap();
+        case.insert("name".into(), name.into());
+        case.insert("description".into(), got["case"]["description"].clone());
+        let grain_pair = want["interactions"].as_array_mut().unwrap()[0]
+            .as_table_mut()
+            .unwrap();
+        assert_eq!(grain_pair["types"], toml::Value::from(vec![1, 1]));
+        grain_pair.insert("friction".into(), mu.into());
+        grain_pair.insert("rolling_friction".into(), mur.into());
+        want["sample"].as_table_mut().unwrap().insert(
+            "seeds".into(),
+            vec![20261500_i64, 20261501, 20261502].into(),
+        );
+        want["shear"]
+            .as_table_mut()
+            .unwrap()
+            .insert("confining_pressures".into(), vec![4000.0].into());
+        let control_table: toml::Table = toml::from_str(&format!(
+            "name = \"mu_gg = {control} instead of {mu:?}\"\nmust_fail = [\"phi\"]\n\
+             perturbation = {{ pair_friction = {{ types = [1, 1], value = {control:?} }} }}"
+        ))
+        .unwrap();
+        want.insert(
+            "negative_control".into(),
+            toml::Value::Array(vec![toml::Value::Table(control_table)]),
+        );
+        assert_eq!(
+            got, want,
+            "{rel}: differs from triaxial-table2 beyond the registered edits"
+        );
+        // And it loads as a case of that material and design.
+        let c = TriaxialCase::load(&root.join(&rel)).unwrap_or_else(|e| panic!("{e}"));
+        let k = c.pairs.idx(c.grain_type, c.grain_type);
+        assert_eq!(
+            (c.pairs.friction[k], c.pairs.rolling_friction[k]),
+            (mu, mur)
+        );
+        assert_eq!(c.confining_pressures, vec![4000.0]);
+        assert_eq!(c.seeds, vec![20261500, 20261501, 20261502]);
+        assert_eq!(c.tolerances.phi_abs_deg, 1.5);
+    }
+}
