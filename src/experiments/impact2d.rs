@@ -415,9 +415,11 @@ impl Experiment for Impact2d {
         native: &[ImpactRun],
         reference: &[ImpactRun],
         out: &Path,
-        _opts: &Options,
+        opts: &Options,
     ) -> Verdict {
         let case = &self.case;
+        let control = opts.control.as_deref();
+        let caption = |t: String| crate::report::plot::Caption::new(t).control(control);
         let (tau, d) = (case.scales.tau_c, case.scales.d);
         let mut checks = Vec::new();
         let mut notes: Vec<String> = Vec::new();
@@ -493,7 +495,7 @@ impl Experiment for Impact2d {
             if let Err(e) = crate::report::svg_impact::depth_overlay(
                 &out.join("depth.svg"),
                 &refs,
-                &format!("{}: D(t), native vs LAMMPS", case.name),
+                &caption(format!("{}: D(t), native vs LAMMPS", case.name)),
             ) {
                 notes.push(format!("SVG not written: {e:#}"));
             }
@@ -505,15 +507,15 @@ impl Experiment for Impact2d {
                 if let Err(e) = crate::report::svg_impact::depth_overlay(
                     &out.join("depth-interface.svg"),
                     &refs,
-                    &format!(
+                    &caption(format!(
                         "{}: D_rel(t), depth below the moving interface (K Fig 12)",
                         case.name
-                    ),
+                    )),
                 ) {
                     notes.push(format!("SVG not written: {e:#}"));
                 }
             }
-            if let Err(e) = field_plots(case, &native_obs, &ref_obs, out) {
+            if let Err(e) = field_plots(case, &native_obs, &ref_obs, out, control) {
                 notes.push(format!("field plots not written: {e:#}"));
             }
             let mut depths = serde_json::json!({
@@ -530,7 +532,7 @@ impl Experiment for Impact2d {
                 ) {
                     (Ok(a), Ok(b)) => {
                         depths["ensemble"] = serde_json::json!({"native": a, "lammps": b});
-                        match ensemble_section(case, &a, &b, out) {
+                        match ensemble_section(case, &a, &b, out, control) {
                             Ok(s) => sections.push(s),
                             Err(e) => notes.push(format!("ensemble figure not written: {e:#}")),
                         }
@@ -624,6 +626,7 @@ fn ensemble_section(
     native: &[ValueStats],
     lammps: &[ValueStats],
     out: &Path,
+    control: Option<&str>,
 ) -> Result<crate::report::Section> {
     use crate::report::svg::{SweepSeries, sweep_with_error_bars};
     let x: Vec<f64> = native.iter().map(|s| s.x).collect();
@@ -673,11 +676,12 @@ fn ensemble_section(
     ];
     sweep_with_error_bars(
         &out.join(ENSEMBLE_FIGURE),
-        &format!(
+        &crate::report::plot::Caption::new(format!(
             "{}: final depth, mean of {} seeds +- 1 SE",
             case.name,
             case.seeds.len()
-        ),
+        ))
+        .control(control),
         &x_label,
         "final depth / d",
         &x,
@@ -722,7 +726,10 @@ fn field_plots(
     native: &[VariantObs],
     reference: &[VariantObs],
     out: &Path,
+    control: Option<&str>,
 ) -> Result<()> {
+    use crate::report::palette::Scale;
+    use crate::report::plot::Caption;
     use crate::report::svg_impact::{curves, grain_map};
     let engines = [("native", native), ("LAMMPS", reference)];
     if cmp::has_force_claims(case) {
@@ -747,9 +754,14 @@ fn field_plots(
         curves(
             &out.join("force.svg"),
             &refs,
-            &format!("{}: force on the intruder ({bin} tau_c bins)", case.name),
+            &Caption::new(format!(
+                "{}: force on the intruder ({bin} tau_c bins)",
+                case.name
+            ))
+            .control(control),
             "t / tau_c (after release)",
             "F_y / m g",
+            "m g",
         )?;
     }
     let Some(first) = native.first().and_then(|o| o.fields.as_ref()) else {
@@ -784,12 +796,14 @@ fn field_plots(
             curves(
                 &out.join(format!("b0-{net}-t{t}.svg")),
                 &refs,
-                &format!(
+                &Caption::new(format!(
                     "{}: B0 of the {net} force network, t = {t} tau_c",
                     case.name
-                ),
+                ))
+                .control(control),
                 "force threshold / mean normal force per grain",
                 "B0 / N",
+                "fraction of N",
             )?;
         }
     }
@@ -829,11 +843,16 @@ fn field_plots(
                         e.to_lowercase()
                     )),
                     &pts,
-                    range,
-                    &format!(
-                        "{} {e} {}: {what} at t = {} tau_c, colour {:.2} (blue) to {:.2} (red)",
-                        case.name, o.label, f.affine_t, range.0, range.1
-                    ),
+                    Scale::Sequential {
+                        lo: range.0,
+                        hi: range.1,
+                    },
+                    what,
+                    &Caption::new(format!(
+                        "{} {e} {}: {what} at t = {} tau_c",
+                        case.name, o.label, f.affine_t
+                    ))
+                    .control(control),
                 )?;
             }
         }
@@ -1479,7 +1498,7 @@ mod tests {
             ]
         };
         let dir = tempfile::tempdir().unwrap();
-        let s = ensemble_section(&case, &stats(0.0), &stats(0.1), dir.path()).unwrap();
+        let s = ensemble_section(&case, &stats(0.0), &stats(0.1), dir.path(), None).unwrap();
         assert_eq!(s.figures, [ENSEMBLE_FIGURE]);
         let svg = std::fs::read_to_string(dir.path().join(ENSEMBLE_FIGURE)).unwrap();
         assert!(

@@ -97,6 +97,10 @@ pub struct Options {
     pub engine_timeout: Option<std::time::Duration>,
     /// `--engine-stall`: how long a reference engine may write nothing; `None`: derived.
     pub engine_stall: Option<std::time::Duration>,
+    /// Set by the runner, not the command line: the perturbation in words while a
+    /// negative control's runs are judged, so its figures are titled and drawn as a
+    /// control (`report::plot::Caption::control`), never as an engine comparison.
+    pub control: Option<String>,
 }
 
 impl Default for Options {
@@ -121,6 +125,7 @@ impl Default for Options {
             recorded_inputs: None,
             engine_timeout: None,
             engine_stall: None,
+            control: None,
         }
     }
 }

@@ -370,7 +370,11 @@ fn negative_control<E: Experiment>(
             Err(e) => return Check::error_in(label, Gate::NegativeControl, format!("{e:#}")),
         }
     }
-    let verdict = exp.checks(units, &natives, refs, dir, opts);
+    let opts = Options {
+        control: Some(c.perturbation.to_string()),
+        ..opts.clone()
+    };
+    let verdict = exp.checks(units, &natives, refs, dir, &opts);
     control_check(label, c, &verdict, failed_here)
 }
 

@@ -742,7 +742,7 @@ fn claim_figures(
     fdr_overlay(
         &out.join(&fdr_rel),
         &series,
-        &format!("{}: ensemble-mean FDRs", c.name),
+        &format!("{}: ensemble-mean FDRs", c.name).as_str().into(),
     )?;
     let x: Vec<f64> = if c.x.is_empty() {
         (0..found.len()).map(|i| i as f64).collect()
@@ -776,7 +776,7 @@ fn claim_figures(
         .collect();
     k_phi_sweep(
         &out.join(&k_rel),
-        &format!("{}: K_phi", c.name),
+        &format!("{}: K_phi", c.name).as_str().into(),
         &c.x_label,
         &x,
         &sweep,
@@ -1088,7 +1088,13 @@ fn draw_malt_verdict(
             half_width_deg: a.se_deg,
         })
         .collect();
-    k_phi_plane(path, &curve, &kp, &bands)
+    k_phi_plane(
+        path,
+        &"MALT across scales: K_phi vs phi (eq 10)".into(),
+        &curve,
+        &kp,
+        &bands,
+    )
 }
 
 #[cfg(test)]

@@ -439,7 +439,7 @@ impl Experiment for Triaxial {
         native: &[TriaxialRun],
         reference: &[TriaxialRun],
         out: &Path,
-        _opts: &Options,
+        opts: &Options,
     ) -> Verdict {
         let c = &self.case;
         let w = self.windows();
@@ -467,7 +467,12 @@ impl Experiment for Triaxial {
                     notes.push(format!("series_{name}_{label}.csv not written: {e:#}"));
                 }
                 curves.push((
-                    label.to_string(),
+                    if label == "native" {
+                        "native"
+                    } else {
+                        "LIGGGHTS"
+                    }
+                    .to_string(),
                     pts.iter().map(|p| (p.eps_a, at::phi_deg(p.s))).collect(),
                 ));
                 match at::observables(&pts, &w) {
@@ -525,7 +530,8 @@ impl Experiment for Triaxial {
                 && let Err(e) = crate::report::svg_triaxial::phi_mob_overlay(
                     &out.join(format!("phi_mob_{name}.svg")),
                     &series,
-                    &format!("{}: phi_mob, {name}", c.name),
+                    &crate::report::plot::Caption::new(format!("{}: phi_mob, {name}", c.name))
+                        .control(opts.control.as_deref()),
                 )
             {
                 notes.push(format!("phi_mob_{name}.svg not written: {e:#}"));

@@ -2,12 +2,13 @@
 //! velocity in the (r, z) plane (the paper's Fig. 5) with the incipient-yield region and
 //! the stagnant zone outlined, and the K-phi plane (Fig. 7) with error bars.
 
-use super::plot::{FONT, err, legend};
+use super::palette::{EMPTY, EMPTY_HATCH, Scale, Source};
+use super::plot::{Area, Caption, Entry, FONT, Key, Shape, canvas, draw_key, draw_marker, err};
 use anyhow::{Result, ensure};
 use plotters::prelude::*;
 use std::path::Path;
 
-const SIZE: (u32, u32) = (820, 760);
+const SIZE: (u32, u32) = (720, 700);
 
 /// A cell field on the (r, z) plane, r fastest, cell size `spacing`, in units the caller
 /// chooses for the axes (we use intruder radii).
@@ -17,31 +18,67 @@ pub struct RzMap<'a> {
     pub r0: f64,
     pub z0: f64,
     pub spacing: f64,
-    /// NaN = not shown (masked, no data).
+    /// NaN = no data (masked, empty): drawn grey and hatched, never a scale colour.
     pub values: &'a [f64],
 }
 
-/// Blue (low) to red (high) through white, on [lo, hi].
-pub(super) fn colour(v: f64, lo: f64, hi: f64) -> RGBColor {
-    let t = ((v - lo) / (hi - lo)).clamp(0.0, 1.0);
-    let (r, g, b) = if t < 0.5 {
-        let s = t / 0.5;
-        (40.0 + 215.0 * s, 70.0 + 185.0 * s, 200.0 + 55.0 * s)
-    } else {
-        let s = (t - 0.5) / 0.5;
-        (255.0, 255.0 - 200.0 * s, 255.0 - 215.0 * s)
-    };
-    RGBColor(r as u8, g as u8, b as u8)
+/// The colour bar of `scale` in `area` (its label above it); with `with_empty`, under
+/// it the swatch of cells without data, so the reader never takes them for a value.
+pub fn colour_bar(area: &Area<'_>, label: &str, scale: Scale, with_empty: bool) -> Result<()> {
+    let (lo, hi) = scale.range();
+    let (bar, foot) = area.split_vertically(area.dim_in_pixel().1.saturating_sub(70));
+    let mut cb = ChartBuilder::on(&bar)
+        .margin_top(30)
+        .margin_bottom(10)
+        .margin_right(10)
+        .margin_left(8)
+        .y_label_area_size(55)
+        .caption(label, (FONT, 13))
+        .build_cartesian_2d(0.0..1.0, lo..hi)
+        .map_err(err("colour bar"))?;
+    cb.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .label_style((FONT, 12))
+        .draw()
+        .map_err(err("colour bar axis"))?;
+    let steps = 64;
+    cb.draw_series((0..steps).map(|s| {
+        let a = lo + (hi - lo) * s as f64 / steps as f64;
+        let b = lo + (hi - lo) * (s + 1) as f64 / steps as f64;
+        Rectangle::new([(0.0, a), (1.0, b)], scale.colour(0.5 * (a + b)).filled())
+    }))
+    .map_err(err("colour bar"))?;
+    foot.draw(&Text::new(
+        scale.describe(),
+        (8, 4),
+        (FONT, 12).into_font().color(&BLACK),
+    ))
+    .map_err(err("colour bar"))?;
+    if with_empty {
+        draw_key(&foot, Key::Empty, 8, 34)?;
+        for (i, t) in ["no data", "(empty or masked)"].iter().enumerate() {
+            foot.draw(&Text::new(
+                *t,
+                (44, 22 + 15 * i as i32),
+                (FONT, 12).into_font().color(&BLACK),
+            ))
+            .map_err(err("colour bar"))?;
+        }
+    }
+    Ok(())
 }
 
 /// Colour map with outlines: each outline is a cell set whose boundary edges are drawn;
-/// `intruder` = (radius, bottom z) in axis units draws the intruder's section.
+/// `intruder` = (radius, bottom z) in axis units draws the intruder's section. Cells
+/// without a value are grey and hatched, and the colour bar says so.
+#[allow(clippy::too_many_arguments)]
 pub fn rz_map(
     path: &Path,
-    title: &str,
+    caption: &Caption,
     value_label: &str,
     map: &RzMap<'_>,
-    range: (f64, f64),
+    scale: Scale,
     outlines: &[(&str, &[bool], RGBColor)],
     intruder: Option<(f64, f64)>,
 ) -> Result<()> {
@@ -60,18 +97,41 @@ pub fn rz_map(
             map.values.len()
         );
     }
-    let (lo, hi) = range;
+    let (lo, hi) = scale.range();
     ensure!(
         lo < hi && lo.is_finite() && hi.is_finite(),
-        "rz_map: bad colour range {range:?}"
+        "rz_map: bad colour range {:?}",
+        (lo, hi)
     );
+    let mut entries: Vec<Entry> = outlines
+        .iter()
+        .map(|(n, _, c)| {
+            Entry::new(
+                *n,
+                Key::Line {
+                    colour: *c,
+                    dashed: false,
+                    width: 3,
+                },
+            )
+        })
+        .collect();
+    if intruder.is_some() {
+        entries.push(Entry::new(
+            "intruder",
+            Key::Patch {
+                colour: BLACK,
+                opacity: 0.25,
+            },
+        ));
+    }
     let r1 = map.r0 + map.nr as f64 * map.spacing;
     let z1 = map.z0 + map.nz as f64 * map.spacing;
-    let root = SVGBackend::new(path, SIZE).into_drawing_area();
-    root.fill(&WHITE).map_err(err("fill"))?;
-    let (main, bar) = root.split_horizontally(SIZE.0 - 110);
+    let (root, main, side) = canvas(path, SIZE, caption, &entries)?;
+    let rows = 30 + 19 * entries.len() as u32;
+    let (_, bar) = side.split_vertically(rows);
+    colour_bar(&bar, value_label, scale, true)?;
     let mut chart = ChartBuilder::on(&main)
-        .caption(title, (FONT, 20))
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
@@ -94,16 +154,25 @@ pub fn rz_map(
         [(x, y), (x + map.spacing, y + map.spacing)]
     };
     let mut rects = Vec::new();
+    let mut hatch = Vec::new();
     for k in 0..map.nz {
         for i in 0..map.nr {
             let v = map.values[k * map.nr + i];
+            let c = cell(i, k);
             if v.is_finite() {
-                rects.push(Rectangle::new(cell(i, k), colour(v, lo, hi).filled()));
+                rects.push(Rectangle::new(c, scale.colour(v).filled()));
+            } else {
+                rects.push(Rectangle::new(c, EMPTY.filled()));
+                hatch.push(PathElement::new(
+                    vec![(c[0].0, c[0].1), (c[1].0, c[1].1)],
+                    EMPTY_HATCH.stroke_width(1),
+                ));
             }
         }
     }
     chart.draw_series(rects).map_err(err("cells"))?;
-    for (name, cells, col) in outlines {
+    chart.draw_series(hatch).map_err(err("empty cells"))?;
+    for (_, cells, col) in outlines {
         let mut segs: Vec<Vec<(f64, f64)>> = Vec::new();
         let inside = |i: isize, k: isize| {
             i >= 0
@@ -132,19 +201,10 @@ pub fn rz_map(
                 }
             }
         }
-        let style = col.stroke_width(2);
-        let label = name.to_string();
-        let mut first = true;
-        for s in segs {
-            let a = chart
-                .draw_series(std::iter::once(PathElement::new(s, style)))
-                .map_err(err("outline"))?;
-            if first {
-                a.label(label.clone())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
-                first = false;
-            }
-        }
+        let style = col.stroke_width(3);
+        chart
+            .draw_series(segs.into_iter().map(|s| PathElement::new(s, style)))
+            .map_err(err("outline"))?;
     }
     if let Some((rad, zb)) = intruder {
         chart
@@ -152,35 +212,8 @@ pub fn rz_map(
                 [(map.r0, zb), (rad, z1)],
                 BLACK.mix(0.25).filled(),
             )))
-            .map_err(err("intruder"))?
-            .label("intruder")
-            .legend(|(x, y)| {
-                Rectangle::new([(x, y - 5), (x + 20, y + 5)], BLACK.mix(0.25).filled())
-            });
+            .map_err(err("intruder"))?;
     }
-    legend(&mut chart, SeriesLabelPosition::LowerRight, 13)?;
-    // Colour bar.
-    let mut cb = ChartBuilder::on(&bar)
-        .margin_top(60)
-        .margin_bottom(57)
-        .margin_right(10)
-        .y_label_area_size(60)
-        .caption(value_label, (FONT, 13))
-        .build_cartesian_2d(0.0..1.0, lo..hi)
-        .map_err(err("colour bar"))?;
-    cb.configure_mesh()
-        .disable_mesh()
-        .disable_x_axis()
-        .label_style((FONT, 12))
-        .draw()
-        .map_err(err("colour bar axis"))?;
-    let steps = 100;
-    cb.draw_series((0..steps).map(|s| {
-        let a = lo + (hi - lo) * s as f64 / steps as f64;
-        let b = lo + (hi - lo) * (s + 1) as f64 / steps as f64;
-        Rectangle::new([(0.0, a), (1.0, b)], colour(0.5 * (a + b), lo, hi).filled())
-    }))
-    .map_err(err("colour bar"))?;
     root.present().map_err(err("write svg"))?;
     Ok(())
 }
@@ -203,9 +236,12 @@ pub struct PhiBand<'a> {
 }
 
 /// The phi - K_phi plane with the MALT curve `(phi_deg, K)` on a log K axis, points
-/// with error bars (Fig. 7) and vertical bands of independently measured angles.
+/// with error bars (Fig. 7) and vertical bands of independently measured angles. Each
+/// point and band is its engine's colour (published values black); points of one
+/// case or estimator share a marker shape; a point labelled "reported" is hollow.
 pub fn k_phi_plane(
     path: &Path,
+    caption: &Caption,
     curve: &[(f64, f64)],
     points: &[KPhiPoint<'_>],
     bands: &[PhiBand<'_>],
@@ -226,10 +262,55 @@ pub fn k_phi_plane(
         .chain(pts.iter().map(|p| p.k + p.k_err))
         .fold(1.0, f64::max)
         * 1.3;
-    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
-    root.fill(&WHITE).map_err(err("fill"))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption("MALT: K_phi vs internal friction angle (eq 10)", (FONT, 20))
+    let mut variants: Vec<String> = Vec::new();
+    let styled: Vec<(&KPhiPoint, RGBColor, bool, Shape)> = pts
+        .iter()
+        .map(|p| {
+            let v = super::palette::variant_of(p.label);
+            let i = variants.iter().position(|w| *w == v).unwrap_or_else(|| {
+                variants.push(v);
+                variants.len() - 1
+            });
+            (
+                *p,
+                Source::of_label(p.label).colour(),
+                !p.label.contains("reported"),
+                Shape::nth(i),
+            )
+        })
+        .collect();
+    let mut entries = vec![Entry::new(
+        "MALT, eq 10",
+        Key::Line {
+            colour: BLACK,
+            dashed: false,
+            width: 2,
+        },
+    )];
+    for b in bands {
+        entries.push(Entry::new(
+            format!(
+                "{} ({:.2} +- {:.2} deg)",
+                b.label, b.phi_deg, b.half_width_deg
+            ),
+            Key::Patch {
+                colour: Source::of_label(b.label).colour(),
+                opacity: 0.3,
+            },
+        ));
+    }
+    for (p, c, filled, shape) in &styled {
+        entries.push(Entry::new(
+            format!("{} ({:.2} deg, {:.2})", p.label, p.phi_deg, p.k),
+            Key::Marker {
+                colour: *c,
+                filled: *filled,
+                shape: *shape,
+            },
+        ));
+    }
+    let (root, main, _) = canvas(path, (800, 600), caption, &entries)?;
+    let mut chart = ChartBuilder::on(&main)
         .margin(15)
         .x_label_area_size(50)
         .y_label_area_size(70)
@@ -243,30 +324,20 @@ pub fn k_phi_plane(
         .axis_desc_style((FONT, 16))
         .draw()
         .map_err(err("axes"))?;
-    chart
-        .draw_series(LineSeries::new(curve.to_vec(), BLACK.stroke_width(2)))
-        .map_err(err("curve"))?
-        .label("MALT, eq 10")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-    for (i, b) in bands.iter().enumerate() {
-        let col = Palette99::pick(pts.len() + i + 1).to_rgba();
+    for b in bands {
+        let col = Source::of_label(b.label).colour();
         let w = b.half_width_deg.max(0.05);
         chart
             .draw_series(std::iter::once(Rectangle::new(
                 [(b.phi_deg - w, 0.8), (b.phi_deg + w, k_hi)],
-                col.mix(0.25).filled(),
+                col.mix(0.3).filled(),
             )))
-            .map_err(err("band"))?
-            .label(format!(
-                "{} ({:.2} +- {:.2} deg)",
-                b.label, b.phi_deg, b.half_width_deg
-            ))
-            .legend(move |(x, y)| {
-                Rectangle::new([(x, y - 5), (x + 20, y + 5)], col.mix(0.25).filled())
-            });
+            .map_err(err("band"))?;
     }
-    for (i, p) in pts.iter().enumerate() {
-        let col = Palette99::pick(i + 1).to_rgba();
+    chart
+        .draw_series(LineSeries::new(curve.to_vec(), BLACK.stroke_width(2)))
+        .map_err(err("curve"))?;
+    for (p, col, filled, shape) in &styled {
         let style = col.stroke_width(2);
         let mut bars = Vec::new();
         if p.phi_err > 0.0 {
@@ -282,18 +353,11 @@ pub fn k_phi_plane(
             ));
         }
         chart.draw_series(bars).map_err(err("error bars"))?;
-        let label = format!("{} ({:.2} deg, {:.2})", p.label, p.phi_deg, p.k);
-        chart
-            .draw_series(std::iter::once(Circle::new(
-                (p.phi_deg, p.k),
-                5,
-                col.filled(),
-            )))
-            .map_err(err("points"))?
-            .label(label)
-            .legend(move |(x, y)| Circle::new((x + 10, y), 5, col.filled()));
+        let px = chart.backend_coord(&(p.phi_deg, p.k));
+        let area = chart.plotting_area().strip_coord_spec();
+        let (ox, oy) = area.get_base_pixel();
+        draw_marker(&area, (px.0 - ox, px.1 - oy), 6, *col, *filled, *shape)?;
     }
-    legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
     root.present().map_err(err("write svg"))?;
     Ok(())
 }
@@ -321,23 +385,35 @@ mod tests {
         };
         rz_map(
             &p,
-            "gamma",
+            &"gamma".into(),
             "gamma",
             &map,
-            (0.0, 1.0),
+            Scale::Sequential { lo: 0.0, hi: 1.0 },
             &[("yield", &yield_, RED)],
             Some((1.0, 0.9)),
         )
         .unwrap();
         let svg = std::fs::read_to_string(&p).unwrap();
         assert!(svg.contains("<svg") && svg.contains("yield") && svg.contains("r / R"));
-        assert!(rz_map(&p, "x", "x", &map, (1.0, 0.0), &[], None).is_err());
+        assert!(
+            rz_map(
+                &p,
+                &"x".into(),
+                "x",
+                &map,
+                Scale::Sequential { lo: 1.0, hi: 0.0 },
+                &[],
+                None
+            )
+            .is_err()
+        );
         let curve: Vec<(f64, f64)> = (0..=40)
             .map(|d| (d as f64, (0.08 * d as f64).exp()))
             .collect();
         let q = dir.path().join("k.svg");
         k_phi_plane(
             &q,
+            &"MALT".into(),
             &curve,
             &[KPhiPoint {
                 label: "native",

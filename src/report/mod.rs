@@ -4,8 +4,11 @@
 
 pub mod console;
 pub mod field_svg;
+pub mod gallery;
 pub mod junit;
 pub mod markdown;
+pub mod overlay;
+pub mod palette;
 pub mod plot;
 pub mod progress;
 pub mod stress;

@@ -121,6 +121,8 @@ fn grid3_outputs(
 
 fn svg_maps(dir: &Path, k: usize, f: &SnapshotFields) -> Result<()> {
     use crate::report::field_svg::{RzMap, rz_map};
+    use crate::report::palette::{OTHER, Scale};
+    use crate::report::plot::Caption;
     use plotters::style::RGBColor;
     let (rz, a, m) = (&f.rz, &f.analysis, &f.snap_meta);
     let rr = m.intruder_radius;
@@ -152,24 +154,29 @@ fn svg_maps(dir: &Path, k: usize, f: &SnapshotFields) -> Result<()> {
         }
     }
     let intruder = Some((1.0, (m.intruder_bottom_z - m.surface_z) / rr));
-    let yellow = RGBColor(230, 170, 0);
-    let green = RGBColor(0, 150, 60);
+    // Outlines in colours neither map scale holds: yield black, the stagnant zone
+    // Okabe-Ito reddish purple.
+    let yield_colour = RGBColor(0, 0, 0);
+    let stagnant_colour = OTHER;
     let phi_txt = match &a.phi_basic {
         Ok(p) => format!("phi = {:.2} deg", p.phi_deg),
         Err(_) => "phi undefined".to_string(),
     };
     rz_map(
         &dir.join(format!("gamma_{k:02}.svg")),
-        &format!(
+        &Caption::new(format!(
             "{}: gamma (eq 8, eq 9 stress), h = {:.3}, {phi_txt}",
             m.engine, m.h
-        ),
+        )),
         "gamma",
         &map(rz, m, rr, &g),
-        (0.0, if gmax > 0.0 { gmax } else { 1.0 }),
+        Scale::Sequential {
+            lo: 0.0,
+            hi: if gmax > 0.0 { gmax } else { 1.0 },
+        },
         &[
-            ("yield: gamma >= 0.85 sin phi", &a.yield_basic, yellow),
-            ("stagnant zone", &a.stagnant, green),
+            ("yield: gamma >= 0.85 sin phi", &a.yield_basic, yield_colour),
+            ("stagnant zone", &a.stagnant, stagnant_colour),
         ],
         intruder,
     )?;
@@ -199,11 +206,15 @@ fn svg_maps(dir: &Path, k: usize, f: &SnapshotFields) -> Result<()> {
         .fold(0.1, f64::max);
     rz_map(
         &dir.join(format!("velocity_{k:02}.svg")),
-        &format!("{}: v_z / intruder speed (eq 7), h = {:.3}", m.engine, m.h),
+        &Caption::new(format!(
+            "{}: v_z / intruder speed (eq 7), h = {:.3}",
+            m.engine, m.h
+        )),
         "v_z / U",
         &map(rz, m, rr, &vz),
-        (lo, hi),
-        &[("stagnant zone", &a.stagnant, green)],
+        // Signed, and 0 (at rest) means something: diverging, centred, symmetric.
+        Scale::centred(lo, hi),
+        &[("stagnant zone", &a.stagnant, stagnant_colour)],
         intruder,
     )?;
     Ok(())

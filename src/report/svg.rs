@@ -1,14 +1,15 @@
-//! SVG figures of the penetration observables, drawn with plotters' SVG
-//! backend: FDR overlays (the paper's Figs. 2-3 and 8).
+//! SVG figures of the penetration observables: FDR overlays (the paper's Figs. 2-3 and
+//! 8) with their fits and the difference panel of [`super::overlay`], and a quantity
+//! along a sweep with error bars (K_phi of Table 3, a seed ensemble's final depth).
 //! The K-phi plane of the stress analysis is drawn in `field_svg`.
 
-use super::plot::{FONT, err, legend};
+use super::overlay::{Axes, FitLine, overlay};
+use super::palette::{PAPER, Source};
+use super::plot::{Caption, Entry, FONT, Key, Shape, canvas, err};
 use crate::analysis::fdr::LinearFit;
 use anyhow::{Result, ensure};
 use plotters::prelude::*;
 use std::path::Path;
-
-const SIZE: (u32, u32) = (900, 600);
 
 /// `(lo, hi)` padded by 5% of the span (or by 1 if the span is zero).
 fn padded(lo: f64, hi: f64) -> (f64, f64) {
@@ -31,10 +32,10 @@ fn range<'a>(vals: impl Iterator<Item = &'a f64>, what: &str) -> Result<(f64, f6
 /// One FDR series: label, h, p, optional steady-state fit.
 pub type FdrSeries<'a> = (&'a str, &'a [f64], &'a [f64], Option<&'a LinearFit>);
 
-/// Overlay of FDRs, each as a solid line, and each fit as a thinner dashed
-/// line of the same colour over the fit's own h range (`h_lo..h_hi`),
-/// labelled "<label> fit K_phi = .., R^2 = ..". Axis labels follow eq 5.
-pub fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], title: &str) -> Result<()> {
+/// Overlay of FDRs, each fit a dashed line in its engine's colour over the fit's own h
+/// range (`h_lo..h_hi`), labelled with the fitted law and its values. Axis labels
+/// follow eq 5; the difference panel is p_reference - p_native.
+pub fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], caption: &Caption) -> Result<()> {
     ensure!(!series.is_empty(), "fdr_overlay: no series to plot");
     for (label, h, p, _) in series {
         ensure!(
@@ -44,72 +45,45 @@ pub fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], title: &str) -> Result
             p.len()
         );
     }
-    let (x0, x1) = range(series.iter().flat_map(|s| s.1.iter()), "h")?;
-    let mut ys: Vec<f64> = series.iter().flat_map(|s| s.2.iter().copied()).collect();
-    for (_, _, _, fit) in series {
-        if let Some(f) = fit {
-            ys.extend([f.p(f.h_lo), f.p(f.h_hi)]);
-        }
-    }
-    let (y0, y1) = range(ys.iter(), "p")?;
-    let (x0, x1) = padded(x0, x1);
-    let (y0, y1) = padded(y0, y1);
-
-    let root = SVGBackend::new(path, SIZE).into_drawing_area();
-    root.fill(&WHITE).map_err(err("fill"))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, (FONT, 22))
-        .margin(15)
-        .x_label_area_size(50)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(err("chart layout"))?;
-    chart
-        .configure_mesh()
-        .x_desc("h = depth / R")
-        .y_desc("p = F / (rho_g psi g S R)")
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
-        .draw()
-        .map_err(err("axes"))?;
-
-    for (i, (label, h, p, fit)) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        let pts: Vec<(f64, f64)> = h
-            .iter()
-            .zip(p.iter())
-            .filter(|(a, b)| a.is_finite() && b.is_finite())
-            .map(|(a, b)| (*a, *b))
-            .collect();
-        chart
-            .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-            .map_err(err("series"))?
-            .label(*label)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-        if let Some(f) = fit {
-            let n = 50;
-            let line: Vec<(f64, f64)> = (0..=n)
-                .map(|k| {
-                    let x = f.h_lo + (f.h_hi - f.h_lo) * k as f64 / n as f64;
-                    (x, f.p(x))
-                })
-                .collect();
-            let style = BLACK.mix(0.8).stroke_width(1);
-            chart
-                .draw_series(DashedLineSeries::new(line, 8, 5, style))
-                .map_err(err("fit"))?
-                .label(format!(
-                    "{label} fit: K_phi = {:.2} +- {:.2}, R^2 = {:.4}",
-                    f.k_phi, f.se_k, f.r2
-                ))
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
-        }
-    }
-    legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
-    root.present().map_err(err("write svg"))?;
-    Ok(())
+    let pts: Vec<Vec<(f64, f64)>> = series
+        .iter()
+        .map(|(_, h, p, _)| h.iter().copied().zip(p.iter().copied()).collect())
+        .collect();
+    let lines: Vec<(&str, &[(f64, f64)])> = series
+        .iter()
+        .zip(&pts)
+        .map(|(s, p)| (s.0, p.as_slice()))
+        .collect();
+    let fits: Vec<FitLine> = series
+        .iter()
+        .filter_map(|(label, _, _, fit)| {
+            fit.map(|f| FitLine {
+                label: format!(
+                    "{label} fit p = K_phi h + p0: K_phi = {:.2} +- {:.2}, p0 = {:.2}, R^2 = {:.4}",
+                    f.k_phi, f.se_k, f.p0, f.r2
+                ),
+                source: Source::of_label(label),
+                points: (0..=50)
+                    .map(|k| {
+                        let x = f.h_lo + (f.h_hi - f.h_lo) * k as f64 / 50.0;
+                        (x, f.p(x))
+                    })
+                    .collect(),
+            })
+        })
+        .collect();
+    overlay(
+        path,
+        caption,
+        &Axes {
+            x: "h = depth / R",
+            y: "p = F / (rho_g psi g S R)",
+            unit: "dimensionless p",
+            y_down: false,
+        },
+        &lines,
+        &fits,
+    )
 }
 
 /// One engine's quantity along a sweep (K_phi of Feng et al., a seed ensemble's final
@@ -128,21 +102,22 @@ pub struct SweepSeries<'a> {
 /// bars do not hide each other.
 pub fn k_phi_sweep(
     path: &Path,
-    title: &str,
+    caption: &Caption,
     x_label: &str,
     x: &[f64],
     series: &[SweepSeries<'_>],
     paper: Option<&[f64]>,
 ) -> Result<()> {
-    sweep_with_error_bars(path, title, x_label, "K_phi", x, series, paper)
+    sweep_with_error_bars(path, caption, x_label, "K_phi", x, series, paper)
 }
 
 /// A quantity (`y_label`) against the swept parameter `x`: each series with +- 1 SE bars
 /// and its single beds, and published values where given (`paper`, NaN where none).
-/// Series are offset slightly along x so their bars do not hide each other.
+/// Series are offset slightly along x so their bars do not hide each other. The sweep
+/// is the x axis, so each series is its engine's colour (published values black).
 pub fn sweep_with_error_bars(
     path: &Path,
-    title: &str,
+    caption: &Caption,
     x_label: &str,
     y_label: &str,
     x: &[f64],
@@ -183,10 +158,38 @@ pub fn sweep_with_error_bars(
     let (y0, y1) = range(ys.iter(), y_label)?;
     let (x0, x1) = padded(x0 - dx * series.len() as f64, x1 + dx * series.len() as f64);
     let (y0, y1) = padded(y0.min(0.0), y1);
-    let root = SVGBackend::new(path, SIZE).into_drawing_area();
-    root.fill(&WHITE).map_err(err("fill"))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, (FONT, 20))
+    let mut entries: Vec<Entry> = Vec::new();
+    for s in series {
+        let col = Source::of_label(s.label).colour();
+        entries.push(Entry::new(
+            format!("{} mean +- 1 SE", s.label),
+            Key::Marker {
+                colour: col,
+                filled: true,
+                shape: Shape::Circle,
+            },
+        ));
+        entries.push(Entry::new(
+            format!("{} single beds/seeds", s.label),
+            Key::Marker {
+                colour: col,
+                filled: false,
+                shape: Shape::Circle,
+            },
+        ));
+    }
+    if paper.is_some() {
+        entries.push(Entry::new(
+            "published values",
+            Key::Marker {
+                colour: PAPER,
+                filled: true,
+                shape: Shape::Square,
+            },
+        ));
+    }
+    let (root, main, _) = canvas(path, (800, 600), caption, &entries)?;
+    let mut chart = ChartBuilder::on(&main)
         .margin(15)
         .x_label_area_size(50)
         .y_label_area_size(70)
@@ -201,14 +204,12 @@ pub fn sweep_with_error_bars(
         .draw()
         .map_err(err("axes"))?;
     for (i, s) in series.iter().enumerate() {
-        let col = Palette99::pick(i).to_rgba();
+        let col = Source::of_label(s.label).colour();
         let off = (i as f64 - 0.5 * (series.len() as f64 - 1.0)) * dx;
         let pts: Vec<(f64, f64)> = x.iter().zip(s.k).map(|(a, k)| (a + off, *k)).collect();
         chart
             .draw_series(LineSeries::new(pts.clone(), col.stroke_width(2)))
-            .map_err(err("series"))?
-            .label(format!("{} (+- 1 SE; small: single beds)", s.label))
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2)));
+            .map_err(err("series"))?;
         chart
             .draw_series(pts.iter().map(|p| Circle::new(*p, 5, col.filled())))
             .map_err(err("points"))?;
@@ -241,14 +242,11 @@ pub fn sweep_with_error_bars(
                         (p.0 - dx, p.1 - 0.01 * (y1 - y0)),
                         (p.0 + dx, p.1 + 0.01 * (y1 - y0)),
                     ],
-                    BLACK.filled(),
+                    PAPER.filled(),
                 )
             }))
-            .map_err(err("paper"))?
-            .label("published values")
-            .legend(|(x, y)| Rectangle::new([(x, y - 4), (x + 10, y + 4)], BLACK.filled()));
+            .map_err(err("paper"))?;
     }
-    legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
     root.present().map_err(err("write svg"))?;
     Ok(())
 }
@@ -280,7 +278,7 @@ mod tests {
         fdr_overlay(
             &path,
             &[("native", &h, &pa, Some(&fit)), ("liggghts", &h, &pb, None)],
-            "FDR overlay",
+            &"FDR overlay".into(),
         )
         .unwrap();
         let svg = std::fs::read_to_string(&path).unwrap();
@@ -294,12 +292,12 @@ mod tests {
         ] {
             assert!(svg.contains(needle), "missing {needle}");
         }
-        assert!(fdr_overlay(&path, &[], "x").is_err());
+        assert!(fdr_overlay(&path, &[], &"x".into()).is_err());
         let q = dir.path().join("sweep.svg");
         let beds = vec![vec![22.0, 24.0], vec![23.0, 23.5], vec![22.5, 24.5]];
         k_phi_sweep(
             &q,
-            "Table 3",
+            &"Table 3".into(),
             "v (cm/s)",
             &[0.5, 1.0, 2.0],
             &[SweepSeries {
@@ -315,7 +313,7 @@ mod tests {
         assert!(
             svg.contains("v (cm/s)") && svg.contains("published values") && svg.contains("native")
         );
-        assert!(k_phi_sweep(&q, "t", "x", &[1.0], &[], Some(&[1.0, 2.0])).is_err());
-        assert!(fdr_overlay(&path, &[("bad", &h, &pa[..3], None)], "x").is_err());
+        assert!(k_phi_sweep(&q, &"t".into(), "x", &[1.0], &[], Some(&[1.0, 2.0])).is_err());
+        assert!(fdr_overlay(&path, &[("bad", &h, &pa[..3], None)], &"x".into()).is_err());
     }
 }

@@ -402,6 +402,7 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             .collect::<Vec<_>>(),
         &reference.iter().collect::<Vec<_>>(),
         out_dir,
+        None,
     );
     let runs = |k: usize| -> Result<super::run_seal::BedRuns> {
         let u = &units[k];

@@ -746,6 +746,7 @@ impl Experiment for Penetration {
                 .collect::<Vec<_>>(),
             &reference.iter().map(|r| &r.run).collect::<Vec<_>>(),
             out,
+            opts.control.as_deref(),
         );
         let main_run = native.iter().all(|r| r.snapshots.is_some());
         if self.stress && main_run {
@@ -862,6 +863,7 @@ pub fn fdr_checks(
     native_slow: &[&EngineRun],
     reference: &[&EngineRun],
     out: &Path,
+    control: Option<&str>,
 ) -> (Verdict, crate::compare::sweep::CaseSummary) {
     let name = |w: &str| format!("{}: {w}", case.name);
     let mut notes: Vec<String> = units
@@ -957,7 +959,11 @@ pub fn fdr_checks(
         && let Err(e) = crate::report::svg::fdr_overlay(
             &out.join("fdr.svg"),
             &series,
-            &format!("{}: force-depth relation (mean of beds)", case.name),
+            &crate::report::plot::Caption::new(format!(
+                "{}: force-depth relation (mean of beds)",
+                case.name
+            ))
+            .control(control),
         )
     {
         notes.push(format!("SVG not written: {e:#}"));

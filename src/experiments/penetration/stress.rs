@@ -487,7 +487,18 @@ fn run_checks(
         k: 23.00,
         k_err: 0.15,
     });
-    k_phi_plane(&out.join("k_phi.svg"), &curve, &points, &[])?;
+    k_phi_plane(
+        &out.join("k_phi.svg"),
+        &format!(
+            "{}: K_phi vs internal friction angle (MALT, eq 10)",
+            case.name
+        )
+        .as_str()
+        .into(),
+        &curve,
+        &points,
+        &[],
+    )?;
     malt_points(case, units, (&np1, &nv2), Some((&lp1, &lv2)), v2_gated).write(out)?;
     write_phi_csv(&out.join("phi_snapshots.csv"), &beds)?;
     let analysis_wall_s: f64 = beds.iter().map(|b| b.analysis_wall_s).sum();
