@@ -83,6 +83,9 @@ pub fn difference(
     (out.len() >= 2).then_some((out, Grid::Interpolated))
 }
 
+/// One difference series: its colour, the reference engine, the points, the grid.
+type Diff = (RGBColor, Source, Vec<(f64, f64)>, Grid);
+
 struct Styled<'a> {
     source: Source,
     variant: String,
@@ -145,7 +148,7 @@ pub fn overlay(
         })
         .collect();
     // Difference per variant: the first native line against each reference-engine line.
-    let mut diffs: Vec<(RGBColor, Source, Vec<(f64, f64)>, Grid)> = Vec::new();
+    let mut diffs: Vec<Diff> = Vec::new();
     let mut undrawn: Vec<String> = Vec::new();
     for v in &variants {
         let Some(n) = styled
@@ -326,7 +329,7 @@ fn difference_panel(
     area: &Area<'_>,
     axes: &Axes<'_>,
     (x0, x1): (f64, f64),
-    diffs: &[(RGBColor, Source, Vec<(f64, f64)>, Grid)],
+    diffs: &[Diff],
 ) -> Result<()> {
     let (_, _, mut d0, mut d1) =
         bounds(diffs.iter().flat_map(|d| d.2.iter())).unwrap_or((0.0, 1.0, -1.0, 1.0));
