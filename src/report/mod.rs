@@ -102,7 +102,7 @@ impl Report {
             errored,
             sections: Vec::new(),
             gate: None,
-            granval_commit: crate::experiments::penetration::run_seal::git_commit(),
+            granval_commit: crate::rundata::provenance::git_commit(),
             made_utc: Some(chrono::Utc::now().to_rfc3339_opts(chrono::SecondsFormat::Secs, true)),
         }
     }

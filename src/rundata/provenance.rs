@@ -135,6 +135,14 @@ pub fn read_provenance(path: &Path) -> Result<Provenance> {
         .with_context(|| format!("{}: not a provenance record", path.display()))
 }
 
+/// The git commit this granval was built from, when the build knew it (build.rs): what
+/// computed a run seal or judged a report.
+pub fn git_commit() -> Option<String> {
+    option_env!("GRANVAL_GIT_COMMIT")
+        .filter(|c| !c.is_empty())
+        .map(str::to_string)
+}
+
 pub fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::Digest;
     hex::encode(sha2::Sha256::digest(bytes))

@@ -85,12 +85,7 @@ pub struct BedRuns<'a> {
     pub reference_force: PathBuf,
 }
 
-/// The git commit this granval was built from, when the build knew it.
-pub fn git_commit() -> Option<String> {
-    option_env!("GRANVAL_GIT_COMMIT")
-        .filter(|c| !c.is_empty())
-        .map(str::to_string)
-}
+pub use crate::rundata::provenance::git_commit;
 
 /// `path` relative to `dir` when it lies inside it; otherwise a copy under `dir`
 /// (`bed-K/`[`REFERENCE_FORCE_COPY`]), so a run directory holds all it is computed from.
