@@ -439,6 +439,13 @@ enum RefCmd {
     Lean {
         #[command(flatten)]
         records: Records,
+        /// A record sealed without its beds gets them: each bed is prepared again
+        /// (settled, or from GRANVAL_BED_CACHE) and added to the seal only when the units
+        /// have their sealed fingerprints and the engine's data file written from it is
+        /// byte-identical to the sealed one (the seal names what was added and why); the
+        /// beds go to the bed store once by content and the data files are left out.
+        #[arg(long)]
+        add_beds: bool,
     },
 }
 
@@ -1137,7 +1144,7 @@ fn real_main() -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Reference {
-            cmd: RefCmd::Lean { records },
+            cmd: RefCmd::Lean { records, add_beds },
         } => {
             let (reference_root, paths) = records.resolve()?;
             let opts = Options {
@@ -1147,7 +1154,8 @@ fn real_main() -> Result<ExitCode> {
             };
             for p in &paths {
                 let c = load(p)?;
-                match with_experiment!(c, false, |exp| runner::lean_record(&exp, &opts))? {
+                match with_experiment!(c, false, |exp| runner::lean_record(&exp, &opts, add_beds))?
+                {
                     Some(lines) => {
                         for l in lines {
                             show!("{l}");

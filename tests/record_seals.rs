@@ -435,6 +435,7 @@ fn a_record_without_beds_is_only_compressed_and_still_verifies() {
                     reference_root: reference_root.to_path_buf(),
                     ..Options::default()
                 },
+                false,
             )
         })
     };
@@ -485,4 +486,103 @@ fn a_record_without_beds_is_only_compressed_and_still_verifies() {
     );
     assert!(force.is_file() && !bad_root.join("bed-1/force.txt.zst").exists());
     assert!(!bad_root.join("bed-0/force.txt.zst").exists());
+}
+
+/// `reference lean --add-beds` on the 2D CI record (sealed without its bed): the bed is
+/// prepared again, added to the seal only because the data file written from it is the
+/// sealed one byte for byte, moved to the bed store, and the data file is left out; the
+/// seal keeps its time and every file it held, names the bed in an amendment, and the
+/// record verifies with its bed read from the store. Negative control: a copy whose data
+/// file differs by one byte from the seal is refused before anything is touched (no bed
+/// added, seal unchanged, data file still there).
+#[test]
+fn add_beds_proves_each_bed_by_the_data_file_it_writes() {
+    use granval::experiments::reference::store;
+    use granval::experiments::runner::lean_record;
+    let case = common::root().join("cases/impact2d/ci.toml");
+    let copy = || {
+        let tmp = tempfile::tempdir().unwrap();
+        let dst = tmp.path().join("impact2d/ci");
+        copy_tree(&common::root().join("reference/impact2d/ci"), &dst);
+        (tmp, dst)
+    };
+    let lean = |reference_root: &Path| {
+        let c = AnyCase::load(&case).unwrap_or_else(|e| panic!("{e}"));
+        with_experiment!(c, false, |exp| {
+            lean_record(
+                &exp,
+                &Options {
+                    reference_root: reference_root.to_path_buf(),
+                    ..Options::default()
+                },
+                true,
+            )
+        })
+    };
+    let seal_of = |root: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(root.join("seal.json")).unwrap()).unwrap()
+    };
+
+    let (tmp, root) = copy();
+    let before = seal_of(&root);
+    assert!(before.get("amendments").is_none());
+    let lines = lean(tmp.path()).unwrap().expect("the record exists");
+    let after = seal_of(&root);
+    assert_eq!(after["sealed"], before["sealed"], "the sealed time is kept");
+    let (old, new) = (
+        &before["units"]["base"]["files"],
+        &after["units"]["base"]["files"],
+    );
+    for (file, sha) in old.as_object().unwrap() {
+        assert_eq!(&new[file], sha, "{file}: a sealed file changed");
+    }
+    let beds: Vec<&String> = new
+        .as_object()
+        .unwrap()
+        .keys()
+        .filter(|f| store::is_bed_file(f))
+        .collect();
+    assert_eq!(beds.len(), 1, "{lines:#?}");
+    let added = after["amendments"][0]["added"][0].as_str().unwrap();
+    assert_eq!(added, format!("base/{}", beds[0]));
+    assert!(!root.join("base/data.impact2d").exists(), "{lines:#?}");
+    let sha = new[beds[0]].as_str().unwrap();
+    assert!(
+        tmp.path().join(format!("beds/{sha}.json.zst")).is_file(),
+        "the bed is in the store: {lines:#?}"
+    );
+    let c = AnyCase::load(&case).unwrap_or_else(|e| panic!("{e}"));
+    let report = with_experiment!(c, false, |exp| {
+        granval::experiments::runner::verify_record(
+            &exp,
+            &Options {
+                reference_root: tmp.path().to_path_buf(),
+                ..Options::default()
+            },
+        )
+    })
+    .unwrap_or_else(|e| panic!("{e:#}"))
+    .expect("the record exists");
+    assert!(
+        report.contains("1 bed(s) from the bed store") && report.contains("1 written again"),
+        "{report}"
+    );
+
+    let (bad, bad_root) = copy();
+    let data = bad_root.join("base/data.impact2d");
+    let mut bytes = std::fs::read(&data).unwrap();
+    let last = bytes.len() - 2;
+    bytes[last] = if bytes[last] == b'1' { b'2' } else { b'1' };
+    std::fs::write(&data, &bytes).unwrap();
+    let seal_before = std::fs::read(bad_root.join("seal.json")).unwrap();
+    let err = format!("{:#}", lean(bad.path()).unwrap_err());
+    assert!(
+        err.contains("data.impact2d") && err.contains("no bed is added"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(bad_root.join("seal.json")).unwrap(),
+        seal_before
+    );
+    assert!(data.is_file() && !bad.path().join("beds").exists());
 }

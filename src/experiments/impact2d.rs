@@ -369,12 +369,23 @@ impl Experiment for Impact2d {
             std::fs::copy(run_dir.join(f), rec.join(f))
                 .with_context(|| format!("copying {f} to {}", rec.display()))?;
         }
-        if let Some((name, b)) = &u.bed_record {
+        if let Some(bed) = self.bed_file(u) {
+            let (name, bytes) = bed?;
             let path = rec.join(name);
-            std::fs::write(&path, serde_json::to_vec(&**b)?)
+            std::fs::write(&path, bytes)
                 .with_context(|| format!("cannot write {}", path.display()))?;
         }
         write_series(rec, run, &u.scene)
+    }
+
+    /// The first unit on each bed keeps it (the others find it there by its key).
+    fn bed_file(&self, u: &Unit) -> Option<Result<(String, Vec<u8>)>> {
+        let (name, b) = u.bed_record.as_ref()?;
+        Some(
+            serde_json::to_vec(&**b)
+                .map(|bytes| (name.clone(), bytes))
+                .map_err(Into::into),
+        )
     }
 
     /// LAMMPS' data file is the scene's disks as granval writes them (the scene is the

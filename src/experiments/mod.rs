@@ -373,6 +373,14 @@ pub trait Experiment {
     fn regenerate(&self, _unit: &Self::Unit, _file: &str) -> Option<Result<Vec<u8>>> {
         None
     }
+    /// The bed the unit's reference run starts from, as a record holds it (file name
+    /// `<kind>-bed-<key>.json`, bytes): what [`Experiment::record`] stores with a new
+    /// record and `reference lean --add-beds` adds to an older one. `None`: the unit
+    /// keeps no bed in a record (its bed is in another unit of the record, or the kind
+    /// has none).
+    fn bed_file(&self, _unit: &Self::Unit) -> Option<Result<(String, Vec<u8>)>> {
+        None
+    }
     /// Reads the record of a unit from a verified seal.
     fn read_record(
         &self,

@@ -158,6 +158,30 @@ pub struct Seal {
     pub case_file: Option<String>,
     /// Unit name -> contents, in unit order.
     pub units: BTreeMap<String, SealedUnit>,
+    /// Files added to the seal after it was sealed, each with why it could be
+    /// ([`SealAmendment`]); empty (and absent from the file) for a seal as made.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub amendments: Vec<SealAmendment>,
+}
+
+/// Inputs added to a committed seal: `granval reference lean --add-beds` stores the bed
+/// each unit's reference run started from in a record that was sealed without it. Only
+/// an input granval prepares deterministically may be added, and only once it is proven
+/// to be the one used: the units prepared from it have the sealed fingerprints and every
+/// file granval writes from it (the engine's data file) hashes to its sealed sha256. The
+/// engine's outputs, the sealed time and every file sealed before are never changed.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SealAmendment {
+    /// When it was added (RFC 3339, UTC).
+    pub utc: String,
+    /// The granval commit that added it, when known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub granval_commit: Option<String>,
+    /// `unit/file` of every file added (the file's sha256 is in its unit).
+    pub added: Vec<String>,
+    /// How each added file was proven to be the one the run used.
+    pub proof: String,
 }
 
 /// A seal whose case and files have been checked.
@@ -528,11 +552,17 @@ pub fn write(
         sealed: now_utc(),
         case_file: Some(case_file.display().to_string()),
         units: sealed,
+        amendments: Vec::new(),
     };
-    let path = root.join(SEAL_FILE);
-    std::fs::write(&path, serde_json::to_string_pretty(&seal)? + "\n")
-        .with_context(|| format!("cannot write {}", path.display()))?;
+    write_seal(root, &seal)?;
     Ok(seal)
+}
+
+/// Writes `seal` as the record's `seal.json` (the format [`write`] makes).
+pub fn write_seal(root: &Path, seal: &Seal) -> Result<()> {
+    let path = root.join(SEAL_FILE);
+    std::fs::write(&path, serde_json::to_string_pretty(seal)? + "\n")
+        .with_context(|| format!("cannot write {}", path.display()))
 }
 
 #[cfg(test)]

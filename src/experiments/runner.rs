@@ -10,6 +10,7 @@ use crate::case::NegativeControl;
 use crate::compare::{Check, Gate, Status};
 use crate::engines::children::OwnedDir;
 use crate::report::CaseRun;
+use crate::rundata::provenance::Sha256;
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 
@@ -652,7 +653,14 @@ fn recorded_units<E: Experiment>(
 /// unit directories ([`record_store::BedPlacement::InPlace`]); a record that holds no
 /// bed is only compressed ([`compress_record`]). Returns what was done, or `None` when
 /// the case has no record.
-pub fn lean_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<String>>> {
+///
+/// With `add_beds`, a record that holds no bed gets its beds first ([`add_beds`]) and
+/// is then made lean as a new record is (beds in the store, data files left out).
+pub fn lean_record<E: Experiment>(
+    exp: &E,
+    opts: &Options,
+    add_beds: bool,
+) -> Result<Option<Vec<String>>> {
     let name = exp.name();
     let root = reference::record_root(&opts.reference_root, exp.kind(), exp.name());
     if root.join(reference::SEAL_FILE).exists() {
@@ -667,7 +675,11 @@ pub fn lean_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<
             .values()
             .any(|u| u.files.keys().any(|f| record_store::is_bed_file(f)));
         if !holds_a_bed {
-            return compress_record(exp, &root).map(Some);
+            return if add_beds {
+                add_beds_and_lean(exp, opts)
+            } else {
+                compress_record(exp, &root).map(Some)
+            };
         }
     }
     let Some(RecordedUnits {
@@ -723,6 +735,128 @@ pub fn lean_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<
         "{name}: verified again after ({} of {} unit(s) hold their bed)",
         bedded.len(),
         names.len()
+    ));
+    Ok(Some(lines))
+}
+
+/// `reference lean --add-beds` on a record sealed without its beds: the units are
+/// prepared as a recorded comparison prepares them (beds settled again, deterministic,
+/// or taken from `GRANVAL_BED_CACHE`), and the whole record must verify with them
+/// (each unit's fingerprint, every sealed file). A unit's bed ([`Experiment::bed_file`])
+/// is then added to the seal only when every file granval writes from it that the
+/// record holds (the engine's data file) is written again byte for byte: the bed is
+/// proven to be the one the reference run started from. The seal keeps its time and
+/// every file it sealed, and names what was added and why ([`reference::SealAmendment`]).
+/// The record is then made lean as `refresh` makes a new one (beds to the store, once
+/// by content; data files left out) and verified again, its beds now read from itself.
+/// A record none of whose units can be proven this way is only compressed.
+fn add_beds_and_lean<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<String>>> {
+    let name = exp.name();
+    let Some(RecordedUnits {
+        root,
+        units,
+        names,
+        fingerprints,
+    }) = recorded_units(exp, opts)?
+    else {
+        return Ok(None);
+    };
+    let regenerate = regenerator(exp, &units, &names);
+    let verified = reference::verify(
+        &root,
+        exp.source(),
+        &exp.canonical_hash(),
+        exp.reference_engine(),
+        &fingerprints,
+        &regenerate,
+    )
+    .with_context(|| format!("{name}: the record does not verify, so no bed is added to it"))?;
+    let mut seal = verified.seal;
+    let mut lines = Vec::new();
+    let mut added = Vec::new();
+    for (u, unit) in units.iter().zip(&names) {
+        let Some(bed) = exp.bed_file(u) else {
+            continue;
+        };
+        let (bed_name, bytes) = bed.with_context(|| format!("{name} {unit}: the bed"))?;
+        let sealed = seal
+            .units
+            .get(unit)
+            .with_context(|| format!("{name}: no unit {unit:?} in the seal"))?;
+        // The proof: every sealed file the bed writes is written again exactly.
+        let mut proven = Vec::new();
+        for (file, sha) in &sealed.files {
+            match regenerate(unit, file) {
+                None => {}
+                Some(Ok(b)) if &Sha256::of(&b) == sha => proven.push(file.clone()),
+                Some(Ok(b)) => bail!(
+                    "{name} {unit}: {file} written again from the prepared bed has sha256 {}, not the sealed {sha}, although the record verified",
+                    Sha256::of(&b)
+                ),
+                Some(Err(e)) => {
+                    return Err(e.context(format!("{name} {unit}: writing {file} again")));
+                }
+            }
+        }
+        if proven.is_empty() {
+            lines.push(format!(
+                "{name} {unit}: no bed added (no file of the record is written from it, so nothing proves it)"
+            ));
+            continue;
+        }
+        let dir = reference::unit_dir(&root, unit);
+        let path = dir.join(&bed_name);
+        std::fs::write(&path, &bytes)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        let sha = Sha256::of(&bytes);
+        lines.push(format!(
+            "{name} {unit}: bed {bed_name} added (sha256 {sha}; proven by the unit's sealed fingerprint and {})",
+            proven.join(", ")
+        ));
+        if let Some(u) = seal.units.get_mut(unit) {
+            u.files.insert(bed_name.clone(), sha);
+        }
+        added.push(format!("{unit}/{bed_name}"));
+    }
+    if added.is_empty() {
+        lines.extend(compress_record(exp, &root)?);
+        return Ok(Some(lines));
+    }
+    seal.amendments.push(reference::SealAmendment {
+        utc: crate::rundata::provenance::now_utc(),
+        granval_commit: crate::rundata::provenance::git_commit(),
+        added: added.clone(),
+        proof: "each bed prepared again by granval from the case (deterministic; the same preparation the recording used), the units built from it have the sealed fingerprints, and every file of the record granval writes from the bed (the reference engine's data file) is written again with its sealed sha256; the reference engine's outputs and every file sealed before are unchanged".into(),
+    });
+    reference::write_seal(&root, &seal)?;
+    lines.extend(record_store::make_lean(
+        &root,
+        &seal,
+        &regenerate,
+        record_store::BedPlacement::Store,
+    )?);
+    // Verified again as a comparison will read it: beds from the record itself.
+    let Some(again) = recorded_units(exp, opts)? else {
+        bail!("{name}: the record vanished while it was made lean");
+    };
+    let regenerate = regenerator(exp, &again.units, &again.names);
+    reference::verify(
+        &again.root,
+        exp.source(),
+        &exp.canonical_hash(),
+        exp.reference_engine(),
+        &again.fingerprints,
+        &regenerate,
+    )
+    .with_context(|| {
+        format!(
+            "{name}: after adding its beds and making it lean the record no longer verifies (restore it from git: `git checkout -- {}`)",
+            root.display()
+        )
+    })?;
+    lines.push(format!(
+        "{name}: {} bed(s) added to the seal; verified again after, beds read from the record",
+        added.len()
     ));
     Ok(Some(lines))
 }

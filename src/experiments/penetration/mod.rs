@@ -636,14 +636,24 @@ impl Experiment for Penetration {
         }
         // The bed as granval prepared it, so a recorded comparison need not settle it
         // again (the deck's fingerprint in the seal covers it).
-        if let Some(name) = bed::bed_file_name(&u.case) {
+        if let Some(bed) = self.bed_file(u) {
+            let (name, bytes) = bed?;
             let path = rec.join(name);
-            std::fs::write(&path, serde_json::to_vec(&u.bed)?)
+            std::fs::write(&path, bytes)
                 .with_context(|| format!("cannot write {}", path.display()))?;
         }
         let mut p = run.run.provenance.clone();
         p.notes.retain(|n| !n.starts_with("run directory"));
         write_provenance(&rec.join(PROVENANCE_FILE), &p)
+    }
+
+    fn bed_file(&self, u: &Unit) -> Option<Result<(String, Vec<u8>)>> {
+        let name = bed::bed_file_name(&u.case)?;
+        Some(
+            serde_json::to_vec(&u.bed)
+                .map(|bytes| (name, bytes))
+                .map_err(Into::into),
+        )
     }
 
     fn regenerate(&self, u: &Unit, file: &str) -> Option<Result<Vec<u8>>> {
