@@ -1894,10 +1894,40 @@ pub struct Coeffs {
 }
 
 impl Coeffs {
+    /// The line this pair adds to a 2D scene's fingerprint
+    /// (`experiments::impact2d::scene_hash`): every field by name, each number in Rust's
+    /// shortest round-trip form. Written out field by field (the struct is destructured
+    /// exhaustively, so a new field does not compile until it is placed here) instead of
+    /// taken from `Debug`, whose output is not a format anything may be sealed by; the
+    /// text is the one the sealed 2D records were fingerprinted with.
+    pub fn fingerprint_line(&self) -> String {
+        let Coeffs {
+            kn,
+            kt,
+            gamma_n,
+            gamma_t,
+            mu,
+        } = *self;
+        format!(
+            "Coeffs {{ kn: {}, kt: {}, gamma_n: {}, gamma_t: {}, mu: {} }}\n",
+            shortest(kn),
+            shortest(kt),
+            shortest(gamma_n),
+            shortest(gamma_t),
+            shortest(mu)
+        )
+    }
+
     /// Tangential spring with history (K's model 1, "static friction") or not (model 2).
     pub fn history(&self) -> bool {
         self.kt > 0.0
     }
+}
+
+/// A number in Rust's shortest round-trip form (`1.0`, `0.5`, `1e-7`, `981.0000000000001`):
+/// the exact value, read back to the same f64.
+fn shortest(x: f64) -> String {
+    format!("{x:?}")
 }
 
 /// `gamma_n = -2 ln(e_n) / tau_c` (K Sec. II), with `tau_c = pi sqrt(m_eff / k)` the
@@ -1909,3 +1939,27 @@ pub fn gamma_n_from_restitution(e_n: f64, tau_c: f64) -> f64 {
 }
 
 super::validated_case!(Impact2dCase);
+
+#[cfg(test)]
+mod tests {
+    use super::Coeffs;
+
+    /// The canonical line is the text the sealed 2D records were fingerprinted with
+    /// (the struct's derived `Debug` of today), for the numbers the cases produce:
+    /// round-off tails, zeros, exponents.
+    #[test]
+    fn the_fingerprint_line_is_the_sealed_text() {
+        let c = Coeffs {
+            kn: 981.0000000000001,
+            kt: 0.0,
+            gamma_n: 1954.587358225384,
+            gamma_t: 1e-7,
+            mu: 0.5,
+        };
+        assert_eq!(
+            c.fingerprint_line(),
+            "Coeffs { kn: 981.0000000000001, kt: 0.0, gamma_n: 1954.587358225384, gamma_t: 1e-7, mu: 0.5 }\n"
+        );
+        assert_eq!(c.fingerprint_line(), format!("{c:?}\n"));
+    }
+}

@@ -1243,7 +1243,7 @@ pub fn energy_model(scene: &Scene) -> EnergyModel {
 pub fn scene_hash(scene: &Scene) -> Sha256 {
     let mut text = crate::engines::deck_text::canonical(&lammps::deck::write_data(&scene.sys));
     for c in &scene.sys.coeffs {
-        text += &format!("{c:?}\n");
+        text += &c.fingerprint_line();
     }
     text += &format!("g {:e} dt {:e}\n", scene.sys.gravity, scene.sys.dt);
     Sha256::of(text.as_bytes())
