@@ -409,16 +409,17 @@ fn control_check(
             format!("none of its gates is evaluated here: {detail}"),
         );
     }
-    // A gate the wrong physics left INCONCLUSIVE (every check of it undecided, none
-    // passing) has not shown the control biting nor failing to: the data cannot tell
-    // (docs/statistics.md, "Negative controls").
+    // A gate the wrong physics left INCONCLUSIVE (none of its checks failed, at least
+    // one is undecided) has not shown the control biting nor failing to: the data cannot
+    // tell (docs/statistics.md, "Negative controls"). A gate passes only when every check
+    // of it passes: a claim gate also holds claims stated of each run (the energy never
+    // rises), which pass whatever the sweep, beside the between-conditions claim a sweep
+    // control is aimed at.
     let undecided = |g: &String| {
-        let of_gate: Vec<&Check> = verdict
+        verdict
             .checks
             .iter()
-            .filter(|k| k.gate.key() == *g)
-            .collect();
-        !of_gate.is_empty() && of_gate.iter().all(|k| k.status == Status::Inconclusive)
+            .any(|k| k.gate.key() == *g && k.status == Status::Inconclusive)
     };
     if !missing.is_empty() && missing.iter().all(undecided) {
         return Check::control_unresolved(label, &missing, detail);
@@ -1072,6 +1073,42 @@ mod tests {
         let control = vec![fail("claim (lammps)"), fail("claim (native)")];
         let (missing, _) = unbitten(&[Gate::Claim], &control, &["claim (lammps)".into()]);
         assert!(missing.is_empty());
+    }
+
+    /// A gate is passed with the wrong physics only when every check of it passes: a
+    /// claim gate holding a per-run claim that passes and a between-conditions claim left
+    /// INCONCLUSIVE (one bed) makes the control INCONCLUSIVE, not failed; with both
+    /// claims passing the control fails, and with the between-conditions claim failing it
+    /// bites.
+    #[test]
+    fn a_control_is_inconclusive_when_its_gate_is_only_partly_decided() {
+        let control = NegativeControl {
+            name: "sweep ignored".into(),
+            perturbation: Default::default(),
+            must_fail: vec![Gate::Claim],
+        };
+        let verdict_of = |between: Check| super::super::Verdict {
+            checks: vec![
+                Check::at_most("energy never rises", Gate::Claim, "m", 0.0, 1.0, ""),
+                between,
+            ],
+            ..Default::default()
+        };
+        let judge = |between: Check| control_check("c".into(), &control, &verdict_of(between), &[]);
+        let undecided = Check::with_status(
+            "lost increases",
+            Gate::Claim,
+            "m",
+            -1.0,
+            0.0,
+            Status::Inconclusive,
+            "one bed",
+        );
+        assert_eq!(judge(undecided).status, Status::Inconclusive);
+        let passes = Check::at_most("lost increases", Gate::Claim, "m", -1.0, 0.0, "");
+        assert_eq!(judge(passes).status, Status::Fail);
+        let fails = Check::failed("lost increases", Gate::Claim, "m", 1.0, "");
+        assert_eq!(judge(fails).status, Status::Pass);
     }
 
     /// Against a record without snapshots the phi gate is not evaluated: the control is
