@@ -123,15 +123,24 @@ const VIRIDIS: [(u8, u8, u8); 9] = [
 
 /// viridis at `t` in [0, 1] (clamped), linearly between its 9 tabulated points.
 pub fn viridis(t: f64) -> RGBColor {
+    interpolate(&VIRIDIS, t)
+}
+
+/// The colour at `t` in [0, 1] of a table of evenly spaced colours (its first entry at
+/// 0, its last at 1), linear between neighbours in RGB and rounded to the nearest
+/// integer; `t` outside [0, 1] is clamped and a `t` that is not finite is 0. One rule
+/// for every scale, so viridis and RdBu cannot drift apart in how they are sampled.
+pub fn interpolate(table: &[(u8, u8, u8)], t: f64) -> RGBColor {
+    assert!(table.len() >= 2, "a colour table needs two entries");
     let t = if t.is_finite() {
         t.clamp(0.0, 1.0)
     } else {
         0.0
     };
-    let x = t * (VIRIDIS.len() - 1) as f64;
-    let i = (x.floor() as usize).min(VIRIDIS.len() - 2);
+    let x = t * (table.len() - 1) as f64;
+    let i = (x.floor() as usize).min(table.len() - 2);
     let f = x - i as f64;
-    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
+    let (a, b) = (table[i], table[i + 1]);
     let mix = |p: u8, q: u8| (p as f64 + f * (q as f64 - p as f64)).round() as u8;
     RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
 }
@@ -201,14 +210,7 @@ impl Scale {
         let t = ((v - lo) / (hi - lo)).clamp(0.0, 1.0);
         match self {
             Scale::Sequential { .. } => viridis(t),
-            Scale::Diverging { .. } => {
-                let x = t * (RDBU.len() - 1) as f64;
-                let i = (x.floor() as usize).min(RDBU.len() - 2);
-                let f = x - i as f64;
-                let (a, b) = (RDBU[i], RDBU[i + 1]);
-                let mix = |p: u8, q: u8| (p as f64 + f * (q as f64 - p as f64)).round() as u8;
-                RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
-            }
+            Scale::Diverging { .. } => interpolate(&RDBU, t),
         }
     }
 
@@ -267,5 +269,25 @@ mod tests {
         assert_eq!(seq.colour(f64::NAN), EMPTY);
         assert_eq!(viridis(0.0), RGBColor(0x44, 0x01, 0x54));
         assert_eq!(viridis(1.0), RGBColor(0xFD, 0xE7, 0x25));
+    }
+
+    /// The shared interpolation: the table's ends at 0 and 1 (and beyond, clamped), the
+    /// rounded mean of two neighbours halfway between them, the middle entry of an odd
+    /// table at 0.5, and 0 for a value that is not finite.
+    #[test]
+    fn interpolation_hits_ends_and_midpoints() {
+        let t = [(0, 10, 200), (100, 11, 0), (255, 255, 255)];
+        assert_eq!(interpolate(&t, 0.0), RGBColor(0, 10, 200));
+        assert_eq!(interpolate(&t, 1.0), RGBColor(255, 255, 255));
+        assert_eq!(interpolate(&t, -3.0), RGBColor(0, 10, 200));
+        assert_eq!(interpolate(&t, 7.0), RGBColor(255, 255, 255));
+        assert_eq!(interpolate(&t, f64::NAN), RGBColor(0, 10, 200));
+        assert_eq!(interpolate(&t, 0.5), RGBColor(100, 11, 0));
+        // Halfway between entries 0 and 1: (50, 10.5 -> 11, 100).
+        assert_eq!(interpolate(&t, 0.25), RGBColor(50, 11, 100));
+        assert_eq!(interpolate(&RDBU, 0.0), RGBColor(0x05, 0x30, 0x61));
+        assert_eq!(interpolate(&RDBU, 0.5), RGBColor(0xF7, 0xF7, 0xF7));
+        assert_eq!(interpolate(&RDBU, 1.0), RGBColor(0x67, 0x00, 0x1F));
+        assert_eq!(interpolate(&VIRIDIS, 0.5), RGBColor(0x21, 0x91, 0x8C));
     }
 }
