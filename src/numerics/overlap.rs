@@ -5,6 +5,14 @@
 use crate::numerics::vec3::{V3, dot, sub};
 use std::collections::HashMap;
 
+/// The cell `k + d`, saturating: a position that is not finite or beyond i64 cells (a
+/// case with `x = inf` or 1e300, refused by the case's validation with a message) maps
+/// to the extreme cell instead of overflowing, so the search runs before validation
+/// without a panic; distances are still computed exactly.
+fn neighbour(k: [i64; 3], d: [i64; 3]) -> [i64; 3] {
+    std::array::from_fn(|c| k[c].saturating_add(d[c]))
+}
+
 pub fn first_overlap(x: &[V3], r: &[f64], max_frac: f64) -> Option<(usize, usize, f64)> {
     let rmax = r.iter().copied().fold(0.0, f64::max);
     if x.len() < 2 || rmax <= 0.0 {
@@ -18,7 +26,7 @@ pub fn first_overlap(x: &[V3], r: &[f64], max_frac: f64) -> Option<(usize, usize
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    let n = [k[0] + dx, k[1] + dy, k[2] + dz];
+                    let n = neighbour(k, [dx, dy, dz]);
                     if let Some(others) = grid.get(&n) {
                         for &j in others {
                             let d = sub(x[i], x[j]);
@@ -60,7 +68,7 @@ pub fn first_contact_across_bodies(
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    let n = [k[0] + dx, k[1] + dy, k[2] + dz];
+                    let n = neighbour(k, [dx, dy, dz]);
                     for &j in grid.get(&n).into_iter().flatten() {
                         if body[i] >= 0 && body[i] == body[j] {
                             continue;
