@@ -418,27 +418,34 @@ fn copy_tree(src: &Path, dst: &Path) {
     }
 }
 
+/// `reference lean` (with `--add-beds` when `add_beds`) of the record of `case` under
+/// `reference_root`.
+fn lean_case(
+    case: &Path,
+    reference_root: &Path,
+    add_beds: bool,
+) -> anyhow::Result<Option<Vec<String>>> {
+    let c = AnyCase::load(case).unwrap_or_else(|e| panic!("{e}"));
+    with_experiment!(c, false, |exp| {
+        granval::experiments::runner::lean_record(
+            &exp,
+            &Options {
+                reference_root: reference_root.to_path_buf(),
+                ..Options::default()
+            },
+            add_beds,
+        )
+    })
+}
+
 /// `reference lean` of a record that holds no bed only compresses: its large files
 /// (force curves, engine data files) become `.zst`, nothing is left out, and the record
 /// still passes the full seal check. Negative control: a copy with one byte of a force
 /// curve changed is refused before anything is touched, and that file stays plain.
 #[test]
 fn a_record_without_beds_is_only_compressed_and_still_verifies() {
-    use granval::experiments::runner::lean_record;
     let case = common::root().join("cases/penetration/ci.toml");
-    let lean = |reference_root: &Path| {
-        let c = AnyCase::load(&case).unwrap_or_else(|e| panic!("{e}"));
-        with_experiment!(c, false, |exp| {
-            lean_record(
-                &exp,
-                &Options {
-                    reference_root: reference_root.to_path_buf(),
-                    ..Options::default()
-                },
-                false,
-            )
-        })
-    };
+    let lean = |reference_root: &Path| lean_case(&case, reference_root, false);
 
     let (tmp, root) = ci_record_copy();
     let lines = lean(tmp.path()).unwrap().expect("the record exists");
@@ -498,7 +505,6 @@ fn a_record_without_beds_is_only_compressed_and_still_verifies() {
 #[test]
 fn add_beds_proves_each_bed_by_the_data_file_it_writes() {
     use granval::experiments::reference::store;
-    use granval::experiments::runner::lean_record;
     let case = common::root().join("cases/impact2d/ci.toml");
     let copy = || {
         let tmp = tempfile::tempdir().unwrap();
@@ -506,19 +512,7 @@ fn add_beds_proves_each_bed_by_the_data_file_it_writes() {
         copy_tree(&common::root().join("reference/impact2d/ci"), &dst);
         (tmp, dst)
     };
-    let lean = |reference_root: &Path| {
-        let c = AnyCase::load(&case).unwrap_or_else(|e| panic!("{e}"));
-        with_experiment!(c, false, |exp| {
-            lean_record(
-                &exp,
-                &Options {
-                    reference_root: reference_root.to_path_buf(),
-                    ..Options::default()
-                },
-                true,
-            )
-        })
-    };
+    let lean = |reference_root: &Path| lean_case(&case, reference_root, true);
     let seal_of = |root: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(root.join("seal.json")).unwrap()).unwrap()
     };

@@ -624,6 +624,22 @@ struct RecordedUnits<U> {
     fingerprints: Vec<reference::UnitKey>,
 }
 
+impl<U> RecordedUnits<U> {
+    /// The record checked against these units: case, fingerprints and every sealed file,
+    /// data files written again from the units' beds ([`reference::verify`]).
+    fn verify<E: Experiment<Unit = U>>(&self, exp: &E) -> Result<reference::Verified> {
+        let regenerate = regenerator(exp, &self.units, &self.names);
+        reference::verify(
+            &self.root,
+            exp.source(),
+            &exp.canonical_hash(),
+            exp.reference_engine(),
+            &self.fingerprints,
+            &regenerate,
+        )
+    }
+}
+
 fn recorded_units<E: Experiment>(
     exp: &E,
     opts: &Options,
@@ -753,25 +769,16 @@ pub fn lean_record<E: Experiment>(
 /// A record none of whose units can be proven this way is only compressed.
 fn add_beds_and_lean<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Vec<String>>> {
     let name = exp.name();
-    let Some(RecordedUnits {
-        root,
-        units,
-        names,
-        fingerprints,
-    }) = recorded_units(exp, opts)?
-    else {
+    let Some(recorded) = recorded_units(exp, opts)? else {
         return Ok(None);
     };
+    let verified = recorded
+        .verify(exp)
+        .with_context(|| format!("{name}: the record does not verify, so no bed is added to it"))?;
+    let RecordedUnits {
+        root, units, names, ..
+    } = recorded;
     let regenerate = regenerator(exp, &units, &names);
-    let verified = reference::verify(
-        &root,
-        exp.source(),
-        &exp.canonical_hash(),
-        exp.reference_engine(),
-        &fingerprints,
-        &regenerate,
-    )
-    .with_context(|| format!("{name}: the record does not verify, so no bed is added to it"))?;
     let mut seal = verified.seal;
     let mut lines = Vec::new();
     let mut added = Vec::new();
@@ -840,16 +847,7 @@ fn add_beds_and_lean<E: Experiment>(exp: &E, opts: &Options) -> Result<Option<Ve
     let Some(again) = recorded_units(exp, opts)? else {
         bail!("{name}: the record vanished while it was made lean");
     };
-    let regenerate = regenerator(exp, &again.units, &again.names);
-    reference::verify(
-        &again.root,
-        exp.source(),
-        &exp.canonical_hash(),
-        exp.reference_engine(),
-        &again.fingerprints,
-        &regenerate,
-    )
-    .with_context(|| {
+    again.verify(exp).with_context(|| {
         format!(
             "{name}: after adding its beds and making it lean the record no longer verifies (restore it from git: `git checkout -- {}`)",
             root.display()
