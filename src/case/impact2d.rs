@@ -246,6 +246,28 @@ pub enum Claim {
         #[serde(default)]
         at: Option<f64>,
     },
+    /// `of` follows a trend along a numeric sweep (docs/statistics.md, "Rises": the
+    /// paper's sentence names a tendency over the sweep, not each step; K Fig 9:
+    /// "significantly deeper penetration for smaller gravitational accelerations").
+    /// Judged on a seed ensemble only: per seed the least-squares slope of `of` against
+    /// the swept value (its natural log with `log_x`), then the one-sample t interval of
+    /// those slopes over the seeds (the seeds are the beds; the same beds at every value,
+    /// so the bed-to-bed offset drops out). `direction = "falls"` judges minus the slope.
+    /// PASS when the interval's lower end exceeds `min_slope` (unit of `of` per unit of
+    /// x), FAIL when its upper end lies below it, else INCONCLUSIVE.
+    Trend {
+        direction: TrendDirection,
+        #[serde(default)]
+        min_slope: f64,
+        #[serde(default)]
+        of: ClaimQuantity,
+        /// The time (tau_c after release) `energy_lost` is read at.
+        #[serde(default)]
+        at: Option<f64>,
+        /// Fit against ln x rather than x (a sweep over decades, e.g. gravity).
+        #[serde(default)]
+        log_x: bool,
+    },
     /// In every variant the total energy (kinetic + potential + normal elastic, K Fig 28)
     /// never rises between two samples by more than `max_rise` of the intruder's impact
     /// energy M v^2 / 2 (K Sec. V: "The total energy ... shows a monotonous decrease").
@@ -419,6 +441,24 @@ impl ClaimQuantity {
             ClaimQuantity::FinalDepth => ("final depth", "d"),
             ClaimQuantity::TimeOfMaxDepth => ("time of the maximum depth", "tau_c"),
             ClaimQuantity::EnergyLost => ("total energy lost", "m g d"),
+        }
+    }
+}
+
+/// Which way a `trend` claim's quantity goes as the swept value grows.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrendDirection {
+    Rises,
+    Falls,
+}
+
+impl TrendDirection {
+    /// +1 for `rises`, -1 for `falls`: the slope the claim judges is sign x slope.
+    pub fn sign(self) -> f64 {
+        match self {
+            TrendDirection::Rises => 1.0,
+            TrendDirection::Falls => -1.0,
         }
     }
 }
@@ -706,6 +746,33 @@ fn unit_interval(ctx: &Ctx, field: &str, v: f64) -> Result<f64, CaseError> {
         Ok(v)
     } else {
         Err(ctx.bad(field, v, "must lie in (0, 1]"))
+    }
+}
+
+/// A claim's `at`: required (and inside the run) for `energy_lost`, which is read at a
+/// time, refused for every other quantity.
+fn read_time(
+    ctx: &Ctx,
+    field: &str,
+    of: ClaimQuantity,
+    at: Option<f64>,
+    duration: f64,
+) -> Result<(), CaseError> {
+    match (of, at) {
+        (ClaimQuantity::EnergyLost, None) => Err(ctx.bad(
+            field,
+            "missing",
+            "energy_lost is read at a time: give `at` (tau_c after release)",
+        )),
+        (ClaimQuantity::EnergyLost, Some(t)) => {
+            positive(ctx, field, t)?;
+            if t > duration {
+                return Err(ctx.bad(field, t, "after the end of the run"));
+            }
+            Ok(())
+        }
+        (_, Some(t)) => Err(ctx.bad(field, t, "only energy_lost is read at a time")),
+        (_, None) => Ok(()),
     }
 }
 
@@ -1223,17 +1290,25 @@ impl Impact2dCase {
                     format!("claim[{k}].{f}")
                 }
             };
-            if seeds.is_empty() && matches!(claim, Claim::VelocityExponentPerDepth { .. }) {
-                return Err(ctx.bad(
-                    at("kind"),
-                    "velocity_exponent_per_depth",
-                    "judged over beds: needs a seed ensemble ([bed] seeds)",
-                ));
+            if seeds.is_empty() {
+                let over_beds = match claim {
+                    Claim::VelocityExponentPerDepth { .. } => Some("velocity_exponent_per_depth"),
+                    Claim::Trend { .. } => Some("trend"),
+                    _ => None,
+                };
+                if let Some(kind) = over_beds {
+                    return Err(ctx.bad(
+                        at("kind"),
+                        kind,
+                        "judged over beds: needs a seed ensemble ([bed] seeds)",
+                    ));
+                }
             }
             if !seeds.is_empty()
                 && !matches!(
                     claim,
                     Claim::Increasing { .. }
+                        | Claim::Trend { .. }
                         | Claim::Linear { .. }
                         | Claim::VelocityExponentPerDepth { .. }
                 )
@@ -1245,35 +1320,59 @@ impl Impact2dCase {
                 return Err(ctx.bad(
                     at("kind"),
                     kind,
-                    "not defined on a seed ensemble ([bed] seeds): only `increasing`, `linear` and `velocity_exponent_per_depth` have a registered ensemble rule (docs/impact2d.md)",
+                    "not defined on a seed ensemble ([bed] seeds): only `increasing`, `trend`, `linear` and `velocity_exponent_per_depth` have a registered ensemble rule (docs/impact2d.md)",
                 ));
             }
             match claim {
+                Claim::Trend {
+                    min_slope,
+                    of,
+                    at: t,
+                    log_x,
+                    ..
+                } => {
+                    non_negative(&ctx, &at("min_slope"), *min_slope)?;
+                    read_time(&ctx, &at("at"), *of, *t, raw.simulation.duration)?;
+                    let param = raw
+                        .sweep
+                        .as_ref()
+                        .map(|w| w.parameter.as_str())
+                        .unwrap_or("");
+                    if !["speed", "gravity", "e_n", "mu"].contains(&param) {
+                        return Err(ctx.bad(
+                            at("kind"),
+                            "trend",
+                            format!(
+                                "a slope needs a numeric sweep (speed, gravity, e_n or mu), not `{param}`"
+                            ),
+                        ));
+                    }
+                    let groups = variants.iter().filter(|v| v.ensemble_value.is_some());
+                    let mut xs: Vec<f64> = groups.map(|v| v.x).collect();
+                    xs.sort_by(f64::total_cmp);
+                    xs.dedup();
+                    if xs.len() < 3 {
+                        return Err(ctx.bad(
+                            "sweep.values",
+                            xs.len(),
+                            "a trend is fitted over at least 3 values (2 are one step: use `increasing`)",
+                        ));
+                    }
+                    if *log_x && xs.iter().any(|x| *x <= 0.0) {
+                        return Err(ctx.bad(
+                            at("log_x"),
+                            "true",
+                            "ln x needs every swept value > 0",
+                        ));
+                    }
+                }
                 Claim::Increasing {
                     min_step,
                     of,
                     at: t,
                 } => {
                     non_negative(&ctx, &at("min_step"), *min_step)?;
-                    match (of, t) {
-                        (ClaimQuantity::EnergyLost, None) => {
-                            return Err(ctx.bad(
-                                at("at"),
-                                "missing",
-                                "energy_lost is read at a time: give `at` (tau_c after release)",
-                            ));
-                        }
-                        (ClaimQuantity::EnergyLost, Some(t)) => {
-                            positive(&ctx, &at("at"), *t)?;
-                            if *t > raw.simulation.duration {
-                                return Err(ctx.bad(at("at"), t, "after the end of the run"));
-                            }
-                        }
-                        (_, Some(t)) => {
-                            return Err(ctx.bad(at("at"), t, "only energy_lost is read at a time"));
-                        }
-                        (_, None) => {}
-                    }
+                    read_time(&ctx, &at("at"), *of, *t, raw.simulation.duration)?;
                 }
                 Claim::EnergyNonIncreasing { max_rise } => {
                     non_negative(&ctx, &at("max_rise"), *max_rise)?;

@@ -8,7 +8,7 @@ use crate::analysis::force_network::{B0Curves, integral, relative_l1};
 use crate::analysis::impact::{
     DepthExponent, ForceSummary, bins_rms, exponent_at_depth, force_summary,
 };
-use crate::case::impact2d::{Claim, ClaimQuantity, FieldQuantity, Impact2dCase};
+use crate::case::impact2d::{Claim, ClaimQuantity, FieldQuantity, Impact2dCase, TrendDirection};
 use crate::numerics::stats::Estimate;
 
 /// Why an `increasing` claim fails although every step met min_step: with min_step 0
@@ -377,6 +377,7 @@ fn compares_conditions(c: &Claim) -> bool {
     matches!(
         c,
         Claim::Increasing { .. }
+            | Claim::Trend { .. }
             | Claim::Linear { .. }
             | Claim::VelocityExponent { .. }
             | Claim::VelocityExponentPerDepth { .. }
@@ -600,6 +601,11 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
                 .collect();
             super::interface::steadies(case, *max_ratio, *min_amplitude, engine, &v)
         }
+        Claim::Trend { .. } => Check::error_in(
+            format!("{}: claim ({engine})", case.name),
+            crate::compare::Gate::Claim,
+            "a trend is judged over beds (refused on one bed when the case loads)",
+        ),
         Claim::Increasing { min_step, of, at } => {
             let (what, unit) = of.describe();
             if obs.len() < 2 {
@@ -752,7 +758,7 @@ fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantO
 /// The quantity an ensemble claim follows, in one run (NaN where the run has none).
 fn claim_value(claim: &Claim, o: &VariantObs) -> f64 {
     match claim {
-        Claim::Increasing { of, at, .. } => match of {
+        Claim::Increasing { of, at, .. } | Claim::Trend { of, at, .. } => match of {
             ClaimQuantity::FinalDepth => o.final_depth,
             ClaimQuantity::TimeOfMaxDepth => o.t_max_depth,
             ClaimQuantity::EnergyLost => energy_lost(o, at.unwrap_or(f64::NAN)),
@@ -793,9 +799,10 @@ pub fn ensemble_stats(
         .collect()
 }
 
-/// A claim on a seed ensemble in one engine (docs/impact2d.md, "Seed ensembles"):
-/// `increasing` passes iff every step of the per-value means rises by at least
-/// max(min_step, 2 combined SE); `linear` is the single-bed rule on the means. Other
+/// A claim on a seed ensemble in one engine (docs/impact2d.md, "Seed ensembles";
+/// docs/statistics.md): `increasing` tests the per-seed rise of every step against
+/// min_step; `trend` the mean per-seed slope against min_slope; `linear` the per-seed
+/// slope, with straightness undecided until a curvature margin is registered. Other
 /// kinds are refused when the case loads.
 fn ensemble_claim_check(
     case: &Impact2dCase,
@@ -824,6 +831,88 @@ fn ensemble_claim_check(
                 &ensemble::increasing(&stats, *min_step),
                 format!(
                     "min_step {min_step} {unit}; {what} ({unit}), mean +- SE over seeds: {}",
+                    stats
+                        .iter()
+                        .map(|s| s.describe())
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                ),
+            )
+        }
+        Claim::Trend {
+            direction,
+            min_slope,
+            of,
+            log_x,
+            ..
+        } => {
+            let (what, unit) = of.describe();
+            let sign = direction.sign();
+            let verb = match direction {
+                TrendDirection::Rises => "rises",
+                TrendDirection::Falls => "falls",
+            };
+            let xname = if *log_x {
+                format!("ln {param}")
+            } else {
+                param.clone()
+            };
+            let name = format!(
+                "{}: claim ({engine}): {what} {verb} with {param} (trend over {n} seeds)",
+                case.name
+            );
+            let stats = match stats {
+                Ok(s) => s,
+                Err(e) => return Check::error_in(name, Gate::Claim, e),
+            };
+            let x: Vec<f64> = stats
+                .iter()
+                .map(|s| if *log_x { s.x.ln() } else { s.x })
+                .collect();
+            // Per seed, the least-squares slope over every value (the same seeds at
+            // every value: the bed-to-bed offset drops out), signed so that the claimed
+            // direction is positive; the claim's slope is the mean over the seeds.
+            let slopes: Vec<f64> = case
+                .seeds
+                .iter()
+                .filter_map(|seed| {
+                    let ys: Option<Vec<f64>> = stats
+                        .iter()
+                        .map(|v| v.seeds.iter().find(|s| s.0 == *seed).map(|s| s.1))
+                        .collect();
+                    Estimate::slope(&x, &ys?).map(|e| sign * e.value)
+                })
+                .collect();
+            let per_seed = case
+                .seeds
+                .iter()
+                .zip(&slopes)
+                .map(|(s, b)| format!("seed {s}: {b:.4}"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            Check::decided(
+                name,
+                Gate::Claim,
+                format!(
+                    "per-seed slope of {what} against {xname} ({unit} per unit{}), must exceed min_slope",
+                    if sign > 0.0 {
+                        ""
+                    } else {
+                        "; a fall counts positive"
+                    }
+                ),
+                &[super::Comparison {
+                    what: format!("per-seed slope ({verb}) against {xname}"),
+                    estimate: if slopes.len() == case.seeds.len() {
+                        Estimate::mean(&slopes)
+                    } else {
+                        None
+                    },
+                    rule: super::Rule::Exceeds { delta: *min_slope },
+                    m: 1,
+                }],
+                format!(
+                    "min_slope {min_slope} {unit} per unit of {xname}; per-seed slopes ({verb}): {per_seed}; {what} ({unit}), mean +- SE over seeds: {}",
                     stats
                         .iter()
                         .map(|s| s.describe())
@@ -1506,6 +1595,64 @@ mod tests {
         );
     }
 
+    /// A `trend` is refused with its field and reason on one bed, on a sweep that is not
+    /// numeric, over fewer than 3 values, and with `log_x` over a value <= 0.
+    #[test]
+    fn trend_claim_refusals() {
+        let base = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/cases/impact2d/ci.toml"
+        ))
+        .unwrap();
+        let case = |seeds: &str, sweep: &str, log_x: bool| {
+            Impact2dCase::from_toml_str(
+                &format!(
+                    "{}\n[sweep]\n{sweep}\n[claim]\nkind = \"trend\"\ndirection = \"rises\"\nlog_x = {log_x}\n",
+                    base.replace("seed = 7", seeds)
+                ),
+                Path::new("t.toml"),
+            )
+        };
+        let speeds = "parameter = \"speed\"\nvalues = [0.3, 0.5, 0.7]";
+        let refused = |r: Result<Impact2dCase, crate::case::CaseError>, field: &str, why: &str| {
+            let e = format!("{:#}", r.unwrap_err());
+            assert!(e.contains(field) && e.contains(why), "{e}");
+        };
+        refused(
+            case("seed = 7", speeds, false),
+            "claim.kind",
+            "seed ensemble",
+        );
+        refused(
+            case(
+                "seeds = [1, 2]",
+                "parameter = \"friction\"\nvalues = [\"static\", \"kinetic\"]",
+                false,
+            ),
+            "claim.kind",
+            "numeric sweep",
+        );
+        refused(
+            case(
+                "seeds = [1, 2]",
+                "parameter = \"speed\"\nvalues = [0.3, 0.7]",
+                false,
+            ),
+            "sweep.values",
+            "at least 3 values",
+        );
+        refused(
+            case(
+                "seeds = [1, 2]",
+                "parameter = \"mu\"\nvalues = [0.0, 0.3, 0.5]",
+                true,
+            ),
+            "claim.log_x",
+            "ln x",
+        );
+        assert!(case("seeds = [1, 2]", speeds, true).is_ok());
+    }
+
     /// The claims' checks as registered on one bed (the rule one_bed reports), or an
     /// ensemble's checks.
     fn rules(c: &Impact2dCase, obs: &[VariantObs]) -> Vec<Check> {
@@ -1859,6 +2006,52 @@ mod tests {
             k.is_error() && k.detail.contains("friction=kinetic,seed=3"),
             "{k:?}"
         );
+    }
+
+    /// The ensemble `trend` rule (K Fig 9 read as a tendency): the mean per-seed slope
+    /// of the final depth against ln g, sign flipped for `falls`, one-sided against
+    /// min_slope. A clean fall of 2 d per e-fold passes; the same mean fall with per-seed
+    /// slopes scattered by more than their mean is INCONCLUSIVE; a fall of 0.3 d per
+    /// e-fold (resolved, below min_slope 1) fails; depth rising with g fails; the same
+    /// clean fall judged as `rises` fails (the direction is not ignored).
+    #[test]
+    fn trend_claim_judges_the_per_seed_slopes_against_min_slope() {
+        let sweep = "[sweep]\nparameter = \"gravity\"\nvalues = [2.53, 1.0, 0.377, 0.163, 0.0633]";
+        let claim = |dir: &str| {
+            format!(
+                "[claim]\nkind = \"trend\"\ndirection = \"{dir}\"\nmin_slope = 1.0\nlog_x = true"
+            )
+        };
+        let c = ensemble(&claim("falls"), sweep, "[1, 2, 3, 4, 5]");
+        let lng: Vec<f64> = c.ensemble_groups().iter().map(|g| g.x.ln()).collect();
+        let scatter = [0.0, 0.4, -0.3, 0.2, -0.1];
+        let jitter = [0.05, -0.1, 0.0, 0.1, -0.05];
+        let depth = |slope: f64, spread: &[f64; 5]| {
+            let (lng, spread) = (lng.clone(), *spread);
+            move |i: usize, j: usize| 10.0 + scatter[j] + slope * (1.0 + spread[j]) * lng[i]
+        };
+        let k = one(&c, &ensemble_obs(&c, &depth(-2.0, &jitter))).unwrap();
+        assert_eq!(k.status, Status::Pass, "{k:?}");
+        assert!((k.value - 2.0).abs() < 1e-9, "{}", k.value);
+        assert!(
+            k.name
+                .contains("final depth falls with gravity (trend over 5 seeds)")
+                && k.detail.contains("seed 1: 2.1000")
+                && k.detail.contains("min_slope 1 d per unit of ln gravity"),
+            "{k:?}"
+        );
+        let wide = [0.0, 2.0, -2.5, 3.0, -2.5];
+        let k = one(&c, &ensemble_obs(&c, &depth(-2.0, &wide))).unwrap();
+        assert_eq!(k.status, Status::Inconclusive, "{k:?}");
+        let small = [0.01, -0.02, 0.0, 0.02, -0.01];
+        let k = one(&c, &ensemble_obs(&c, &depth(-0.3, &small))).unwrap();
+        assert_eq!(k.status, Status::Fail, "{k:?}");
+        let k = one(&c, &ensemble_obs(&c, &depth(0.5, &small))).unwrap();
+        assert_eq!(k.status, Status::Fail, "{k:?}");
+        let rises = ensemble(&claim("rises"), sweep, "[1, 2, 3, 4, 5]");
+        let k = one(&rises, &ensemble_obs(&rises, &depth(-2.0, &jitter))).unwrap();
+        assert_eq!(k.status, Status::Fail, "{k:?}");
+        assert!((k.value + 2.0).abs() < 1e-9, "{}", k.value);
     }
 
     /// The ensemble `linear` rule (K Fig 8b) under statistics v1: the per-seed slope must
