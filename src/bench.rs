@@ -72,7 +72,7 @@ fn time_native(case: &Case, steps: u64, threads: usize, sort: bool) -> Result<(f
 
 /// "Memory usage per processor = 16.4864 Mbytes" from a LIGGGHTS log (its own estimate
 /// of its arrays, not the process's resident size).
-pub fn liggghts_memory_mb(log: &str) -> Option<f64> {
+pub(crate) fn liggghts_memory_mb(log: &str) -> Option<f64> {
     log.lines().rev().find_map(|l| {
         l.trim()
             .strip_prefix("Memory usage per processor =")?
@@ -84,7 +84,7 @@ pub fn liggghts_memory_mb(log: &str) -> Option<f64> {
 }
 
 /// Peak resident size of this process (VmHWM, bytes), if the system reports it.
-pub fn peak_rss_bytes() -> Option<f64> {
+pub(crate) fn peak_rss_bytes() -> Option<f64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
     let kb: f64 = s
         .lines()
@@ -153,12 +153,8 @@ fn best(v: &[f64]) -> f64 {
 }
 
 impl BenchResult {
-    /// Native 1 thread / LIGGGHTS 1 process (throughput ratio of the best timings).
-    pub fn ratio_1(&self) -> Option<f64> {
-        Some(best(self.liggghts_1.as_ref()?) / best(&self.native_1))
-    }
     /// Native 2 threads / native 1 thread.
-    pub fn scaling_2(&self) -> f64 {
+    pub(crate) fn scaling_2(&self) -> f64 {
         best(&self.native_1) / best(&self.native_2)
     }
 

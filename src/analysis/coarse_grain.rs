@@ -44,7 +44,7 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 
 /// Symmetric tensor `[xx, yy, zz, xy, xz, yz]`.
-pub type Sym = [f64; 6];
+pub(crate) type Sym = [f64; 6];
 
 /// 5-point Gauss-Legendre nodes and weights on [0, 1].
 const GL5: [(f64, f64); 5] = [
@@ -422,7 +422,7 @@ fn sym_of(m: &[f64; 9], s: f64) -> Sym {
 }
 
 /// Full matrix of a [`Sym`].
-pub fn sym_matrix(s: &Sym) -> [[f64; 3]; 3] {
+pub(crate) fn sym_matrix(s: &Sym) -> [[f64; 3]; 3] {
     [[s[0], s[3], s[4]], [s[3], s[1], s[5]], [s[4], s[5], s[2]]]
 }
 

@@ -21,7 +21,7 @@ use std::path::Path;
 
 /// Raw force-depth series as an engine reports it (SI units).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct FdrInput {
+pub(crate) struct FdrInput {
     /// m, intruder tip below the initial bed surface, >= 0 where in contact.
     pub depth: Vec<f64>,
     /// N, vertical resistance on the intruder, positive resisting.
@@ -69,7 +69,7 @@ impl Fdr {
     }
 
     /// The points with `h >= 0` (intruder in contact with the bed), in input order.
-    pub fn contact_only(&self) -> Fdr {
+    pub(crate) fn contact_only(&self) -> Fdr {
         let (h, p) = self
             .h
             .iter()
@@ -100,7 +100,7 @@ fn check_finite(field: &str, v: &[f64]) -> Result<()> {
 
 /// Eq 5. Errors (naming the field and the offending value) on mismatched
 /// lengths, non-finite samples, and non-positive or non-finite scales.
-pub fn nondimensionalise(input: &FdrInput, scales: &Scales) -> Result<Fdr> {
+pub(crate) fn nondimensionalise(input: &FdrInput, scales: &Scales) -> Result<Fdr> {
     ensure!(
         input.depth.len() == input.force.len(),
         "depth and force differ in length ({} vs {})",
@@ -165,7 +165,7 @@ impl LinearFit {
 }
 
 /// Minimum number of points of the steady-state fit.
-pub const MIN_FIT_POINTS: usize = 5;
+pub(crate) const MIN_FIT_POINTS: usize = 5;
 
 /// OLS fit on the points with `h_min <= h <= h_max` (pass `f64::INFINITY`
 /// for no upper bound). Regime C is `h >= h_B`; the caller chooses `h_min`
@@ -266,7 +266,7 @@ pub struct RegimeBoundaries {
 /// regime B. The engine-vs-engine comparison gates the piecewise one
 /// nevertheless (`compare::penetration::resolved_boundaries`): the unified
 /// fit is ill-conditioned when regimes span few grains.
-pub fn regime_boundaries(fdr: &Fdr, steady: &LinearFit) -> Result<RegimeBoundaries> {
+pub(crate) fn regime_boundaries(fdr: &Fdr, steady: &LinearFit) -> Result<RegimeBoundaries> {
     regime_boundaries_unified(fdr, steady.k_phi)
 }
 
@@ -276,7 +276,7 @@ pub fn regime_boundaries(fdr: &Fdr, steady: &LinearFit) -> Result<RegimeBoundari
 /// exactly the inputs the paper holds fixed. No smoothing: the fit is a
 /// least-squares average already, and smoothing would widen the fitted
 /// crossover width `Delta`. Requires `K_phi >= 1` (MALT's water limit).
-pub fn regime_boundaries_unified(fdr: &Fdr, k_phi: f64) -> Result<RegimeBoundaries> {
+pub(crate) fn regime_boundaries_unified(fdr: &Fdr, k_phi: f64) -> Result<RegimeBoundaries> {
     fdr.validate()?;
     let c = fdr.contact_only();
     let phi = malt::phi_of_k(k_phi).context("cannot infer phi from the steady-state K_phi")?;
@@ -294,7 +294,8 @@ pub fn regime_boundaries_unified(fdr: &Fdr, k_phi: f64) -> Result<RegimeBoundari
 /// Default moving-average window of the model-free method, in units of h.
 /// 0.05 R is ~a quarter of the shortest regime of the paper (A: 0.16) and
 /// spans ~1.5 grain diameters for the paper's d_g / R = 1/15.
-pub const SMOOTH_WINDOW_H: f64 = 0.05;
+#[cfg(test)]
+pub(crate) const SMOOTH_WINDOW_H: f64 = 0.05;
 
 /// Points the piecewise-linear search works on (bin means beyond that).
 const PIECEWISE_MAX_POINTS: usize = 400;
@@ -312,7 +313,7 @@ const PIECEWISE_MAX_SSE_RATIO: f64 = 1.5;
 /// sorted by h. Near the ends the half-width shrinks symmetrically to the
 /// distance to the end, so linear data are left unchanged (no edge bias);
 /// the first and last points are kept as they are. `window <= 0` returns `p`.
-pub fn moving_average(h: &[f64], p: &[f64], window: f64) -> Vec<f64> {
+pub(crate) fn moving_average(h: &[f64], p: &[f64], window: f64) -> Vec<f64> {
     if window.is_nan() || window <= 0.0 || h.is_empty() {
         return p.to_vec();
     }
@@ -436,7 +437,12 @@ const TWO_SEGMENT_GRID: usize = 200;
 ///
 /// Procedure: least SSE over a 200-point breakpoint grid, then two 10x
 /// refinements around the best.
-pub fn two_segment_fit(fdr: &Fdr, h_min: f64, window: f64, min_segment: f64) -> Result<TwoSegment> {
+pub(crate) fn two_segment_fit(
+    fdr: &Fdr,
+    h_min: f64,
+    window: f64,
+    min_segment: f64,
+) -> Result<TwoSegment> {
     let (h, p): (Vec<f64>, Vec<f64>) = fdr
         .h
         .iter()
@@ -512,7 +518,7 @@ pub fn two_segment_fit(fdr: &Fdr, h_min: f64, window: f64, min_segment: f64) -> 
 /// growth precedes the model's `h_B`. Errors if fewer than 12 contact
 /// points, no admissible pair exists or step 5 rejects the fit (e.g.
 /// frictionless grains: no regime B).
-pub fn regime_boundaries_piecewise(
+pub(crate) fn regime_boundaries_piecewise(
     fdr: &Fdr,
     window: f64,
     min_segment: f64,
@@ -600,7 +606,7 @@ pub fn regime_boundaries_piecewise(
 /// Linear interpolation of `p` at the points of `grid`. `fdr.h` must be
 /// strictly increasing (as for an intruder driven at constant speed);
 /// grid points outside `[h_first, h_last]` are an error, not an extrapolation.
-pub fn resample(fdr: &Fdr, grid: &[f64]) -> Result<Vec<f64>> {
+pub(crate) fn resample(fdr: &Fdr, grid: &[f64]) -> Result<Vec<f64>> {
     fdr.validate()?;
     ensure!(!fdr.h.is_empty(), "cannot resample an empty FDR");
     if let Some(i) = fdr.h.windows(2).position(|w| w[1] <= w[0]) {
@@ -632,7 +638,7 @@ pub fn resample(fdr: &Fdr, grid: &[f64]) -> Result<Vec<f64>> {
 }
 
 /// `n` uniformly spaced points from `lo` to `hi` inclusive (n >= 2).
-pub fn uniform_grid(lo: f64, hi: f64, n: usize) -> Result<Vec<f64>> {
+pub(crate) fn uniform_grid(lo: f64, hi: f64, n: usize) -> Result<Vec<f64>> {
     ensure!(n >= 2, "grid needs n >= 2 points, got n = {n}");
     ensure!(
         lo.is_finite() && hi.is_finite() && lo < hi,
@@ -648,7 +654,13 @@ pub fn uniform_grid(lo: f64, hi: f64, n: usize) -> Result<Vec<f64>> {
 /// depths over `[h_lo, h_hi]` (inclusive), divided by the mean of
 /// `(p_a + p_b)/2` on the same grid. Meant for regime C. Errors if the grid
 /// leaves either data range or the mean resistance is not positive.
-pub fn rms_distance_over_mean(a: &Fdr, b: &Fdr, h_lo: f64, h_hi: f64, n: usize) -> Result<f64> {
+pub(crate) fn rms_distance_over_mean(
+    a: &Fdr,
+    b: &Fdr,
+    h_lo: f64,
+    h_hi: f64,
+    n: usize,
+) -> Result<f64> {
     let grid = uniform_grid(h_lo, h_hi, n)?;
     let pa = resample(a, &grid).context("resampling FDR a")?;
     let pb = resample(b, &grid).context("resampling FDR b")?;
@@ -670,7 +682,7 @@ pub fn rms_distance_over_mean(a: &Fdr, b: &Fdr, h_lo: f64, h_hi: f64, n: usize) 
 
 /// CSV with header `h,p` or, with a fit, `h,p,p_fit` (`p_fit = K_phi h + p0`
 /// at every row, also outside the fitted range).
-pub fn write_csv(path: &Path, fdr: &Fdr, fit: Option<&LinearFit>) -> Result<()> {
+pub(crate) fn write_csv(path: &Path, fdr: &Fdr, fit: Option<&LinearFit>) -> Result<()> {
     fdr.validate()?;
     let mut w = csv::Writer::from_path(path)
         .with_context(|| format!("cannot create {}", path.display()))?;

@@ -20,7 +20,7 @@ use std::collections::HashMap;
 
 /// Per-grain forces and the grain-grain contacts of one snapshot.
 #[derive(Debug, Clone)]
-pub struct Network {
+pub(crate) struct Network {
     /// Sum of |F_n| over each grain's contacts (N), in the order of the grain ids given.
     pub normal: Vec<f64>,
     /// Sum of |F_t| (N).
@@ -56,13 +56,13 @@ impl Network {
     }
 
     /// Mean normal force per grain, over all grains (rattlers count with zero).
-    pub fn mean_normal(&self) -> f64 {
+    pub(crate) fn mean_normal(&self) -> f64 {
         self.normal.iter().sum::<f64>() / self.normal.len().max(1) as f64
     }
 }
 
 /// B0 of the grains with `force > threshold` joined by `edges`.
-pub fn b0(force: &[f64], edges: &[(usize, usize)], threshold: f64) -> usize {
+pub(crate) fn b0(force: &[f64], edges: &[(usize, usize)], threshold: f64) -> usize {
     let white: Vec<bool> = force.iter().map(|&f| f > threshold).collect();
     let mut uf = UnionFind::<usize>::new(force.len());
     let merges = edges
@@ -85,7 +85,7 @@ pub struct B0Curves {
     pub grain_contacts: usize,
 }
 
-pub fn curves(net: &Network, max: f64, step: f64) -> Result<B0Curves> {
+pub(crate) fn curves(net: &Network, max: f64, step: f64) -> Result<B0Curves> {
     let n = net.normal.len();
     let unit = net.mean_normal();
     if n == 0 || unit.is_nan() || unit <= 0.0 {
@@ -121,7 +121,7 @@ pub fn integral(x: &[f64], y: &[f64]) -> f64 {
 
 /// L1 distance of two curves on the same thresholds over the integral of `b` (the
 /// reference), the native-vs-reference distance of Figs 22-23.
-pub fn relative_l1(x: &[f64], a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn relative_l1(x: &[f64], a: &[f64], b: &[f64]) -> f64 {
     let diff: Vec<f64> = a.iter().zip(b).map(|(p, q)| (p - q).abs()).collect();
     integral(x, &diff) / integral(x, b)
 }

@@ -12,12 +12,11 @@
 //!   spring length is history LAMMPS does not dump; wall-wall and intra-cluster pairs
 //!   excluded).
 
-pub use crate::physics::dem2d::energy::{EnergyModel, SnapDisk, energies};
 pub use crate::rundata::impact::*;
 use anyhow::{Result, bail};
 
 /// Potential energies relative to the first sample.
-pub fn relative_potential(e: &[EnergySample]) -> Vec<f64> {
+pub(crate) fn relative_potential(e: &[EnergySample]) -> Vec<f64> {
     let p0 = e.first().map(|s| s.potential).unwrap_or(0.0);
     e.iter().map(|s| s.potential - p0).collect()
 }
@@ -32,7 +31,7 @@ pub fn depth(samples: &[IntruderSample], surface: f64, bottom_offset: f64) -> Ve
 
 /// Mean of D over `t >= t_end - window`.
 /// Samples of D(t) in the final window of length `window`.
-pub fn final_window_samples(d: &[(f64, f64)], window: f64) -> usize {
+pub(crate) fn final_window_samples(d: &[(f64, f64)], window: f64) -> usize {
     let Some(&(t_end, _)) = d.last() else {
         return 0;
     };
@@ -76,7 +75,7 @@ pub fn rms_distance(a: &[(f64, f64)], b: &[(f64, f64)]) -> Result<f64> {
 /// The intruder's first passage through the depth bin `[y - half, y + half]` (K
 /// Appendix, Fig 29: "we find a(u) for fixed y"), in the units of the series given.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct Passage {
+pub(crate) struct Passage {
     /// Bin centre (depth).
     pub y: f64,
     /// Mean speed through the bin: 2 half / (t_out - t_in).
@@ -89,7 +88,7 @@ pub struct Passage {
 /// First passages through bins centred at `centres` (half-width `half`) of the series
 /// `(t, depth, downward speed)`: the first time the depth reaches each edge, by linear
 /// interpolation between samples. A bin the run never leaves at the bottom gives none.
-pub fn passages(series: &[(f64, f64, f64)], centres: &[f64], half: f64) -> Vec<Passage> {
+pub(crate) fn passages(series: &[(f64, f64, f64)], centres: &[f64], half: f64) -> Vec<Passage> {
     let reach = |level: f64| {
         series.windows(2).find_map(|w| {
             let ((t0, d0, w0), (t1, d1, w1)) = (w[0], w[1]);
@@ -116,7 +115,7 @@ pub fn passages(series: &[(f64, f64, f64)], centres: &[f64], half: f64) -> Vec<P
 
 /// Fit `decel = c u^k` by least squares of ln(decel) on ln(u) over the passages with
 /// decel > 0: (k, c, R^2, points used).
-pub fn power_law(p: &[Passage]) -> Result<(f64, f64, f64, usize)> {
+pub(crate) fn power_law(p: &[Passage]) -> Result<(f64, f64, f64, usize)> {
     let (x, y): (Vec<f64>, Vec<f64>) = p
         .iter()
         .filter(|q| q.decel > 0.0 && q.u > 0.0)
@@ -131,7 +130,7 @@ pub fn power_law(p: &[Passage]) -> Result<(f64, f64, f64, usize)> {
 /// the bin `y +- half` with a > 0, and the regression's own slope error (printed only:
 /// it knows nothing of the next bed, docs/statistics.md "One bed").
 #[derive(Debug, Clone, PartialEq)]
-pub struct DepthExponent {
+pub(crate) struct DepthExponent {
     pub y: f64,
     pub k: f64,
     /// Standard error of the slope within this bed's regression.
@@ -145,7 +144,7 @@ pub struct DepthExponent {
 /// [`DepthExponent`] of the runs `series` (one per impact speed, `(t, depth, downward
 /// speed)`) at depth `y`; an error naming the count when fewer than `min_passages`
 /// passages with a > 0 remain (at least 3: a slope with an error).
-pub fn exponent_at_depth(
+pub(crate) fn exponent_at_depth(
     series: &[&[(f64, f64, f64)]],
     y: f64,
     half: f64,
@@ -201,7 +200,7 @@ pub(crate) fn power_law_trajectory(v0: f64, c: f64, k: f64, dt: f64) -> Vec<(f64
 /// over bins of `bin` from t_c, the largest bin and how soon the bins fall below half of
 /// it, and the impulse over `[t_c, t_c + window]`.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct ForceSummary {
+pub(crate) struct ForceSummary {
     pub t_contact: f64,
     /// Start of the largest bin.
     pub t_peak: f64,
@@ -217,7 +216,7 @@ pub struct ForceSummary {
 }
 
 /// Summary of a force series `(t, F)` (sorted by t), or why there is none.
-pub fn force_summary(series: &[(f64, f64)], bin: f64, window: f64) -> Result<ForceSummary> {
+pub(crate) fn force_summary(series: &[(f64, f64)], bin: f64, window: f64) -> Result<ForceSummary> {
     let Some(c) = series.iter().position(|p| p.1 != 0.0) else {
         bail!("the intruder never touched anything (force zero at every sample)");
     };
@@ -275,7 +274,7 @@ pub fn force_summary(series: &[(f64, f64)], bin: f64, window: f64) -> Result<For
 
 /// RMS difference of two binned force series over the bins both have that start
 /// before `t_end` (matched by bin start).
-pub fn bins_rms(a: &[(f64, f64)], b: &[(f64, f64)], t_end: f64) -> Result<f64> {
+pub(crate) fn bins_rms(a: &[(f64, f64)], b: &[(f64, f64)], t_end: f64) -> Result<f64> {
     let (mut s, mut n) = (0.0, 0usize);
     for (p, q) in a.iter().zip(b) {
         if p.0 >= t_end || q.0 >= t_end {
@@ -298,7 +297,7 @@ pub fn bins_rms(a: &[(f64, f64)], b: &[(f64, f64)], t_end: f64) -> Result<f64> {
 }
 
 /// Least-squares line `y = a + b x` and its R^2.
-pub fn linear_r2(x: &[f64], y: &[f64]) -> Result<(f64, f64, f64)> {
+pub(crate) fn linear_r2(x: &[f64], y: &[f64]) -> Result<(f64, f64, f64)> {
     let n = x.len();
     if n < 3 || y.len() != n {
         bail!("a linear fit needs >= 3 points (got {n})");

@@ -30,7 +30,10 @@ pub fn shift(samples: &[IntruderSample]) -> Result<Vec<(f64, f64)>> {
 }
 
 /// D_rel(t) = D(t) + s(t), both given at the same sample times.
-pub fn relative_depth(depth: &[(f64, f64)], shift: &[(f64, f64)]) -> Result<Vec<(f64, f64)>> {
+pub(crate) fn relative_depth(
+    depth: &[(f64, f64)],
+    shift: &[(f64, f64)],
+) -> Result<Vec<(f64, f64)>> {
     if depth.len() != shift.len() {
         bail!(
             "{} depth samples but {} interface samples",
@@ -66,7 +69,7 @@ pub struct Oscillation {
 
 /// The oscillation of `(t, x)` (sorted by t) over `t >= t_end - window`: the samples
 /// the final depth averages (`impact::final_depth`). Fewer than 2 samples is an error.
-pub fn oscillation(series: &[(f64, f64)], window: f64) -> Result<Oscillation> {
+pub(crate) fn oscillation(series: &[(f64, f64)], window: f64) -> Result<Oscillation> {
     let Some(&(t_end, _)) = series.last() else {
         bail!("an empty series");
     };

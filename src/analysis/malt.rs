@@ -138,7 +138,8 @@ impl Malt {
 /// half-angle `beta = pi/4 - phi/2`, log-spiral fan, hoop-stress
 /// correction); it satisfies `A(1, phi) = 1` and `A(eta, 0) = 1`, which is
 /// what makes `K(0) = 1`. Domain: `0 < eta <= 1`, `0 <= phi < pi/2`.
-pub fn a_function(eta: f64, phi: f64) -> Result<f64> {
+#[cfg(test)]
+pub(crate) fn a_function(eta: f64, phi: f64) -> Result<f64> {
     ensure!(
         eta.is_finite() && eta > 0.0 && eta <= 1.0,
         "eta must be in (0, 1], got {eta}"
@@ -197,7 +198,7 @@ pub fn k_phi(phi: f64) -> Result<Quad> {
 
 /// Upper end of the bracket searched by [`phi_of_k`]; covers every friction
 /// angle of practical granular media (K(60 deg) is in the thousands).
-pub const PHI_MAX_DEG: f64 = 60.0;
+pub(crate) const PHI_MAX_DEG: f64 = 60.0;
 
 /// [`k_phi`] of an angle in degrees, restricted to [0, [`PHI_MAX_DEG`]]: granular
 /// internal friction angles lie well inside it, and beyond it eq 10's exp(pi tan phi)
@@ -276,7 +277,8 @@ fn h_ss(phi: f64) -> f64 {
 /// (no stagnant zone during compaction, regime A) and saturation beyond
 /// `h_B`. Through eq 11 the stagnant-zone volume `pi R^3 H / 3` adds to the
 /// intruded volume.
-pub fn stagnant_cone_height(h: f64, h_a: f64, h_b: f64, phi: f64) -> f64 {
+#[cfg(test)]
+pub(crate) fn stagnant_cone_height(h: f64, h_a: f64, h_b: f64, phi: f64) -> f64 {
     if h <= h_a {
         return 0.0;
     }
@@ -336,7 +338,7 @@ impl UnifiedFdr {
     /// The two tanh crossovers are applied on either side of
     /// `(h_A + h_B)/2` so that each regime boundary is smoothed independently
     /// (eq 15). Parameters are assumed valid (`h_a < h_b`, `delta > 0`).
-    pub fn slope(&self, h: f64) -> f64 {
+    pub(crate) fn slope(&self, h: f64) -> f64 {
         let f = self.f13(h);
         if h < self.h_mid() {
             g14(self.k_a, f, self.h_a, self.delta, h)
@@ -354,6 +356,7 @@ impl UnifiedFdr {
 
     /// p(h) = p0 + integral_0^h slope, integrated numerically (the paper
     /// gives no closed form for eq 15's integral).
+    #[cfg(test)]
     pub fn p(&self, h: f64) -> f64 {
         self.p0 + integrate_pieces(&|x| self.slope(x), 0.0, h, &self.breaks())
     }
@@ -508,7 +511,12 @@ impl FitData {
 /// transient is fitted. `(p0, k_a)` enter linearly and are solved exactly for
 /// each trial `(h_a, h_b, delta)`, which a bounded Nelder-Mead search (from the
 /// best few points of a coarse grid) minimises.
-pub fn fit_unified_fdr(h: &[f64], p: &[f64], k_phi: f64, phi: f64) -> Result<(UnifiedFdr, f64)> {
+pub(crate) fn fit_unified_fdr(
+    h: &[f64],
+    p: &[f64],
+    k_phi: f64,
+    phi: f64,
+) -> Result<(UnifiedFdr, f64)> {
     ensure!(
         h.len() == p.len(),
         "h and p differ in length ({} vs {})",

@@ -15,16 +15,16 @@ use nalgebra::{Matrix3, SymmetricEigen};
 use serde::Serialize;
 
 /// sin phi averages gamma over cells within this fraction of gamma_max (paper: 0.995).
-pub const TOP_FRACTION: f64 = 0.995;
+pub(crate) const TOP_FRACTION: f64 = 0.995;
 /// Incipient-yield threshold as a fraction of sin phi (paper: 0.85).
-pub const YIELD_FRACTION: f64 = 0.85;
+pub(crate) const YIELD_FRACTION: f64 = 0.85;
 /// A grain moves "with the intruder" when |v_z - v_intruder| is below this fraction of
 /// the intruder speed (stagnant-zone criterion).
-pub const STAGNANT_FRACTION: f64 = 0.1;
+pub(crate) const STAGNANT_FRACTION: f64 = 0.1;
 /// Cells need a kernel solid fraction of at least this fraction of the bed's packing
 /// fraction: excludes the free surface, the intruder's interior and loose regions where
 /// the few grains in the kernel make gamma meaningless.
-pub const MIN_SOLID_FRACTION_REL: f64 = 0.75;
+pub(crate) const MIN_SOLID_FRACTION_REL: f64 = 0.75;
 
 /// Principal stresses, sigma_1 >= sigma_2 >= sigma_3 (compressive positive).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -70,7 +70,7 @@ pub struct Mask {
 impl Mask {
     /// The mask for a bed of packing fraction `psi` in a container of radius
     /// `container_radius` with its floor at `floor_z`, grains of diameter up to `d_max`.
-    pub fn for_bed(
+    pub(crate) fn for_bed(
         params: &CgParams,
         psi: f64,
         container_radius: f64,
@@ -85,7 +85,7 @@ impl Mask {
         }
     }
 
-    pub fn cells(&self, f: &RzField) -> Vec<bool> {
+    pub(crate) fn cells(&self, f: &RzField) -> Vec<bool> {
         let mut m = vec![false; f.nr * f.nz];
         for k in 0..f.nz {
             for i in 0..f.nr {
@@ -165,7 +165,7 @@ pub struct FieldAnalysis {
 
 /// Analyses an (r, z) field; `intruder_bottom_z`, `intruder_radius` and `intruder_vz`
 /// locate and drive the intruder.
-pub fn analyse(
+pub(crate) fn analyse(
     f: &RzField,
     mask: &Mask,
     intruder_bottom_z: f64,

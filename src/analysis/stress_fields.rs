@@ -36,12 +36,12 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// Azimuths sampled per ring of the (r, z) average.
-pub const N_THETA: usize = 32;
+pub(crate) const N_THETA: usize = 32;
 
 /// Gaussian range w of eq 6 in grain diameters (see `analysis::coarse_grain`: cutoff
 /// 3 w = the basic sphere's radius). `granval stress --kernel-width` overrides it for
 /// sensitivity studies; the checks are meant to be run with this value.
-pub const DEFAULT_WIDTH_OVER_D: f64 = 0.5;
+pub(crate) const DEFAULT_WIDTH_OVER_D: f64 = 0.5;
 
 /// The snapshot window of one requested depth: its steps, ascending and distinct.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -65,7 +65,7 @@ pub struct SnapshotPlan {
 }
 
 /// Name of the stored [`SnapshotPlan`] in a snapshot directory.
-pub const PLAN_FILE: &str = "windows.json";
+pub(crate) const PLAN_FILE: &str = "windows.json";
 
 impl SnapshotPlan {
     /// The snapshot file number of `step`.
@@ -154,7 +154,7 @@ pub fn snapshot_plan(case: &PenetrationCase, bed: &Bed) -> SnapshotPlan {
 
 impl SnapshotPlan {
     /// The plan of `windows`: the union of their steps, ascending.
-    pub fn of_windows(windows: Vec<WindowPlan>) -> SnapshotPlan {
+    pub(crate) fn of_windows(windows: Vec<WindowPlan>) -> SnapshotPlan {
         let mut all: Vec<u64> = windows.iter().flat_map(|w| w.steps.clone()).collect();
         all.sort_unstable();
         all.dedup();
@@ -166,17 +166,17 @@ impl SnapshotPlan {
 }
 
 /// Snapshots of the null window (docs/stress.md, "Validating the estimator", rule 1).
-pub const NULL_WINDOW_SNAPSHOTS: usize = 5;
+pub(crate) const NULL_WINDOW_SNAPSHOTS: usize = 5;
 /// Snapshot counts of the convergence windows (rule 1).
-pub const CONVERGENCE_COUNTS: [usize; 6] = [1, 2, 5, 10, 20, 40];
+pub(crate) const CONVERGENCE_COUNTS: [usize; 6] = [1, 2, 5, 10, 20, 40];
 /// Intruder travel (units of R) the convergence windows spread over, ending at the
 /// final depth (rule 1).
-pub const CONVERGENCE_SPAN_R: f64 = 0.5;
+pub(crate) const CONVERGENCE_SPAN_R: f64 = 0.5;
 /// Label of the null window in a study plan.
-pub const NULL_LABEL: &str = "null";
+pub(crate) const NULL_LABEL: &str = "null";
 
 /// Label of the convergence window of `n` snapshots in a study plan.
-pub fn convergence_label(n: usize) -> String {
+pub(crate) fn convergence_label(n: usize) -> String {
     format!("convergence-{n}")
 }
 
@@ -320,7 +320,7 @@ impl EngineFields {
     }
 }
 
-pub fn mean_std(v: &[f64]) -> (f64, f64) {
+pub(crate) fn mean_std(v: &[f64]) -> (f64, f64) {
     if v.is_empty() {
         return (f64::NAN, f64::NAN);
     }
@@ -463,7 +463,7 @@ fn mean_points(sets: &[Vec<PointFields>]) -> Vec<PointFields> {
 
 /// The 3D output grid of a snapshot (spacing d_g over the container), its z shifted by
 /// `dz`.
-pub fn output_grid(m: &SnapshotMeta, dz: f64) -> Grid3 {
+pub(crate) fn output_grid(m: &SnapshotMeta, dz: f64) -> Grid3 {
     let d = m.mean_diameter;
     let rc = m.container_radius;
     let n_xy = (2.0 * rc / d).ceil() as usize;
@@ -521,7 +521,7 @@ pub fn window_fields(
 
 /// [`window_fields`] on an (r, z) grid of spacing `spacing_over_w` times the kernel
 /// width w (the estimator study's grid-spacing convergence; 1 everywhere else).
-pub fn window_fields_spaced(
+pub(crate) fn window_fields_spaced(
     snaps: &[Snapshot],
     ks: &[usize],
     width_over_d: f64,

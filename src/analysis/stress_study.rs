@@ -26,15 +26,15 @@ use serde::Serialize;
 use std::path::Path;
 
 /// Grid spacings of the convergence study, in units of the kernel width w (rule 1).
-pub const SPACINGS: [f64; 3] = [1.0, 0.5, 2.0];
+pub(crate) const SPACINGS: [f64; 3] = [1.0, 0.5, 2.0];
 /// v1 is "unfit" when its null-window phi is within this of its penetration phi (deg).
-pub const UNFIT_MARGIN_DEG: f64 = 5.0;
+pub(crate) const UNFIT_MARGIN_DEG: f64 = 5.0;
 /// Janssen slabs are this many mean grain diameters thick (rule 1).
-pub const SLAB_D: f64 = 2.0;
+pub(crate) const SLAB_D: f64 = 2.0;
 
 /// v1 on one window of the study.
 #[derive(Debug, Clone, Serialize)]
-pub struct StudyWindow {
+pub(crate) struct StudyWindow {
     pub label: String,
     pub n_snapshots: usize,
     pub spacing_over_w: f64,
@@ -61,7 +61,7 @@ pub struct StudyWindow {
 
 /// One slab of the Janssen check.
 #[derive(Debug, Clone, Serialize)]
-pub struct JanssenSlab {
+pub(crate) struct JanssenSlab {
     /// Ring-area weighted mean height of the slab's cells (m) and its depth below the
     /// surface (m).
     pub z: f64,
@@ -76,7 +76,7 @@ pub struct JanssenSlab {
 
 /// The study of one bed in one engine.
 #[derive(Debug, Clone, Serialize)]
-pub struct BedStudy {
+pub(crate) struct BedStudy {
     pub engine: String,
     pub bed: usize,
     pub null: StudyWindow,
@@ -260,7 +260,7 @@ fn janssen(w: &WindowFields, gravity: f64) -> Vec<JanssenSlab> {
 
 /// The study of one bed's extra run in one engine (`dir`: its snapshots with the study
 /// plan), kernel width `width` (w / d_g).
-pub fn study_bed(
+pub(crate) fn study_bed(
     engine: &str,
     bed: usize,
     dir: &Path,
@@ -294,7 +294,7 @@ pub fn study_bed(
 /// Rule 1's verdict on v1 for one engine: the mean over beds of the null-window phi
 /// against the engine's pooled v1 phi of the penetration windows.
 #[derive(Debug, Clone, Serialize)]
-pub struct NullVerdict {
+pub(crate) struct NullVerdict {
     pub engine: String,
     pub phi_null_deg: f64,
     pub phi_penetration_deg: f64,
@@ -303,7 +303,11 @@ pub struct NullVerdict {
     pub unfit: bool,
 }
 
-pub fn null_verdict(engine: &str, beds: &[&BedStudy], phi_penetration_deg: f64) -> NullVerdict {
+pub(crate) fn null_verdict(
+    engine: &str,
+    beds: &[&BedStudy],
+    phi_penetration_deg: f64,
+) -> NullVerdict {
     let phis: Vec<f64> = beds.iter().filter_map(|b| b.null.phi_deg).collect();
     let gs: Vec<f64> = beds.iter().filter_map(|b| b.null.mean_gamma).collect();
     let mean = |v: &[f64]| {
@@ -325,7 +329,7 @@ pub fn null_verdict(engine: &str, beds: &[&BedStudy], phi_penetration_deg: f64) 
 }
 
 /// `study_convergence.csv` and `study_janssen.csv` of all beds and engines.
-pub fn write_csvs(out: &Path, studies: &[BedStudy]) -> Result<()> {
+pub(crate) fn write_csvs(out: &Path, studies: &[BedStudy]) -> Result<()> {
     let mut w = csv::Writer::from_path(out.join("study_convergence.csv"))?;
     w.write_record([
         "engine",

@@ -19,25 +19,25 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// Bootstrap resamples (rule 2).
-pub const RESAMPLES: usize = 200;
+pub(crate) const RESAMPLES: usize = 200;
 /// Seed of the bootstrap's xorshift64 (rule 2: the date of the pre-registration).
-pub const SEED: u64 = 20261123;
+pub(crate) const SEED: u64 = 20261123;
 /// A cell is admitted only if the bootstrap standard error of its gamma is at most this.
-pub const MAX_GAMMA_SE: f64 = 0.01;
+pub(crate) const MAX_GAMMA_SE: f64 = 0.01;
 /// ... and its kernel holds a grain in at least this many snapshots.
-pub const MIN_GRAIN_SNAPSHOTS: usize = 10;
+pub(crate) const MIN_GRAIN_SNAPSHOTS: usize = 10;
 
 /// Marsaglia's xorshift64 with shifts (13, 7, 17), as pre-registered; an index below n
 /// is `next() % n`. Written out (not a crate) because the exact sequence is part of the
 /// registered method and both engines must draw the same one.
 #[derive(Debug, Clone)]
-pub struct Xorshift64(u64);
+pub(crate) struct Xorshift64(u64);
 
 impl Xorshift64 {
     pub fn new(seed: u64) -> Self {
         Xorshift64(seed.max(1))
     }
-    pub fn next_u64(&mut self) -> u64 {
+    pub(crate) fn next_u64(&mut self) -> u64 {
         let mut x = self.0;
         x ^= x << 13;
         x ^= x >> 7;

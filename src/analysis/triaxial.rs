@@ -69,7 +69,7 @@ fn mean_stress(pts: &[Point], from: f64, to: f64, to_inclusive: bool) -> ([f64; 
 
 /// phi of the stresses averaged over `from <= eps_a < to` (or `<= to`); an error when
 /// the window holds no point.
-pub fn window_phi(pts: &[Point], from: f64, to: f64, to_inclusive: bool) -> Result<f64> {
+pub(crate) fn window_phi(pts: &[Point], from: f64, to: f64, to_inclusive: bool) -> Result<f64> {
     let (s, n) = mean_stress(pts, from, to, to_inclusive);
     if n == 0 {
         bail!("no output step with eps_a in [{from:.4}, {to:.4}]");
@@ -78,7 +78,7 @@ pub fn window_phi(pts: &[Point], from: f64, to: f64, to_inclusive: bool) -> Resu
 }
 
 /// Least-squares slope of y on x.
-pub fn slope(x: &[f64], y: &[f64]) -> f64 {
+pub(crate) fn slope(x: &[f64], y: &[f64]) -> f64 {
     let n = x.len() as f64;
     let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
     let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
@@ -87,7 +87,7 @@ pub fn slope(x: &[f64], y: &[f64]) -> f64 {
 }
 
 /// Sample standard deviation (n - 1).
-pub fn sample_sd(v: &[f64]) -> f64 {
+pub(crate) fn sample_sd(v: &[f64]) -> f64 {
     let n = v.len() as f64;
     let m = v.iter().sum::<f64>() / n;
     (v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0)).sqrt()
@@ -95,7 +95,7 @@ pub fn sample_sd(v: &[f64]) -> f64 {
 
 /// The windows of the analysis (a case's `[analysis]`).
 #[derive(Debug, Clone, Copy)]
-pub struct Windows {
+pub(crate) struct Windows {
     pub peak_window: f64,
     pub critical_state: [f64; 2],
     pub block: f64,
@@ -105,7 +105,7 @@ pub struct Windows {
 
 /// What rule 5 reads from one run.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Observables {
+pub(crate) struct Observables {
     pub phi_peak: f64,
     /// Start of the window phi_peak was read in (eps_a).
     pub peak_at: f64,
@@ -122,7 +122,7 @@ pub struct Observables {
 }
 
 /// Rule 5's observables of a run.
-pub fn observables(pts: &[Point], w: &Windows) -> Result<Observables> {
+pub(crate) fn observables(pts: &[Point], w: &Windows) -> Result<Observables> {
     let n_peak = ((w.final_strain / w.peak_window) - 1e-9).ceil().max(1.0) as usize;
     let mut windows = Vec::with_capacity(n_peak);
     for k in 0..n_peak {
@@ -174,13 +174,13 @@ pub fn solid_fraction(n: usize, d: f64, hi: [f64; 3]) -> f64 {
 }
 
 /// Inertial number I = eps_dot d sqrt(rho / sigma_c).
-pub fn inertial_number(strain_rate: f64, d: f64, density: f64, sigma_c: f64) -> f64 {
+pub(crate) fn inertial_number(strain_rate: f64, d: f64, density: f64, sigma_c: f64) -> f64 {
     strain_rate * d * (density / sigma_c).sqrt()
 }
 
 /// The servo's tracking error: the mean and the largest |sigma / sigma_c - 1| of the
 /// lateral hi walls (x, y), over the points with eps_a in [from, to].
-pub fn tracking_error(pts: &[Point], sigma_c: f64, from: f64, to: f64) -> (f64, f64) {
+pub(crate) fn tracking_error(pts: &[Point], sigma_c: f64, from: f64, to: f64) -> (f64, f64) {
     let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0usize);
     for p in pts.iter().filter(|p| p.eps_a >= from && p.eps_a <= to) {
         for i in 0..2 {

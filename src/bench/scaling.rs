@@ -29,7 +29,7 @@ const SETTLE_TIME: f64 = 0.15;
 
 /// Steps timed at `n` grains: `budget / n`, at least 50 (so the set-up is amortised)
 /// and at most 4000.
-pub fn steps_for(n: usize, budget: f64) -> u64 {
+pub(crate) fn steps_for(n: usize, budget: f64) -> u64 {
     ((budget / n.max(1) as f64).round() as u64).clamp(50, 4000)
 }
 

@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 /// `[[clump_templates]]` as written.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RawTemplate {
+pub(crate) struct RawTemplate {
     pub name: String,
     #[serde(rename = "type")]
     pub type_: usize,
@@ -38,7 +38,7 @@ pub struct RawTemplate {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RawMember {
+pub(crate) struct RawMember {
     /// Centre in the body frame relative to the clump's centre of mass (m).
     pub offset: [f64; 3],
     pub radius: f64,
@@ -47,7 +47,7 @@ pub struct RawMember {
 /// `[[clumps]]` as written.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RawClump {
+pub(crate) struct RawClump {
     pub id: u64,
     pub template: String,
     /// Centre of mass (m).
@@ -105,19 +105,19 @@ impl Clumps {
     pub fn is_empty(&self) -> bool {
         self.bodies.is_empty()
     }
-    pub fn template_of(&self, body: &Clump) -> &ClumpTemplate {
+    pub(crate) fn template_of(&self, body: &Clump) -> &ClumpTemplate {
         &self.templates[body.template]
     }
 }
 
 /// Largest |q|^2 - 1 accepted. LIGGGHTS accepts 1e-10 and does not renormalise
 /// (fix_insert.cpp:439-440); granval asks for a quaternion given to full precision.
-pub const QUAT_NORM_TOL: f64 = 1e-12;
+pub(crate) const QUAT_NORM_TOL: f64 = 1e-12;
 
 /// Allowed |centre of mass| of the offsets as a fraction of the largest radius: the
 /// union COM is computed in floating point, so an exactly symmetric clump comes out at
 /// ~1e-17 m, not 0.
-pub const COM_TOL_FRAC: f64 = 1e-12;
+pub(crate) const COM_TOL_FRAC: f64 = 1e-12;
 
 /// Union volume, first moment along x, and the three second-moment integrals of the
 /// union of collinear spheres (centres `c_k` on the x axis): returns
@@ -184,7 +184,11 @@ fn union_integrals(c: &[f64], r: &[f64]) -> (f64, f64, f64, f64) {
 
 /// Mass properties of the union of collinear members at `offsets` (all y = z = 0), density
 /// `rho`: (volume, mass, principal moments [I_xx, I_yy, I_zz], x of the centre of mass).
-pub fn union_mass_properties(xs: &[f64], radii: &[f64], rho: f64) -> (f64, f64, [f64; 3], f64) {
+pub(crate) fn union_mass_properties(
+    xs: &[f64],
+    radii: &[f64],
+    rho: f64,
+) -> (f64, f64, [f64; 3], f64) {
     let (v, mx, iax, ix2) = union_integrals(xs, radii);
     let com = mx / v;
     // About a transverse axis through the COM: int (x^2 + y^2) dm where int y^2 = iax/2;

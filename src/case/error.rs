@@ -51,7 +51,7 @@ impl CaseError {
 
 /// Collects the location once so validation code can say `ctx.bad("field", v, "why")`.
 #[derive(Debug, Clone)]
-pub struct Ctx {
+pub(crate) struct Ctx {
     pub file: PathBuf,
 }
 

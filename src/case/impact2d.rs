@@ -167,7 +167,7 @@ struct BedIn {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
-pub enum Shape {
+pub(crate) enum Shape {
     Disk,
     Ellipse,
 }
@@ -381,10 +381,10 @@ pub enum FieldQuantity {
 }
 
 impl FieldQuantity {
-    pub fn is_network(self) -> bool {
+    pub(crate) fn is_network(self) -> bool {
         matches!(self, FieldQuantity::B0Normal | FieldQuantity::B0Tangential)
     }
-    pub fn describe(self) -> &'static str {
+    pub(crate) fn describe(self) -> &'static str {
         match self {
             FieldQuantity::B0Normal => "integral of B0/N, normal force network",
             FieldQuantity::B0Tangential => "integral of B0/N, tangential force network",
@@ -436,7 +436,7 @@ pub enum ClaimQuantity {
 }
 
 impl ClaimQuantity {
-    pub fn describe(self) -> (&'static str, &'static str) {
+    pub(crate) fn describe(self) -> (&'static str, &'static str) {
         match self {
             ClaimQuantity::FinalDepth => ("final depth", "d"),
             ClaimQuantity::TimeOfMaxDepth => ("time of the maximum depth", "tau_c"),
@@ -540,7 +540,7 @@ impl Scales {
     pub fn velocity(&self) -> f64 {
         self.d / self.tau_c
     }
-    pub fn tau_of(&self, k_n: f64) -> f64 {
+    pub(crate) fn tau_of(&self, k_n: f64) -> f64 {
         std::f64::consts::PI * (self.d / (2.0 * self.g0 * k_n)).sqrt()
     }
 }
@@ -695,7 +695,7 @@ pub struct Impact2dCase {
 }
 
 /// Gates an impact2d comparison produces (what its negative controls may name).
-pub const IMPACT2D_GATES: &[super::Gate] = &[
+pub(crate) const IMPACT2D_GATES: &[super::Gate] = &[
     super::Gate::FinalDepth,
     super::Gate::DepthSeries,
     super::Gate::Claim,
@@ -707,12 +707,12 @@ pub const IMPACT2D_GATES: &[super::Gate] = &[
 
 /// The interface tracers of K Fig 12 (docs/impact2d.md): grains whose centre at release
 /// lies within this many d below the surface D is measured from ...
-pub const TRACER_DEPTH: f64 = 2.0;
+pub(crate) const TRACER_DEPTH: f64 = 2.0;
 /// ... at a periodic horizontal distance from the impact point of at least this
 /// fraction of L ...
-pub const TRACER_MIN_DISTANCE: f64 = 0.25;
+pub(crate) const TRACER_MIN_DISTANCE: f64 = 0.25;
 /// ... and at least this many of them.
-pub const MIN_TRACERS: usize = 10;
+pub(crate) const MIN_TRACERS: usize = 10;
 
 /// `[claim]` (one table) or `[[claim]]` (several), each read on its own so that an
 /// error names the claim and serde's own reason (a missing or unknown field, a bad kind).
@@ -1999,7 +1999,7 @@ impl Coeffs {
     /// exhaustively, so a new field does not compile until it is placed here) instead of
     /// taken from `Debug`, whose output is not a format anything may be sealed by; the
     /// text is the one the sealed 2D records were fingerprinted with.
-    pub fn fingerprint_line(&self) -> String {
+    pub(crate) fn fingerprint_line(&self) -> String {
         let Coeffs {
             kn,
             kt,
@@ -2018,7 +2018,7 @@ impl Coeffs {
     }
 
     /// Tangential spring with history (K's model 1, "static friction") or not (model 2).
-    pub fn history(&self) -> bool {
+    pub(crate) fn history(&self) -> bool {
         self.kt > 0.0
     }
 }

@@ -14,12 +14,11 @@ pub mod triaxial;
 pub(crate) mod validate;
 
 pub use error::CaseError;
-pub use family::{ContactFamily, LammpsModels, LammpsRolling};
+pub(crate) use family::{ContactFamily, LammpsModels, LammpsRolling};
 
 mod control;
 
 pub use control::{Gate, NegativeControl, Perturbation};
-pub use validate::RESERVED_NAMES;
 
 use std::path::{Path, PathBuf};
 
@@ -149,7 +148,7 @@ pub enum RollingModel {
 }
 
 impl RollingModel {
-    pub fn liggghts_keyword(self) -> Option<&'static str> {
+    pub(crate) fn liggghts_keyword(self) -> Option<&'static str> {
         match self {
             RollingModel::None => None,
             RollingModel::Cdt => Some("cdt"),
@@ -353,7 +352,7 @@ impl Case {
     }
 
     /// Smallest sphere radius, clump members included.
-    pub fn min_radius(&self) -> f64 {
+    pub(crate) fn min_radius(&self) -> f64 {
         self.particles
             .iter()
             .map(|p| p.radius)
@@ -367,7 +366,7 @@ impl Case {
     }
 
     /// Mass of every free sphere and every clump body by id (bodies: the whole body).
-    pub fn mass_by_id(&self) -> std::collections::HashMap<u64, f64> {
+    pub(crate) fn mass_by_id(&self) -> std::collections::HashMap<u64, f64> {
         self.particles
             .iter()
             .map(|p| (p.id, p.mass()))
@@ -378,17 +377,6 @@ impl Case {
                     .map(|b| (b.id, self.clumps.template_of(b).mass)),
             )
             .collect()
-    }
-
-    /// Number of spheres a run integrates (free spheres and clump members).
-    pub fn n_spheres(&self) -> usize {
-        self.particles.len()
-            + self
-                .clumps
-                .bodies
-                .iter()
-                .map(|b| self.clumps.template_of(b).radii.len())
-                .sum::<usize>()
     }
 }
 

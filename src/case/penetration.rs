@@ -255,7 +255,7 @@ pub enum PhiEstimator {
 }
 
 /// Default number of snapshots per time-averaging window.
-pub const DEFAULT_SNAPSHOT_WINDOW: usize = 5;
+pub(crate) const DEFAULT_SNAPSHOT_WINDOW: usize = 5;
 
 /// One time-averaging window of contact snapshots around a requested depth.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -301,7 +301,7 @@ pub fn snapshot_windows(centres: &[f64], h_final: f64, n: usize, span: f64) -> V
 }
 
 /// Fig. 5 of Feng et al.: the depths at which the paper shows velocity and gamma fields.
-pub const DEFAULT_SNAPSHOT_H: [f64; 4] = [0.24, 0.373, 0.61, 1.0];
+pub(crate) const DEFAULT_SNAPSHOT_H: [f64; 4] = [0.24, 0.373, 0.61, 1.0];
 
 #[derive(Debug, Deserialize, Clone, serde::Serialize)]
 #[serde(deny_unknown_fields)]
@@ -445,7 +445,7 @@ pub struct PenetrationCase {
 }
 
 /// Gates a penetration comparison produces (what its negative controls may name).
-pub const PENETRATION_GATES: &[Gate] = &[
+pub(crate) const PENETRATION_GATES: &[Gate] = &[
     Gate::KPhi,
     Gate::FdrDistance,
     Gate::QuasiStatic,

@@ -12,7 +12,7 @@
 /// deliberately wide (a factor of ten or more beyond any material granular DEM is used
 /// for), so no real case warns and a unit slip (a factor 1e3 to 1e9) always does.
 #[derive(Debug, Clone, Copy)]
-pub struct Bounds {
+pub(crate) struct Bounds {
     pub min: f64,
     pub max: f64,
 }
@@ -20,7 +20,7 @@ pub struct Bounds {
 /// Young's or shear modulus (Pa). Below 1e5 Pa is softer than soft rubber or foam
 /// (DEM's deliberately softened grains use 1e6 Pa and up); above 1e13 Pa is ten times
 /// diamond (1.1e12 Pa). A modulus typed in GPa (`63` for glass) lands 1e9 too low.
-pub const MODULUS_PA: Bounds = Bounds {
+pub(crate) const MODULUS_PA: Bounds = Bounds {
     min: 1e5,
     max: 1e13,
 };
@@ -28,7 +28,7 @@ pub const MODULUS_PA: Bounds = Bounds {
 /// Grain density (kg/m^3). Below 100 is lighter than cork or any solid grain; above
 /// 25 000 is denser than osmium (22 590), the densest element. A density typed in
 /// g/cm^3 (`2.5`) lands 1e3 too low.
-pub const DENSITY_KG_M3: Bounds = Bounds {
+pub(crate) const DENSITY_KG_M3: Bounds = Bounds {
     min: 100.0,
     max: 25_000.0,
 };
@@ -36,7 +36,7 @@ pub const DENSITY_KG_M3: Bounds = Bounds {
 /// Grain or intruder size, radius or diameter (m). Below 1 um, van der Waals forces the
 /// contact laws here ignore dominate; above 1 m is a boulder. A size typed in mm (`2`)
 /// lands 1e3 too high, one typed in um 1e6.
-pub const SIZE_M: Bounds = Bounds {
+pub(crate) const SIZE_M: Bounds = Bounds {
     min: 1e-6,
     max: 1.0,
 };
@@ -45,7 +45,7 @@ pub const SIZE_M: Bounds = Bounds {
 /// smaller radius. A hand-placed start overlaps by round-off at most; 1 % already stores
 /// an elastic energy comparable to an impact of a few m/s for stiff grains, released in
 /// the first step (a typo in a coordinate, or radii in the wrong unit).
-pub const MAX_INITIAL_OVERLAP_FRAC: f64 = 0.01;
+pub(crate) const MAX_INITIAL_OVERLAP_FRAC: f64 = 0.01;
 
 use crate::numerics::fmt::typed as num;
 

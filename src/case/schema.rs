@@ -6,7 +6,7 @@ use serde::Deserialize;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct CaseFile {
+pub(crate) struct CaseFile {
     pub case: Meta,
     pub simulation: Simulation,
     pub models: Models,
@@ -30,7 +30,7 @@ pub struct CaseFile {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Meta {
+pub(crate) struct Meta {
     pub name: String,
     pub kind: String,
     #[serde(default)]
@@ -55,7 +55,7 @@ pub struct Simulation {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Models {
+pub(crate) struct Models {
     pub normal: String,
     pub tangential: String,
     pub rolling: String,
@@ -69,7 +69,7 @@ pub struct Models {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Domain {
+pub(crate) struct Domain {
     /// Lower corner of the simulation box (m). Particles leaving it are an error in
     /// LIGGGHTS (`boundary f f f`), so the native engine treats it the same way.
     pub lo: [f64; 3],
@@ -89,7 +89,7 @@ pub struct Material {
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Interaction {
+pub(crate) struct Interaction {
     pub types: [usize; 2],
     pub restitution: f64,
     pub friction: f64,

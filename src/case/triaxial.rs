@@ -125,7 +125,7 @@ impl Default for Tolerances {
 }
 
 /// Gates a triaxial comparison produces (what its negative controls may name).
-pub const TRIAXIAL_GATES: &[Gate] = &[Gate::Phi];
+pub(crate) const TRIAXIAL_GATES: &[Gate] = &[Gate::Phi];
 
 /// A validated triaxial case; the fields are public for reading (`non_exhaustive`: only
 /// the loader builds one).
@@ -195,7 +195,7 @@ impl TriaxialCase {
     }
 
     /// Steps of the shear: the final strain at eps_dot, rounded up to whole outputs.
-    pub fn shear_steps(&self) -> u64 {
+    pub(crate) fn shear_steps(&self) -> u64 {
         let n = (self.final_strain / (self.strain_rate * self.dt)).ceil() as u64;
         n.div_ceil(self.output_every) * self.output_every
     }

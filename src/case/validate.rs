@@ -10,7 +10,7 @@ use super::{
 use std::path::Path;
 
 /// Gates a micro comparison produces (what its negative controls may name).
-pub const MICRO_GATES: &[super::Gate] = &[
+pub(crate) const MICRO_GATES: &[super::Gate] = &[
     super::Gate::Position,
     super::Gate::Velocity,
     super::Gate::AngularVelocity,
@@ -19,7 +19,7 @@ pub const MICRO_GATES: &[super::Gate] = &[
 
 /// More time steps than any run on one machine can take (1e12 steps of the fastest
 /// micro case would take weeks): a duration that large is a typo.
-pub const MAX_STEPS: f64 = 1e12;
+pub(crate) const MAX_STEPS: f64 = 1e12;
 
 /// The raw schema of a case file of one kind, and the context its errors are reported
 /// in: a TOML error names the file, a header whose kind is not the loader's is refused
@@ -52,7 +52,7 @@ pub(super) fn parse_kind<T: serde::de::DeserializeOwned>(
 /// summary): a case may not be named like one, or its directory and that file would
 /// clash ("Is a directory" at the end of a run). Compared without case, for file
 /// systems that ignore it.
-pub const RESERVED_NAMES: [&str; 8] = [
+pub(crate) const RESERVED_NAMES: [&str; 8] = [
     "report.json",
     "report.md",
     "report.junit.xml",

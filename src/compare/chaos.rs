@@ -8,7 +8,7 @@ use serde::Serialize;
 
 /// One family's engine differences beside its chaos spread.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct FamilyAgreement {
+pub(crate) struct FamilyAgreement {
     pub family: String,
     /// Bed pairs native / reference.
     pub n_pairs: usize,
@@ -30,7 +30,11 @@ pub struct FamilyAgreement {
 }
 
 /// The family's verdict from its engine log ratios and its chaos log ratios.
-pub fn family_agreement(family: &str, engine_logs: &[f64], chaos_logs: &[f64]) -> FamilyAgreement {
+pub(crate) fn family_agreement(
+    family: &str,
+    engine_logs: &[f64],
+    chaos_logs: &[f64],
+) -> FamilyAgreement {
     let (chaos_sd, chaos_df) = crate::numerics::stats::root_mean_square(chaos_logs);
     let e = Estimate::mean(engine_logs);
     let n = engine_logs.len();

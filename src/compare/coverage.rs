@@ -19,16 +19,16 @@ use crate::case::{Case, Observation};
 use crate::numerics::vec3::{norm, scale, sub};
 use crate::rundata::frames::Frame;
 
-pub const MIN_FRAMES_AFTER_START: usize = 10;
-pub const CONTACT_FORCE_FRAC: f64 = 1e-6;
-pub const MIN_MOTION_FRAC: f64 = 0.01;
-pub const MIN_FIT_POINTS: usize = 10;
+pub(crate) const MIN_FRAMES_AFTER_START: usize = 10;
+pub(crate) const CONTACT_FORCE_FRAC: f64 = 1e-6;
+pub(crate) const MIN_MOTION_FRAC: f64 = 0.01;
+pub(crate) const MIN_FIT_POINTS: usize = 10;
 
 /// (id, position, velocity, force) of a sphere or a body.
 type State = (u64, [f64; 3], [f64; 3], [f64; 3]);
 
 /// What the reference frames of a micro case covered.
-pub struct MicroCoverage<'a> {
+pub(crate) struct MicroCoverage<'a> {
     case: &'a Case,
     frames: usize,
     contact_frames: usize,
@@ -142,7 +142,7 @@ impl<'a> MicroCoverage<'a> {
 }
 
 /// Coverage of one fitted range: `n` points where at least [`MIN_FIT_POINTS`] are needed.
-pub fn fit_points(name: &str, what: &str, n: usize) -> Option<Check> {
+pub(crate) fn fit_points(name: &str, what: &str, n: usize) -> Option<Check> {
     (n < MIN_FIT_POINTS).then(|| {
         Check::not_compared(
             name,

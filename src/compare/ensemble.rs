@@ -11,7 +11,7 @@ use crate::numerics::stats::Estimate;
 /// One swept value of an ensemble: the quantity on each seed's bed, its mean and its
 /// standard error SE = sample sd (n - 1) / sqrt(n).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct ValueStats {
+pub(crate) struct ValueStats {
     /// The value's label without the seed (e.g. `speed=0.7`).
     pub value: String,
     /// The swept value as a number.
@@ -43,7 +43,7 @@ impl ValueStats {
     }
 
     /// `speed=0.7: 10.21 +- 0.31 (seed 1: 10.02, seed 2: ...)`.
-    pub fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         format!(
             "{}: {:.3} +- {:.3} ({})",
             self.value,
@@ -64,7 +64,7 @@ impl ValueStats {
 /// scatter cancels in the pair), a one-sided test that the rise exceeds `min_step`, its
 /// failure decided at the Bonferroni level of all the steps. A step with fewer than two
 /// seeds in common has no estimate and stays INCONCLUSIVE.
-pub fn increasing(stats: &[ValueStats], min_step: f64) -> Vec<Comparison> {
+pub(crate) fn increasing(stats: &[ValueStats], min_step: f64) -> Vec<Comparison> {
     let m = stats.len().saturating_sub(1);
     stats
         .windows(2)

@@ -30,7 +30,7 @@ pub struct Expectation {
 
 impl Expectation {
     /// What the suite file got wrong, if anything.
-    pub fn validate(&self) -> Result<(), String> {
+    pub(crate) fn validate(&self) -> Result<(), String> {
         if self.check.trim().is_empty() {
             return Err("check: empty; give the check's name as the report prints it".into());
         }
@@ -94,7 +94,11 @@ impl GateOutcome {
 /// with a subset (`--only`), it is listed and does not count. An EXPLORATORY check
 /// (docs/statistics.md, "Registration") is not judged: it needs no expectation, and one
 /// it has is listed as not counted; its ERROR still counts ([`Check::counts`]).
-pub fn release_gate(checks: &[Check], expectations: &[Expectation], complete: bool) -> GateOutcome {
+pub(crate) fn release_gate(
+    checks: &[Check],
+    expectations: &[Expectation],
+    complete: bool,
+) -> GateOutcome {
     let mut rows = Vec::new();
     let mut exit = 0;
     let mut raise = |code: i32| exit = exit.max(code);

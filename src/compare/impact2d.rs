@@ -63,7 +63,7 @@ pub struct VariantObs {
 }
 
 /// The bin width of a case's force claims: its `force_impulsive` claim's, else 1 tau_c.
-pub fn force_bin(case: &Impact2dCase) -> f64 {
+pub(crate) fn force_bin(case: &Impact2dCase) -> f64 {
     case.claims
         .iter()
         .find_map(|c| match c {
@@ -74,7 +74,7 @@ pub fn force_bin(case: &Impact2dCase) -> f64 {
 }
 
 /// Whether a case has force claims (and so the force cross-check).
-pub fn has_force_claims(case: &Impact2dCase) -> bool {
+pub(crate) fn has_force_claims(case: &Impact2dCase) -> bool {
     case.claims
         .iter()
         .any(|c| matches!(c, Claim::ForceImpulsive { .. } | Claim::ForceSimilar { .. }))
@@ -83,7 +83,7 @@ pub fn has_force_claims(case: &Impact2dCase) -> bool {
 /// Native vs reference force on the intruder (K Fig 21), for a case with force claims:
 /// the largest of the relative differences of the peak bin, of the impulse over the
 /// case's force window, and the RMS of the binned F(t) over that window over the peak.
-pub fn force_cross_check(
+pub(crate) fn force_cross_check(
     case: &Impact2dCase,
     a: &VariantObs,
     b: &VariantObs,
@@ -132,7 +132,7 @@ pub fn force_cross_check(
 
 /// Native vs reference bed fields: B0 curves (per time and network) and the affine
 /// summaries.
-pub fn field_cross_checks(
+pub(crate) fn field_cross_checks(
     case: &Impact2dCase,
     a: &VariantObs,
     b: &VariantObs,
@@ -770,7 +770,7 @@ fn claim_value(claim: &Claim, o: &VariantObs) -> f64 {
 /// Per sweep value of a seed ensemble, `value` of each seed's run, its mean and SE, in
 /// sweep order. Runs are matched to the case's variants by label, so a missing or
 /// quantity-less run is an error, not a smaller ensemble.
-pub fn ensemble_stats(
+pub(crate) fn ensemble_stats(
     case: &Impact2dCase,
     obs: &[VariantObs],
     value: &dyn Fn(&VariantObs) -> f64,
@@ -1004,7 +1004,7 @@ fn ensemble_claim_check(
 /// K Fig 11's two spreads over final depths grouped by size (each inner vector one
 /// size's realizations): (max - min over sizes of the size's mean, mean over sizes of
 /// the size's max - min). NaN when a size has no realization.
-pub fn size_spreads(groups: &[Vec<f64>]) -> (f64, f64) {
+pub(crate) fn size_spreads(groups: &[Vec<f64>]) -> (f64, f64) {
     let span = |v: &[f64]| {
         v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
             - v.iter().copied().fold(f64::INFINITY, f64::min)
@@ -1103,7 +1103,7 @@ fn size_insensitive(
 /// k of a ~ u^k (K Fig 29) over the passages of every variant through the bins, with
 /// the fit's description; an error when fewer than 4 passages with a > 0 from at least 3
 /// variants remain (a power through fewer tests nothing).
-pub fn velocity_exponent(
+pub(crate) fn velocity_exponent(
     obs: &[VariantObs],
     depths: &[f64],
     half_width: f64,
@@ -1142,7 +1142,7 @@ pub fn velocity_exponent(
 }
 
 /// Native vs reference k of every velocity-exponent claim of the case.
-pub fn exponent_cross_checks(
+pub(crate) fn exponent_cross_checks(
     case: &Impact2dCase,
     native: &[VariantObs],
     reference: &[VariantObs],

@@ -34,7 +34,7 @@ fn period(o: &Oscillation) -> String {
 /// holds when A[D_rel] <= `max_ratio` A[D]; the claim fails when a tested variant
 /// fails, else is NOT COMPARED when a variant is untested, else passes. A variant
 /// without interface observables is an error.
-pub fn steadies(
+pub(crate) fn steadies(
     case: &Impact2dCase,
     max_ratio: f64,
     min_amplitude: f64,

@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// File name of a stress run's points inside its output directory.
-pub const MALT_POINTS_FILE: &str = "malt_points.json";
+pub(crate) const MALT_POINTS_FILE: &str = "malt_points.json";
 
 /// One engine's point of one stress run. A value that could not be computed is NaN,
 /// written as `null`, and read back as NaN (else the suite would drop the whole point).
@@ -91,11 +91,11 @@ pub struct IndependentAngle {
 }
 
 /// File name of a run's independent angles inside its output directory.
-pub const ANGLES_FILE: &str = "independent_angles.json";
+pub(crate) const ANGLES_FILE: &str = "independent_angles.json";
 
 /// `independent_angles.json`: the angles one case measured, per engine.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct IndependentAngles {
+pub(crate) struct IndependentAngles {
     pub case: String,
     pub canonical_hash: String,
     pub angles: Vec<IndependentAngle>,

@@ -2,7 +2,7 @@
 //! tolerances and a verdict each. Nothing here knows which engine produced what.
 
 pub mod chaos;
-pub mod coverage;
+pub(crate) mod coverage;
 pub mod ensemble;
 pub mod expect;
 pub mod impact2d;
@@ -11,7 +11,7 @@ pub mod malt_points;
 pub mod penetration;
 pub mod stress;
 pub mod sweep;
-pub mod trajectory;
+pub(crate) mod trajectory;
 pub mod triaxial;
 
 use crate::numerics::stats::{self, Decision, Estimate};
@@ -45,7 +45,7 @@ impl Status {
     }
 
     /// Neither a pass nor a physics failure: the run exits 2.
-    pub fn undecided(self) -> bool {
+    pub(crate) fn undecided(self) -> bool {
         matches!(
             self,
             Status::NotCompared | Status::Inconclusive | Status::Error
@@ -55,7 +55,7 @@ impl Status {
 
 /// The rule of a statistical gate (docs/statistics.md, "Decision rules").
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Rule {
+pub(crate) enum Rule {
     /// Equivalence by two one-sided tests within +-`margin`.
     Equivalence { margin: f64 },
     /// A one-sided test that the effect exceeds `delta`.
@@ -66,7 +66,7 @@ pub enum Rule {
 /// (None: fewer than two beds, or a value that is not finite) and the comparisons it
 /// shares its claim with (`m`, for the Bonferroni level of a failure).
 #[derive(Debug, Clone)]
-pub struct Comparison {
+pub(crate) struct Comparison {
     pub what: String,
     pub estimate: Option<Estimate>,
     pub rule: Rule,
@@ -74,7 +74,7 @@ pub struct Comparison {
 }
 
 impl Comparison {
-    pub fn decision(&self) -> Decision {
+    pub(crate) fn decision(&self) -> Decision {
         match (&self.estimate, self.rule) {
             (None, _) => Decision::Inconclusive,
             (Some(e), Rule::Equivalence { margin }) => stats::equivalence(e, margin, self.m),
@@ -84,7 +84,7 @@ impl Comparison {
 
     /// `what: 0.0123 [90 % interval -0.010, 0.034] over 5 beds (sd 0.021), margin +-0.0953:
     /// INCONCLUSIVE, about 14 beds would decide it at this sd`.
-    pub fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         let d = self.decision();
         let rule = match self.rule {
             Rule::Equivalence { margin } if margin.is_nan() => "no registered margin".into(),
@@ -220,18 +220,19 @@ impl Check {
     /// Whether the verdict counts toward the exit code and the release gate: it does
     /// unless the check is EXPLORATORY, and an ERROR always does (a run that failed is a
     /// failed run whatever its rules).
-    pub fn counts(&self) -> bool {
+    pub(crate) fn counts(&self) -> bool {
         self.exploratory.is_none() || self.status == Status::Error
     }
 
     /// Marks the check EXPLORATORY for `why`.
-    pub fn mark_exploratory(mut self, why: impl Into<String>) -> Check {
+    #[cfg(test)]
+    pub(crate) fn mark_exploratory(mut self, why: impl Into<String>) -> Check {
         self.exploratory = Some(why.into());
         self
     }
 
     /// Passes when `value <= tolerance`. NaN never passes.
-    pub fn at_most(
+    pub(crate) fn at_most(
         name: impl Into<String>,
         gate: Gate,
         metric: impl Into<String>,
@@ -250,7 +251,7 @@ impl Check {
     /// Turns a pass into a fail when the rule has a condition its single metric cannot
     /// carry (an `increasing` claim with min_step 0 meets `value <= 0` on a flat step,
     /// which does not increase). Any other verdict is kept.
-    pub fn fail_if(mut self, failed: bool, why: &str) -> Check {
+    pub(crate) fn fail_if(mut self, failed: bool, why: &str) -> Check {
         if failed && self.status == Status::Pass {
             self.status = Status::Fail;
             self.passed = false;
@@ -260,7 +261,7 @@ impl Check {
     }
 
     /// Passes when `value >= minimum`. NaN never passes.
-    pub fn at_least(
+    pub(crate) fn at_least(
         name: impl Into<String>,
         gate: Gate,
         metric: impl Into<String>,
@@ -313,7 +314,7 @@ impl Check {
     /// A negative control whose unbitten gates the wrong physics left INCONCLUSIVE: the
     /// data resolve neither the control biting nor its failing to (one bed, too few
     /// beds). Never a pass.
-    pub fn control_unresolved(
+    pub(crate) fn control_unresolved(
         label: impl Into<String>,
         unresolved: &[String],
         detail: String,
@@ -338,12 +339,20 @@ impl Check {
     }
 
     /// A gate whose inputs could not be computed.
-    pub fn error_in(name: impl Into<String>, gate: Gate, message: impl Into<String>) -> Check {
+    pub(crate) fn error_in(
+        name: impl Into<String>,
+        gate: Gate,
+        message: impl Into<String>,
+    ) -> Check {
         Check::with_status(name, gate, "error", f64::NAN, 0.0, Status::Error, message)
     }
 
     /// Too little data for the gate to mean anything: not a pass, not a physics failure.
-    pub fn not_compared(name: impl Into<String>, gate: Gate, reason: impl Into<String>) -> Check {
+    pub(crate) fn not_compared(
+        name: impl Into<String>,
+        gate: Gate,
+        reason: impl Into<String>,
+    ) -> Check {
         Check::with_status(
             name,
             gate,
@@ -361,7 +370,8 @@ impl Check {
     /// COMPARED (`unresolved` says why) when neither holds. It can never pass on data
     /// that cannot resolve the tolerance.
     #[allow(clippy::too_many_arguments)]
-    pub fn at_most_resolved(
+    #[cfg(test)]
+    pub(crate) fn at_most_resolved(
         name: impl Into<String>,
         gate: Gate,
         metric: impl Into<String>,
@@ -397,7 +407,7 @@ impl Check {
     /// level, INCONCLUSIVE otherwise). `value` and `tolerance` of the check are those of
     /// the comparison that decided it (the first failing one, else the first undecided,
     /// else the one closest to its threshold).
-    pub fn decided(
+    pub(crate) fn decided(
         name: impl Into<String>,
         gate: Gate,
         metric: impl Into<String>,

@@ -34,7 +34,7 @@ pub struct Observables {
 
 impl Observables {
     /// Sample standard deviation of the members' K_phi (NaN for one member).
-    pub fn k_spread(&self) -> f64 {
+    pub(crate) fn k_spread(&self) -> f64 {
         let n = self.members.len() as f64;
         let mean = self.members.iter().map(|m| m.0).sum::<f64>() / n;
         (self
@@ -58,7 +58,7 @@ impl Observables {
 
 /// One grain diameter in units of R: the finest scale on which the FDR has
 /// regimes (a shorter "segment" is a single force-chain failure).
-pub fn grain_resolution(case: &PenetrationCase) -> f64 {
+pub(crate) fn grain_resolution(case: &PenetrationCase) -> f64 {
     case.diameter.mean() / case.intruder_radius
 }
 
@@ -74,7 +74,10 @@ pub fn grain_resolution(case: &PenetrationCase) -> f64 {
 /// conditioned by the slope contrasts between regimes instead; when the FDR has no
 /// regime B shallower than A and C over at least a grain diameter, this says so
 /// rather than return a boundary.
-pub fn resolved_boundaries(case: &PenetrationCase, fdr: &Fdr) -> Result<RegimeBoundaries, String> {
+pub(crate) fn resolved_boundaries(
+    case: &PenetrationCase,
+    fdr: &Fdr,
+) -> Result<RegimeBoundaries, String> {
     let g = grain_resolution(case);
     fdr::regime_boundaries_piecewise(fdr, g, g).map_err(|e| {
         format!("{e:#} (segments and smoothing window of one grain diameter, d/R = {g:.3})")
@@ -82,12 +85,12 @@ pub fn resolved_boundaries(case: &PenetrationCase, fdr: &Fdr) -> Result<RegimeBo
 }
 
 /// Fit (regime C from `analysis.fit_h_min`) and regime boundaries of one FDR.
-pub fn observables(case: &PenetrationCase, fdr: &Fdr) -> Result<Observables> {
+pub(crate) fn observables(case: &PenetrationCase, fdr: &Fdr) -> Result<Observables> {
     observables_in(case, fdr, f64::INFINITY)
 }
 
 /// [`observables`] with regime C ending at `h_max` (rule 3, [`fit_range`]).
-pub fn observables_in(case: &PenetrationCase, fdr: &Fdr, h_max: f64) -> Result<Observables> {
+pub(crate) fn observables_in(case: &PenetrationCase, fdr: &Fdr, h_max: f64) -> Result<Observables> {
     let fdr = fdr.contact_only();
     let fit = fdr::steady_state_fit(&fdr, case.fit_h_min, h_max)?;
     let (boundaries, boundaries_error) = match fdr::regime_boundaries(&fdr, &fit) {
@@ -108,7 +111,7 @@ pub fn observables_in(case: &PenetrationCase, fdr: &Fdr, h_max: f64) -> Result<O
 }
 
 /// One line on how straight regime C is and where the unified fit puts h_A, h_B.
-pub fn shape_text(o: &Observables) -> String {
+pub(crate) fn shape_text(o: &Observables) -> String {
     let c = match &o.regime_c {
         Ok(t) => format!(
             "regime C two-segment fit: slope {:.2} then {:.2} beyond h = {:.3} (R^2 {:.4})",
@@ -135,7 +138,11 @@ pub fn ensemble(case: &PenetrationCase, members: &[&Fdr]) -> Result<Observables>
 
 /// [`ensemble`] with regime C ending at `h_max`: the mean FDR and every member fitted on
 /// [fit_h_min, h_max] (rule 3, [`fit_range`]).
-pub fn ensemble_in(case: &PenetrationCase, members: &[&Fdr], h_max: f64) -> Result<Observables> {
+pub(crate) fn ensemble_in(
+    case: &PenetrationCase,
+    members: &[&Fdr],
+    h_max: f64,
+) -> Result<Observables> {
     let mut per = Vec::with_capacity(members.len());
     for (k, m) in members.iter().enumerate() {
         let fit = fdr::steady_state_fit(&m.contact_only(), case.fit_h_min, h_max)
@@ -151,12 +158,12 @@ pub fn ensemble_in(case: &PenetrationCase, members: &[&Fdr], h_max: f64) -> Resu
 
 /// Rule 3 of docs/stress.md ("The K_phi fit range from geometry"): the floor clearance
 /// c of the stagnant cone's tip, in mean grain diameters (one basic-sphere diameter).
-pub const FLOOR_CLEARANCE_D: f64 = 3.0;
+pub(crate) const FLOOR_CLEARANCE_D: f64 = 3.0;
 /// Rule 3: at most this many fits per engine.
-pub const MAX_RANGE_FITS: usize = 10;
+pub(crate) const MAX_RANGE_FITS: usize = 10;
 /// Rule 3: a floor-free regime C spans at least this much (units of R), else K_phi is
 /// NOT COMPARED.
-pub const MIN_REGIME_C: f64 = 0.5;
+pub(crate) const MIN_REGIME_C: f64 = 0.5;
 
 /// One engine's self-consistent end of regime C (rule 3).
 #[derive(Debug, Clone, Serialize)]
@@ -194,7 +201,7 @@ pub struct FitRange {
 impl FitRange {
     /// The upper end of the K_phi fits: the common end, or (when rule 3 gives no usable
     /// range) the whole FDR beyond fit_h_min, for reporting only.
-    pub fn fit_end(&self) -> f64 {
+    pub(crate) fn fit_end(&self) -> f64 {
         if self.h_end.is_finite() && self.h_end - self.h_start >= MIN_REGIME_C {
             self.h_end
         } else {
@@ -244,7 +251,7 @@ impl FitRange {
 /// h_C,end for a given phi: where the tip of the fully developed stagnant cone,
 /// tan(45 deg + phi / 2) R below the face (eq 11's H_ss), comes within c of the floor,
 /// capped at the final depth.
-pub fn regime_c_end(case: &PenetrationCase, bed_height: f64, phi: f64) -> f64 {
+pub(crate) fn regime_c_end(case: &PenetrationCase, bed_height: f64, phi: f64) -> f64 {
     let c = FLOOR_CLEARANCE_D * case.diameter.mean();
     let h_final = case.final_depth / case.intruder_radius;
     ((bed_height - c) / case.intruder_radius - (std::f64::consts::FRAC_PI_4 + 0.5 * phi).tan())
@@ -255,7 +262,7 @@ pub fn regime_c_end(case: &PenetrationCase, bed_height: f64, phi: f64) -> f64 {
 /// [fit_h_min, h_final], phi(K_phi) (eq 10 inverted), h_C,end, refit on [fit_h_min,
 /// h_C,end], until h_C,end moves by less than one FDR bin; after [`MAX_RANGE_FITS`]
 /// fits the smallest end seen. A range too short to fit stops the iteration.
-pub fn engine_range(
+pub(crate) fn engine_range(
     case: &PenetrationCase,
     fdr: &Fdr,
     bed_height: f64,
@@ -304,7 +311,11 @@ pub fn engine_range(
 /// Rule 3's common fit range of a comparison: each engine's [`engine_range`] on its mean
 /// FDR, the smaller end; NOT COMPARED when an engine has no end or the range is shorter
 /// than [`MIN_REGIME_C`].
-pub fn fit_range(case: &PenetrationCase, bed_height: f64, engines: &[(&str, &Fdr)]) -> FitRange {
+pub(crate) fn fit_range(
+    case: &PenetrationCase,
+    bed_height: f64,
+    engines: &[(&str, &Fdr)],
+) -> FitRange {
     let h_final = case.final_depth / case.intruder_radius;
     let mut out = FitRange {
         h_start: case.fit_h_min,
@@ -346,7 +357,7 @@ pub fn fit_range(case: &PenetrationCase, bed_height: f64, engines: &[(&str, &Fdr
 /// Bed by bed ln(K_test,k / K_ref,k), the per-bed statistic of the engine gate
 /// (docs/statistics.md: ratios on the log scale, paired over the same beds); None when
 /// the ensembles do not pair bed for bed.
-pub fn paired_log_k(test: &Observables, reference: &Observables) -> Option<Vec<f64>> {
+pub(crate) fn paired_log_k(test: &Observables, reference: &Observables) -> Option<Vec<f64>> {
     (test.members.len() == reference.members.len()).then(|| {
         test.members
             .iter()
@@ -360,7 +371,7 @@ pub fn paired_log_k(test: &Observables, reference: &Observables) -> Option<Vec<f
 /// equivalence test (docs/statistics.md) on the bed-by-bed ln(K_test / K_ref) with the
 /// margin ln(1 + k_phi_rel). One bed is INCONCLUSIVE; no floor-free regime C is NOT
 /// COMPARED. The mean FDRs' K_phi are reported beside it.
-pub fn k_phi_check(
+pub(crate) fn k_phi_check(
     case: &PenetrationCase,
     range: &FitRange,
     test: &Observables,
@@ -413,7 +424,7 @@ pub fn k_phi_check(
 
 /// Coverage of the steady-state fit of one engine's mean FDR: enough points in
 /// regime C for K_phi to mean anything ([`super::coverage::MIN_FIT_POINTS`]).
-pub fn fit_coverage(case: &PenetrationCase, o: &Observables, engine: &str) -> Vec<Check> {
+pub(crate) fn fit_coverage(case: &PenetrationCase, o: &Observables, engine: &str) -> Vec<Check> {
     let n = o
         .fdr
         .h
@@ -533,7 +544,7 @@ pub fn compare(
 /// without a decision rule"): the grain-resolution detector has no null model and no
 /// uncertainty, so what it finds on a mean FDR is not evidence either way. Each line says
 /// what the old gate would have said.
-pub fn boundary_notes(
+pub(crate) fn boundary_notes(
     case: &PenetrationCase,
     test: &Observables,
     reference: &Observables,
@@ -560,7 +571,7 @@ pub fn boundary_notes(
 /// not: a failed check (one engine shows a regime B the other does not). Neither: no
 /// check, since there is no boundary to compare at this grain resolution;
 /// [`boundaries_not_compared`] gives the report line that says why.
-pub fn boundary_checks(
+pub(crate) fn boundary_checks(
     case: &PenetrationCase,
     test: &Observables,
     reference: &Observables,
@@ -613,7 +624,10 @@ pub fn boundary_checks(
 }
 
 /// Why no h_A / h_B check was made, when neither FDR resolves three regimes.
-pub fn boundaries_not_compared(test: &Observables, reference: &Observables) -> Option<String> {
+pub(crate) fn boundaries_not_compared(
+    test: &Observables,
+    reference: &Observables,
+) -> Option<String> {
     match (&test.resolved, &reference.resolved) {
         (Err(a), Err(b)) => Some(format!(
             "h_A / h_B NOT COMPARED: neither mean FDR resolves three regimes at grain resolution — test: {a}; reference: {b}"

@@ -138,13 +138,13 @@ pub fn malt_checks(case: &str, tol: &Tolerances, p: &EnginePoint) -> Vec<Check> 
 }
 
 /// One engine's FDR reduced to its observables, with where it came from.
-pub struct FdrObservables {
+pub(crate) struct FdrObservables {
     pub obs: Observables,
     pub source: String,
 }
 
 /// The observables of the ensemble-mean FDR of `fdrs`, its source named `origin`.
-pub fn mean_fdr(
+pub(crate) fn mean_fdr(
     case: &PenetrationCase,
     fdrs: &[crate::analysis::fdr::Fdr],
     origin: &str,
@@ -182,13 +182,13 @@ pub fn paired_difference(test: &[f64], reference: &[f64]) -> Option<(f64, f64, u
 
 /// An engine's (phi, K_phi) point: phi pooled over the stress fields of its beds, K_phi
 /// and the unified fit (eqs 13-15, with that phi) from the given FDR.
-pub fn engine_point(beds: &[&EngineFields], fdr: &FdrObservables) -> EnginePoint {
+pub(crate) fn engine_point(beds: &[&EngineFields], fdr: &FdrObservables) -> EnginePoint {
     engine_point_with(beds, fdr, None)
 }
 
 /// [`engine_point`] with phi (deg, its sd) given, e.g. estimator v2's, instead of the
 /// pooled window phi of v1; the per-window and per-bed v1 values stay for the report.
-pub fn engine_point_with(
+pub(crate) fn engine_point_with(
     beds: &[&EngineFields],
     fdr: &FdrObservables,
     phi: Option<(f64, f64)>,
@@ -228,7 +228,7 @@ pub fn engine_point_with(
 /// its standard error the paired bootstrap sd of the difference (beds and snapshots
 /// resampled together) with beds - 1 degrees of freedom. One bed is INCONCLUSIVE: its
 /// bootstrap resamples snapshots only and knows nothing of the next bed.
-pub fn phi_v2_check(
+pub(crate) fn phi_v2_check(
     case: &str,
     tol: &Tolerances,
     test: &crate::analysis::stress_v2::PhiV2,
@@ -292,7 +292,7 @@ pub fn phi_v2_check(
 
 /// A published phi (e.g. 9 +- 1 deg for frictionless grains, Feng et al. Sec. 5)
 /// against one engine's phi by one estimator.
-pub fn published_phi_check(
+pub(crate) fn published_phi_check(
     case: &PenetrationCase,
     engine: &str,
     estimator: &str,

@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// File name of a penetration case's summary inside its output directory.
-pub const SUMMARY_FILE: &str = "summary.json";
+pub(crate) const SUMMARY_FILE: &str = "summary.json";
 
 /// What one engine's ensemble of one case reduces to for cross-case claims.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -51,12 +51,12 @@ impl EngineSummary {
     }
 
     /// Mean p of the ensemble FDR over `h_at +- half` (an empty window is an error).
-    pub fn p_at(&self, h_at: f64, half: f64) -> Result<f64> {
+    pub(crate) fn p_at(&self, h_at: f64, half: f64) -> Result<f64> {
         window_mean(&self.h, &self.p, h_at, half)
     }
 
     /// Mean p of each bed's FDR over `h_at +- half`, in bed order.
-    pub fn p_at_beds(&self, h_at: f64, half: f64) -> Result<Vec<f64>> {
+    pub(crate) fn p_at_beds(&self, h_at: f64, half: f64) -> Result<Vec<f64>> {
         self.bed_fdrs
             .iter()
             .enumerate()
@@ -157,7 +157,7 @@ pub enum SweepClaim {
 
 impl SweepClaim {
     /// What a claim needs beyond its shape, checked when the suite is read.
-    pub fn validate(&self) -> std::result::Result<(), String> {
+    pub(crate) fn validate(&self) -> std::result::Result<(), String> {
         let positive = |what: &str, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(())
@@ -219,7 +219,7 @@ fn needs_depth(q: Quantity, at_h: Option<f64>) -> std::result::Result<(), String
 }
 
 /// Half-width of the depth window of [`Quantity::P`], in R.
-pub const P_WINDOW_HALF: f64 = 0.1;
+pub(crate) const P_WINDOW_HALF: f64 = 0.1;
 
 /// The quantity of one engine's ensemble: (the ensemble value, its standard error for
 /// plots, the per-bed values the claim's statistics use).
@@ -279,7 +279,7 @@ fn label(q: Quantity, at_h: Option<f64>) -> String {
 
 /// One check per engine: the claim `name` over `cases` (labels and summaries, in order),
 /// decided by the rules of docs/statistics.md on the per-bed values.
-pub fn evaluate(
+pub(crate) fn evaluate(
     name: &str,
     claim: &SweepClaim,
     cases: &[(String, CaseSummary)],
@@ -447,7 +447,7 @@ impl ClaimControl {
 /// runs: it bites only when that evaluation fails (an error or NOT COMPARED is not a
 /// bite); an INCONCLUSIVE evaluation leaves the control INCONCLUSIVE (docs/statistics.md,
 /// "Negative controls").
-pub fn control_check(claim: &str, control: &ClaimControl, substituted: &Check) -> Check {
+pub(crate) fn control_check(claim: &str, control: &ClaimControl, substituted: &Check) -> Check {
     let label = format!("{claim}: negative control \"{}\"", control.name());
     let detail = format!(
         "{control}; the claim on the substituted native runs: {}, {} = {} ({})",

@@ -42,7 +42,7 @@ impl Worst {
 }
 
 /// The comparison of one micro case, fed frame pair by frame pair.
-pub struct Trajectory<'a> {
+pub(crate) struct Trajectory<'a> {
     case: &'a Case,
     dx: Worst,
     dv: Worst,
@@ -131,16 +131,12 @@ impl<'a> Trajectory<'a> {
     }
 
     /// A run ended with a different number of frames than the other.
-    pub fn length_mismatch(&mut self, test: usize, reference: usize) {
+    pub(crate) fn length_mismatch(&mut self, test: usize, reference: usize) {
         if self.mismatch.is_none() {
             self.mismatch = Some(format!(
                 "{test} output frames vs {reference} in the reference"
             ));
         }
-    }
-
-    pub fn frames(&self) -> usize {
-        self.frames
     }
 
     /// The scales the gates divide by: (smallest radius, largest reference speed V,
@@ -236,16 +232,4 @@ impl<'a> Trajectory<'a> {
         checks.extend(orientation);
         checks
     }
-}
-
-/// Compares whole trajectories held in memory (small runs, tests).
-pub fn compare(case: &Case, test: &[Frame], reference: &[Frame]) -> Vec<Check> {
-    let mut t = Trajectory::new(case);
-    if test.len() != reference.len() {
-        t.length_mismatch(test.len(), reference.len());
-    }
-    for (a, b) in test.iter().zip(reference) {
-        t.push(a, b);
-    }
-    t.finish()
 }

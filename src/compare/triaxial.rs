@@ -7,7 +7,12 @@ use super::{Check, Comparison, Gate, Rule};
 use crate::numerics::stats::Estimate;
 
 /// The gate from the paired per-unit phi_cs (degrees), in unit order.
-pub fn phi_cs_gate(name: &str, native: &[f64], reference: &[f64], tolerance_deg: f64) -> Check {
+pub(crate) fn phi_cs_gate(
+    name: &str,
+    native: &[f64],
+    reference: &[f64],
+    tolerance_deg: f64,
+) -> Check {
     let label = format!("{name}: phi_cs native vs liggghts");
     if native.len() != reference.len() || native.is_empty() {
         return Check::error_in(

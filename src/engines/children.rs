@@ -33,7 +33,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// How long an engine has to end after SIGTERM before it gets SIGKILL.
-pub const GRACE: Duration = Duration::from_secs(5);
+pub(crate) const GRACE: Duration = Duration::from_secs(5);
 
 /// A live engine session: its id (the leader's pid), the program started, the pid of
 /// its watchdog if one could be started.
@@ -52,7 +52,7 @@ static OWNED_DIRS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
 /// Whether a fatal signal arrived and its cleanup is under way.
-pub fn interrupted() -> bool {
+pub(crate) fn interrupted() -> bool {
     INTERRUPTED.load(Ordering::SeqCst)
 }
 
@@ -107,7 +107,7 @@ impl Drop for Session {
 /// SIGTERM to the leader's group and to each live member, SIGKILL to those left after 5
 /// s. Members are read from /proc/PID/stat with the fields counted after the last `) `,
 /// so a command name with spaces cannot shift them; zombies are not members.
-pub const WATCHDOG: &str = r#"g=$1 s=$2
+pub(crate) const WATCHDOG: &str = r#"g=$1 s=$2
 while :; do
   read -r _ _ _ pp _ < /proc/$$/stat || exit 0
   [ "$pp" = "$g" ] || break
@@ -207,7 +207,7 @@ pub fn spawn(cmd: &mut std::process::Command) -> std::io::Result<(std::process::
 }
 
 /// The live (not zombie) processes of session `sid`, from /proc.
-pub fn session_members(sid: i32) -> Vec<i32> {
+pub(crate) fn session_members(sid: i32) -> Vec<i32> {
     let Ok(entries) = std::fs::read_dir("/proc") else {
         return Vec::new();
     };
@@ -221,7 +221,7 @@ pub fn session_members(sid: i32) -> Vec<i32> {
 
 /// The fields of /proc/PID/stat granval needs.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ProcStat {
+pub(crate) struct ProcStat {
     pub state: char,
     pub ppid: i32,
     pub pgrp: i32,
@@ -230,7 +230,7 @@ pub struct ProcStat {
 
 /// /proc/PID/stat of a process, `None` when it is gone. The command name (field 2) may
 /// hold spaces and parentheses, so the fields are counted from its last `)`.
-pub fn proc_stat(pid: i32) -> Option<ProcStat> {
+pub(crate) fn proc_stat(pid: i32) -> Option<ProcStat> {
     let text = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
     parse_stat(&text)
 }
@@ -251,7 +251,7 @@ fn parse_stat(text: &str) -> Option<ProcStat> {
 /// Ends every process of session `sid`: SIGTERM to the leader's process group and to
 /// each live member, SIGKILL to those still alive after `grace`. Only processes of that
 /// session are signalled, by pid (no names).
-pub fn end_session(sid: i32, grace: Duration) {
+pub(crate) fn end_session(sid: i32, grace: Duration) {
     // SAFETY: kill(2) with a pid and a signal number has no memory effects.
     unsafe {
         libc::kill(-sid, libc::SIGTERM);
@@ -280,20 +280,20 @@ pub fn end_session(sid: i32, grace: Duration) {
 
 /// A directory granval created for itself (a scratch directory, a record being
 /// written): removed when dropped and when a signal ends granval; never a user's path.
-pub struct OwnedDir {
+pub(crate) struct OwnedDir {
     path: PathBuf,
 }
 
 impl OwnedDir {
     /// A fresh temporary directory (in `TMPDIR`).
-    pub fn temp() -> Result<OwnedDir> {
+    pub(crate) fn temp() -> Result<OwnedDir> {
         let dir = tempfile::tempdir().context("cannot create a temporary directory")?;
         Ok(OwnedDir::register(dir.keep()))
     }
 
     /// A directory granval is about to create at `path` (which it cleared itself): it
     /// is removed on drop unless it was moved away first.
-    pub fn adopt(path: &Path) -> OwnedDir {
+    pub(crate) fn adopt(path: &Path) -> OwnedDir {
         OwnedDir::register(path.to_path_buf())
     }
 

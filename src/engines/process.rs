@@ -55,21 +55,21 @@ pub struct Limits {
 /// of this repository whose run took more than 10 s (feng-fig3a-g-1: 7.12e9 estimated,
 /// its longest LIGGGHTS bed 728 s on two cores), so this value leaves a margin of
 /// about 20 for a slower or busier machine.
-pub const TIMEOUT_PARTICLE_STEPS_PER_S: f64 = 5e5;
+pub(crate) const TIMEOUT_PARTICLE_STEPS_PER_S: f64 = 5e5;
 /// The shortest default timeout: starting mpirun and reading a deck take seconds, and a
 /// loaded machine more.
-pub const MIN_TIMEOUT: Duration = Duration::from_secs(10 * 60);
+pub(crate) const MIN_TIMEOUT: Duration = Duration::from_secs(10 * 60);
 /// The shortest default stall limit; otherwise a tenth of the timeout, which at the
 /// margin of [`TIMEOUT_PARTICLE_STEPS_PER_S`] is about twice the whole run, so a run
 /// that writes its log, screen or output files only now and then (LIGGGHTS buffers
 /// its log) is never taken for a stalled one.
-pub const MIN_STALL: Duration = Duration::from_secs(10 * 60);
+pub(crate) const MIN_STALL: Duration = Duration::from_secs(10 * 60);
 
 impl Limits {
     /// The limits of a reference run of a comparison estimated at `particle_steps`:
     /// `timeout` and `stall` as given (`--engine-timeout`, `--engine-stall`), else the
     /// defaults above.
-    pub fn derived(
+    pub(crate) fn derived(
         particle_steps: f64,
         timeout: Option<Duration>,
         stall: Option<Duration>,
@@ -164,7 +164,7 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
 }
 
 /// `d` as seconds, minutes or hours, for messages.
-pub fn fmt_duration(d: Duration) -> String {
+pub(crate) fn fmt_duration(d: Duration) -> String {
     let s = d.as_secs_f64();
     if s < 120.0 {
         format!("{s:.1} s")
@@ -176,7 +176,7 @@ pub fn fmt_duration(d: Duration) -> String {
 }
 
 /// Quotes one argument for display as a POSIX shell word (only when needed).
-pub fn shell_word(s: &str) -> String {
+pub(crate) fn shell_word(s: &str) -> String {
     if !s.is_empty()
         && s.chars()
             .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c))
@@ -209,7 +209,7 @@ pub fn run(
 
 /// [`run`], calling `tick` about twice a second while the process lives (progress bars
 /// that follow the log).
-pub fn run_with(
+pub(crate) fn run_with(
     argv: &[String],
     dir: &Path,
     stdout: &Path,
@@ -365,7 +365,7 @@ pub fn on_path(binary: &str) -> Option<PathBuf> {
 }
 
 /// Whether `argv` runs and exits 0 within a few seconds (a tool check).
-pub fn succeeds(argv: &[String]) -> bool {
+pub(crate) fn succeeds(argv: &[String]) -> bool {
     let Ok(dir) = children::OwnedDir::temp() else {
         return false;
     };
@@ -382,7 +382,7 @@ pub fn succeeds(argv: &[String]) -> bool {
 
 /// `mpirun --allow-run-as-root -np N` for N > 1, nothing for one process: the prefix
 /// both engines' command lines start with.
-pub fn mpi_prefix(mpi_procs: usize) -> Vec<String> {
+pub(crate) fn mpi_prefix(mpi_procs: usize) -> Vec<String> {
     if mpi_procs > 1 {
         let mut argv: Vec<String> = ["mpirun", "--allow-run-as-root", "-np"]
             .map(String::from)
@@ -395,7 +395,7 @@ pub fn mpi_prefix(mpi_procs: usize) -> Vec<String> {
 }
 
 /// Deletes outputs of an earlier run in `dir`, so they are never mistaken for this one's.
-pub fn remove_stale(dir: &Path, names: &[&str]) -> Result<()> {
+pub(crate) fn remove_stale(dir: &Path, names: &[&str]) -> Result<()> {
     for name in names {
         let p = dir.join(name);
         if p.exists() {
@@ -425,7 +425,7 @@ fn banner_line(text: &str, prefix: &str) -> Option<String> {
 
 /// How long the version probe of an engine may take: the real engines answer an empty
 /// deck in well under a second.
-pub const PROBE_TIMEOUT: Duration = Duration::from_secs(10);
+pub(crate) const PROBE_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// What the version probe found.
 #[derive(Debug, Clone, PartialEq)]
@@ -530,7 +530,7 @@ fn error_lines(texts: &[&str]) -> Vec<String> {
 
 /// Where an engine writes its log, screen output and stderr inside a run directory.
 #[derive(Debug, Clone, Copy)]
-pub struct TranscriptFiles {
+pub(crate) struct TranscriptFiles {
     /// "LIGGGHTS" or "LAMMPS", for the error text.
     pub engine: &'static str,
     pub log: &'static str,
@@ -542,7 +542,7 @@ pub struct TranscriptFiles {
 
 /// What a finished engine process left behind, read once; every adapter turns a failed
 /// run into the same error text from it.
-pub struct Transcript {
+pub(crate) struct Transcript {
     files: TranscriptFiles,
     pub log: String,
     pub stdout: String,
@@ -645,7 +645,7 @@ impl Transcript {
 
     /// Turns a timeout, a stall, a non-zero exit or an `ERROR` line after exit status 0
     /// into [`Transcript::failure`]; `Ok` only for a clean exit.
-    pub fn check_exit(
+    pub(crate) fn check_exit(
         &self,
         fin: &Finished,
         limits: &Limits,

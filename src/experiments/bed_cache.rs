@@ -30,12 +30,12 @@ pub fn file(kind: &str, spec: &impl Serialize) -> Option<PathBuf> {
 }
 
 /// Where the bed stored as `name` lives in the cache (None: no cache configured).
-pub fn in_cache(name: &str) -> Option<PathBuf> {
+pub(crate) fn in_cache(name: &str) -> Option<PathBuf> {
     Some(PathBuf::from(std::env::var_os("GRANVAL_BED_CACHE")?).join(name))
 }
 
 /// Appended to the note of a bed read from a reference record.
-pub const FROM_RECORD_NOTE: &str = "; taken from the sealed reference record, where it was stored when the reference run was recorded (not settled again here)";
+pub(crate) const FROM_RECORD_NOTE: &str = "; taken from the sealed reference record, where it was stored when the reference run was recorded (not settled again here)";
 
 /// The bed stored as `file` in a sealed reference record, if there is a readable one
 /// (the record's seal, checked before the comparison goes on, covers it).
@@ -72,7 +72,7 @@ fn seal_path(file: &Path) -> PathBuf {
 /// anything else is an error naming the file, never a bed prepared elsewhere reported
 /// as prepared here. The seal is written by granval and can be rewritten by a person
 /// too: it stops a stale, truncated or hand-made file, not a forger.
-pub fn load_cached<T: DeserializeOwned>(
+pub(crate) fn load_cached<T: DeserializeOwned>(
     file: Option<&Path>,
     spec: &impl Serialize,
     check: impl Fn(&T) -> Result<()>,

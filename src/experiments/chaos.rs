@@ -25,7 +25,7 @@ pub const CHAOS_FILE: &str = "chaos.json";
 
 /// Kind of a chaos record of a penetration case (and of every record written before
 /// 2D records existed).
-pub const PENETRATION: &str = "penetration";
+pub(crate) const PENETRATION: &str = "penetration";
 /// Kind of a chaos record of a Kondic (2D) case.
 pub const IMPACT2D: &str = "impact2d";
 

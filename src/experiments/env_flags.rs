@@ -8,7 +8,7 @@
 use anyhow::{Result, bail};
 
 /// Live reference engines required: no recorded fallback (`--reference-mode live`).
-pub const REQUIRE_LIVE: &str = "GRANVAL_REQUIRE_LIVE";
+pub(crate) const REQUIRE_LIVE: &str = "GRANVAL_REQUIRE_LIVE";
 
 /// `value` of the variable `name` as a switch.
 pub fn parse(name: &str, value: &str) -> Result<bool> {

@@ -572,12 +572,15 @@ impl Experiment for Impact2d {
 }
 
 /// Every variant's observables in both engines, as the comparison found them.
-pub const FINAL_DEPTHS_FILE: &str = "final_depths.json";
+pub(crate) const FINAL_DEPTHS_FILE: &str = "final_depths.json";
 
 /// (label, D_native, D_lammps), final depths in d, of every variant in a
 /// [`FINAL_DEPTHS_FILE`] written by the version `canonical_hash` of its case; another
 /// version's file (or one written before the file named its version) is refused.
-pub fn read_final_depths(path: &Path, canonical_hash: &str) -> Result<Vec<(String, f64, f64)>> {
+pub(crate) fn read_final_depths(
+    path: &Path,
+    canonical_hash: &str,
+) -> Result<Vec<(String, f64, f64)>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text)
@@ -1219,7 +1222,7 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
 }
 
 /// Energies: walls frozen; wall-wall and (cluster) intruder-intruder pairs excluded.
-pub fn energy_model(scene: &Scene) -> EnergyModel {
+pub(crate) fn energy_model(scene: &Scene) -> EnergyModel {
     let n = scene.sys.n_types;
     let cluster = scene.sys.cluster.is_some();
     let mut kn = Vec::with_capacity(n * n);
@@ -1240,7 +1243,7 @@ pub fn energy_model(scene: &Scene) -> EnergyModel {
 
 /// The scene's fingerprint: sha256 of its LAMMPS data file (every disk, mass,
 /// position and velocity, full precision; comments left out) and coefficients.
-pub fn scene_hash(scene: &Scene) -> Sha256 {
+pub(crate) fn scene_hash(scene: &Scene) -> Sha256 {
     let mut text = crate::engines::deck_text::canonical(&lammps::deck::write_data(&scene.sys));
     for c in &scene.sys.coeffs {
         text += &c.fingerprint_line();
@@ -1256,7 +1259,7 @@ fn round6(t: f64) -> f64 {
 }
 
 /// The bed snapshots a case asks for (none without `[fields]`).
-pub fn snapshot_steps(case: &Impact2dCase) -> SnapshotSteps {
+pub(crate) fn snapshot_steps(case: &Impact2dCase) -> SnapshotSteps {
     case.fields
         .as_ref()
         .map(|f| SnapshotSteps {
@@ -1268,7 +1271,7 @@ pub fn snapshot_steps(case: &Impact2dCase) -> SnapshotSteps {
 
 /// The fields of one run reduced (K Sec. IV): B0 curves at each network step, the
 /// affine field at the affine step; lengths in d.
-pub fn observe_fields(
+pub(crate) fn observe_fields(
     case: &Impact2dCase,
     v: &Variant,
     run: &ImpactRun,
@@ -1407,7 +1410,7 @@ pub fn observe(
 /// The depth below the moving interface of one run (K Fig 12; docs/impact2d.md rules
 /// 2 and 4): s(t), D_rel(t) and the oscillations of D and D_rel over the final window,
 /// lengths in d, times in tau_c. `depth` is D(t) in m.
-pub fn observe_interface(
+pub(crate) fn observe_interface(
     case: &Impact2dCase,
     scene: &Scene,
     run: &ImpactRun,

@@ -72,7 +72,7 @@ pub fn compare_streams(
 /// deviation into `tables` ([`PairedWriter`]) as the frames pass. A table that cannot
 /// be written is an error check of its own: an output a user reads is never silently
 /// missing.
-pub fn compare_streams_into(
+pub(crate) fn compare_streams_into(
     case: &Case,
     test: impl Iterator<Item = Result<Frame>>,
     reference: impl Iterator<Item = Result<Frame>>,

@@ -215,12 +215,12 @@ impl Derived {
 /// Native throughput `granval validate` estimates run times with: particle-steps per
 /// second of one core, as measured by `granval bench` on this project's machines
 /// (order of magnitude; contacts per grain change it).
-pub const NATIVE_PARTICLE_STEPS_PER_S: f64 = 3e6;
+pub(crate) const NATIVE_PARTICLE_STEPS_PER_S: f64 = 3e6;
 
 /// The limits of one reference-engine run of `exp`: `--engine-timeout` and
 /// `--engine-stall` when given, else derived from the estimated particle-steps of the
 /// whole comparison ([`crate::engines::process::Limits::derived`]).
-pub fn engine_limits<E: Experiment + ?Sized>(exp: &E, opts: &Options) -> Limits {
+pub(crate) fn engine_limits<E: Experiment + ?Sized>(exp: &E, opts: &Options) -> Limits {
     Limits::derived(
         exp.estimate().particle_steps,
         opts.engine_timeout,
@@ -274,7 +274,7 @@ pub fn validation_summary<E: Experiment>(exp: &E) -> Vec<Derived> {
 }
 
 /// `t` seconds as s, min, h or days.
-pub fn human_time(t: f64) -> String {
+pub(crate) fn human_time(t: f64) -> String {
     if !t.is_finite() {
         format!("{t} s")
     } else if t < 120.0 {
@@ -415,12 +415,12 @@ pub mod limits {
 
     /// Native particle-steps a comparison may take: about a week at the measured
     /// 3e6 particle-steps/s of one core.
-    pub const MAX_PARTICLE_STEPS: f64 = 2e12;
+    pub(crate) const MAX_PARTICLE_STEPS: f64 = 2e12;
     /// Output written by one comparison.
-    pub const MAX_OUTPUT_BYTES: f64 = 50e9;
+    pub(crate) const MAX_OUTPUT_BYTES: f64 = 50e9;
 
     /// Memory available now (`MemAvailable` of /proc/meminfo), if known.
-    pub fn available_memory() -> Option<f64> {
+    pub(crate) fn available_memory() -> Option<f64> {
         let text = std::fs::read_to_string("/proc/meminfo").ok()?;
         let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
         let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;

@@ -24,9 +24,9 @@ use anyhow::{Context, Result, bail};
 use std::path::{Component, Path, PathBuf};
 
 /// The marker granval writes into every output directory it creates or claims.
-pub const MARKER: &str = ".granval-output";
+pub(crate) const MARKER: &str = ".granval-output";
 /// The lock held while a command writes an output directory.
-pub const LOCK: &str = ".granval-lock";
+pub(crate) const LOCK: &str = ".granval-lock";
 const MARKER_FIRST_LINE: &str = "granval output directory";
 
 /// What an output directory must keep away from, for one command.
@@ -158,7 +158,7 @@ fn misplaced(real: &Path, protected: &Protected) -> Result<Option<String>> {
 }
 
 /// Whether `dir` carries granval's marker (a regular file whose first line is granval's).
-pub fn is_marked(dir: &Path) -> bool {
+pub(crate) fn is_marked(dir: &Path) -> bool {
     fsio::read_to_string(&dir.join(MARKER), fsio::MAX_SMALL, "granval's marker")
         .is_ok_and(|t| t.lines().next() == Some(MARKER_FIRST_LINE))
 }
@@ -532,7 +532,7 @@ mod tests {
             "claims",
             "malt_verdict.svg",
         ] {
-            assert!(crate::case::RESERVED_NAMES.contains(&f), "{f}");
+            assert!(crate::case::validate::RESERVED_NAMES.contains(&f), "{f}");
         }
     }
 }

@@ -37,9 +37,9 @@ pub enum RefMode {
 
 /// The reference source a comparison ends up with.
 #[derive(Debug, Clone)]
-pub enum Source {
-    /// The engine runs now; the banner line of the installed binary.
-    Live { version: String },
+pub(crate) enum Source {
+    /// The engine runs now (its banner line was read).
+    Live,
     /// A sealed record, verified.
     Recorded { seal: Box<Verified> },
     /// A run directory a user brought back (`granval analyze`): not sealed, said so.
@@ -47,9 +47,9 @@ pub enum Source {
 }
 
 impl Source {
-    pub fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         match self {
-            Source::Live { .. } => "live".into(),
+            Source::Live => "live".into(),
             Source::Recorded { seal } => format!("recorded {}", seal.root.display()),
             Source::RunDir { dir } => format!("run directory {}", dir.display()),
         }
@@ -268,7 +268,7 @@ fn rerecord_hint(case_file: &Path) -> String {
 /// The seal of the record at `root`, checked for what does not need the units: that it
 /// parses, was made by `engine` for the case whose canonical hash is `case_hash`, and
 /// names only plain files inside the record.
-pub fn read_seal(
+pub(crate) fn read_seal(
     root: &Path,
     case_file: &Path,
     case_hash: &Sha256,
@@ -325,7 +325,7 @@ pub fn read_seal(
 /// the units' fingerprints: what a change of how files are kept (not of what they hold)
 /// must leave intact. No file is written again from a bed here, so every sealed file
 /// must be in the record (plain or compressed). Returns the seal.
-pub fn verify_files(
+pub(crate) fn verify_files(
     root: &Path,
     case_file: &Path,
     case_hash: &Sha256,
@@ -456,7 +456,7 @@ fn check_engine_input(
 /// The case file a record was made from: the seal's `case_file`, or for records sealed
 /// before it was kept, the `case_file` a unit's provenance names when that is a case
 /// file (`.toml`).
-pub fn recorded_case_file(root: &Path) -> Option<PathBuf> {
+pub(crate) fn recorded_case_file(root: &Path) -> Option<PathBuf> {
     let seal: Seal =
         serde_json::from_str(&std::fs::read_to_string(root.join(SEAL_FILE)).ok()?).ok()?;
     if let Some(f) = seal.case_file {
@@ -477,7 +477,7 @@ pub fn recorded_case_file(root: &Path) -> Option<PathBuf> {
 /// which the new record would silently replace. The same file (by its canonical path)
 /// may be re-recorded, and a record whose case file is gone or renamed its case may be
 /// replaced.
-pub fn refuse_other_case_file(root: &Path, case_file: &Path, name: &str) -> Result<()> {
+pub(crate) fn refuse_other_case_file(root: &Path, case_file: &Path, name: &str) -> Result<()> {
     let Some(recorded) = recorded_case_file(root) else {
         return Ok(());
     };
@@ -559,7 +559,7 @@ pub fn write(
 }
 
 /// Writes `seal` as the record's `seal.json` (the format [`write`] makes).
-pub fn write_seal(root: &Path, seal: &Seal) -> Result<()> {
+pub(crate) fn write_seal(root: &Path, seal: &Seal) -> Result<()> {
     let path = root.join(SEAL_FILE);
     std::fs::write(&path, serde_json::to_string_pretty(seal)? + "\n")
         .with_context(|| format!("cannot write {}", path.display()))

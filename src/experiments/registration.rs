@@ -19,7 +19,7 @@ use std::process::Command;
 
 /// Keys of a `[[claim]]` table that describe or draw it and decide nothing: the paper's
 /// sentence, the figure's axis and the published values drawn beside the engines.
-pub const DESCRIPTIVE_CLAIM_KEYS: [&str; 4] = ["source", "x", "x_label", "paper_k_phi"];
+pub(crate) const DESCRIPTIVE_CLAIM_KEYS: [&str; 4] = ["source", "x", "x_label", "paper_k_phi"];
 
 /// Whether a case or a claim is a case's or a claim's.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -487,7 +487,7 @@ pub fn case_rules(text: &str) -> std::result::Result<String, String> {
 
 /// Every `[[claim]]` of a suite file's text: its name and the hash of its rules (the
 /// table without [`DESCRIPTIVE_CLAIM_KEYS`]).
-pub fn claim_rules(text: &str) -> std::result::Result<Vec<(String, String)>, String> {
+pub(crate) fn claim_rules(text: &str) -> std::result::Result<Vec<(String, String)>, String> {
     let t: toml::Table = text.parse().map_err(|e| format!("{e}"))?;
     let Some(claims) = t.get("claim").and_then(|c| c.as_array()) else {
         return Ok(Vec::new());
@@ -507,7 +507,7 @@ pub fn claim_rules(text: &str) -> std::result::Result<Vec<(String, String)>, Str
 
 /// sha256 of the canonical JSON of `v`: keys sorted, no whitespace, floats in their
 /// shortest round-trip form (so `3e-5` and `3.0e-5` are one value).
-pub fn rules_hash(v: &toml::Value) -> String {
+pub(crate) fn rules_hash(v: &toml::Value) -> String {
     let mut s = String::new();
     canonical(v, &mut s);
     sha256_hex(s.as_bytes())

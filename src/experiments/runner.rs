@@ -121,7 +121,7 @@ pub fn compare<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> CaseOutcom
     let engine = exp.reference_engine();
     let mut notes = Vec::new();
     let source = match live {
-        Some(version) => Source::Live { version },
+        Some(_) => Source::Live,
         None => {
             let fingerprints = match reference::unit_keys(exp, &units) {
                 Ok(f) => f,
@@ -216,7 +216,7 @@ fn run_units<E: Experiment>(
     let mut refs = Vec::with_capacity(units.len());
     for (u, n) in units.iter().zip(names) {
         let r = match &source {
-            Source::Live { .. } => exp.run_reference(u, &reference_out(out, n, engine), opts),
+            Source::Live => exp.run_reference(u, &reference_out(out, n, engine), opts),
             Source::Recorded { seal } => exp.read_record(u, n, seal),
             Source::RunDir { dir } => {
                 let compared = reference_out(dir, n, engine);
@@ -988,7 +988,7 @@ pub fn deck<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> Result<Vec<Pa
 }
 
 /// The README of a deck directory ([`deck`]).
-pub const README_FILE: &str = "README.txt";
+pub(crate) const README_FILE: &str = "README.txt";
 
 /// What a deck directory holds, how to run it on one core and under mpirun, what a
 /// complete run leaves behind and how to bring it back (`granval analyze`).

@@ -71,7 +71,7 @@ pub enum RegistrationSource {
 /// (the parent of the cases directory).
 #[derive(Debug, Clone, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-pub struct FamilyEntry {
+pub(crate) struct FamilyEntry {
     pub name: String,
     pub cases: Vec<String>,
     pub chaos: Vec<String>,

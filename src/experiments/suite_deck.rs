@@ -25,20 +25,20 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 pub const SUITE_FILE: &str = "suite.json";
-pub const UNITS_FILE: &str = "units.tsv";
+pub(crate) const UNITS_FILE: &str = "units.tsv";
 pub const SUBMIT_FILE: &str = "submit.sh";
-pub const RUN_UNIT_FILE: &str = "run-unit.sh";
-pub const CASES_DIR: &str = "cases";
-pub const STATE_DIR: &str = "state";
+pub(crate) const RUN_UNIT_FILE: &str = "run-unit.sh";
+pub(crate) const CASES_DIR: &str = "cases";
+pub(crate) const STATE_DIR: &str = "state";
 /// The array job ids `submit.sh` submitted, one line per engine (`engine<TAB>job id`).
-pub const JOBS_FILE: &str = "jobs.tsv";
+pub(crate) const JOBS_FILE: &str = "jobs.tsv";
 /// The start of the line LIGGGHTS and LAMMPS write to their log when a `run` ends (the
 /// closing "Total wall time" goes to stdout only in LIGGGHTS 3.8): a log without it is of
 /// a run that never finished a `run` command.
-pub const LOG_COMPLETE: &str = "Loop time of";
+pub(crate) const LOG_COMPLETE: &str = "Loop time of";
 
 /// The columns of `units.tsv`, in order (its header line).
-pub const UNIT_COLUMNS: [&str; 9] = [
+pub(crate) const UNIT_COLUMNS: [&str; 9] = [
     "index", "unit", "case", "engine", "dir", "command", "time_s", "log", "output",
 ];
 
@@ -163,7 +163,7 @@ pub fn parse_time(s: &str) -> Result<Option<String>> {
 /// would give the run (`engines::process::Limits::derived`: particle-steps at 5e5 per
 /// second, six times the 3e6 per second `granval validate` estimates with, at least
 /// 10 min), as Slurm's HH:MM:SS rounded up to the minute.
-pub fn auto_time(particle_steps: f64) -> String {
+pub(crate) fn auto_time(particle_steps: f64) -> String {
     let t = Limits::derived(particle_steps, None, None)
         .timeout
         .as_secs();
@@ -172,7 +172,7 @@ pub fn auto_time(particle_steps: f64) -> String {
 }
 
 /// The command a unit runs in its directory, as the case's deck README gives it.
-pub fn unit_command(binary: &str, deck: &str, log: &str, np: usize) -> String {
+pub(crate) fn unit_command(binary: &str, deck: &str, log: &str, np: usize) -> String {
     if np <= 1 {
         format!("{binary} -in {deck} -log {log}")
     } else {
@@ -363,7 +363,7 @@ pub fn write(
 }
 
 /// The text of `units.tsv`: a header line, then one line per unit.
-pub fn units_tsv(rows: &[UnitRow]) -> String {
+pub(crate) fn units_tsv(rows: &[UnitRow]) -> String {
     let mut s = UNIT_COLUMNS.join("\t") + "\n";
     for r in rows {
         s += &r.line();
@@ -475,7 +475,7 @@ fn sh(s: &str) -> String {
 /// `run-unit.sh INDEX` (or the array task id): runs unit INDEX of `units.tsv` in its
 /// directory unless it is done; marks it running while it runs and done when the engine
 /// exited 0 and its log and main output are complete ([`LOG_COMPLETE`]).
-pub fn run_unit_script() -> String {
+pub(crate) fn run_unit_script() -> String {
     format!(
         r#"#!/bin/bash
 # One unit of a granval suite directory (written by `granval deck --suite`): the
@@ -527,7 +527,7 @@ exit "$rc"
 /// `submit.sh [--missing]`: one `sbatch --array` per engine (one task per unit; with
 /// `--missing` only the units `granval status` does not find done), then the analysis
 /// job after all of them (`--dependency=afterany`), which runs `granval analyze`.
-pub fn submit_script(rec: &SuiteRecord, rows: &[UnitRow], sched: &Scheduler) -> String {
+pub(crate) fn submit_script(rec: &SuiteRecord, rows: &[UnitRow], sched: &Scheduler) -> String {
     let mut s = format!(
         r#"#!/bin/bash
 # Submits the suite `{suite}` to Slurm (written by granval {version} `granval deck --suite`).
@@ -681,7 +681,7 @@ pub fn slurm_tasks(dir: &Path) -> Option<Vec<(usize, String)>> {
 
 /// The unit indices and states of the lines `squeue -h -r -o "%F %K %T"` prints (array
 /// job id, task id, state) that belong to the array jobs `ids`.
-pub fn parse_squeue(text: &str, ids: &[&str]) -> Vec<(usize, String)> {
+pub(crate) fn parse_squeue(text: &str, ids: &[&str]) -> Vec<(usize, String)> {
     text.lines()
         .filter_map(|l| {
             let f: Vec<&str> = l.split_whitespace().collect();
@@ -710,7 +710,7 @@ fn tail(p: &Path, n: usize) -> Option<String> {
 /// end of a run ([`LOG_COMPLETE`]) and its main output is non-empty (with the exit code
 /// `run-unit.sh` saw, recorded in its done marker; `analyze` checks the rest: every
 /// input as written, every output of this deck and complete).
-pub fn complete(dir: &Path, row: &UnitRow) -> bool {
+pub(crate) fn complete(dir: &Path, row: &UnitRow) -> bool {
     let d = dir.join(&row.dir);
     let log_done = std::fs::read(d.join(&row.log)).is_ok_and(|b| {
         String::from_utf8_lossy(&b)
@@ -763,7 +763,7 @@ pub fn status(dir: &Path, rows: &[UnitRow], queued: Option<&[(usize, String)]>) 
 }
 
 /// Canonical hash of a case file, for `analyze`'s refusal of an edited case.toml.
-pub fn case_hash(path: &Path) -> Result<String> {
+pub(crate) fn case_hash(path: &Path) -> Result<String> {
     let c = AnyCase::load(path)?;
     Ok(crate::with_experiment!(c, false, |exp| exp
         .canonical_hash()

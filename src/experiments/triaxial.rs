@@ -24,7 +24,7 @@ use std::io::Write as _;
 use std::path::Path;
 
 pub const PROVENANCE_FILE: &str = "provenance.json";
-pub const WALLS_CSV: &str = "walls.csv";
+pub(crate) const WALLS_CSV: &str = "walls.csv";
 
 pub struct Triaxial {
     pub case: TriaxialCase,

@@ -30,7 +30,7 @@ pub fn number(x: f64) -> String {
 
 /// A number as it would be typed into a case file: plain for moderate magnitudes (up to
 /// 6 decimals, trailing zeros dropped), else the shortest scientific form (`6.3e10`).
-pub fn typed(x: f64) -> String {
+pub(crate) fn typed(x: f64) -> String {
     let a = x.abs();
     if a == 0.0 || (1e-3..1e5).contains(&a) {
         let s = format!("{x:.6}");
@@ -43,7 +43,7 @@ pub fn typed(x: f64) -> String {
 /// An interval `[lo, hi]` with `decimals` decimals; an empty one (hi < lo, or either end
 /// not a number) says so, "empty (from 0.500 to 0.323)", instead of printing its ends as
 /// if they bounded something.
-pub fn interval(lo: f64, hi: f64, decimals: usize) -> String {
+pub(crate) fn interval(lo: f64, hi: f64, decimals: usize) -> String {
     if lo <= hi {
         format!("[{lo:.decimals$}, {hi:.decimals$}]")
     } else {

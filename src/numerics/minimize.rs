@@ -2,7 +2,7 @@
 
 /// Compact Nelder-Mead simplex minimiser (standard coefficients 1, 2, 1/2,
 /// 1/2). Stops when the simplex has collapsed in both position and value.
-pub fn nelder_mead<const N: usize, F: Fn(&[f64; N]) -> f64>(
+pub(crate) fn nelder_mead<const N: usize, F: Fn(&[f64; N]) -> f64>(
     f: &F,
     x0: [f64; N],
     step: f64,

@@ -3,9 +3,9 @@
 //! imports nothing from the crate.
 
 pub mod fmt;
-pub mod minimize;
+pub(crate) mod minimize;
 pub mod overlap;
-pub mod quadrature;
-pub mod roots;
-pub mod stats;
+pub(crate) mod quadrature;
+pub(crate) mod roots;
+pub(crate) mod stats;
 pub mod vec3;

@@ -13,7 +13,7 @@ fn neighbour(k: [i64; 3], d: [i64; 3]) -> [i64; 3] {
     std::array::from_fn(|c| k[c].saturating_add(d[c]))
 }
 
-pub fn first_overlap(x: &[V3], r: &[f64], max_frac: f64) -> Option<(usize, usize, f64)> {
+pub(crate) fn first_overlap(x: &[V3], r: &[f64], max_frac: f64) -> Option<(usize, usize, f64)> {
     let rmax = r.iter().copied().fold(0.0, f64::max);
     if x.len() < 2 || rmax <= 0.0 {
         return None;
@@ -51,7 +51,7 @@ pub fn first_overlap(x: &[V3], r: &[f64], max_frac: f64) -> Option<(usize, usize
 /// First pair of spheres of different bodies (`body[i] < 0`: a free sphere) that touch
 /// or overlap (gap <= 0), with its gap: LIGGGHTS' insertion of clumps refuses any such
 /// contact. Same hash grid as [`first_overlap`], so O(N) whatever the count.
-pub fn first_contact_across_bodies(
+pub(crate) fn first_contact_across_bodies(
     x: &[V3],
     r: &[f64],
     body: &[i32],

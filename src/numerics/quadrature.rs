@@ -1,7 +1,9 @@
 //! Adaptive Gauss-Kronrod (G7-K15) quadrature with propagated error estimates, so
 //! nested integrals (MALT's eq 10) carry an honest error bound.
 
-use anyhow::{Result, bail, ensure};
+#[cfg(test)]
+use anyhow::ensure;
+use anyhow::{Result, bail};
 
 /// Result of an adaptive quadrature: value and an estimate of its absolute error.
 #[derive(Debug, Clone, Copy)]
@@ -44,7 +46,7 @@ const WG: [f64; 4] = [
 
 /// Interval budget of one adaptive integration; generous because endpoint
 /// singularities are resolved by bisection towards the endpoint.
-pub const MAX_INTERVALS: usize = 2000;
+pub(crate) const MAX_INTERVALS: usize = 2000;
 
 #[derive(Clone, Copy)]
 struct Piece {
@@ -111,7 +113,7 @@ fn gk15<F: Fn(f64) -> (f64, f64)>(f: &F, a: f64, b: f64) -> Result<(f64, f64)> {
 /// error). Returns the estimate and whether the tolerance was met, so that
 /// callers that can live with a looser result (inner integrals whose error
 /// is propagated anyway) need not fail.
-pub fn adaptive<F: Fn(f64) -> (f64, f64)>(
+pub(crate) fn adaptive<F: Fn(f64) -> (f64, f64)>(
     f: &F,
     a: f64,
     b: f64,
@@ -183,7 +185,7 @@ pub fn adaptive<F: Fn(f64) -> (f64, f64)>(
 /// ends. This turns `x^-1/2` into a smooth function and `ln x` into
 /// `u ln u`, which is why GK bisection then converges quickly at integrable
 /// endpoint singularities (eq 10's integrands are singular at `eta -> 0`).
-pub fn adaptive_mapped<F: Fn(f64) -> (f64, f64)>(
+pub(crate) fn adaptive_mapped<F: Fn(f64) -> (f64, f64)>(
     f: &F,
     a: f64,
     b: f64,
@@ -222,6 +224,7 @@ pub fn adaptive_mapped<F: Fn(f64) -> (f64, f64)>(
 /// so the integrand is never evaluated at `a` or `b`. Fails if the bounds or
 /// tolerances are invalid, if the integrand returns a non-finite value, or if
 /// the tolerance cannot be met within the interval budget.
+#[cfg(test)]
 pub fn integrate<F: Fn(f64) -> f64>(
     f: F,
     a: f64,

@@ -3,7 +3,7 @@
 use anyhow::{Result, bail, ensure};
 
 /// Brent's method (zeroin) on a bracket with `fa * fb <= 0`.
-pub fn brent<G: FnMut(f64) -> Result<f64>>(
+pub(crate) fn brent<G: FnMut(f64) -> Result<f64>>(
     mut g: G,
     x1: f64,
     x2: f64,

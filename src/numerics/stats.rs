@@ -10,16 +10,17 @@
 use statrs::distribution::{ContinuousCDF, FisherSnedecor, StudentsT};
 
 /// The level of every test, per side (docs/statistics.md, "Level").
-pub const ALPHA: f64 = 0.05;
+pub(crate) const ALPHA: f64 = 0.05;
 /// The power of every planning statement.
-pub const POWER: f64 = 0.80;
+#[cfg(test)]
+pub(crate) const POWER: f64 = 0.80;
 /// The largest bed count a planning statement reports; beyond it the answer is "more
 /// than this", which at these scales means "not decidable by adding beds".
-pub const MAX_BEDS: usize = 10_000;
+pub(crate) const MAX_BEDS: usize = 10_000;
 
 /// The quantile of Student's t with `df` degrees of freedom at probability `p`.
 /// NaN for df <= 0 or p outside (0, 1).
-pub fn t_quantile(p: f64, df: f64) -> f64 {
+pub(crate) fn t_quantile(p: f64, df: f64) -> f64 {
     if !(df > 0.0 && p > 0.0 && p < 1.0) {
         return f64::NAN;
     }
@@ -30,7 +31,7 @@ pub fn t_quantile(p: f64, df: f64) -> f64 {
 }
 
 /// The upper-tail p value of Fisher's F with (d1, d2) degrees of freedom at `f`.
-pub fn f_upper_p(f: f64, d1: f64, d2: f64) -> f64 {
+pub(crate) fn f_upper_p(f: f64, d1: f64, d2: f64) -> f64 {
     match FisherSnedecor::new(d1, d2) {
         Ok(d) if f.is_finite() && f >= 0.0 => 1.0 - d.cdf(f),
         _ => f64::NAN,
@@ -40,7 +41,7 @@ pub fn f_upper_p(f: f64, d1: f64, d2: f64) -> f64 {
 /// sqrt(mean x^2) and its degrees of freedom (the number of values): the spread of
 /// values whose expected mean is zero, such as the log ratios of two runs of the same
 /// physics (the chaos baseline of docs/statistics.md). NaN and 0 for no values.
-pub fn root_mean_square(x: &[f64]) -> (f64, usize) {
+pub(crate) fn root_mean_square(x: &[f64]) -> (f64, usize) {
     if x.is_empty() {
         return (f64::NAN, 0);
     }
@@ -88,7 +89,7 @@ impl Estimate {
     }
 
     /// The mean of the paired differences a_k - b_k.
-    pub fn paired(a: &[f64], b: &[f64]) -> Option<Estimate> {
+    pub(crate) fn paired(a: &[f64], b: &[f64]) -> Option<Estimate> {
         if a.len() != b.len() {
             return None;
         }
@@ -98,7 +99,7 @@ impl Estimate {
 
     /// mean(a) - mean(b) of two independent samples: Welch's standard error and the
     /// Welch-Satterthwaite degrees of freedom (Welch 1947).
-    pub fn welch(a: &[f64], b: &[f64]) -> Option<Estimate> {
+    pub(crate) fn welch(a: &[f64], b: &[f64]) -> Option<Estimate> {
         if a.len() < 2 || b.len() < 2 || a.iter().chain(b).any(|v| !v.is_finite()) {
             return None;
         }
@@ -125,7 +126,7 @@ impl Estimate {
     /// The ordinary least-squares slope of y on x with its standard error and N - 2
     /// degrees of freedom (NIST e-Handbook 4.4.4.4). None with fewer than three points or
     /// no spread in x.
-    pub fn slope(x: &[f64], y: &[f64]) -> Option<Estimate> {
+    pub(crate) fn slope(x: &[f64], y: &[f64]) -> Option<Estimate> {
         let n = x.len();
         if n < 3 || y.len() != n || x.iter().chain(y).any(|v| !v.is_finite()) {
             return None;
@@ -152,27 +153,20 @@ impl Estimate {
     }
 
     /// The two-sided interval at `level` (e.g. 0.90): value +- t((1 + level)/2; df) SE.
-    pub fn interval(&self, level: f64) -> (f64, f64) {
+    pub(crate) fn interval(&self, level: f64) -> (f64, f64) {
         let t = t_quantile(0.5 + level / 2.0, self.df);
         (self.value - t * self.se, self.value + t * self.se)
     }
 
     /// The decision interval of every gated comparison, two-sided 1 - 2 alpha (90 %).
-    pub fn decision_interval(&self) -> (f64, f64) {
+    pub(crate) fn decision_interval(&self) -> (f64, f64) {
         self.interval(1.0 - 2.0 * ALPHA)
     }
 
     /// The interval a failure among `m` comparisons is decided on: 1 - 2 alpha / m
     /// (Bonferroni), equal to the decision interval for m = 1.
-    pub fn failure_interval(&self, m: usize) -> (f64, f64) {
+    pub(crate) fn failure_interval(&self, m: usize) -> (f64, f64) {
         self.interval(1.0 - 2.0 * ALPHA / m.max(1) as f64)
-    }
-
-    /// The same estimate mapped through a monotone increasing function (exp of a log
-    /// ratio, say); only for printing intervals.
-    pub fn map_interval(&self, level: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
-        let (l, u) = self.interval(level);
-        (f(l), f(u))
     }
 }
 
@@ -187,7 +181,7 @@ pub enum Decision {
 /// Equivalence by two one-sided tests (Schuirmann 1987) with margin +-`margin`: PASS when
 /// the decision interval lies inside (-margin, margin), FAIL when the failure interval
 /// (Bonferroni over `m` comparisons) lies wholly outside it, otherwise INCONCLUSIVE.
-pub fn equivalence(e: &Estimate, margin: f64, m: usize) -> Decision {
+pub(crate) fn equivalence(e: &Estimate, margin: f64, m: usize) -> Decision {
     let (l, u) = e.decision_interval();
     if !(l.is_finite() && u.is_finite() && margin.is_finite()) {
         return Decision::Inconclusive;
@@ -207,7 +201,7 @@ pub fn equivalence(e: &Estimate, margin: f64, m: usize) -> Decision {
 /// lower end is above delta, FAIL when the failure interval's upper end (Bonferroni over
 /// `m` comparisons) is not above it, otherwise INCONCLUSIVE. "Exceeds" is strict: an
 /// effect of exactly delta with no scatter (the same runs twice) fails.
-pub fn exceeds(e: &Estimate, delta: f64, m: usize) -> Decision {
+pub(crate) fn exceeds(e: &Estimate, delta: f64, m: usize) -> Decision {
     let (l, _) = e.decision_interval();
     let (_, fu) = e.failure_interval(m);
     if !(l.is_finite() && fu.is_finite() && delta.is_finite()) {
@@ -225,7 +219,7 @@ pub fn exceeds(e: &Estimate, delta: f64, m: usize) -> Decision {
 /// A claim made of several comparisons that must all hold: PASS when every one passes
 /// (intersection-union, Berger 1982), FAIL when any fails (each decided at its
 /// Bonferroni level already), otherwise INCONCLUSIVE. An empty list is INCONCLUSIVE.
-pub fn all_of(parts: &[Decision]) -> Decision {
+pub(crate) fn all_of(parts: &[Decision]) -> Decision {
     if parts.is_empty() {
         Decision::Inconclusive
     } else if parts.contains(&Decision::Fail) {
@@ -244,7 +238,7 @@ fn smallest_n(ok: impl Fn(usize) -> bool) -> Option<usize> {
 /// Beds that would decide an equivalence at per-bed sd `sd` if the difference stayed at
 /// `d`: the smallest n with t(1 - alpha; n - 1) sd / sqrt(n) < margin - |d|. None when
 /// |d| >= margin (more beds would not pass it) or beyond [`MAX_BEDS`].
-pub fn beds_to_pass_equivalence(sd: f64, d: f64, margin: f64) -> Option<usize> {
+pub(crate) fn beds_to_pass_equivalence(sd: f64, d: f64, margin: f64) -> Option<usize> {
     let room = margin - d.abs();
     if !(room > 0.0 && sd.is_finite()) {
         return None;
@@ -254,7 +248,7 @@ pub fn beds_to_pass_equivalence(sd: f64, d: f64, margin: f64) -> Option<usize> {
 
 /// Beds that would resolve a one-sided test whose effect stays at distance `gap` from
 /// its threshold: the smallest n with t(1 - alpha; n - 1) sd / sqrt(n) < |gap|.
-pub fn beds_to_resolve(sd: f64, gap: f64) -> Option<usize> {
+pub(crate) fn beds_to_resolve(sd: f64, gap: f64) -> Option<usize> {
     if !(gap.abs() > 0.0 && sd.is_finite()) {
         return None;
     }
@@ -265,7 +259,8 @@ pub fn beds_to_resolve(sd: f64, gap: f64) -> Option<usize> {
 /// true difference is zero (Chow, Shao and Wang 2008, Sec. 3.2.3, t quantiles iterated in
 /// n): the smallest n with (t(1 - alpha; n - 1) + t(1 - beta/2; n - 1)) sd / sqrt(n) <=
 /// margin.
-pub fn beds_for_equivalence_power(sd: f64, margin: f64) -> Option<usize> {
+#[cfg(test)]
+pub(crate) fn beds_for_equivalence_power(sd: f64, margin: f64) -> Option<usize> {
     if !(sd.is_finite() && margin > 0.0) {
         return None;
     }
@@ -279,7 +274,8 @@ pub fn beds_for_equivalence_power(sd: f64, margin: f64) -> Option<usize> {
 
 /// The minimal detectable effect of a one-sided test at alpha with 80 % power on `n` beds
 /// of per-bed sd `sd`: (t(1 - alpha; n - 1) + t(1 - beta; n - 1)) sd / sqrt(n).
-pub fn minimal_detectable_effect(sd: f64, n: usize) -> f64 {
+#[cfg(test)]
+pub(crate) fn minimal_detectable_effect(sd: f64, n: usize) -> f64 {
     if n < 2 {
         return f64::INFINITY;
     }

@@ -2,10 +2,10 @@
 //! structure-of-arrays layout trivially `Copy` and lets the operation order mirror
 //! LIGGGHTS' C code line by line, which is what makes round-off-level agreement possible.
 
-pub type V3 = [f64; 3];
+pub(crate) type V3 = [f64; 3];
 
 #[inline(always)]
-pub fn add(a: V3, b: V3) -> V3 {
+pub(crate) fn add(a: V3, b: V3) -> V3 {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 #[inline(always)]
@@ -17,7 +17,7 @@ pub fn scale(a: V3, s: f64) -> V3 {
     [a[0] * s, a[1] * s, a[2] * s]
 }
 #[inline(always)]
-pub fn dot(a: V3, b: V3) -> f64 {
+pub(crate) fn dot(a: V3, b: V3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 #[inline(always)]
@@ -25,13 +25,13 @@ pub fn norm(a: V3) -> f64 {
     dot(a, a).sqrt()
 }
 #[inline(always)]
-pub fn add_assign(a: &mut V3, b: V3) {
+pub(crate) fn add_assign(a: &mut V3, b: V3) {
     a[0] += b[0];
     a[1] += b[1];
     a[2] += b[2];
 }
 #[inline(always)]
-pub fn sub_assign(a: &mut V3, b: V3) {
+pub(crate) fn sub_assign(a: &mut V3, b: V3) {
     a[0] -= b[0];
     a[1] -= b[1];
     a[2] -= b[2];

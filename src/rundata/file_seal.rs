@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::path::{Component, Path};
 
 /// Errors unless `name` is one plain file name (no `/`, not `..` or `.`, not empty).
-pub fn plain_name(name: &str) -> Result<()> {
+pub(crate) fn plain_name(name: &str) -> Result<()> {
     let p = Path::new(name);
     let mut c = p.components();
     match (c.next(), c.next()) {
@@ -24,7 +24,7 @@ pub fn plain_name(name: &str) -> Result<()> {
 
 /// Errors unless `rel` is a relative path of plain names (`bed-0/native/force.csv`),
 /// which cannot leave the directory it is relative to.
-pub fn inside(rel: &str) -> Result<()> {
+pub(crate) fn inside(rel: &str) -> Result<()> {
     let p = Path::new(rel);
     let ok = !rel.is_empty()
         && !rel.contains('\\')
@@ -39,7 +39,7 @@ pub fn inside(rel: &str) -> Result<()> {
 
 /// sha256 of the regular file `dir/rel` (`rel` checked with [`inside`]); a symlink, a
 /// directory, a FIFO or a device is refused before it is read.
-pub fn digest(dir: &Path, rel: &str) -> Result<Sha256> {
+pub(crate) fn digest(dir: &Path, rel: &str) -> Result<Sha256> {
     inside(rel)?;
     let p = dir.join(rel);
     let meta = std::fs::symlink_metadata(&p)

@@ -16,7 +16,7 @@ pub struct ForceSample {
 }
 
 /// Writes `force.csv` (t, z_bottom, fx, fy, fz; SI, full precision).
-pub fn write_force_csv(path: &Path, samples: &[ForceSample]) -> Result<()> {
+pub(crate) fn write_force_csv(path: &Path, samples: &[ForceSample]) -> Result<()> {
     let mut w = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
     );

@@ -39,14 +39,14 @@ pub struct Frame {
 }
 
 /// Column order of `particles.csv`, fixed (documented in docs/commands.md) so scripts can rely on it.
-pub const CSV_HEADER: [&str; 14] = [
+pub(crate) const CSV_HEADER: [&str; 14] = [
     "t", "id", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz",
 ];
 
 /// `particles.csv`, written one frame at a time. `{:e}` of an f64 is
 /// shortest-round-trip, so the file carries full double precision without a fixed
 /// digit count.
-pub struct FrameWriter {
+pub(crate) struct FrameWriter {
     w: csv::Writer<std::fs::File>,
     path: std::path::PathBuf,
 }
@@ -84,15 +84,6 @@ impl FrameWriter {
             .flush()
             .with_context(|| format!("cannot write {}", self.path.display()))
     }
-}
-
-/// Writes frames as `particles.csv`.
-pub fn write_particles_csv(path: &Path, frames: &[Frame]) -> Result<()> {
-    let mut w = FrameWriter::create(path)?;
-    for fr in frames {
-        w.write(fr)?;
-    }
-    w.finish()
 }
 
 /// `particles.csv` read back one frame at a time (rows grouped by consecutive equal
@@ -171,7 +162,7 @@ impl CsvFrames {
         )))
     }
 
-    pub fn next_frame(&mut self) -> Result<Option<Frame>> {
+    pub(crate) fn next_frame(&mut self) -> Result<Option<Frame>> {
         let first = match self.pending.take() {
             Some(r) => r,
             None => match self.row()? {
@@ -228,18 +219,13 @@ pub(crate) use frame_iterator;
 
 frame_iterator!(CsvFrames);
 
-/// Reads a whole `particles.csv` (small runs and tests).
-pub fn read_particles_csv(path: &Path, dt: f64) -> Result<Vec<Frame>> {
-    CsvFrames::open(path, dt)?.collect()
-}
-
 /// File name of a clump case's native frames.
-pub const JSONL_FILE: &str = "frames.jsonl";
+pub(crate) const JSONL_FILE: &str = "frames.jsonl";
 
 /// Frames of a clump case (`frames.jsonl`): one JSON [`Frame`] per line, bodies included.
 /// serde_json writes f64 in shortest round-trip form, so no precision is lost; a CSV row
 /// per particle cannot hold a frame that has bodies but no free sphere.
-pub struct JsonlFrameWriter {
+pub(crate) struct JsonlFrameWriter {
     w: std::io::BufWriter<std::fs::File>,
     path: std::path::PathBuf,
 }
@@ -270,7 +256,7 @@ impl JsonlFrameWriter {
 }
 
 /// `frames.jsonl` read back one frame at a time.
-pub struct JsonlFrames {
+pub(crate) struct JsonlFrames {
     path: std::path::PathBuf,
     lines: std::io::Lines<std::io::BufReader<super::fsio::Bounded>>,
     no: usize,

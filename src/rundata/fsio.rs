@@ -21,9 +21,9 @@
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
-pub const KIB: u64 = 1 << 10;
-pub const MIB: u64 = 1 << 20;
-pub const GIB: u64 = 1 << 30;
+pub(crate) const KIB: u64 = 1 << 10;
+pub(crate) const MIB: u64 = 1 << 20;
+pub(crate) const GIB: u64 = 1 << 30;
 
 /// Case files and suite files: text written by people, kilobytes each (the largest
 /// case of the release suite is under 10 KiB); 16 MiB leaves three orders of magnitude.
@@ -32,15 +32,15 @@ pub const MAX_CASE_FILE: u64 = 16 * MIB;
 /// JSON records granval writes and reads back: `seal.json` (at most tens of KiB),
 /// `provenance.json`, `summary.json`, MALT points, a prepared bed (the largest, a
 /// penetration bed of the release suite, is 3 MB).
-pub const MAX_RECORD_JSON: u64 = 256 * MIB;
+pub(crate) const MAX_RECORD_JSON: u64 = 256 * MIB;
 
 /// Small bookkeeping files (the output-directory marker, its lock).
-pub const MAX_SMALL: u64 = 64 * KIB;
+pub(crate) const MAX_SMALL: u64 = 64 * KIB;
 
 /// The longest line a line-based parser accepts. Dump, log, data and CSV lines are at
 /// most a few hundred bytes; a LIGGGHTS log echoes deck lines, which granval writes
 /// well under 1 KiB.
-pub const MAX_LINE_BYTES: u64 = MIB;
+pub(crate) const MAX_LINE_BYTES: u64 = MIB;
 
 /// The bound on an engine's output file (dump, log, data file, CSV): half the physical
 /// memory, clamped to [1 GiB, 64 GiB] (4 GiB when /proc/meminfo cannot be read).
@@ -52,7 +52,7 @@ pub const MAX_LINE_BYTES: u64 = MIB;
 /// and it is far above any output a run within the resource limits writes per file
 /// (the release suite's largest recorded file is 7.6 MB). The per-line bound above
 /// keeps a file without newlines from being accumulated at all.
-pub fn max_engine_output() -> u64 {
+pub(crate) fn max_engine_output() -> u64 {
     static CAP: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
     *CAP.get_or_init(|| {
         let total = std::fs::read_to_string("/proc/meminfo").ok().and_then(|t| {
@@ -106,7 +106,7 @@ impl ReadError {
     }
 
     /// The file does not exist (some callers treat a missing optional file as absent).
-    pub fn is_not_found(&self) -> bool {
+    pub(crate) fn is_not_found(&self) -> bool {
         matches!(&self.problem, Problem::Io(e) if e.kind() == std::io::ErrorKind::NotFound)
     }
 }
@@ -120,7 +120,7 @@ impl std::fmt::Display for ReadError {
 impl std::error::Error for ReadError {}
 
 /// `n` bytes, with the binary unit a person reads at a glance.
-pub fn human(n: u64) -> String {
+pub(crate) fn human(n: u64) -> String {
     let (v, unit) = if n >= GIB {
         (n as f64 / GIB as f64, "GiB")
     } else if n >= MIB {
@@ -152,7 +152,7 @@ fn kind_of(ft: &std::fs::FileType) -> &'static str {
 
 /// Checks that `path` is a regular file (after symlinks) of at most `max` bytes, without
 /// opening it; returns its size.
-pub fn check_regular(path: &Path, max: u64, what: &str) -> Result<u64, ReadError> {
+pub(crate) fn check_regular(path: &Path, max: u64, what: &str) -> Result<u64, ReadError> {
     let err = |problem| ReadError {
         path: path.to_path_buf(),
         problem,
@@ -267,13 +267,13 @@ pub fn open(path: &Path, max: u64, what: &str) -> Result<Bounded, ReadError> {
 
 /// Opens an engine's output (a dump, log, data file or CSV) for a line-based parser,
 /// bounded by [`max_engine_output`] and [`MAX_LINE_BYTES`]; `what` says what it holds.
-pub fn open_engine_output(path: &Path, what: &str) -> Result<Bounded, ReadError> {
+pub(crate) fn open_engine_output(path: &Path, what: &str) -> Result<Bounded, ReadError> {
     open(path, max_engine_output(), what)
 }
 
 /// Opens a file for a reader that is not line-based (a hash): a regular file of at most
 /// `max` bytes, lines not bounded.
-pub fn open_unlined(path: &Path, max: u64, what: &str) -> Result<Bounded, ReadError> {
+pub(crate) fn open_unlined(path: &Path, max: u64, what: &str) -> Result<Bounded, ReadError> {
     open_with(path, max, None, what)
 }
 

@@ -32,7 +32,7 @@ pub struct EnergySample {
 /// `intruder.csv`: t, step, x, y, vx, vy, fx, fy, D (SI, full precision); when the
 /// samples carry the interface height (K Fig 12), also `interface_y` and the derived
 /// `interface_s` (its rise since the first sample). Every sample tracks it or none.
-pub fn write_intruder_csv(
+pub(crate) fn write_intruder_csv(
     path: &Path,
     s: &[IntruderSample],
     surface: f64,
@@ -131,7 +131,7 @@ pub fn read_intruder_csv(path: &Path) -> Result<Vec<IntruderSample>> {
 }
 
 /// `energy.csv`: t, step, kinetic, potential (relative to the first), elastic.
-pub fn write_energy_csv(path: &Path, e: &[EnergySample]) -> Result<()> {
+pub(crate) fn write_energy_csv(path: &Path, e: &[EnergySample]) -> Result<()> {
     let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
     writeln!(w, "t,step,kinetic,potential_abs,elastic")?;
     for s in e {
@@ -190,7 +190,11 @@ const CONTACTS_HEAD: &str = "step,i,j,fn,ft";
 
 /// `grains.csv` (step, id, x, y) and `contacts.csv` (step, i, j, fn, ft) of the field
 /// snapshots, SI, shortest round-trip numbers.
-pub fn write_fields_csv(grains: &Path, contacts: &Path, snaps: &[FieldSnapshot]) -> Result<()> {
+pub(crate) fn write_fields_csv(
+    grains: &Path,
+    contacts: &Path,
+    snaps: &[FieldSnapshot],
+) -> Result<()> {
     let mut g = std::io::BufWriter::new(
         std::fs::File::create(grains)
             .with_context(|| format!("cannot write {}", grains.display()))?,
@@ -234,7 +238,7 @@ struct ContactRow {
 
 /// Reads what [`write_fields_csv`] wrote; `contact_steps` are the snapshots that carry
 /// contacts (an empty contact list there is a snapshot without touching pairs).
-pub fn read_fields_csv(
+pub(crate) fn read_fields_csv(
     grains: &Path,
     contacts: &Path,
     contact_steps: &[u64],

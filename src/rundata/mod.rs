@@ -2,12 +2,12 @@
 //! intruder force samples, 2D impact series, contact snapshots, and provenance. Plain
 //! data and its file formats; no physics, no analysis.
 
-pub mod file_seal;
+pub(crate) mod file_seal;
 pub mod force;
 pub mod frames;
 pub mod fsio;
 pub mod impact;
-pub mod paired_frames;
+pub(crate) mod paired_frames;
 pub mod provenance;
 pub mod snapshot;
 pub mod triaxial;

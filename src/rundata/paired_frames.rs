@@ -23,17 +23,17 @@ use anyhow::{Context, Result};
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
-pub const TRAJECTORIES_FILE: &str = "trajectories.csv";
-pub const DEVIATION_FILE: &str = "deviation.csv";
+pub(crate) const TRAJECTORIES_FILE: &str = "trajectories.csv";
+pub(crate) const DEVIATION_FILE: &str = "deviation.csv";
 
 /// Column order of `trajectories.csv`.
-pub const TRAJECTORIES_HEADER: [&str; 16] = [
+pub(crate) const TRAJECTORIES_HEADER: [&str; 16] = [
     "engine", "step", "t", "id", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy",
     "fz",
 ];
 
 /// Column order of `deviation.csv`.
-pub const DEVIATION_HEADER: [&str; 9] = [
+pub(crate) const DEVIATION_HEADER: [&str; 9] = [
     "step",
     "t",
     "id",

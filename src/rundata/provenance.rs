@@ -16,7 +16,7 @@ pub enum EngineKind {
 
 impl EngineKind {
     /// Only these may produce data under `reference/`.
-    pub fn is_reference(self) -> bool {
+    pub(crate) fn is_reference(self) -> bool {
         matches!(self, EngineKind::Liggghts | EngineKind::Lammps)
     }
 
@@ -143,7 +143,7 @@ pub fn git_commit() -> Option<String> {
         .map(str::to_string)
 }
 
-pub fn sha256_hex(bytes: &[u8]) -> String {
+pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::Digest;
     hex::encode(sha2::Sha256::digest(bytes))
 }

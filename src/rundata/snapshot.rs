@@ -114,7 +114,7 @@ pub struct Snapshot {
 impl Snapshot {
     /// The contact force with its tangential part removed: the negative control of the
     /// stress analysis (a stress from normal forces only must give a different phi).
-    pub fn drop_tangential(&mut self) {
+    pub(crate) fn drop_tangential(&mut self) {
         for c in &mut self.contacts {
             let n = c.normal();
             c.force = scale(n, dot(c.force, n));

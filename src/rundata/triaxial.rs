@@ -2,7 +2,9 @@
 //! output step, the positions of the three moving walls (the lo walls stay at 0) and the
 //! normal force the grains exert on each of the six walls.
 
-use anyhow::{Context, Result, bail};
+#[cfg(test)]
+use anyhow::bail;
+use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
@@ -21,10 +23,10 @@ pub struct WallRecord {
     pub f_hi: [f64; 3],
 }
 
-pub const HEADER: &str = "step,x_hi,y_hi,z_hi,f_xlo,f_ylo,f_zlo,f_xhi,f_yhi,f_zhi";
+pub(crate) const HEADER: &str = "step,x_hi,y_hi,z_hi,f_xlo,f_ylo,f_zlo,f_xhi,f_yhi,f_zhi";
 
 /// Writes `walls.csv` (full precision).
-pub fn write_csv(path: &Path, records: &[WallRecord]) -> Result<()> {
+pub(crate) fn write_csv(path: &Path, records: &[WallRecord]) -> Result<()> {
     let mut w = std::io::BufWriter::new(
         std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
     );
@@ -50,7 +52,8 @@ pub fn write_csv(path: &Path, records: &[WallRecord]) -> Result<()> {
 }
 
 /// Reads a `walls.csv` written by [`write_csv`]; errors name file, line and column.
-pub fn read_csv(path: &Path) -> Result<Vec<WallRecord>> {
+#[cfg(test)]
+pub(crate) fn read_csv(path: &Path) -> Result<Vec<WallRecord>> {
     let mut r = csv::Reader::from_reader(super::fsio::open_engine_output(path, "a walls CSV")?);
     let header: Vec<String> = r.headers()?.iter().map(str::to_string).collect();
     if header.join(",") != HEADER {

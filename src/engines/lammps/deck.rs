@@ -18,9 +18,9 @@ use std::fmt::Write as _;
 pub const DATA_FILE: &str = "data.impact2d";
 pub const DECK_FILE: &str = "in.impact2d";
 pub const SNAP_FILE: &str = "snap.dump";
-pub const INTRUDER_FILE: &str = "intruder.txt";
-pub const GRAINS_FILE: &str = "grains.dump";
-pub const CONTACTS_FILE: &str = "contacts.dump";
+pub(crate) const INTRUDER_FILE: &str = "intruder.txt";
+pub(crate) const GRAINS_FILE: &str = "grains.dump";
+pub(crate) const CONTACTS_FILE: &str = "contacts.dump";
 
 /// What to run and what to write.
 #[derive(Debug, Clone)]

@@ -36,7 +36,7 @@ pub fn run(
 /// The bed snapshots of a finished run in `dir`: grains from `grains.dump`, contacts
 /// (the touching pairs: a non-touching neighbour has zero force in single()) from
 /// `contacts.dump`; every asked-for step present, nothing else.
-pub fn read_fields(out: &Outputs, dir: &Path) -> Result<Vec<FieldSnapshot>> {
+pub(crate) fn read_fields(out: &Outputs, dir: &Path) -> Result<Vec<FieldSnapshot>> {
     let f = &out.fields;
     let mut snaps: Vec<FieldSnapshot> = Vec::new();
     if f.position_steps.is_empty() {

@@ -16,11 +16,12 @@ use crate::rundata::provenance::Sha256;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 
-pub use deck::{DATA_FILE, DECK_FILE, INTRUDER_FILE, Outputs, SNAP_FILE};
+pub(crate) use deck::INTRUDER_FILE;
+pub use deck::{DATA_FILE, DECK_FILE, Outputs, SNAP_FILE};
 
 pub const LOG_FILE: &str = "log.lammps";
-pub const STDOUT_FILE: &str = "lammps.stdout";
-pub const STDERR_FILE: &str = "lammps.stderr";
+pub(crate) const STDOUT_FILE: &str = "lammps.stdout";
+pub(crate) const STDERR_FILE: &str = "lammps.stderr";
 /// The process' own stdout: with `-screen FILE` it only carries MPI noise.
 pub(crate) const PROCESS_STDOUT_FILE: &str = "lammps.process.stdout";
 pub(crate) const TRANSCRIPT: TranscriptFiles = TranscriptFiles {
@@ -202,7 +203,7 @@ fn missing_output(sys: &System, out: &Outputs, dir: &Path) -> Option<String> {
 /// checked as [`Lammps::run`] checks its own: the deck and data file there are the
 /// ones granval writes for `sys` (as LAMMPS reads them), no `ERROR` in the output, the
 /// log ends with `Total wall time`, every output `out` asks for is there.
-pub fn finished(sys: &System, out: &Outputs, dir: &Path) -> Result<Finished> {
+pub(crate) fn finished(sys: &System, out: &Outputs, dir: &Path) -> Result<Finished> {
     use crate::engines::deck_text::check_same_input;
     let (deck, data) = (deck::write_deck(sys, out)?, deck::write_data(sys));
     check_same_input(dir, DECK_FILE, &deck, false)?;

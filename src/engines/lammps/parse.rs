@@ -18,7 +18,7 @@ pub struct SnapAtom {
     pub f: [f64; 2],
 }
 
-pub const SNAP_COLUMNS: [&str; 11] = [
+pub(crate) const SNAP_COLUMNS: [&str; 11] = [
     "id", "type", "radius", "mass", "x", "y", "vx", "vy", "omegaz", "fx", "fy",
 ];
 
@@ -139,7 +139,7 @@ pub fn for_each_snapshot(
 /// total force (contacts + gravity) of the intruder group; with interface tracers (K
 /// Fig 12) also their centre of mass in y.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct IntruderLine {
+pub(crate) struct IntruderLine {
     pub step: u64,
     pub x: [f64; 2],
     pub v: [f64; 2],
@@ -149,7 +149,7 @@ pub struct IntruderLine {
 
 /// Calls `line` for every data line of the intruder file, which has the interface
 /// column if `interface` (and then every line must have it); returns how many.
-pub fn for_each_intruder_line(
+pub(crate) fn for_each_intruder_line(
     path: &Path,
     interface: bool,
     mut line: impl FnMut(IntruderLine) -> Result<()>,
@@ -203,7 +203,7 @@ pub fn for_each_intruder_line(
 /// Calls `frame(step, rows)` for every frame of a `dump custom` (`item` = "ATOMS") or
 /// `dump local` (`item` = "ENTRIES") file whose columns must be `columns`, every value
 /// read as f64 (ids too: exact below 2^53); returns the number of frames.
-pub fn for_each_table_frame(
+pub(crate) fn for_each_table_frame(
     path: &Path,
     item: &str,
     columns: &[&str],

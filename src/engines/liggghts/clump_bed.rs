@@ -38,14 +38,14 @@ use std::path::Path;
 /// analyze` reads this file back to know the grains).
 pub const BODIES_FILE: &str = "bodies.bed";
 /// The bodies at step 0 of the penetration, as LIGGGHTS holds them.
-pub const START_DUMP_FILE: &str = "bodies.start";
+pub(crate) const START_DUMP_FILE: &str = "bodies.start";
 /// MPI processes for which the placement is exact.
-pub const EXACT_RANKS: u64 = 2;
+pub(crate) const EXACT_RANKS: u64 = 2;
 
 const BODIES_HEADER: &str = "# granval clump bed: id x y z qw qx qy qz vx vy vz wx wy wz (SI; centre of mass, unit quaternion, velocity, angular velocity)";
 
 /// The bodies file: one line per body, every number in shortest round-trip form.
-pub fn bodies_text(bodies: &[Clump]) -> String {
+pub(crate) fn bodies_text(bodies: &[Clump]) -> String {
     let mut s = String::with_capacity(bodies.len() * 260);
     s.push_str(BODIES_HEADER);
     s.push('\n');
@@ -63,7 +63,7 @@ pub fn bodies_text(bodies: &[Clump]) -> String {
 }
 
 /// Reads a [`bodies_text`] file back (every body of template 0).
-pub fn parse_bodies(path: &Path) -> Result<Vec<Clump>> {
+pub(crate) fn parse_bodies(path: &Path) -> Result<Vec<Clump>> {
     let file = crate::rundata::fsio::open_engine_output(path, "a clump body list")?;
     let mut out = Vec::new();
     for (k, line) in std::io::BufReader::new(file).lines().enumerate() {
@@ -126,7 +126,7 @@ fn draws(seed: u64, rank: u64) -> [f64; 3] {
 
 /// An insert seed (the next prime from `*next` on) and its one-ulp block whose drawn
 /// point is exactly `target` on every rank below [`EXACT_RANKS`]; `*next` moves past it.
-pub fn exact_placement(next: &mut u64, target: [f64; 3]) -> Result<(u64, [(f64, f64); 3])> {
+pub(crate) fn exact_placement(next: &mut u64, target: [f64; 3]) -> Result<(u64, [(f64, f64); 3])> {
     if let Some(c) = (0..3).find(|&c| target[c] == 0.0 || !target[c].is_finite()) {
         bail!(
             "coordinate {c} = {:e} cannot be placed exactly (a one-ulp block needs a finite, non-zero coordinate)",
@@ -172,7 +172,7 @@ const FIRST_SEED: u64 = 15_485_863;
 /// The deck block that creates the bed: templates, `fix multisphere`, one exact
 /// insertion per body, `run 1`, the insertion fixes removed, the clock reset, and the
 /// start dump of the penetration run (`n_steps` long).
-pub fn write_insertion(
+pub(crate) fn write_insertion(
     s: &mut String,
     template: &ClumpTemplate,
     bodies: &[Clump],
@@ -256,7 +256,7 @@ pub fn write_insertion(
 }
 
 /// The bodies LIGGGHTS held at step 0 of the penetration, by the ids of `bodies`.
-pub fn read_start(dir: &Path, bodies: &[Clump]) -> Result<Vec<BodyState>> {
+pub(crate) fn read_start(dir: &Path, bodies: &[Clump]) -> Result<Vec<BodyState>> {
     let ids: Vec<u64> = bodies.iter().map(|b| b.id).collect();
     let path = dir.join(START_DUMP_FILE);
     let frames = read_body_dump(&ids, &path)?;
@@ -282,7 +282,7 @@ pub struct StartDifference {
 }
 
 impl StartDifference {
-    pub fn between(a: &[BodyState], b: &[BodyState]) -> Result<StartDifference> {
+    pub(crate) fn between(a: &[BodyState], b: &[BodyState]) -> Result<StartDifference> {
         if a.len() != b.len() {
             bail!("{} bodies against {}", a.len(), b.len());
         }

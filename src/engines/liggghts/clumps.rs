@@ -24,7 +24,7 @@ use std::fmt::Write;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 
-pub const BODY_DUMP_FILE: &str = "body.granval";
+pub(crate) const BODY_DUMP_FILE: &str = "body.granval";
 
 /// Points LIGGGHTS' region draws for its volume estimate before placing (region.cpp
 /// `volume_mc`, 3 per try); `ntry_mc` of the insert fix, its minimum.
@@ -54,7 +54,7 @@ impl RanPark {
 /// 3 ntry_mc numbers for the volume estimate (region.cpp:647-651), then pos = lo + u
 /// (hi - lo) (region.cpp:531-544). With hi - lo one ulp, pos is lo for u < 1/2 and hi
 /// for u > 1/2. Verified by the research runs for six bodies (bit-identical COM).
-pub fn exact_region(seed: u64, target: [f64; 3]) -> Result<[(f64, f64); 3]> {
+pub(crate) fn exact_region(seed: u64, target: [f64; 3]) -> Result<[(f64, f64); 3]> {
     let mut rng = RanPark(seed as i64 + 12);
     for _ in 0..3 * NTRY_MC {
         rng.uniform();
@@ -104,7 +104,7 @@ fn check(case: &Case) -> Result<()> {
 
 /// The deck of a clump case: free spheres (if any) through `create_atoms`, every body
 /// through its own exact-placement insertion; dumps `BODY_DUMP_FILE` and `dump_file`.
-pub fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
+pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
     super::deck::check_liggghts_limits(case)?;
     check(case)?;
     let cl = &case.clumps;
@@ -402,7 +402,7 @@ pub(super) fn write_templates(
 /// The frames of a finished clump run in `dir`, mapped onto native steps: LIGGGHTS step
 /// s is native step s - 1; LIGGGHTS body k (insertion order) is the case's k-th clump,
 /// free atom k the case's k-th particle.
-pub fn clump_frames(case: &Case, dir: &Path) -> Result<Vec<Frame>> {
+pub(crate) fn clump_frames(case: &Case, dir: &Path) -> Result<Vec<Frame>> {
     let ids: Vec<u64> = case.clumps.bodies.iter().map(|b| b.id).collect();
     let bodies = read_body_dump(&ids, &dir.join(BODY_DUMP_FILE))?;
     let free = if case.particles.is_empty() {

@@ -12,15 +12,15 @@ use std::fmt::Write;
 
 /// LIGGGHTS refuses `youngsModulus` below this in SI units (`global_properties.cpp`,
 /// "youngsModulus >= 5e6 required for SI units"), unless `soft_particles yes`.
-pub const MIN_YOUNGS_MODULUS_SI: f64 = 5e6;
+pub(crate) const MIN_YOUNGS_MODULUS_SI: f64 = 5e6;
 /// ... and above this ("youngsModulus <= 1e9 required for SI units (use command
 /// 'hard_particles yes' to override)").
-pub const MAX_YOUNGS_MODULUS_SI: f64 = 1e9;
+pub(crate) const MAX_YOUNGS_MODULUS_SI: f64 = 1e9;
 /// LIGGGHTS requires `0.05 < coefficientRestitution <= 1`.
-pub const MIN_RESTITUTION_EXCLUSIVE: f64 = 0.05;
+pub(crate) const MIN_RESTITUTION_EXCLUSIVE: f64 = 0.05;
 
 /// Dump columns, in the order the deck asks for them (the parser maps by name anyway).
-pub const DUMP_COLUMNS: [&str; 13] = [
+pub(crate) const DUMP_COLUMNS: [&str; 13] = [
     "id", "x", "y", "z", "vx", "vy", "vz", "omegax", "omegay", "omegaz", "fx", "fy", "fz",
 ];
 
@@ -149,7 +149,7 @@ pub(super) fn write_contact_model(
 /// Both switches only lift LIGGGHTS' range check of Young's modulus (5e6-1e9 Pa in SI,
 /// 5e7-1e10 barye in cgs: the same pressures); the material is written unchanged, so
 /// glass, steel and alumina run as they are.
-pub fn hardness(materials: &[Material]) -> (bool, bool) {
+pub(crate) fn hardness(materials: &[Material]) -> (bool, bool) {
     let soft = materials
         .iter()
         .any(|m| m.youngs_modulus < MIN_YOUNGS_MODULUS_SI);
@@ -296,13 +296,13 @@ pub(super) fn comment_safe(s: &str) -> String {
 /// Largest atom ID LIGGGHTS 3.8 takes: its `tagint` is a signed 32-bit int (LAMMPS'
 /// default `LAMMPS_SMALLBIG`, `MAXTAGINT` = 2^31 - 1); a larger ID in a data file aborts
 /// the run with an empty log.
-pub const MAX_ATOM_ID: u64 = i32::MAX as u64;
+pub(crate) const MAX_ATOM_ID: u64 = i32::MAX as u64;
 
 /// Refuses what LIGGGHTS 3.8 itself would refuse of a micro case, before anything runs,
 /// naming the case file, the field and the value: its materials and pairs
 /// ([`check_materials`]) and, where the case's particle IDs go into the data file (no
 /// clumps: a clump deck numbers its atoms itself), IDs above [`MAX_ATOM_ID`].
-pub fn check_liggghts_limits(case: &Case) -> Result<()> {
+pub(crate) fn check_liggghts_limits(case: &Case) -> Result<()> {
     check_materials(&case.source, &case.materials, &case.pairs)?;
     if case.clumps.is_empty()
         && let Some((k, p)) = case
@@ -327,7 +327,7 @@ pub fn check_liggghts_limits(case: &Case) -> Result<()> {
 /// engine runs; a comparison needs what both engines take. Young's modulus is not
 /// refused here: `soft_particles` / `hard_particles` lift LIGGGHTS' range check with the
 /// material unchanged. Materials are never changed silently.
-pub fn check_materials(
+pub(crate) fn check_materials(
     file: &std::path::Path,
     materials: &[crate::case::Material],
     pairs: &crate::case::PairTable,

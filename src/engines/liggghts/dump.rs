@@ -94,7 +94,7 @@ impl DumpFrames {
     }
 
     /// The next frame, `None` at the end of the file.
-    pub fn next_frame(&mut self) -> Result<Option<Frame>> {
+    pub(crate) fn next_frame(&mut self) -> Result<Option<Frame>> {
         let path = self.path.as_path();
         let lines = &mut self.lines;
         let mut step: Option<u64> = None;

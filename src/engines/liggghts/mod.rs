@@ -17,12 +17,12 @@ pub mod stl;
 pub mod triaxial;
 pub mod units;
 
-pub use deck::{
-    DUMP_COLUMNS, MAX_ATOM_ID, MIN_RESTITUTION_EXCLUSIVE, MIN_YOUNGS_MODULUS_SI,
-    check_liggghts_limits, check_materials, expected_frames, write_data_file, write_deck,
+pub(crate) use deck::{
+    DUMP_COLUMNS, MIN_RESTITUTION_EXCLUSIVE, check_liggghts_limits, check_materials, hardness,
 };
-pub use deck::{hardness, hardness_note};
-pub use dump::{DumpFrames, parse_dump};
+pub use deck::{expected_frames, hardness_note, write_data_file, write_deck};
+pub(crate) use dump::DumpFrames;
+pub use dump::parse_dump;
 
 use crate::case::Case;
 use crate::engines::process::{self, Transcript, TranscriptFiles};
@@ -32,10 +32,10 @@ use std::path::Path;
 
 pub const DECK_FILE: &str = "in.granval";
 pub const DATA_FILE: &str = "data.granval";
-pub const DUMP_FILE: &str = "dump.granval";
+pub(crate) const DUMP_FILE: &str = "dump.granval";
 pub const LOG_FILE: &str = "log.liggghts";
-pub const STDOUT_FILE: &str = "liggghts.stdout";
-pub const STDERR_FILE: &str = "liggghts.stderr";
+pub(crate) const STDOUT_FILE: &str = "liggghts.stdout";
+pub(crate) const STDERR_FILE: &str = "liggghts.stderr";
 
 /// Where a LIGGGHTS run directory keeps its transcript.
 pub(crate) const TRANSCRIPT: TranscriptFiles = TranscriptFiles {
@@ -212,7 +212,7 @@ pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
 /// here or on a cluster): the deck and data file there are the case's as LIGGGHTS reads
 /// them, neither log nor screen output has an `ERROR`, and the dump holds every frame of
 /// every particle ([`micro`] checks the same after its own runs).
-pub fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
+pub(crate) fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
     for (name, text) in micro_inputs(case)? {
         crate::engines::deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
     }
@@ -264,7 +264,7 @@ pub fn micro_input_hash(case: &Case) -> Result<Sha256> {
 
 /// The input files of a micro case: deck and data file, or the clump deck alone (bodies
 /// cannot be read from a data file; they are inserted).
-pub fn micro_inputs(case: &Case) -> Result<Vec<(&'static str, String)>> {
+pub(crate) fn micro_inputs(case: &Case) -> Result<Vec<(&'static str, String)>> {
     if case.clumps.is_empty() {
         Ok(vec![
             (DECK_FILE, write_deck(case, DUMP_FILE, DATA_FILE)?),

@@ -26,12 +26,11 @@
 //! Force sign convention: `f` is the force the grains exert on the intruder, in the global
 //! frame; pushing down into a bed gives `f[2] > 0` (the bed resists, pushing up).
 
+pub use super::LOG_FILE;
 use super::deck::{f, model_keywords, write_contact_model};
-pub use super::units::{
-    LIGGGHTS_MAX_E_CGS, LIGGGHTS_MAX_E_PA, LIGGGHTS_MIN_E_CGS, LIGGGHTS_MIN_E_PA, Units,
-    choose_units,
-};
-pub use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE};
+pub(crate) use super::units::{LIGGGHTS_MAX_E_PA, LIGGGHTS_MIN_E_PA};
+pub use super::units::{Units, choose_units};
+pub(crate) use super::{STDERR_FILE, STDOUT_FILE};
 use super::{TRANSCRIPT, VERSION_PREFIX};
 use crate::case::clumps::{Clump, ClumpTemplate};
 use crate::case::{Material, PairTable, Particle, RollingModel};
@@ -47,7 +46,7 @@ pub const DECK_FILE: &str = "in.penetration";
 pub const DATA_FILE: &str = "data.bed";
 pub const STL_FILE: &str = "intruder.stl";
 pub const FORCE_FILE: &str = "force.txt";
-pub const README_FILE: &str = "README.md";
+pub(crate) const README_FILE: &str = "README.md";
 
 /// One penetration run. ALL inputs in SI; the intruder's axis is the container's (x = y = 0).
 #[derive(Debug, Clone)]
@@ -112,7 +111,7 @@ pub struct Settle {
 }
 
 /// Settled bed written by a [`Settle`] deck (id type radius x y z vx vy vz, %.17g).
-pub const BED_DUMP_FILE: &str = "bed.dump";
+pub(crate) const BED_DUMP_FILE: &str = "bed.dump";
 /// The loose lattice a [`Settle`] deck starts from.
 pub const LATTICE_FILE: &str = "data.lattice";
 
@@ -148,7 +147,7 @@ fn positive(name: &str, x: f64) -> Result<()> {
 }
 
 /// Refuses inputs LIGGGHTS would refuse or that make no sense, naming field and value.
-pub fn validate(d: &PenetrationDeck) -> Result<()> {
+pub(crate) fn validate(d: &PenetrationDeck) -> Result<()> {
     let n = d.materials.len();
     if n == 0 {
         bail!("penetration deck: no materials");
@@ -348,7 +347,7 @@ pub fn validate(d: &PenetrationDeck) -> Result<()> {
 
 /// The `read_data` file of the bed in the deck's units (`atom-ID type diameter density x y z`,
 /// then `Velocities`), every float in `{:e}`.
-pub fn data_text(d: &PenetrationDeck) -> Result<String> {
+pub(crate) fn data_text(d: &PenetrationDeck) -> Result<String> {
     validate(d)?;
     if !d.bodies.is_empty() {
         return Ok(super::clump_bed::bodies_text(&d.bodies));
@@ -367,7 +366,7 @@ pub fn data_text(d: &PenetrationDeck) -> Result<String> {
 }
 
 /// Thermo output interval: about 1 % of the run, so a progress bar can follow the log.
-pub fn thermo_every(n_steps: u64) -> u64 {
+pub(crate) fn thermo_every(n_steps: u64) -> u64 {
     (n_steps / 100).max(1)
 }
 
@@ -383,7 +382,10 @@ pub fn deck_text(d: &PenetrationDeck) -> Result<String> {
 
 /// [`deck_text`] plus contact/grain dumps at `snapshot_steps` ([`super::snapshot`]);
 /// with no steps the two hold the same commands.
-pub fn deck_text_with_snapshots(d: &PenetrationDeck, snapshot_steps: &[u64]) -> Result<String> {
+pub(crate) fn deck_text_with_snapshots(
+    d: &PenetrationDeck,
+    snapshot_steps: &[u64],
+) -> Result<String> {
     validate(d)?;
     let snapshots = super::snapshot::deck_block(snapshot_steps, d.n_steps)?;
     let u = d.units;
@@ -880,7 +882,7 @@ fn readme_text(d: &PenetrationDeck, segments: usize) -> String {
 
 /// The grains' file of a deck directory: the lattice a settling deck pours, the bodies
 /// of a clump bed, else the bed LIGGGHTS reads.
-pub fn data_file_name(d: &PenetrationDeck) -> &'static str {
+pub(crate) fn data_file_name(d: &PenetrationDeck) -> &'static str {
     if d.settle.is_some() {
         LATTICE_FILE
     } else if !d.bodies.is_empty() {
@@ -897,7 +899,7 @@ pub fn write_deck_dir(d: &PenetrationDeck, dir: &Path) -> Result<DeckFiles> {
 }
 
 /// [`write_deck_dir`] with contact snapshots at `snapshot_steps`.
-pub fn write_deck_dir_with_snapshots(
+pub(crate) fn write_deck_dir_with_snapshots(
     d: &PenetrationDeck,
     dir: &Path,
     snapshot_steps: &[u64],
@@ -940,7 +942,7 @@ pub fn parse_force_file(path: &Path, units: Units) -> Result<Vec<ForceSample>> {
 /// Streams `force.txt` line by line, converting each sample to SI and handing it to
 /// `visit`; nothing is kept, so memory does not grow with the number of output steps.
 /// Lines starting with `#` and blank lines are skipped; errors name file and line.
-pub fn for_each_force_sample(
+pub(crate) fn for_each_force_sample(
     path: &Path,
     units: Units,
     mut visit: impl FnMut(&ForceSample) -> Result<()>,
@@ -1064,7 +1066,7 @@ pub fn run_with_snapshots(
 
 /// [`write_deck_dir`], then LIGGGHTS on it; `progress(step)` follows the thermo lines of
 /// its log while it runs and `visit` receives every force sample (SI) afterwards.
-pub fn run_streaming(
+pub(crate) fn run_streaming(
     d: &PenetrationDeck,
     dir: &Path,
     mpi_procs: usize,
@@ -1106,7 +1108,7 @@ pub fn run_existing(
 /// sha256 of what LIGGGHTS is given for `d` without snapshot dumps (deck, data file,
 /// STL): the fingerprint of a penetration bed's reference run. Equal to the
 /// `input_hash` of [`write_deck_dir`].
-pub fn input_hash_of(d: &PenetrationDeck) -> Result<Sha256> {
+pub(crate) fn input_hash_of(d: &PenetrationDeck) -> Result<Sha256> {
     let files = input_files(d)?;
     Ok(deck_text::fingerprint(
         &files.iter().map(|(_, t)| t.as_str()).collect::<Vec<_>>(),
@@ -1115,7 +1117,7 @@ pub fn input_hash_of(d: &PenetrationDeck) -> Result<Sha256> {
 
 /// The input files of `d` without snapshot dumps (name, text), in fingerprint order:
 /// deck, grains (`data.bed`, `bodies.bed` or `data.lattice`), intruder mesh.
-pub fn input_files(d: &PenetrationDeck) -> Result<Vec<(&'static str, String)>> {
+pub(crate) fn input_files(d: &PenetrationDeck) -> Result<Vec<(&'static str, String)>> {
     Ok(vec![
         (DECK_FILE, deck_text(d)?),
         (data_file_name(d), data_text(d)?),
@@ -1202,7 +1204,7 @@ impl LogFollower {
 /// Runs LIGGGHTS in `dir` and hands the checked outputs to [`read_outputs`]. Refuses
 /// failed runs (non-zero exit, any `ERROR` line, a limit reached, missing/short force file) with
 /// the log tail.
-pub fn execute(
+pub(crate) fn execute(
     d: &PenetrationDeck,
     dir: &Path,
     mpi_procs: usize,
@@ -1246,7 +1248,7 @@ pub fn execute(
 /// LIGGGHTS prints "Total wall time" to stdout at exit, after the log file is closed;
 /// a log alone (a run brought back from a cluster) yields the sum of its "Loop time"s,
 /// which leaves out only setup.
-pub fn log_wall_time(log: &str) -> Option<f64> {
+pub(crate) fn log_wall_time(log: &str) -> Option<f64> {
     let Some(l) = log
         .lines()
         .rev()
@@ -1277,7 +1279,7 @@ pub fn log_wall_time(log: &str) -> Option<f64> {
 /// the log or stdout, every expected sample present at the expected step. The returned
 /// provenance's command and wall time are those the log tells (`execute` overwrites them
 /// with what it measured).
-pub fn read_outputs(
+pub(crate) fn read_outputs(
     d: &PenetrationDeck,
     dir: &Path,
     mut visit: impl FnMut(&ForceSample) -> Result<()>,
@@ -1504,7 +1506,7 @@ fn check_log_echoes_deck(dir: &Path, log: &str) -> Result<()> {
 /// Reads a bed back from a `read_data` file written by [`data_text`] (SI out), so
 /// `granval analyze` knows the exact grains a deck directory started from. Errors name
 /// the file, line and what is wrong; every atom needs a `Velocities` line.
-pub fn parse_data_file(path: &Path, units: Units) -> Result<Vec<Particle>> {
+pub(crate) fn parse_data_file(path: &Path, units: Units) -> Result<Vec<Particle>> {
     let file = crate::rundata::fsio::open_engine_output(path, "a LIGGGHTS data file")?;
     let (l, v, rho) = (units.length(), units.velocity(), units.density());
     let mut particles: Vec<Particle> = Vec::new();

@@ -23,24 +23,24 @@ use std::fmt::Write as _;
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
 
-pub const PAIR_PREFIX: &str = "snap_pair";
-pub const WALL_PREFIX: &str = "snap_wall";
-pub const ATOMS_PREFIX: &str = "snap_atoms";
+pub(crate) const PAIR_PREFIX: &str = "snap_pair";
+pub(crate) const WALL_PREFIX: &str = "snap_wall";
+pub(crate) const ATOMS_PREFIX: &str = "snap_atoms";
 const LOCAL_COLUMNS: usize = 15;
 
 pub fn pair_file(dir: &Path, step: u64) -> PathBuf {
     dir.join(format!("{PAIR_PREFIX}.{step}.txt"))
 }
-pub fn wall_file(dir: &Path, step: u64) -> PathBuf {
+pub(crate) fn wall_file(dir: &Path, step: u64) -> PathBuf {
     dir.join(format!("{WALL_PREFIX}.{step}.txt"))
 }
-pub fn atoms_file(dir: &Path, step: u64) -> PathBuf {
+pub(crate) fn atoms_file(dir: &Path, step: u64) -> PathBuf {
     dir.join(format!("{ATOMS_PREFIX}.{step}.txt"))
 }
 
 /// Deck lines (before `run`) that dump contacts and grains at `steps` (ascending, each
 /// at most `n_steps`; 0 means after setup). Empty for no steps.
-pub fn deck_block(steps: &[u64], n_steps: u64) -> Result<String> {
+pub(crate) fn deck_block(steps: &[u64], n_steps: u64) -> Result<String> {
     let mut s = String::new();
     if steps.is_empty() {
         return Ok(s);
@@ -123,7 +123,7 @@ pub fn deck_block(steps: &[u64], n_steps: u64) -> Result<String> {
 
 /// One `ITEM: TIMESTEP` block of a LIGGGHTS text dump (local or custom).
 #[derive(Debug, Clone)]
-pub struct DumpBlock {
+pub(crate) struct DumpBlock {
     pub step: u64,
     pub columns: Vec<String>,
     /// Row-major, `columns.len()` values per row.
@@ -134,13 +134,13 @@ impl DumpBlock {
     pub fn rows(&self) -> impl Iterator<Item = &[f64]> {
         self.values.chunks(self.columns.len().max(1))
     }
-    pub fn n_rows(&self) -> usize {
+    pub(crate) fn n_rows(&self) -> usize {
         self.values.len() / self.columns.len().max(1)
     }
 }
 
 /// Reads dump blocks one at a time: memory holds one block, whatever the file length.
-pub struct DumpReader<R> {
+pub(crate) struct DumpReader<R> {
     reader: R,
     path: PathBuf,
     lineno: usize,
@@ -187,7 +187,7 @@ impl<R: BufRead> DumpReader<R> {
     }
 
     /// The next block, or `None` at the end of the file.
-    pub fn next_block(&mut self) -> Result<Option<DumpBlock>> {
+    pub(crate) fn next_block(&mut self) -> Result<Option<DumpBlock>> {
         let first = loop {
             match self.next_line()? {
                 None => return Ok(None),

@@ -10,13 +10,15 @@
 //! once and reused, and written with `{:e}` (shortest round-trip form), so shared vertices
 //! are bit-identical in the file and the surface is closed exactly.
 
+#[cfg(test)]
 use anyhow::{Context, Result};
 use std::f64::consts::PI;
 use std::fmt::Write as _;
+#[cfg(test)]
 use std::path::Path;
 
 /// Fewest segments ever used, whatever the requested rim error.
-pub const MIN_SEGMENTS: usize = 24;
+pub(crate) const MIN_SEGMENTS: usize = 24;
 
 /// Maximum rim error of an inscribed regular n-gon as a fraction of R:
 /// `1 - cos(pi/n)`, evaluated as `2 sin^2(pi/2n)` to avoid cancellation.
@@ -69,7 +71,7 @@ fn facet(out: &mut String, a: [f64; 3], b: [f64; 3], c: [f64; 3]) {
 /// ASCII STL of a closed cylinder of `radius` and `length`, axis +z, bottom disk centred
 /// at `bottom_center`, with the segment count of [`segments_for_rim_error`].
 /// Returns the file text and the number of azimuthal segments n (the mesh has 4n facets).
-pub fn flat_cylinder_stl(
+pub(crate) fn flat_cylinder_stl(
     radius: f64,
     length: f64,
     bottom_center: [f64; 3],
@@ -107,7 +109,8 @@ pub fn flat_cylinder_stl(
 }
 
 /// Writes [`flat_cylinder_stl`] to `path`; returns the number of segments.
-pub fn write_flat_cylinder_stl(
+#[cfg(test)]
+pub(crate) fn write_flat_cylinder_stl(
     path: &Path,
     radius: f64,
     length: f64,
@@ -123,7 +126,13 @@ pub fn write_flat_cylinder_stl(
 /// `centre` (the other two coordinates, in axis order `axis + 1`, `axis + 2` mod 3) with
 /// circumradius `r`: the mesh of a plane wall whose edges must stay away from the grains
 /// (the triaxial box's walls).
-pub fn triangle_stl(name: &str, axis: usize, position: f64, centre: [f64; 2], r: f64) -> String {
+pub(crate) fn triangle_stl(
+    name: &str,
+    axis: usize,
+    position: f64,
+    centre: [f64; 2],
+    r: f64,
+) -> String {
     let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
     let vertex = |deg: f64| {
         let (s, c) = deg.to_radians().sin_cos();

@@ -21,8 +21,9 @@
 //!   setup (step 0) and vel from step 1.
 //! - `$(...)` prints %.20g (exact doubles).
 
+pub use super::LOG_FILE;
 use super::deck::{f, model_keywords, write_contact_model};
-pub use super::{LOG_FILE, STDERR_FILE, STDOUT_FILE};
+pub(crate) use super::{STDERR_FILE, STDOUT_FILE};
 use super::{TRANSCRIPT, VERSION_PREFIX};
 use crate::case::triaxial::ServoGains;
 use crate::case::{Material, PairTable, Particle, RollingModel};
@@ -36,7 +37,7 @@ use std::path::Path;
 
 pub const DECK_FILE: &str = "in.triaxial";
 pub const DATA_FILE: &str = "data.sample";
-pub const WALLS_FILE: &str = "walls.txt";
+pub(crate) const WALLS_FILE: &str = "walls.txt";
 /// The six wall meshes, in the native engine's wall order.
 pub const STL_FILES: [&str; 6] = [
     "x_lo.stl", "y_lo.stl", "z_lo.stl", "x_hi.stl", "y_hi.stl", "z_hi.stl",
@@ -110,7 +111,7 @@ fn validate(d: &TriaxialDeck) -> Result<()> {
 }
 
 /// The `read_data` file of the sample.
-pub fn data_text(d: &TriaxialDeck) -> Result<String> {
+pub(crate) fn data_text(d: &TriaxialDeck) -> Result<String> {
     validate(d)?;
     Ok(super::deck::data_text(
         "compacted triaxial sample (si units)",
@@ -125,7 +126,7 @@ pub fn data_text(d: &TriaxialDeck) -> Result<String> {
 }
 
 /// The six STL triangles: the lo walls at 0, the hi walls at `hi`.
-pub fn stl_texts(d: &TriaxialDeck) -> [String; 6] {
+pub(crate) fn stl_texts(d: &TriaxialDeck) -> [String; 6] {
     [0, 1, 2, 3, 4, 5].map(|k| {
         let axis = k % 3;
         let pos = if k < 3 { 0.0 } else { d.hi[axis] };
@@ -140,7 +141,7 @@ pub fn stl_texts(d: &TriaxialDeck) -> [String; 6] {
 }
 
 /// Lines `walls.txt` holds after a complete run (fix print skips step 0).
-pub fn expected_records(d: &TriaxialDeck) -> usize {
+pub(crate) fn expected_records(d: &TriaxialDeck) -> usize {
     (d.n_steps / d.output_every) as usize
 }
 
@@ -376,7 +377,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
 }
 
 /// Every input file of the deck: name and text.
-pub fn inputs(d: &TriaxialDeck) -> Result<Vec<(&'static str, String)>> {
+pub(crate) fn inputs(d: &TriaxialDeck) -> Result<Vec<(&'static str, String)>> {
     let mut v = vec![(DECK_FILE, deck_text(d)?), (DATA_FILE, data_text(d)?)];
     for (name, text) in STL_FILES.iter().zip(stl_texts(d)) {
         v.push((name, text));
@@ -385,7 +386,7 @@ pub fn inputs(d: &TriaxialDeck) -> Result<Vec<(&'static str, String)>> {
 }
 
 /// sha256 of what LIGGGHTS is given (deck, data file, meshes), canonical.
-pub fn input_hash_of(d: &TriaxialDeck) -> Result<Sha256> {
+pub(crate) fn input_hash_of(d: &TriaxialDeck) -> Result<Sha256> {
     let files = inputs(d)?;
     Ok(deck_text::fingerprint(
         &files.iter().map(|(_, t)| t.as_str()).collect::<Vec<_>>(),
@@ -405,7 +406,7 @@ pub fn write_deck_dir(d: &TriaxialDeck, dir: &Path) -> Result<()> {
 }
 
 /// Parses `walls.txt` (SI); errors name the file and line.
-pub fn parse_walls(path: &Path) -> Result<Vec<WallRecord>> {
+pub(crate) fn parse_walls(path: &Path) -> Result<Vec<WallRecord>> {
     let text = crate::rundata::fsio::read_to_string(
         path,
         crate::rundata::fsio::max_engine_output(),
@@ -441,7 +442,7 @@ pub fn parse_walls(path: &Path) -> Result<Vec<WallRecord>> {
 
 /// Checks the outputs of a finished run of `d` in `dir` and reads its wall records: no
 /// `ERROR`, every record present at its step.
-pub fn read_outputs(d: &TriaxialDeck, dir: &Path) -> Result<(Vec<WallRecord>, Provenance)> {
+pub(crate) fn read_outputs(d: &TriaxialDeck, dir: &Path) -> Result<(Vec<WallRecord>, Provenance)> {
     let tr = Transcript::read(TRANSCRIPT, dir);
     if tr.log.is_empty() && tr.stdout.is_empty() {
         bail!(

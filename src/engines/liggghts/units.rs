@@ -6,14 +6,14 @@ use anyhow::{Result, bail};
 
 /// LIGGGHTS' range check on `youngsModulus`, in Pa, identical in SI and cgs
 /// (5e6..1e9 Pa = 5e7..1e10 barye), measured on LIGGGHTS 3.8.0.
-pub const LIGGGHTS_MIN_E_PA: f64 = 5e6;
+pub(crate) const LIGGGHTS_MIN_E_PA: f64 = 5e6;
 
-pub const LIGGGHTS_MAX_E_PA: f64 = 1e9;
+pub(crate) const LIGGGHTS_MAX_E_PA: f64 = 1e9;
 
 /// The same limits as LIGGGHTS states them for `units cgs` (barye).
-pub const LIGGGHTS_MIN_E_CGS: f64 = 5e7;
+pub(crate) const LIGGGHTS_MIN_E_CGS: f64 = 5e7;
 
-pub const LIGGGHTS_MAX_E_CGS: f64 = 1e10;
+pub(crate) const LIGGGHTS_MAX_E_CGS: f64 = 1e10;
 
 /// Unit system of a deck. Inputs are always SI; this is what gets written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -23,7 +23,7 @@ pub enum Units {
 }
 
 impl Units {
-    pub fn keyword(self) -> &'static str {
+    pub(crate) fn keyword(self) -> &'static str {
         match self {
             Units::Si => "si",
             Units::Cgs => "cgs",
@@ -68,31 +68,31 @@ impl Units {
             Units::Cgs => 1e3,
         }
     }
-    pub fn length_unit(self) -> &'static str {
+    pub(crate) fn length_unit(self) -> &'static str {
         match self {
             Units::Si => "m",
             Units::Cgs => "cm",
         }
     }
-    pub fn velocity_unit(self) -> &'static str {
+    pub(crate) fn velocity_unit(self) -> &'static str {
         match self {
             Units::Si => "m/s",
             Units::Cgs => "cm/s",
         }
     }
-    pub fn density_unit(self) -> &'static str {
+    pub(crate) fn density_unit(self) -> &'static str {
         match self {
             Units::Si => "kg/m^3",
             Units::Cgs => "g/cm^3",
         }
     }
-    pub fn pressure_unit(self) -> &'static str {
+    pub(crate) fn pressure_unit(self) -> &'static str {
         match self {
             Units::Si => "Pa",
             Units::Cgs => "barye",
         }
     }
-    pub fn force_unit(self) -> &'static str {
+    pub(crate) fn force_unit(self) -> &'static str {
         match self {
             Units::Si => "N",
             Units::Cgs => "dyn",
@@ -105,7 +105,7 @@ impl Units {
         }
     }
     /// Young's modulus range LIGGGHTS accepts in this unit system, in that system's units.
-    pub fn youngs_range(self) -> (f64, f64) {
+    pub(crate) fn youngs_range(self) -> (f64, f64) {
         match self {
             Units::Si => (LIGGGHTS_MIN_E_PA, LIGGGHTS_MAX_E_PA),
             Units::Cgs => (LIGGGHTS_MIN_E_CGS, LIGGGHTS_MAX_E_CGS),

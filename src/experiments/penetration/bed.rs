@@ -21,7 +21,7 @@ pub struct EngineRun {
 }
 
 /// The streaming eq-5 reducer of a run from `bed`: its own psi and surface.
-pub fn binner(case: &PenetrationCase, bed: &Bed) -> Result<FdrBinner> {
+pub(crate) fn binner(case: &PenetrationCase, bed: &Bed) -> Result<FdrBinner> {
     FdrBinner::new(
         &Scales {
             rho_g: case.density,
@@ -49,7 +49,11 @@ pub fn bed_file_name(case: &PenetrationCase) -> Option<String> {
 /// Read before the seal is verified, which is safe: the comparison goes on only if the
 /// deck built from it has the fingerprint the seal holds, i.e. the LIGGGHTS run started
 /// from exactly this bed.
-pub fn recorded_bed(case: &PenetrationCase, root: &std::path::Path, unit: &str) -> Option<Bed> {
+pub(crate) fn recorded_bed(
+    case: &PenetrationCase,
+    root: &std::path::Path,
+    unit: &str,
+) -> Option<Bed> {
     let file =
         crate::experiments::reference::store::recorded_bed_file(root, unit, &bed_file_name(case)?)?;
     crate::experiments::bed_cache::load::<Bed>(Some(&file))
@@ -58,7 +62,7 @@ pub fn recorded_bed(case: &PenetrationCase, root: &std::path::Path, unit: &str) 
 /// LIGGGHTS' data file of a sphere bed (`data.bed`) as granval writes it for `case`
 /// from `bed`: what a lean record leaves out and writes again on use. `None` for a bed
 /// of clumps, whose bodies file is kept.
-pub fn data_file(case: &PenetrationCase, bed: &Bed) -> Option<Result<Vec<u8>>> {
+pub(crate) fn data_file(case: &PenetrationCase, bed: &Bed) -> Option<Result<Vec<u8>>> {
     bed.bodies.is_empty().then(|| {
         let deck = liggghts_deck(case, bed)?;
         Ok(crate::engines::liggghts::penetration::data_text(&deck)?.into_bytes())

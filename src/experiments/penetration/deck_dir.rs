@@ -23,7 +23,7 @@ use crate::report::CaseRun;
 use anyhow::{Context, Result, bail, ensure};
 use std::path::{Path, PathBuf};
 
-pub const CASE_FILE: &str = "case.toml";
+pub(crate) const CASE_FILE: &str = "case.toml";
 
 /// Who prepares the beds of a deck directory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -38,7 +38,7 @@ pub enum BedBy {
 }
 
 /// Whether a bed directory settles its own bed in LIGGGHTS.
-pub fn settles_in_liggghts(dir: &Path) -> bool {
+pub(crate) fn settles_in_liggghts(dir: &Path) -> bool {
     dir.join(lp::LATTICE_FILE).exists()
 }
 
@@ -174,45 +174,8 @@ fn read_bed_as(case: &PenetrationCase, dir: &Path, settled_by_liggghts: bool) ->
     })
 }
 
-/// The bed of unit `k` when `dir` is a lean sealed record (`granval analyze
-/// reference/penetration/<case>`), whose `bed-K/` holds no `data.bed`: taken from the
-/// record's bed store, or settled again for a record that holds no bed, and used only
-/// if the data file written from it has the sha256 the seal names for `data.bed`.
-/// `None` when `dir` is not such a record (a deck directory, or a record with its
-/// `data.bed`): the bed is then read from the directory.
-pub fn lean_record_bed(
-    case: &PenetrationCase,
-    dir: &Path,
-    k: usize,
-    progress: bool,
-) -> Result<Option<Bed>> {
-    use crate::experiments::reference::store as record_store;
-    let unit = bed_dir_name(k);
-    let bdir = dir.join(&unit);
-    if case.clump.is_some() || bdir.join(lp::DATA_FILE).exists() || settles_in_liggghts(&bdir) {
-        return Ok(None);
-    }
-    let Some(want) = record_store::sealed_sha(dir, &unit, lp::DATA_FILE) else {
-        return Ok(None);
-    };
-    let bed = match super::bed::recorded_bed(case, dir, &unit) {
-        Some(b) => b,
-        None => prepare_bed(case, progress)
-            .with_context(|| format!("preparing bed {k} (seed {})", case.seed))?,
-    };
-    let data = super::bed::data_file(case, &bed).context("a sphere bed")??;
-    let got = crate::rundata::provenance::Sha256::of(&data);
-    ensure!(
-        got == want,
-        "{}: not in the record, and the bed {} gives a data file of sha256 {got}, not the sealed {want}: this is not the bed the recorded run started from",
-        bdir.join(lp::DATA_FILE).display(),
-        bed_hash(&bed)
-    );
-    Ok(Some(bed))
-}
-
 /// The `bed-K` directories of a deck directory, in K order.
-pub fn bed_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
+pub(crate) fn bed_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut found = Vec::new();
     for e in std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))? {
         let e = e?;
@@ -245,7 +208,7 @@ pub fn bed_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
 /// log echoes it, its force file follows its intruder; [`reduce_liggghts_dir`]). Any
 /// mismatch is an error naming the file: never a physics verdict on inputs or outputs
 /// granval did not write for this case.
-pub fn read_run(
+pub(crate) fn read_run(
     case: &PenetrationCase,
     case_file: &Path,
     k: usize,
@@ -274,7 +237,7 @@ pub fn read_run(
 /// (comments and number notation aside), as `read_run_dir` checks a micro or impact2d
 /// deck directory; a deck with contact snapshot dumps (a `stress` run) is compared with
 /// the deck of the case's snapshot plan on that bed.
-pub fn check_case_inputs(
+pub(crate) fn check_case_inputs(
     ck: &PenetrationCase,
     bed: &Bed,
     dir: &Path,

@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-pub const MANIFEST_FILE: &str = "inputs.json";
+pub(crate) const MANIFEST_FILE: &str = "inputs.json";
 
 /// Every file name an input of a penetration run directory can have: one present that
 /// the manifest does not list is foreign (it would change what `analyze` reads, e.g. a
@@ -40,7 +40,7 @@ const INPUT_NAMES: [&str; 5] = [
 /// `inputs.json` of a run directory.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct InputManifest {
+pub(crate) struct InputManifest {
     pub granval: String,
     pub case: String,
     /// Canonical hash of the whole case (`case.toml` of the deck directory).
@@ -59,7 +59,7 @@ pub struct InputManifest {
 
 impl InputManifest {
     /// The manifest of the inputs just written into `dir`.
-    pub fn of_dir(
+    pub(crate) fn of_dir(
         dir: &Path,
         case: &crate::case::penetration::PenetrationCase,
         bed: usize,
@@ -180,7 +180,7 @@ impl InputManifest {
     }
 
     /// Whether this directory's deck settles its own bed in LIGGGHTS.
-    pub fn settles_in_liggghts(&self) -> bool {
+    pub(crate) fn settles_in_liggghts(&self) -> bool {
         self.inputs.contains_key(lp::LATTICE_FILE)
     }
 }

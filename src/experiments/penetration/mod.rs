@@ -17,8 +17,8 @@
 
 pub mod bed;
 pub mod deck_dir;
-pub mod inputs;
-pub mod run_seal;
+pub(crate) mod inputs;
+pub(crate) mod run_seal;
 pub mod stress;
 
 use super::reference::Verified;
@@ -80,7 +80,7 @@ pub struct RefRun {
 }
 
 /// Where a unit's estimator-study run goes, inside the engine's run directory.
-pub const STUDY_DIR: &str = "study";
+pub(crate) const STUDY_DIR: &str = "study";
 
 impl Run for NativeRun {
     fn provenance(&self) -> &Provenance {
@@ -94,7 +94,7 @@ impl Run for RefRun {
     }
 }
 
-pub fn bed_dir_name(k: usize) -> String {
+pub(crate) fn bed_dir_name(k: usize) -> String {
     format!("bed-{k}")
 }
 
@@ -792,7 +792,7 @@ impl Experiment for Penetration {
 /// Writes the case's `summary.json` and its run seal into `out` (claims across cases
 /// read only sealed summaries, [`run_seal`]); a run whose summary cannot be sealed gets
 /// an error check, as a summary without a seal would be refused later anyway.
-pub fn seal_summary<'a>(
+pub(crate) fn seal_summary<'a>(
     case: &PenetrationCase,
     beds: impl Iterator<Item = Result<run_seal::BedRuns<'a>>>,
     summary: &crate::compare::sweep::CaseSummary,
@@ -816,7 +816,7 @@ pub fn seal_summary<'a>(
 
 /// Rule 3's K_phi fit range (docs/stress.md) of the runs of both engines: each engine's
 /// self-consistent end on its ensemble-mean FDR, the bed height the lowest of the beds'.
-pub fn fit_range_of(
+pub(crate) fn fit_range_of(
     case: &PenetrationCase,
     units: &[Unit],
     native: &[&EngineRun],
@@ -856,7 +856,7 @@ pub fn fit_range_of(
 
 /// The upper end of every K_phi fit of `case`: rule 3's common end where the case asks
 /// for it (`analysis.k_phi_range = "rule3"`), else the end of the FDR.
-pub fn k_phi_fit_end(case: &PenetrationCase, range: &cp::FitRange) -> f64 {
+pub(crate) fn k_phi_fit_end(case: &PenetrationCase, range: &cp::FitRange) -> f64 {
     match case.k_phi_range {
         crate::case::penetration::KPhiRange::Rule3 => range.fit_end(),
         crate::case::penetration::KPhiRange::Open => f64::INFINITY,
@@ -866,7 +866,7 @@ pub fn k_phi_fit_end(case: &PenetrationCase, range: &cp::FitRange) -> f64 {
 /// Every FDR check of the experiment from the runs of both engines, with the FDR CSVs
 /// and the overlay SVG written to `out`, and the case's summary. Shared by `compare` and
 /// `analyze`, so both give the same report from the same runs.
-pub fn fdr_checks(
+pub(crate) fn fdr_checks(
     case: &PenetrationCase,
     units: &[Unit],
     native: &[&EngineRun],
@@ -989,7 +989,7 @@ pub fn fdr_checks(
 }
 
 /// The ensemble observables of a run and the summary claims across cases read from it.
-pub struct Summarized {
+pub(crate) struct Summarized {
     pub range: cp::FitRange,
     /// Upper end of every K_phi fit ([`k_phi_fit_end`]).
     pub h_max: f64,
@@ -1002,7 +1002,7 @@ pub struct Summarized {
 /// Rule 3's range, each engine's ensemble observables on it and the case summary, from
 /// the runs of both engines: what [`fdr_checks`] gates and what a run seal recomputes
 /// from the sealed force files ([`run_seal::verify`]), with this one function.
-pub fn summarize(
+pub(crate) fn summarize(
     case: &PenetrationCase,
     units: &[Unit],
     native: &[&EngineRun],

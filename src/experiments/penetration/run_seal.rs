@@ -32,17 +32,17 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-pub const RUN_SEAL_FILE: &str = "run-seal.json";
+pub(crate) const RUN_SEAL_FILE: &str = "run-seal.json";
 
 /// Where a copy of a bed's reference force file is kept when the file itself lies
 /// outside the run's directory (a sealed record, a deck directory, the main run's
 /// directory seen from a negative control's).
-pub const REFERENCE_FORCE_COPY: &str = "reference-force.txt";
+pub(crate) const REFERENCE_FORCE_COPY: &str = "reference-force.txt";
 
 /// `run-seal.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RunSeal {
+pub(crate) struct RunSeal {
     pub granval: String,
     /// The git commit granval was built from (absent when not built from a repository).
     #[serde(default)]
@@ -60,7 +60,7 @@ pub struct RunSeal {
 /// One bed of a sealed run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct SealedBed {
+pub(crate) struct SealedBed {
     pub bed: usize,
     pub seed: u64,
     pub bed_sha256: Sha256,
@@ -78,14 +78,14 @@ pub struct SealedBed {
 
 /// What one bed's runs left: the force files the summary is reduced from.
 #[derive(Clone)]
-pub struct BedRuns<'a> {
+pub(crate) struct BedRuns<'a> {
     pub unit: &'a Unit,
     pub engine_input: Sha256,
     pub native_force: Option<PathBuf>,
     pub reference_force: PathBuf,
 }
 
-pub use crate::rundata::provenance::git_commit;
+pub(crate) use crate::rundata::provenance::git_commit;
 
 /// `path` relative to `dir` when it lies inside it; otherwise a copy under `dir`
 /// (`bed-K/`[`REFERENCE_FORCE_COPY`]), so a run directory holds all it is computed from.
@@ -277,7 +277,7 @@ pub struct Verified {
 
 impl Verified {
     /// One line for the report: where the summary came from and what the run said.
-    pub fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         let count = |s: Status| self.seal.verdict.iter().filter(|(_, v)| *v == s).count();
         format!(
             "{} from {} (run seal verified; granval {}{}; the run's own verdict: {} pass, {} fail, {} not compared, {} error)",

@@ -30,7 +30,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Writes the native snapshot of `sim` into `snap_dir` (its number from the plan).
-pub fn write_native_snapshot(
+pub(crate) fn write_native_snapshot(
     case: &PenetrationCase,
     bed: &Bed,
     plan: Option<&SnapshotPlan>,
@@ -54,7 +54,7 @@ pub fn write_native_snapshot(
 
 /// Converts the LIGGGHTS contact dumps of a finished run in `run_dir` into snapshots in
 /// `run_dir/snapshots` (the same format as the native ones).
-pub fn convert_liggghts_snapshots(
+pub(crate) fn convert_liggghts_snapshots(
     case: &PenetrationCase,
     bed: &Bed,
     plan: &SnapshotPlan,
@@ -90,7 +90,7 @@ pub fn convert_liggghts_snapshots(
 
 /// One bed of a stress run: both engines' fields and the negative control.
 #[derive(Debug, Clone, Serialize)]
-pub struct BedStress {
+pub(crate) struct BedStress {
     /// Bed number K (seed `bed.seed + K`, directory `OUT/bed-K/`).
     pub bed: usize,
     pub seed: u64,
@@ -109,7 +109,7 @@ pub struct BedStress {
 
 /// Everything `granval stress` produced, also written as `stress.json`.
 #[derive(Debug, Serialize)]
-pub struct StressReport {
+pub(crate) struct StressReport {
     pub case: String,
     /// Every bed's fields, bed 0 first.
     pub beds: Vec<BedStress>,

@@ -33,15 +33,15 @@ use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 
 /// The store of beds, under the reference root (beside the kind directories).
-pub const BEDS_DIR: &str = "beds";
+pub(crate) const BEDS_DIR: &str = "beds";
 
 /// The suffix of a sealed file kept compressed (zstd frame of the sealed bytes).
-pub const COMPRESSED_SUFFIX: &str = ".zst";
+pub(crate) const COMPRESSED_SUFFIX: &str = ".zst";
 
 /// Sealed files at least this large are kept compressed by [`make_lean`]: below it the
 /// saving is a few kilobytes, and small files (provenance, seals of decks) stay
 /// readable with any tool.
-pub const COMPRESS_AT_LEAST: u64 = 64 * 1024;
+pub(crate) const COMPRESS_AT_LEAST: u64 = 64 * 1024;
 
 /// zstd level of the store: the highest of zstd's normal levels. Compression runs once
 /// per record; decompression speed does not depend on the level.
@@ -49,7 +49,7 @@ const ZSTD_LEVEL: i32 = 19;
 
 /// Where a bed goes when a record is made lean.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum BedPlacement {
+pub(crate) enum BedPlacement {
     /// Into the bed store, once by content (a new record: the bed is new to the
     /// repository either way).
     Store,
@@ -117,7 +117,7 @@ fn compress(path: &Path) -> Result<Vec<u8>> {
 
 /// Gives the bytes of a sealed file of a unit that the record may leave out because
 /// granval writes it itself (unit name, file name); `None`: not regenerable.
-pub type Regenerate<'a> = &'a dyn Fn(&str, &str) -> Option<Result<Vec<u8>>>;
+pub(crate) type Regenerate<'a> = &'a dyn Fn(&str, &str) -> Option<Result<Vec<u8>>>;
 
 /// Nothing is regenerable (a record that must hold every file).
 pub fn nothing_regenerable(_unit: &str, _file: &str) -> Option<Result<Vec<u8>>> {
@@ -126,7 +126,7 @@ pub fn nothing_regenerable(_unit: &str, _file: &str) -> Option<Result<Vec<u8>>> 
 
 /// The bed store of a record rooted at `<reference root>/<kind>/<case>` (a recording's
 /// `<case>.recording` beside it shares the store).
-pub fn store_dir(record_root: &Path) -> Option<PathBuf> {
+pub(crate) fn store_dir(record_root: &Path) -> Option<PathBuf> {
     Some(record_root.parent()?.parent()?.join(BEDS_DIR))
 }
 
@@ -141,7 +141,7 @@ pub fn is_bed_file(name: &str) -> bool {
 }
 
 /// Where the store keeps a bed whose sealed sha256 is `sha`.
-pub fn stored_bed(record_root: &Path, sha: &Sha256) -> Option<PathBuf> {
+pub(crate) fn stored_bed(record_root: &Path, sha: &Sha256) -> Option<PathBuf> {
     Some(store_dir(record_root)?.join(format!("{}.json", sha.hex())))
 }
 
@@ -149,7 +149,12 @@ pub fn stored_bed(record_root: &Path, sha: &Sha256) -> Option<PathBuf> {
 /// unit directory, its compressed form there (decompressed into the cache), or for a
 /// bed the store; `None` when none holds it. Errors only when a compressed form exists
 /// but cannot be read.
-pub fn locate(record_root: &Path, unit: &str, name: &str, sha: &Sha256) -> Result<Option<PathBuf>> {
+pub(crate) fn locate(
+    record_root: &Path,
+    unit: &str,
+    name: &str,
+    sha: &Sha256,
+) -> Result<Option<PathBuf>> {
     let dir = unit_dir(record_root, unit);
     let here = dir.join(name);
     if here.is_file() {
@@ -190,7 +195,7 @@ pub fn stored_bed_file(record_root: &Path, sha: &Sha256) -> Option<PathBuf> {
 }
 
 /// Whether sealed file `name` of `unit` is kept compressed in its unit directory.
-pub fn is_packed(record_root: &Path, unit: &str, name: &str) -> bool {
+pub(crate) fn is_packed(record_root: &Path, unit: &str, name: &str) -> bool {
     unit_dir(record_root, unit).join(packed_name(name)).exists()
 }
 
@@ -214,7 +219,7 @@ pub fn recorded_bed_file(record_root: &Path, unit: &str, name: &str) -> Option<P
 
 /// The sha256 the seal of the record at `record_root` names for file `name` of `unit`,
 /// read without verifying the record (the caller checks what it reads against it).
-pub fn sealed_sha(record_root: &Path, unit: &str, name: &str) -> Option<Sha256> {
+pub(crate) fn sealed_sha(record_root: &Path, unit: &str, name: &str) -> Option<Sha256> {
     let text = std::fs::read_to_string(record_root.join(SEAL_FILE)).ok()?;
     let seal: Seal = serde_json::from_str(&text).ok()?;
     seal.units.get(unit)?.files.get(name).cloned()
@@ -222,7 +227,7 @@ pub fn sealed_sha(record_root: &Path, unit: &str, name: &str) -> Option<Sha256> 
 
 /// Checks one sealed file of a unit against the seal, wherever its bytes are: in the
 /// unit directory, in the bed store, or regenerated. `hint` says how to re-record.
-pub fn check_sealed_file(
+pub(crate) fn check_sealed_file(
     record_root: &Path,
     unit: &str,
     name: &str,
@@ -307,7 +312,7 @@ pub fn check_sealed_file(
 /// [`COMPRESS_AT_LEAST`] bytes is kept compressed once its compressed form
 /// decompresses to the sealed sha256. Returns one line per thing done. The seal is not
 /// touched.
-pub fn make_lean(
+pub(crate) fn make_lean(
     record_root: &Path,
     seal: &Seal,
     regenerate: Regenerate,

@@ -27,7 +27,7 @@ const SQRT_FIVE_OVER_SIX: f64 = 0.912_870_929_175_276_9;
 
 /// A number the contact law computes with: `f64`, or several `f64` lanes processed
 /// with the same IEEE operations.
-pub trait Real:
+pub(crate) trait Real:
     Copy
     + Add<Output = Self>
     + Sub<Output = Self>
@@ -93,7 +93,7 @@ impl Real for f64 {
 }
 
 /// A 3-vector of [`Real`]s; `V3<f64>` is [`crate::numerics::vec3::V3`].
-pub type V3<T = f64> = [T; 3];
+pub(crate) type V3<T = f64> = [T; 3];
 
 #[inline(always)]
 fn add<T: Real>(a: V3<T>, b: V3<T>) -> V3<T> {
@@ -127,7 +127,7 @@ fn select3<T: Real>(m: T::Mask, a: V3<T>, b: V3<T>) -> V3<T> {
 /// Effective properties of a type pair, precomputed once per case
 /// (LIGGGHTS global_properties: createYeff, createGeff, createBetaEff).
 #[derive(Debug, Clone, Copy)]
-pub struct PairCoeffs<T = f64> {
+pub(crate) struct PairCoeffs<T = f64> {
     /// 1/Y* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j (Table 1).
     pub yeff: T,
     /// 1/G* = 2(2-nu_i)(1+nu_i)/E_i + 2(2-nu_j)(1+nu_j)/E_j.
@@ -166,7 +166,7 @@ impl PairCoeffs {
 /// Geometry and kinematics of one touching contact, seen from particle i.
 /// For walls `radj`, `omega_j` are unused and `vel_j` is the wall velocity.
 #[derive(Debug, Clone, Copy)]
-pub struct ContactGeom<T = f64> {
+pub(crate) struct ContactGeom<T = f64> {
     /// x_i - x_j (pair) or wall-to-particle vector (wall); |delta| = r.
     pub delta: V3<T>,
     pub r: T,
@@ -182,7 +182,8 @@ pub struct ContactGeom<T = f64> {
 
 /// Per-contact state carried between steps (LIGGGHTS' contact history).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct History {
+#[cfg(test)]
+pub(crate) struct History {
     /// Accumulated tangential displacement ("shearx/y/z").
     pub shear: V3,
     /// Previous rolling torque of EPSD2 ("r_torquex_old"...).
@@ -191,7 +192,7 @@ pub struct History {
 
 /// Force on i and torques on i and j (force on j is the negative; walls ignore torque_j).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct ContactForce<T = f64> {
+pub(crate) struct ContactForce<T = f64> {
     pub f_i: V3<T>,
     pub torque_i: V3<T>,
     pub torque_j: V3<T>,
@@ -199,12 +200,11 @@ pub struct ContactForce<T = f64> {
 
 /// What the surface model hands to the normal, tangential and rolling models: the
 /// fields of LIGGGHTS' `SurfacesIntersectData` that surface_model_default.h sets
-/// (plus `en` and `rinv`, set by the caller there and here).
+/// (plus `en`, set by the caller there and here).
 #[derive(Debug, Clone, Copy)]
-pub struct Surface<T = f64> {
+pub(crate) struct Surface<T = f64> {
     /// Unit normal `delta / r`, pointing to particle i.
     pub en: V3<T>,
-    pub rinv: T,
     /// Overlap `radsum - r` (radsum = r_i for a wall).
     pub deltan: T,
     /// Normal relative velocity `(v_i - v_j) . en`.
@@ -221,7 +221,7 @@ pub struct Surface<T = f64> {
 /// Output of the normal model that the tangential and rolling models read
 /// (LIGGGHTS' `sidata.Fn`, `kn`, `kt`, `gammat`), and the effective radius R*.
 #[derive(Debug, Clone, Copy)]
-pub struct Normal<T = f64> {
+pub(crate) struct Normal<T = f64> {
     /// Total normal force `k_n delta_n - gamma_n v_n` (signed, not clamped).
     pub fn_total: T,
     pub kn: T,
@@ -232,7 +232,7 @@ pub struct Normal<T = f64> {
 
 /// Tangential force on i and the torques it exerts on i and j.
 #[derive(Debug, Clone, Copy)]
-pub struct Tangential<T = f64> {
+pub(crate) struct Tangential<T = f64> {
     pub ft: V3<T>,
     pub torque_i: V3<T>,
     pub torque_j: V3<T>,
@@ -246,7 +246,7 @@ pub struct Tangential<T = f64> {
 /// Walls: `wr = w_i (c_i / r)` here, where the header has `(c_i w_i) / r`; the two can
 /// differ in the last bit. Kept as it was, so results stay identical to earlier runs.
 #[inline(always)]
-pub fn surface_default<T: Real>(g: &ContactGeom<T>) -> Surface<T> {
+pub(crate) fn surface_default<T: Real>(g: &ContactGeom<T>) -> Surface<T> {
     let rinv = T::splat(1.0) / g.r;
     let en = scale(g.delta, rinv);
     let radsum = if g.is_wall { g.radi } else { g.radi + g.radj };
@@ -277,7 +277,6 @@ pub fn surface_default<T: Real>(g: &ContactGeom<T>) -> Surface<T> {
     ];
     Surface {
         en,
-        rinv,
         deltan,
         vn,
         wr,
@@ -294,7 +293,11 @@ pub fn surface_default<T: Real>(g: &ContactGeom<T>) -> Surface<T> {
 /// (`NormalModel<HERTZ>::surfacesIntersect`, `tangential_damping on`, `limitForce off`).
 /// The force on i is `fn_total * en`.
 #[inline(always)]
-pub fn normal_hertz<T: Real>(g: &ContactGeom<T>, s: &Surface<T>, c: &PairCoeffs<T>) -> Normal<T> {
+pub(crate) fn normal_hertz<T: Real>(
+    g: &ContactGeom<T>,
+    s: &Surface<T>,
+    c: &PairCoeffs<T>,
+) -> Normal<T> {
     let reff = if g.is_wall {
         g.radi
     } else {
@@ -325,7 +328,7 @@ pub fn normal_hertz<T: Real>(g: &ContactGeom<T>, s: &Surface<T>, c: &PairCoeffs<
 /// `update_history`), `F_t = -k_t shear`, capped at `mu |F_n|` with the shear rescaled to
 /// the cap, else `- gamma_t vtr` is added; torques `-c_i en x F_t`, `-c_j en x F_t`.
 #[inline(always)]
-pub fn tangential_history<T: Real>(
+pub(crate) fn tangential_history<T: Real>(
     s: &Surface<T>,
     n: &Normal<T>,
     c: &PairCoeffs<T>,
@@ -384,7 +387,7 @@ pub fn tangential_history<T: Real>(
 /// the torque subtracted from i and added to j, and where it applies (not where
 /// nothing rotates).
 #[inline(always)]
-pub fn rolling_cdt<T: Real>(
+pub(crate) fn rolling_cdt<T: Real>(
     g: &ContactGeom<T>,
     s: &Surface<T>,
     n: &Normal<T>,
@@ -419,7 +422,7 @@ pub fn rolling_cdt<T: Real>(
 /// off`); `roll` is its `r_torque_old` history, stored only when `update_history`.
 /// Returns the torque subtracted from i and added to j.
 #[inline(always)]
-pub fn rolling_epsd2<T: Real>(
+pub(crate) fn rolling_epsd2<T: Real>(
     g: &ContactGeom<T>,
     s: &Surface<T>,
     n: &Normal<T>,
@@ -458,7 +461,7 @@ pub fn rolling_epsd2<T: Real>(
 /// normal, cohesion (none), tangential, rolling) and accumulate into the force and
 /// torques in that order, so the floating-point result is LIGGGHTS'.
 #[inline(always)]
-pub fn evaluate<T: Real>(
+pub(crate) fn evaluate<T: Real>(
     g: &ContactGeom<T>,
     c: &PairCoeffs<T>,
     rolling: RollingModel,
@@ -495,7 +498,8 @@ pub fn evaluate<T: Real>(
 /// Evaluates the contact law for a touching pair (overlap > 0). `update_history` is
 /// false during setup force evaluation, as LIGGGHTS' `shearupdate` is.
 #[inline]
-pub fn hertz_history(
+#[cfg(test)]
+pub(crate) fn hertz_history(
     g: &ContactGeom,
     c: &PairCoeffs,
     rolling: RollingModel,

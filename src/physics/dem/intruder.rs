@@ -31,7 +31,7 @@ use crate::numerics::vec3::V3;
 
 /// Floor of the returned centre-surface distance, as a fraction of the sphere radius, once
 /// the centre reaches the surface or enters the solid.
-pub const INSIDE_FLOOR_FRAC: f64 = 1e-6;
+pub(crate) const INSIDE_FLOOR_FRAC: f64 = 1e-6;
 
 /// A solid cylinder with its axis along +z; bottom disk centred at `axis_point`, top disk
 /// at `axis_point.z + length`.
@@ -45,7 +45,7 @@ pub struct FlatCylinder {
 
 /// Closest point of the solid's surface to a point, with the outward direction.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SurfaceQuery {
+pub(crate) struct SurfaceQuery {
     /// Closest point on the surface (inside: the projection onto the nearest face).
     pub point: V3,
     /// Unit outward direction: `(x - point) / distance` outside, the nearest face's
@@ -71,7 +71,7 @@ impl FlatCylinder {
     }
 
     /// Moves the intruder along its axis (negative `dz` drives it into the bed).
-    pub fn translate(&mut self, dz: f64) {
+    pub(crate) fn translate(&mut self, dz: f64) {
         self.axis_point[2] += dz;
     }
 
@@ -79,12 +79,13 @@ impl FlatCylinder {
         self.axis_point[2]
     }
 
-    pub fn top_z(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn top_z(&self) -> f64 {
         self.axis_point[2] + self.length
     }
 
     /// Closest surface point, outward direction and signed distance of `x`.
-    pub fn query(&self, x: V3) -> SurfaceQuery {
+    pub(crate) fn query(&self, x: V3) -> SurfaceQuery {
         let a = self.axis_point;
         let (rad, len) = (self.radius, self.length);
         let px = x[0] - a[0];
@@ -166,7 +167,7 @@ impl FlatCylinder {
     }
 
     /// Signed distance from `x` to the surface (negative inside).
-    pub fn signed_distance(&self, x: V3) -> f64 {
+    pub(crate) fn signed_distance(&self, x: V3) -> f64 {
         self.query(x).distance
     }
 
@@ -178,7 +179,7 @@ impl FlatCylinder {
     /// Surface-to-centre vector and its length if the sphere (centre `x`, radius `r > 0`)
     /// touches the solid; see the module docs for centres on the surface or inside.
     #[inline]
-    pub fn closest_contact(&self, x: V3, r: f64) -> Option<(V3, f64)> {
+    pub(crate) fn closest_contact(&self, x: V3, r: f64) -> Option<(V3, f64)> {
         debug_assert!(r > 0.0, "sphere radius must be positive");
         let q = self.query(x);
         if q.distance - r > 0.0 {
@@ -196,7 +197,8 @@ impl FlatCylinder {
     /// Closest point of the solid's surface to the centre if the sphere touches the solid
     /// (inside: its projection onto the face it is pushed out of). This is where the
     /// grain's force acts on the intruder.
-    pub fn contact_point(&self, x: V3, r: f64) -> Option<V3> {
+    #[cfg(test)]
+    pub(crate) fn contact_point(&self, x: V3, r: f64) -> Option<V3> {
         let q = self.query(x);
         (q.distance - r <= 0.0).then_some(q.point)
     }

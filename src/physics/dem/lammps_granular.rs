@@ -30,33 +30,33 @@ const EPSILON: f64 = 1e-10;
 type V3 = [f64; 3];
 
 /// `GranSubMod::mix_stiffnessE`: 1 / ((1 - nu1^2)/E1 + (1 - nu2^2)/E2).
-pub fn mix_stiffness_e(e1: f64, e2: f64, nu1: f64, nu2: f64) -> f64 {
+pub(crate) fn mix_stiffness_e(e1: f64, e2: f64, nu1: f64, nu2: f64) -> f64 {
     let factor1 = (1.0 - nu1 * nu1) / e1;
     let factor2 = (1.0 - nu2 * nu2) / e2;
     1.0 / (factor1 + factor2)
 }
 
 /// `GranSubMod::mix_stiffnessG`: 1 / (2(2 - nu1)(1 + nu1)/E1 + 2(2 - nu2)(1 + nu2)/E2).
-pub fn mix_stiffness_g(e1: f64, e2: f64, nu1: f64, nu2: f64) -> f64 {
+pub(crate) fn mix_stiffness_g(e1: f64, e2: f64, nu1: f64, nu2: f64) -> f64 {
     let factor1 = 2.0 * (2.0 - nu1) * (1.0 + nu1) / e1;
     let factor2 = 2.0 * (2.0 - nu2) * (1.0 + nu2) / e2;
     1.0 / (factor1 + factor2)
 }
 
 /// `GranSubMod::mix_stiffnessE_wall`: E / (2 (1 - nu^2)).
-pub fn mix_stiffness_e_wall(e: f64, nu: f64) -> f64 {
+pub(crate) fn mix_stiffness_e_wall(e: f64, nu: f64) -> f64 {
     let factor = 2.0 * (1.0 - nu * nu);
     e / factor
 }
 
 /// `GranSubMod::mix_stiffnessG_wall`: E / (4 (2 - nu)(1 + nu)).
-pub fn mix_stiffness_g_wall(e: f64, nu: f64) -> f64 {
+pub(crate) fn mix_stiffness_g_wall(e: f64, nu: f64) -> f64 {
     let factor = 4.0 * (2.0 - nu) * (1.0 + nu);
     e / factor
 }
 
 /// `GranSubMod::mix_geom`.
-pub fn mix_geom(a: f64, b: f64) -> f64 {
+pub(crate) fn mix_geom(a: f64, b: f64) -> f64 {
     (a * b).sqrt()
 }
 
@@ -65,7 +65,7 @@ pub fn mix_geom(a: f64, b: f64) -> f64 {
 /// nu_i, nu_j), nu_ij = sqrt(nu_i nu_j). granval writes these into an explicit
 /// `pair_coeff i j` (with the case's own e and mu for the pair), so both engines start
 /// from the same doubles.
-pub fn mixed_material(e_i: f64, nu_i: f64, e_j: f64, nu_j: f64) -> (f64, f64) {
+pub(crate) fn mixed_material(e_i: f64, nu_i: f64, e_j: f64, nu_j: f64) -> (f64, f64) {
     if e_i == e_j && nu_i == nu_j {
         (e_i, nu_i)
     } else {
@@ -149,7 +149,7 @@ pub struct Contact {
 
 /// Per-contact history: the tangential displacement (3, `tangential mindlin`) then the
 /// rolling displacement (3, `rolling sds`), in LAMMPS' sub-model order.
-pub type History = [f64; 6];
+pub(crate) type History = [f64; 6];
 
 /// Force on i (j gets its negative) and the torques on i and j.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -201,7 +201,7 @@ fn rotate_rescale_vec(v: &mut V3, n: V3) {
 
 /// `GranularModel::check_contact`: squared distance, radius sum, effective radius, and
 /// whether they touch (`GranSubModNormal::touch`).
-pub fn check_contact(c: &Contact) -> (bool, f64, f64, f64) {
+pub(crate) fn check_contact(c: &Contact) -> (bool, f64, f64, f64) {
     let rsq = dot3(c.dx, c.dx);
     let (radsum, reff) = if c.wall {
         // radj == 0: a flat wall
@@ -217,7 +217,7 @@ pub fn check_contact(c: &Contact) -> (bool, f64, f64, f64) {
 /// LAMMPS' order: normal, damping, (Fncrit), tangential, torques, rolling. `hist` is
 /// advanced only when `history_update` (off during LAMMPS' setup), except that the
 /// Coulomb rescale writes it as LAMMPS does.
-pub fn calculate_forces(
+pub(crate) fn calculate_forces(
     c: &Contact,
     k: &Coeffs,
     dt: f64,

@@ -34,7 +34,7 @@ const INERTIA: f64 = 0.4;
 /// The coefficients the deck gives LAMMPS, as LAMMPS sets them up: one per type pair
 /// (`pair_coeff i j`, E and nu mixed by LAMMPS' rule) and one per wall (`fix
 /// wall/gran`: the wall's material, the interaction of the particles' type with it).
-pub struct LammpsCoeffs {
+pub(crate) struct LammpsCoeffs {
     pub n_types: usize,
     pub pair: Vec<Coeffs>,
     pub wall: Vec<Coeffs>,
@@ -43,7 +43,7 @@ pub struct LammpsCoeffs {
 /// The `hertz/material` E, e, nu and the `tangential` xt, mu and `rolling sds`
 /// coefficients of type pair (a, b) (0-based), or of a wall (`wall`): what the deck
 /// prints and what [`LammpsCoeffs`] is built from.
-pub struct LawValues {
+pub(crate) struct LawValues {
     pub e_mod: f64,
     pub restitution: f64,
     pub nu: f64,
@@ -54,7 +54,7 @@ pub struct LawValues {
 
 /// The values of type pair (a, b) or, with `wall = Some(w)`, of wall `w` touched by type
 /// `a`, under the negative-control perturbation `pert`.
-pub fn law_values(
+pub(crate) fn law_values(
     case: &Case,
     m: &LammpsModels,
     a: usize,
@@ -110,7 +110,7 @@ impl LawValues {
 
 /// The one particle type that touches walls (the case validation requires a single
 /// particle type when there are walls).
-pub fn wall_particle_type(case: &Case) -> usize {
+pub(crate) fn wall_particle_type(case: &Case) -> usize {
     case.particles.first().map(|p| p.type_).unwrap_or(0)
 }
 
@@ -228,7 +228,7 @@ pub fn run(
 
 /// `FixGravity::set_acceleration` (VECTOR style, 3D): magnitude times the unit
 /// direction, with the magnitude the deck writes (|g|).
-pub fn gravity_acceleration(g: V3) -> V3 {
+pub(crate) fn gravity_acceleration(g: V3) -> V3 {
     let magnitude = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
     if magnitude == 0.0 {
         return [0.0; 3];

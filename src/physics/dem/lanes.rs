@@ -10,7 +10,7 @@
 use super::contact::Real;
 
 /// A [`Real`] of `N` lanes that contacts can be loaded into and read back from.
-pub trait Lanes: Real {
+pub(crate) trait Lanes: Real {
     const N: usize;
     /// Lane `l` is `f(l)`, for `l < N`.
     fn load(f: impl FnMut(usize) -> f64) -> Self;
@@ -31,7 +31,7 @@ impl Lanes for f64 {
 }
 
 #[cfg(target_arch = "x86_64")]
-pub use avx::F4;
+pub(crate) use avx::F4;
 
 #[cfg(target_arch = "x86_64")]
 mod avx {
@@ -42,11 +42,11 @@ mod avx {
     /// Four `f64` lanes in an AVX register. Only for code running on a CPU with AVX2
     /// (module doc): every operation is an AVX instruction.
     #[derive(Clone, Copy)]
-    pub struct F4(__m256d);
+    pub(crate) struct F4(__m256d);
 
     /// Per-lane condition: all bits set or none.
     #[derive(Clone, Copy)]
-    pub struct M4(__m256d);
+    pub(crate) struct M4(__m256d);
 
     // SAFETY (every `unsafe` below): the intrinsics need AVX, which the only users of
     // `F4` (the pair pass behind `is_x86_feature_detected!("avx2")`, and tests behind

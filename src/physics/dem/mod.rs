@@ -8,8 +8,8 @@
 pub mod contact;
 pub mod contacts;
 pub mod intruder;
-pub mod lammps_granular;
-pub mod lammps_micro;
+pub(crate) mod lammps_granular;
+pub(crate) mod lammps_micro;
 mod lanes;
 mod moving_walls;
 pub mod neighbor;
@@ -18,8 +18,8 @@ mod pairs;
 mod par;
 pub mod penetration;
 pub mod reorder;
-pub mod rigid;
-pub mod servo;
+pub(crate) mod rigid;
+pub(crate) mod servo;
 pub mod triaxial;
 pub mod walls;
 
@@ -40,7 +40,7 @@ const INERTIA: f64 = 0.4;
 const PAR_MIN_LEN: usize = 2048;
 
 /// Largest initial overlap accepted, as a fraction of the smaller radius.
-pub const MAX_INITIAL_OVERLAP: f64 = 0.05;
+pub(crate) const MAX_INITIAL_OVERLAP: f64 = 0.05;
 
 /// The per-particle arrays (`id` .. `body`) are in *storage order*: case order at the
 /// start (free spheres, then clump members), then, for beds of at least
@@ -203,7 +203,7 @@ impl Simulation {
     }
 
     /// Total force the grains exert on the intruder (N).
-    pub fn intruder_force(&self) -> V3 {
+    pub(crate) fn intruder_force(&self) -> V3 {
         let mut f = [0.0; 3];
         if let Some(it) = &self.intruder {
             for g in &it.on_grain {
@@ -356,7 +356,7 @@ impl Simulation {
     }
 
     /// Whether the storage order differs from case order (a sort moved something).
-    pub fn reordered(&self) -> bool {
+    pub(crate) fn reordered(&self) -> bool {
         self.case_index
             .iter()
             .enumerate()
@@ -652,10 +652,6 @@ impl Simulation {
         self.times
     }
 
-    pub fn reset_step_times(&mut self) {
-        self.times = StepTimes::default();
-    }
-
     fn rebuild(&mut self) {
         let order = self.due_order();
         if let Some(o) = &order {
@@ -763,7 +759,7 @@ impl Simulation {
     /// The start checks [`Simulation::setup`] makes (every state finite and inside the
     /// box, no start overlap), without computing anything: `granval validate` and `deck`
     /// make exactly the checks a run makes.
-    pub fn check_start(&self) -> anyhow::Result<()> {
+    pub(crate) fn check_start(&self) -> anyhow::Result<()> {
         self.check_domain()?;
         self.check_initial_overlaps()
     }
@@ -1218,7 +1214,7 @@ impl Simulation {
     /// A clump counts once, with its body mass and centre-of-mass velocity (its members
     /// carry the whole body's mass as contact mass, so summing them would count it once
     /// per member and add the rotation).
-    pub fn translational_kinetic_energy(&self) -> f64 {
+    pub(crate) fn translational_kinetic_energy(&self) -> f64 {
         let free: f64 = (0..self.free)
             .map(|k| 0.5 * self.mass[k] * dot(self.v[k], self.v[k]))
             .sum();
@@ -1234,7 +1230,7 @@ impl Simulation {
         self.free + self.bodies.len()
     }
 
-    pub fn kinetic_energy(&self) -> f64 {
+    pub(crate) fn kinetic_energy(&self) -> f64 {
         (0..self.x.len())
             .map(|k| {
                 let m = self.mass[k];

@@ -13,7 +13,7 @@ use crate::numerics::vec3::V3;
 impl Simulation {
     /// Sets the velocity of plane wall `k` along its axis (m/s): it moves by `dt * v`
     /// at the start of each following step. Only plane walls move.
-    pub fn set_wall_velocity(&mut self, k: usize, v: f64) -> anyhow::Result<()> {
+    pub(crate) fn set_wall_velocity(&mut self, k: usize, v: f64) -> anyhow::Result<()> {
         let Some(Wall::Plane { axis, .. }) = self.walls.get(k) else {
             anyhow::bail!("wall {k} is not a plane wall: only plane walls move");
         };
@@ -25,7 +25,8 @@ impl Simulation {
     }
 
     /// Velocity of wall `k` along its axis (0 for walls that do not move).
-    pub fn wall_velocity(&self, k: usize) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn wall_velocity(&self, k: usize) -> f64 {
         match self.walls[k] {
             Wall::Plane { axis, .. } => self.wall_vel[k][axis.index()],
             Wall::Cylinder { .. } => 0.0,
@@ -33,7 +34,7 @@ impl Simulation {
     }
 
     /// Position of plane wall `k` along its axis (NaN for other walls).
-    pub fn wall_position(&self, k: usize) -> f64 {
+    pub(crate) fn wall_position(&self, k: usize) -> f64 {
         match self.walls[k] {
             Wall::Plane { position, .. } => position,
             Wall::Cylinder { .. } => f64::NAN,
@@ -46,7 +47,7 @@ impl Simulation {
 
     /// Force the grains exerted on wall `k` in the last force pass (N, global frame): the
     /// negative of the wall forces on the grains, summed in particle order.
-    pub fn wall_force(&self, k: usize) -> V3 {
+    pub(crate) fn wall_force(&self, k: usize) -> V3 {
         let stride = self.walls_stride;
         let mut f = [0.0; 3];
         for p in 0..self.x.len() {

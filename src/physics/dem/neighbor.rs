@@ -11,7 +11,7 @@ use rayon::prelude::*;
 const BUILD_BLOCK: usize = 256;
 
 #[derive(Debug, Default, Clone)]
-pub struct PairList {
+pub(crate) struct PairList {
     /// `start[i]..start[i+1]` are the pairs whose first particle is i.
     pub start: Vec<usize>,
     pub i: Vec<u32>,
@@ -83,24 +83,11 @@ impl Grid {
 
 impl PairList {
     /// An empty list; `track_roll` keeps the EPSD2 rolling history per pair.
-    pub fn with_roll(track_roll: bool) -> PairList {
+    pub(crate) fn with_roll(track_roll: bool) -> PairList {
         PairList {
             track_roll,
             ..PairList::default()
         }
-    }
-
-    /// True if any particle moved more than half the skin since the last build
-    /// (LIGGGHTS `neigh_modify delay 0 every 1 check yes`).
-    pub fn needs_rebuild(&self, x: &[V3], skin: f64) -> bool {
-        if self.x_at_build.len() != x.len() {
-            return true;
-        }
-        let lim = 0.25 * skin * skin;
-        x.iter().zip(&self.x_at_build).any(|(a, b)| {
-            let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-            d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > lim
-        })
     }
 
     /// Rebuilds the list for cutoff r_i + r_j + skin, carrying over the history of
@@ -381,10 +368,6 @@ impl PairList {
             + b(&self.fill)
             + b(&self.block_pairs)
             + self.block_pairs.iter().map(b).sum::<usize>()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.j.is_empty()
     }
 }
 

@@ -39,7 +39,7 @@ impl Bed {
     /// round-off everywhere, as two engines' summation orders differ everywhere. (One
     /// grain is not enough: a bottom-layer grain's one ulp is rounded away in the static
     /// bed and the intruder's force history stays bit-identical.)
-    pub fn nudged_one_ulp(&self) -> Bed {
+    pub(crate) fn nudged_one_ulp(&self) -> Bed {
         let mut b = self.clone();
         for p in &mut b.particles {
             p.x[0] = p.x[0].next_up();
@@ -81,7 +81,7 @@ fn draw_diameters(d: &Diameter, n: usize, seed: u64) -> Result<Vec<f64>> {
 }
 
 /// The simulation box for a penetration case: container plus the intruder's travel.
-pub fn domain(case: &PenetrationCase, top: f64) -> ([f64; 3], [f64; 3]) {
+pub(crate) fn domain(case: &PenetrationCase, top: f64) -> ([f64; 3], [f64; 3]) {
     let m = case.diameter.max();
     let r = case.container_radius + m;
     ([-r, -r, -m], [r, r, top.max(case.container_height) + m])
@@ -93,7 +93,7 @@ pub fn container_case(case: &PenetrationCase, particles: Vec<Particle>, top: f64
 }
 
 /// [`container_case`] with clump grains (bodies of the case's template) besides spheres.
-pub fn container_case_with(
+pub(crate) fn container_case_with(
     case: &PenetrationCase,
     particles: Vec<Particle>,
     bodies: Vec<Clump>,
@@ -206,7 +206,7 @@ pub fn lattice(case: &PenetrationCase) -> Result<Vec<Particle>> {
 /// inside R_c minus the bounding radius, layers from one bounding diameter up; each body
 /// jittered and turned to a uniformly random orientation (a normalised Gaussian
 /// quaternion), at rest.
-pub fn lattice_bodies(case: &PenetrationCase) -> Result<Vec<Clump>> {
+pub(crate) fn lattice_bodies(case: &PenetrationCase) -> Result<Vec<Clump>> {
     let Some(t) = &case.clump else {
         bail!("{}: not a bed of clumps", case.source.display());
     };
@@ -350,7 +350,7 @@ pub fn prepare(case: &PenetrationCase, progress: impl FnMut(f64, f64)) -> Result
 /// The case's free spheres (in id order, as `Simulation::frame` gives them) with the
 /// positions, velocities and spins the simulation has now: a prepared state to start
 /// both engines from.
-pub fn particles_now(particles: &[Particle], sim: &Simulation) -> Vec<Particle> {
+pub(crate) fn particles_now(particles: &[Particle], sim: &Simulation) -> Vec<Particle> {
     particles
         .iter()
         .zip(&sim.frame().particles)
@@ -472,7 +472,7 @@ pub fn bed_note(case: &PenetrationCase, bed: &Bed) -> String {
 
 /// Whether two [`bed_note`]s describe the same bed: the same text except the case file's
 /// path, which names the same file however it was typed (relative, absolute).
-pub fn same_bed_note(a: &str, b: &str) -> bool {
+pub(crate) fn same_bed_note(a: &str, b: &str) -> bool {
     let key = |n: &str| -> Option<(String, String)> {
         let (head, rest) = n
             .split_once(" prepared natively from ")

@@ -11,11 +11,11 @@ use std::ops::Range;
 
 /// Particles per block: large enough that scheduling costs nothing, small enough that two
 /// threads balance well on 10^4 particles.
-pub const BLOCK: usize = 512;
+pub(crate) const BLOCK: usize = 512;
 
 /// A mutable slice shared by the blocks of one pass.
 #[derive(Clone, Copy)]
-pub struct Shared<T>(*mut T, usize);
+pub(crate) struct Shared<T>(*mut T, usize);
 
 // SAFETY: a `Shared` is only dereferenced through `slice`/`write`, whose callers
 // guarantee that concurrent accesses touch disjoint elements.
@@ -45,7 +45,7 @@ impl<T> Shared<T> {
 }
 
 /// Runs `f` on every block `b * BLOCK .. min((b + 1) * BLOCK, n)` of `0..n`, in parallel.
-pub fn for_blocks(n: usize, f: impl Fn(Range<usize>) + Sync + Send) {
+pub(crate) fn for_blocks(n: usize, f: impl Fn(Range<usize>) + Sync + Send) {
     let nb = n.div_ceil(BLOCK);
     (0..nb)
         .into_par_iter()
@@ -54,7 +54,7 @@ pub fn for_blocks(n: usize, f: impl Fn(Range<usize>) + Sync + Send) {
 
 /// [`for_blocks`] with a per-block result combined by `reduce`, which must be associative
 /// and commutative (min, or) so the result does not depend on the split.
-pub fn map_reduce_blocks<R: Send + Sync + Copy>(
+pub(crate) fn map_reduce_blocks<R: Send + Sync + Copy>(
     n: usize,
     identity: R,
     map: impl Fn(Range<usize>) -> R + Sync + Send,

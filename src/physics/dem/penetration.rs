@@ -34,7 +34,11 @@ pub fn box_top(case: &PenetrationCase, bed: &Bed) -> f64 {
 
 /// The penetration of `bed` set up and ready to step: grains in the container, the
 /// intruder at its start height moving down at the case's speed, forces evaluated.
-pub fn simulation(case: &PenetrationCase, bed: &Bed, pert: Perturbation) -> Result<Simulation> {
+pub(crate) fn simulation(
+    case: &PenetrationCase,
+    bed: &Bed,
+    pert: Perturbation,
+) -> Result<Simulation> {
     let sim_case = container_case_with(
         case,
         bed.particles.clone(),

@@ -39,7 +39,7 @@ fn spread3(v: u64) -> u64 {
 }
 
 /// Morton key of a cell: bits of x, y and z interleaved.
-pub fn morton(c: [usize; 3]) -> u64 {
+pub(crate) fn morton(c: [usize; 3]) -> u64 {
     spread3(c[0] as u64) | spread3(c[1] as u64) << 1 | spread3(c[2] as u64) << 2
 }
 
@@ -47,7 +47,13 @@ pub fn morton(c: [usize; 3]) -> u64 {
 /// particle k is old particle `old_of_new[k]`, sorted by the Morton key of its cell of
 /// edge `cutoff` (the neighbour-list grid), ties in the old order so the result depends
 /// on positions only. `None` when the order would not change.
-pub fn morton_order(x: &[V3], n_sorted: usize, cutoff: f64, lo: V3, hi: V3) -> Option<Vec<u32>> {
+pub(crate) fn morton_order(
+    x: &[V3],
+    n_sorted: usize,
+    cutoff: f64,
+    lo: V3,
+    hi: V3,
+) -> Option<Vec<u32>> {
     let grid = Grid::new(lo, hi, cutoff);
     let mut keyed: Vec<(u64, u32)> = x[..n_sorted]
         .iter()
@@ -73,7 +79,7 @@ pub fn gather<T: Copy>(v: &mut Vec<T>, old_of_new: &[u32]) {
 }
 
 /// [`gather`] of `stride` consecutive entries per particle.
-pub fn gather_strided<T: Copy>(v: &mut Vec<T>, old_of_new: &[u32], stride: usize) {
+pub(crate) fn gather_strided<T: Copy>(v: &mut Vec<T>, old_of_new: &[u32], stride: usize) {
     if v.is_empty() {
         return;
     }

@@ -17,10 +17,10 @@
 
 use crate::numerics::vec3::V3;
 
-pub type Quat = [f64; 4];
+pub(crate) type Quat = [f64; 4];
 
 /// math_extra.cpp:456-469: columns of the rotation matrix of q.
-pub fn q_to_exyz(q: Quat) -> (V3, V3, V3) {
+pub(crate) fn q_to_exyz(q: Quat) -> (V3, V3, V3) {
     let ex = [
         q[0] * q[0] + q[1] * q[1] - q[2] * q[2] - q[3] * q[3],
         2.0 * (q[1] * q[2] + q[0] * q[3]),
@@ -40,13 +40,13 @@ pub fn q_to_exyz(q: Quat) -> (V3, V3, V3) {
 }
 
 /// math_extra.h:546-553.
-pub fn qnormalize(q: Quat) -> Quat {
+pub(crate) fn qnormalize(q: Quat) -> Quat {
     let norm = 1.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
     [q[0] * norm, q[1] * norm, q[2] * norm, q[3] * norm]
 }
 
 /// math_extra.cpp:413-448 (largest-component branch, then normalise).
-pub fn exyz_to_q(ex: V3, ey: V3, ez: V3) -> Quat {
+pub(crate) fn exyz_to_q(ex: V3, ey: V3, ez: V3) -> Quat {
     let mut q = [0.0; 4];
     let q0sq = 0.25 * (ex[0] + ey[1] + ez[2] + 1.0);
     let q1sq = q0sq - 0.5 * (ey[1] + ez[2]);
@@ -77,7 +77,7 @@ pub fn exyz_to_q(ex: V3, ey: V3, ez: V3) -> Quat {
 }
 
 /// math_extra.h:596-602, Hamilton product a b.
-pub fn quatquat(a: Quat, b: Quat) -> Quat {
+pub(crate) fn quatquat(a: Quat, b: Quat) -> Quat {
     [
         a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
         a[0] * b[1] + b[0] * a[1] + a[2] * b[3] - a[3] * b[2],
@@ -97,7 +97,7 @@ fn vecquat(a: V3, b: Quat) -> Quat {
 }
 
 /// math_extra_liggghts.h:431-447: v' = q (0, v) q*.
-pub fn vec_quat_rotate(v: V3, q: Quat) -> V3 {
+pub(crate) fn vec_quat_rotate(v: V3, q: Quat) -> V3 {
     let t = quatquat(q, [0.0, v[0], v[1], v[2]]);
     let r = quatquat(t, [q[0], -q[1], -q[2], -q[3]]);
     [r[1], r[2], r[3]]
@@ -120,7 +120,7 @@ fn quat_to_mat(q: Quat) -> [[f64; 3]; 3] {
 }
 
 /// math_extra.h:453-459: ex d0 + ey d1 + ez d2.
-pub fn matvec_exyz(ex: V3, ey: V3, ez: V3, v: V3) -> V3 {
+pub(crate) fn matvec_exyz(ex: V3, ey: V3, ez: V3, v: V3) -> V3 {
     [
         ex[0] * v[0] + ey[0] * v[1] + ez[0] * v[2],
         ex[1] * v[0] + ey[1] * v[1] + ez[1] * v[2],
@@ -151,7 +151,7 @@ fn mq_to_omega(m: V3, q: Quat, moments: V3) -> V3 {
 }
 
 /// math_extra.cpp:344-359.
-pub fn angmom_to_omega(m: V3, ex: V3, ey: V3, ez: V3, idiag: V3) -> V3 {
+pub(crate) fn angmom_to_omega(m: V3, ex: V3, ey: V3, ez: V3, idiag: V3) -> V3 {
     let proj = |e: V3, i: f64| {
         if i == 0.0 {
             0.0
@@ -168,7 +168,7 @@ pub fn angmom_to_omega(m: V3, ex: V3, ey: V3, ez: V3, idiag: V3) -> V3 {
 }
 
 /// math_extra_liggghts.h:481-494 (multisphere.cpp:198-204 at insertion).
-pub fn angmom_from_omega(w: V3, ex: V3, ey: V3, ez: V3, idiag: V3) -> V3 {
+pub(crate) fn angmom_from_omega(w: V3, ex: V3, ey: V3, ez: V3, idiag: V3) -> V3 {
     let mb = [
         (w[0] * ex[0] + w[1] * ex[1] + w[2] * ex[2]) * idiag[0],
         (w[0] * ey[0] + w[1] * ey[1] + w[2] * ey[2]) * idiag[1],
@@ -183,7 +183,7 @@ pub fn angmom_from_omega(w: V3, ex: V3, ey: V3, ez: V3, idiag: V3) -> V3 {
 
 /// math_extra.cpp:287-331: one Richardson extrapolation (full step vs two half steps),
 /// no iteration. Returns the new q and the mid-step omega(L, q_half).
-pub fn richardson(q: Quat, m: V3, w: V3, moments: V3, dtq: f64) -> (Quat, V3) {
+pub(crate) fn richardson(q: Quat, m: V3, w: V3, moments: V3, dtq: f64) -> (Quat, V3) {
     let wq = vecquat(w, q);
     let qfull = qnormalize(std::array::from_fn(|k| q[k] + dtq * wq[k]));
     let qhalf = qnormalize(std::array::from_fn(|k| q[k] + 0.5 * dtq * wq[k]));
@@ -259,7 +259,7 @@ impl RigidBody {
 
     /// First half of the step (fix_multisphere.cpp:641-672): half kick of v and L, drift,
     /// omega from L with the old axes, Richardson update of q, new axes.
-    pub fn initial_integrate(&mut self, dt: f64) {
+    pub(crate) fn initial_integrate(&mut self, dt: f64) {
         let dtf = 0.5 * dt;
         let dtq = 0.5 * dt;
         let dtfm = dtf / self.mass;
@@ -303,7 +303,7 @@ impl RigidBody {
     }
 
     /// Second half (fix_multisphere.cpp:760-774): half kick, omega from L, new axes.
-    pub fn final_integrate(&mut self, dt: f64) {
+    pub(crate) fn final_integrate(&mut self, dt: f64) {
         let dtf = 0.5 * dt;
         let dtfm = dtf / self.mass;
         for k in 0..3 {
@@ -316,7 +316,7 @@ impl RigidBody {
     }
 
     /// `set_xv` (fix_multisphere.cpp:1045-1061): member positions, velocities, omega.
-    pub fn set_xv(&self, x: &mut [V3], v: &mut [V3], omega: &mut [V3]) {
+    pub(crate) fn set_xv(&self, x: &mut [V3], v: &mut [V3], omega: &mut [V3]) {
         for (d, &i) in self.displace.iter().zip(&self.members) {
             let r = matvec_exyz(self.ex, self.ey, self.ez, *d);
             v[i] = self.member_velocity(r);
@@ -326,7 +326,7 @@ impl RigidBody {
     }
 
     /// `set_v` (fix_multisphere.cpp:1145-1160).
-    pub fn set_v(&self, v: &mut [V3], omega: &mut [V3]) {
+    pub(crate) fn set_v(&self, v: &mut [V3], omega: &mut [V3]) {
         for (d, &i) in self.displace.iter().zip(&self.members) {
             let r = matvec_exyz(self.ex, self.ey, self.ez, *d);
             v[i] = self.member_velocity(r);
@@ -347,7 +347,7 @@ impl RigidBody {
 /// Where a body at `x` with insertion quaternion `q` puts members at `offsets`: the
 /// axes of [`RigidBody::new`] and the positions of [`RigidBody::set_xv`], the same
 /// doubles both engines start from.
-pub fn member_positions(x: V3, q: Quat, offsets: &[V3]) -> Vec<V3> {
+pub(crate) fn member_positions(x: V3, q: Quat, offsets: &[V3]) -> Vec<V3> {
     let ex = vec_quat_rotate([1.0, 0.0, 0.0], q);
     let ey = vec_quat_rotate([0.0, 1.0, 0.0], q);
     let ez = vec_quat_rotate([0.0, 0.0, 1.0], q);
@@ -362,7 +362,7 @@ pub fn member_positions(x: V3, q: Quat, offsets: &[V3]) -> Vec<V3> {
 
 /// Rotation angle (rad) between two orientations, 2 atan2(|vec(a* b)|, |scalar(a* b)|):
 /// well conditioned near 0, unlike acos, and q ~ -q.
-pub fn rotation_angle(a: Quat, b: Quat) -> f64 {
+pub(crate) fn rotation_angle(a: Quat, b: Quat) -> f64 {
     let d = quatquat([a[0], -a[1], -a[2], -a[3]], b);
     let s = (d[1] * d[1] + d[2] * d[2] + d[3] * d[3]).sqrt();
     2.0 * s.atan2(d[0].abs())

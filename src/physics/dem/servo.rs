@@ -16,11 +16,11 @@
 //! With the axis pointing out of the sample and a negative target (-sigma A), the wall
 //! moves inward at up to `vel_max` until the grains push it with sigma A.
 
-pub use crate::case::triaxial::ServoGains;
+pub(crate) use crate::case::triaxial::ServoGains;
 
 /// The controller state of one servo wall (`vcm`, `sum_err_`, `old_pv_mag_`).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Servo {
+pub(crate) struct Servo {
     pub gains: ServoGains,
     /// Wall velocity along the axis (m/s), `vcm . axis`.
     pub velocity: f64,
@@ -46,7 +46,7 @@ impl Servo {
     /// `final_integrate` of the servo: `pv` the force of the grains on the wall along
     /// the axis (N), `target` LIGGGHTS' `target_val` (N; negative to push along -axis),
     /// `dt` the time step. Returns the new wall velocity along the axis.
-    pub fn update(&mut self, pv: f64, target: f64, dt: f64) -> f64 {
+    pub(crate) fn update(&mut self, pv: f64, target: f64, dt: f64) -> f64 {
         let g = self.gains;
         let sp = -target;
         let sp_inv = 1.0 / sp.abs();

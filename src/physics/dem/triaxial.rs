@@ -18,7 +18,7 @@ use anyhow::{Result, bail};
 use rand::{Rng, SeedableRng};
 
 /// Index of the hi wall along axis `i` (0 x, 1 y, 2 z); the lo wall is `i`.
-pub const fn hi_wall(i: usize) -> usize {
+pub(crate) const fn hi_wall(i: usize) -> usize {
     3 + i
 }
 
@@ -65,7 +65,7 @@ impl Sample {
 
 /// The square (centre, half side) in every wall's plane that the LIGGGHTS wall meshes
 /// must cover: the starting cube of side `side` and 1.5 grain diameters beyond.
-pub fn mesh_square(case: &TriaxialCase, side: f64) -> (f64, f64) {
+pub(crate) fn mesh_square(case: &TriaxialCase, side: f64) -> (f64, f64) {
     (0.5 * side, 0.5 * side + 1.5 * case.diameter)
 }
 
@@ -74,7 +74,7 @@ pub fn mesh_square(case: &TriaxialCase, side: f64) -> (f64, f64) {
 /// contains the square, so its edges stay a quarter of the square's side away from
 /// any grain (a two-triangle rectangle has a diagonal across the face, where LIGGGHTS
 /// 3.8 counted one grain's contact twice for a step in a test: measured).
-pub fn mesh_circumradius(case: &TriaxialCase, side: f64) -> f64 {
+pub(crate) fn mesh_circumradius(case: &TriaxialCase, side: f64) -> f64 {
     let (_, h) = mesh_square(case, side);
     2.0 * std::f64::consts::SQRT_2 * h
 }
@@ -82,7 +82,7 @@ pub fn mesh_circumradius(case: &TriaxialCase, side: f64) -> f64 {
 /// The simulation box around a sample whose lattice filled a cube of side `side`: a cube
 /// about the sample's centre holding the wall meshes of [`mesh_circumradius`] (both
 /// engines use it; only the meshes need it).
-pub fn domain(case: &TriaxialCase, side: f64) -> ([f64; 3], [f64; 3]) {
+pub(crate) fn domain(case: &TriaxialCase, side: f64) -> ([f64; 3], [f64; 3]) {
     let (c, _) = mesh_square(case, side);
     let e = mesh_circumradius(case, side) + 2.0 * case.diameter;
     ([c - e; 3], [c + e; 3])
@@ -123,7 +123,12 @@ pub fn lattice(case: &TriaxialCase, seed: u64) -> Vec<Particle> {
 }
 
 /// The native engine's case: the grains in the six-wall box with its hi walls at `hi`.
-pub fn box_case(case: &TriaxialCase, particles: Vec<Particle>, hi: [f64; 3], side: f64) -> Case {
+pub(crate) fn box_case(
+    case: &TriaxialCase,
+    particles: Vec<Particle>,
+    hi: [f64; 3],
+    side: f64,
+) -> Case {
     let (lo, dhi) = domain(case, side);
     let plane = |axis, position| Wall::Plane {
         axis,
@@ -169,14 +174,14 @@ pub fn box_case(case: &TriaxialCase, particles: Vec<Particle>, hi: [f64; 3], sid
 }
 
 /// Positions of the three hi walls.
-pub fn hi_positions(sim: &Simulation) -> [f64; 3] {
+pub(crate) fn hi_positions(sim: &Simulation) -> [f64; 3] {
     [0, 1, 2].map(|i| sim.wall_position(hi_wall(i)))
 }
 
 /// LIGGGHTS' target of the servo on axis `i`: `-sigma_c * a * b` with a, b the other two
 /// hi walls' positions in axis order (the deck's `variable ... equal -sigma*f_..*f_..`,
 /// evaluated left to right).
-pub fn servo_target(sigma_c: f64, hi: [f64; 3], i: usize) -> f64 {
+pub(crate) fn servo_target(sigma_c: f64, hi: [f64; 3], i: usize) -> f64 {
     let (a, b) = match i {
         0 => (hi[1], hi[2]),
         1 => (hi[0], hi[2]),
@@ -186,7 +191,7 @@ pub fn servo_target(sigma_c: f64, hi: [f64; 3], i: usize) -> f64 {
 }
 
 /// Force of the grains on the hi wall along axis `i` (positive: pushed outward).
-pub fn hi_force(sim: &Simulation, i: usize) -> f64 {
+pub(crate) fn hi_force(sim: &Simulation, i: usize) -> f64 {
     sim.wall_force(hi_wall(i))[i]
 }
 
@@ -207,7 +212,7 @@ fn servo_step(
 }
 
 /// Wall stresses along x, y, z from the hi walls' forces (Pa) and the box volume.
-pub fn hi_stresses(sim: &Simulation) -> ([f64; 3], f64) {
+pub(crate) fn hi_stresses(sim: &Simulation) -> ([f64; 3], f64) {
     let h = hi_positions(sim);
     let area = [h[1] * h[2], h[0] * h[2], h[0] * h[1]];
     (

@@ -7,7 +7,7 @@ use crate::numerics::vec3::V3;
 
 /// Wall-to-particle vector and its length if the sphere of radius `r` touches the wall.
 #[inline]
-pub fn wall_contact(w: &Wall, x: V3, r: f64) -> Option<(V3, f64)> {
+pub(crate) fn wall_contact(w: &Wall, x: V3, r: f64) -> Option<(V3, f64)> {
     match *w {
         Wall::Plane { axis, position, .. } => {
             let k = axis.index();

@@ -90,7 +90,7 @@ impl Bed {
     }
 }
 
-pub fn wall_row(length: f64, wall_d: f64, y: f64, first_id: u64) -> Vec<Disk> {
+pub(crate) fn wall_row(length: f64, wall_d: f64, y: f64, first_id: u64) -> Vec<Disk> {
     let n = ((length / wall_d).floor() as usize).max(1);
     let pitch = length / n as f64;
     (0..n)

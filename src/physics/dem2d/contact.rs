@@ -29,7 +29,7 @@ pub use crate::case::impact2d::{Coeffs, gamma_n_from_restitution};
 /// The two disks of a contact as the force law sees them; `del = x_i - x_j`
 /// (minimum image across the periodic boundary).
 #[derive(Debug, Clone, Copy)]
-pub struct PairIn {
+pub(crate) struct PairIn {
     pub del: [f64; 2],
     pub ri: f64,
     pub rj: f64,
@@ -57,7 +57,7 @@ pub struct PairOut {
 /// Evaluates one pair; `None` when not touching (the shear history is then cleared,
 /// as LAMMPS does for a neighbour that is not in contact). `shear_update` is false
 /// during LAMMPS' setup force pass (`update->setupflag`).
-pub fn hooke(
+pub(crate) fn hooke(
     c: &Coeffs,
     p: &PairIn,
     shear: &mut [f64; 2],

@@ -9,7 +9,7 @@ use crate::rundata::impact::EnergySample;
 
 /// One disk of a snapshot, as far as energies need it.
 #[derive(Debug, Clone, Copy)]
-pub struct SnapDisk {
+pub(crate) struct SnapDisk {
     pub type_: usize,
     pub radius: f64,
     pub mass: f64,
@@ -41,7 +41,7 @@ impl Excluded for TypeExcl<'_> {
     }
 }
 
-pub fn energies(step: u64, t: f64, disks: &[SnapDisk], model: &EnergyModel) -> EnergySample {
+pub(crate) fn energies(step: u64, t: f64, disks: &[SnapDisk], model: &EnergyModel) -> EnergySample {
     let mut kinetic = 0.0;
     let mut potential = 0.0;
     for d in disks {

@@ -214,7 +214,7 @@ pub fn build(case: &Impact2dCase, v: &Variant, bed: &Bed) -> Result<Scene> {
 /// `TRACER_MIN_DISTANCE L` from the impact point `x_imp`: the top of the bed on the side
 /// opposite the impact, away from the crater, whose motion is the bed's own. Fewer than
 /// `MIN_TRACERS` is an error.
-pub fn interface_tracers(
+pub(crate) fn interface_tracers(
     sys: &System,
     surface: f64,
     d: f64,
@@ -245,7 +245,7 @@ pub fn interface_tracers(
 
 /// The bottom row of frozen wall disks (below `surface`): the tracers of the
 /// `interface_frozen_floor` control, whose height never changes.
-pub fn floor_tracers(sys: &System, surface: f64) -> Vec<usize> {
+pub(crate) fn floor_tracers(sys: &System, surface: f64) -> Vec<usize> {
     (0..sys.disks.len())
         .filter(|&k| sys.disks[k].role == Role::Frozen && sys.disks[k].x[1] < surface)
         .collect()
@@ -253,7 +253,7 @@ pub fn floor_tracers(sys: &System, surface: f64) -> Vec<usize> {
 
 /// Centre of mass in y of the disks `idx`, summed as LAMMPS' `Group::xcm` sums (mass
 /// times position, then over the group mass); NaN for an empty set.
-pub fn tracer_height(sys: &System, idx: &[usize]) -> f64 {
+pub(crate) fn tracer_height(sys: &System, idx: &[usize]) -> f64 {
     let (mut my, mut m) = (0.0, 0.0);
     for &k in idx {
         let g = &sys.disks[k];
@@ -273,7 +273,10 @@ pub struct SnapshotSteps {
 
 /// The bed at the current step of `sys`: grains (type 0) sorted by id, and the touching
 /// pairs by atom id if `contacts`.
-pub fn field_snapshot(sys: &System, contacts: bool) -> crate::rundata::impact::FieldSnapshot {
+pub(crate) fn field_snapshot(
+    sys: &System,
+    contacts: bool,
+) -> crate::rundata::impact::FieldSnapshot {
     use crate::rundata::impact::{ContactForce, FieldSnapshot, GrainPos};
     let mut grains: Vec<GrainPos> = sys
         .disks
@@ -300,7 +303,7 @@ pub fn field_snapshot(sys: &System, contacts: bool) -> crate::rundata::impact::F
 }
 
 /// What a native run leaves: intruder samples, energies, bed snapshots.
-pub type NativeSeries = (
+pub(crate) type NativeSeries = (
     Vec<crate::rundata::impact::IntruderSample>,
     Vec<crate::rundata::impact::EnergySample>,
     Vec<crate::rundata::impact::FieldSnapshot>,
@@ -380,7 +383,7 @@ pub fn intruder_cm(sys: &System) -> ([f64; 2], [f64; 2]) {
 
 /// The scene with the intruder's velocity multiplied by `factor` (every intruder disk,
 /// and a cluster's centre-of-mass velocity): a negative control's wrong impact speed.
-pub fn with_intruder_speed(scene: &Scene, factor: f64) -> Scene {
+pub(crate) fn with_intruder_speed(scene: &Scene, factor: f64) -> Scene {
     let mut s = scene.clone();
     for &k in &s.sys.intruder {
         let v = &mut s.sys.disks[k].v;
@@ -398,7 +401,7 @@ pub fn with_intruder_speed(scene: &Scene, factor: f64) -> Scene {
 /// the tracers (K Fig 12's control). Not a control: the chaos baseline's replica
 /// (docs/statistics.md, "The chaos baseline") moves every free disk of the bed by one
 /// ulp in x (not a wall disk, not the intruder, which a disk intruder also is).
-pub fn perturbed(scene: &Scene, pert: &crate::case::Perturbation) -> Scene {
+pub(crate) fn perturbed(scene: &Scene, pert: &crate::case::Perturbation) -> Scene {
     let mut s = scene.clone();
     if pert.interface_frozen_floor {
         s.tracers = floor_tracers(&s.sys, s.surface);

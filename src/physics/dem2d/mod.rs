@@ -9,7 +9,7 @@
 
 pub mod bed;
 pub mod contact;
-pub mod energy;
+pub(crate) mod energy;
 pub mod impact;
 pub mod neighbor;
 
@@ -45,7 +45,7 @@ pub struct Disk {
 /// sphere` (`rmass *= 4.0*MY_PI/3.0 * r*r*r`), which turns the data file's density back
 /// into a mass. LAMMPS 7Jan2022 does this in 2D too, so the data file carries
 /// `mass / sphere_volume(r)` and both engines use the mass [`lammps_mass`] returns.
-pub fn sphere_volume(r: f64) -> f64 {
+pub(crate) fn sphere_volume(r: f64) -> f64 {
     4.0 * std::f64::consts::PI / 3.0 * r * r * r
 }
 
@@ -360,7 +360,7 @@ impl System {
     /// `compute pair/local` reports at the end of a step (its `single()` reads positions,
     /// full-step velocities and the stored shear the same way). F_n is the component
     /// along the centre line; the tangential force is perpendicular to it.
-    pub fn contact_forces(&self) -> Vec<(usize, usize, f64, f64)> {
+    pub(crate) fn contact_forces(&self) -> Vec<(usize, usize, f64, f64)> {
         let mut out = Vec::new();
         for (&(i, j), &sh) in self.list.pairs.iter().zip(&self.list.shear) {
             let (i, j) = (i as usize, j as usize);
@@ -393,7 +393,7 @@ impl System {
     }
 
     /// Contact force on the intruder from everything else (gravity excluded).
-    pub fn intruder_contact_force(&self) -> [f64; 2] {
+    pub(crate) fn intruder_contact_force(&self) -> [f64; 2] {
         let mut s = [0.0; 2];
         let mut is_intr = vec![false; self.disks.len()];
         for &k in &self.intruder {
@@ -415,7 +415,7 @@ impl System {
     }
 
     /// Kinetic energy (translation + rotation, I = m r^2/2) of the mobile disks.
-    pub fn kinetic_energy(&self) -> f64 {
+    pub(crate) fn kinetic_energy(&self) -> f64 {
         self.disks
             .iter()
             .filter(|d| d.role != Role::Frozen)

@@ -15,12 +15,12 @@ pub struct Box2 {
 }
 
 impl Box2 {
-    pub fn len_x(&self) -> f64 {
+    pub(crate) fn len_x(&self) -> f64 {
         self.hi[0] - self.lo[0]
     }
     /// `a - b` with the minimum-image convention in x.
     #[inline]
-    pub fn delta(&self, a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    pub(crate) fn delta(&self, a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
         let mut dx = a[0] - b[0];
         if self.periodic_x {
             let l = self.len_x();
@@ -34,7 +34,7 @@ impl Box2 {
     }
     /// Maps x back into `[lo, hi)` (LAMMPS remaps atoms the same way on re-neighbouring).
     #[inline]
-    pub fn wrap(&self, mut x: [f64; 2]) -> [f64; 2] {
+    pub(crate) fn wrap(&self, mut x: [f64; 2]) -> [f64; 2] {
         if self.periodic_x {
             let l = self.len_x();
             while x[0] >= self.hi[0] {
@@ -64,7 +64,7 @@ pub trait Excluded: Sync {
 
 impl PairList {
     /// True when some disk moved more than half the skin since the last build.
-    pub fn needs_rebuild(&self, bx: &Box2, x: &[[f64; 2]], skin: f64) -> bool {
+    pub(crate) fn needs_rebuild(&self, bx: &Box2, x: &[[f64; 2]], skin: f64) -> bool {
         if self.x_at_build.len() != x.len() {
             return true;
         }
