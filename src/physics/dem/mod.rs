@@ -129,8 +129,8 @@ pub struct Simulation {
 }
 
 /// Wall time (s) spent in each phase of [`Simulation::step`] since the simulation was
-/// made (or [`Simulation::reset_step_times`]), for profiling: a handful of clock reads per
-/// step, negligible against the step itself.
+/// made, for profiling: a handful of clock reads per step, negligible against the step
+/// itself.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct StepTimes {
     /// First half kick and drift, fused with the finite-state, domain and skin/2
