@@ -86,6 +86,11 @@ impl MaltPoints {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct IndependentAngle {
     pub label: String,
+    /// The engine that measured the angle: its band's colour in the MALT verdict. A
+    /// file written before the engine was recorded has none, and its band is drawn in
+    /// the colour of no engine rather than guessed from the label.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub engine: Option<crate::rundata::provenance::EngineKind>,
     pub phi_deg: f64,
     pub se_deg: f64,
 }
@@ -215,6 +220,7 @@ mod tests {
             &[p],
             &[IndependentAngle {
                 label: "triaxial".into(),
+                engine: None,
                 phi_deg: 28.0,
                 se_deg: 0.5,
             }],
@@ -239,6 +245,7 @@ mod tests {
             canonical_hash: "h".into(),
             angles: vec![IndependentAngle {
                 label: "triaxial phi_cs, native".into(),
+                engine: Some(crate::rundata::provenance::EngineKind::Native),
                 phi_deg: 20.8,
                 se_deg: 0.1,
             }],

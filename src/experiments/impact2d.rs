@@ -441,8 +441,8 @@ impl Experiment for Impact2d {
             }
         }
         let (mut native_obs, mut ref_obs) = (Vec::new(), Vec::new());
-        let mut series_svg: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-        let mut relative_svg: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        let mut series_svg: Vec<SvgLine> = Vec::new();
+        let mut relative_svg: Vec<SvgLine> = Vec::new();
         let mut complete = true;
         for ((u, a), b) in units.iter().zip(native).zip(reference) {
             let v = &u.variant;
@@ -462,18 +462,28 @@ impl Experiment for Impact2d {
                             ob.interface.as_ref(),
                             "lammps",
                         ));
-                        for (e, o) in [("native", &oa), ("LAMMPS", &ob)] {
+                        for (e, o) in [(EngineKind::Native, &oa), (self.reference_engine(), &ob)] {
                             if let Some(i) = &o.interface {
-                                relative_svg
-                                    .push((format!("{e} {}", v.label), i.relative_series.clone()));
+                                relative_svg.push((
+                                    format!("{e} {}", v.label),
+                                    e,
+                                    v.label.clone(),
+                                    i.relative_series.clone(),
+                                ));
                             }
                         }
                     }
                     let scaled = |s: &[(f64, f64)]| {
                         s.iter().map(|p| (p.0 / tau, p.1 / d)).collect::<Vec<_>>()
                     };
-                    series_svg.push((format!("native {}", v.label), scaled(&sa)));
-                    series_svg.push((format!("LAMMPS {}", v.label), scaled(&sb)));
+                    for (e, s) in [(EngineKind::Native, &sa), (self.reference_engine(), &sb)] {
+                        series_svg.push((
+                            format!("{e} {}", v.label),
+                            e,
+                            v.label.clone(),
+                            scaled(s),
+                        ));
+                    }
                     native_obs.push(oa);
                     ref_obs.push(ob);
                 }
@@ -499,10 +509,7 @@ impl Experiment for Impact2d {
                 &ref_obs,
                 "lammps",
             ));
-            let refs: Vec<(&str, &[(f64, f64)])> = series_svg
-                .iter()
-                .map(|(l, s)| (l.as_str(), s.as_slice()))
-                .collect();
+            let refs = svg_lines(&series_svg);
             if let Err(e) = crate::report::svg_impact::depth_overlay(
                 &out.join("depth.svg"),
                 &refs,
@@ -511,10 +518,7 @@ impl Experiment for Impact2d {
                 notes.push(format!("SVG not written: {e:#}"));
             }
             if !relative_svg.is_empty() {
-                let refs: Vec<(&str, &[(f64, f64)])> = relative_svg
-                    .iter()
-                    .map(|(l, s)| (l.as_str(), s.as_slice()))
-                    .collect();
+                let refs = svg_lines(&relative_svg);
                 if let Err(e) = crate::report::svg_impact::depth_overlay(
                     &out.join("depth-interface.svg"),
                     &refs,
@@ -642,6 +646,7 @@ fn ensemble_section(
     out: &Path,
     control: Option<&str>,
 ) -> Result<crate::report::Section> {
+    use crate::report::palette::Source;
     use crate::report::svg::{SweepSeries, sweep_with_error_bars};
     let x: Vec<f64> = native.iter().map(|s| s.x).collect();
     // A text-valued sweep (friction, packing) is drawn at 0, 1, ...: say which is which.
@@ -677,12 +682,14 @@ fn ensemble_section(
     let series = [
         SweepSeries {
             label: "native",
+            source: Source::Native,
             k: &na.0,
             se: &na.1,
             beds: &na.2,
         },
         SweepSeries {
             label: "LAMMPS",
+            source: Source::Lammps,
             k: &nb.0,
             se: &nb.1,
             beds: &nb.2,
@@ -732,6 +739,19 @@ fn ensemble_section(
     })
 }
 
+/// (label, engine, variant, points) of a line figure, kept until it is drawn: the
+/// engine and the variant style the line, the label is its legend text.
+type SvgLine = (String, EngineKind, String, Vec<(f64, f64)>);
+
+/// The overlay lines of `v`, each styled by its engine and variant.
+fn svg_lines(v: &[SvgLine]) -> Vec<crate::report::overlay::Line<'_>> {
+    v.iter()
+        .map(|(l, e, variant, s)| {
+            crate::report::overlay::Line::new(l, (*e).into(), s).variant(variant)
+        })
+        .collect()
+}
+
 /// Plots where a person would rather look (K Figs 21-27): F(t) of every variant in both
 /// engines, the B0 curves of both networks at each field time, and maps of D2_min and
 /// |A_f| per variant and engine (log10, one colour range for all maps of a quantity).
@@ -745,10 +765,13 @@ fn field_plots(
     use crate::report::palette::Scale;
     use crate::report::plot::Caption;
     use crate::report::svg_impact::{curves, grain_map};
-    let engines = [("native", native), ("LAMMPS", reference)];
+    let engines = [
+        (EngineKind::Native, native),
+        (EngineKind::Lammps, reference),
+    ];
     if cmp::has_force_claims(case) {
         let bin = cmp::force_bin(case);
-        let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        let mut series: Vec<SvgLine> = Vec::new();
         for (e, obs) in engines {
             for o in obs {
                 let f = crate::analysis::impact::force_summary(&o.force, bin, bin)?;
@@ -758,13 +781,10 @@ fn field_plots(
                     .copied()
                     .filter(|b| b.0 <= f.t_contact + case.tolerances.force_window)
                     .collect();
-                series.push((format!("{e} {}", o.label), early));
+                series.push((format!("{e} {}", o.label), e, o.label.clone(), early));
             }
         }
-        let refs: Vec<(&str, &[(f64, f64)])> = series
-            .iter()
-            .map(|(l, s)| (l.as_str(), s.as_slice()))
-            .collect();
+        let refs = svg_lines(&series);
         curves(
             &out.join("force.svg"),
             &refs,
@@ -783,7 +803,7 @@ fn field_plots(
     };
     for (k, (t, _)) in first.networks.iter().enumerate() {
         for net in ["normal", "tangential"] {
-            let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+            let mut series: Vec<SvgLine> = Vec::new();
             for (e, obs) in engines {
                 for o in obs {
                     if let Some((_, c)) = o.fields.as_ref().and_then(|f| f.networks.get(k)) {
@@ -794,6 +814,8 @@ fn field_plots(
                         };
                         series.push((
                             format!("{e} {}", o.label),
+                            e,
+                            o.label.clone(),
                             c.thresholds
                                 .iter()
                                 .copied()
@@ -803,10 +825,7 @@ fn field_plots(
                     }
                 }
             }
-            let refs: Vec<(&str, &[(f64, f64)])> = series
-                .iter()
-                .map(|(l, s)| (l.as_str(), s.as_slice()))
-                .collect();
+            let refs = svg_lines(&series);
             curves(
                 &out.join(format!("b0-{net}-t{t}.svg")),
                 &refs,
@@ -854,7 +873,7 @@ fn field_plots(
                     &out.join(format!(
                         "{file}-{}-{}.svg",
                         label_dir_str(&o.label),
-                        e.to_lowercase()
+                        e.key()
                     )),
                     &pts,
                     Scale::Sequential {

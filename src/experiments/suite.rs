@@ -707,7 +707,8 @@ fn claim_figures(
     found: &[(String, PathBuf, crate::compare::sweep::CaseSummary)],
     out: &Path,
 ) -> Result<Vec<String>> {
-    use crate::report::svg::{SweepSeries, fdr_overlay, k_phi_sweep};
+    use crate::report::svg::{FdrSeries, SweepSeries, fdr_overlay, k_phi_sweep};
+    use crate::rundata::provenance::EngineKind;
     let slug: String = c
         .name
         .chars()
@@ -726,16 +727,20 @@ fn claim_figures(
     std::fs::create_dir_all(out.join("claims"))?;
     let fdr_rel = format!("claims/{slug}-fdr.svg");
     let k_rel = format!("claims/{slug}-k_phi.svg");
-    let engines = ["native", "liggghts"];
+    // Summaries keep each engine under its key; the case name is the variant.
+    let engines = [EngineKind::Native, EngineKind::Liggghts];
     let labels: Vec<String> = found
         .iter()
-        .flat_map(|(name, _, _)| engines.map(|e| format!("{name} {e}")))
+        .flat_map(|(name, _, _)| engines.map(|e| format!("{name} {}", e.key())))
         .collect();
     let mut series = Vec::new();
-    for (i, (_, _, s)) in found.iter().enumerate() {
+    for (i, (name, _, s)) in found.iter().enumerate() {
         for (j, e) in engines.iter().enumerate() {
-            if let Some(es) = s.engines.get(*e) {
-                series.push((labels[2 * i + j].as_str(), &es.h[..], &es.p[..], None));
+            if let Some(es) = s.engines.get(e.key()) {
+                series.push(FdrSeries {
+                    variant: name,
+                    ..FdrSeries::new(&labels[2 * i + j], (*e).into(), &es.h, &es.p, None)
+                });
             }
         }
     }
@@ -750,11 +755,14 @@ fn claim_figures(
         c.x.clone()
     };
     // Per engine along the sweep: K_phi, its standard error, and each case's per-bed values.
-    type EngineSweep<'a> = (&'a str, Vec<f64>, Vec<f64>, Vec<Vec<f64>>);
+    type EngineSweep = (EngineKind, Vec<f64>, Vec<f64>, Vec<Vec<f64>>);
     let per_engine: Vec<EngineSweep> = engines
         .iter()
         .filter_map(|e| {
-            let v: Option<Vec<_>> = found.iter().map(|(_, _, s)| s.engines.get(*e)).collect();
+            let v: Option<Vec<_>> = found
+                .iter()
+                .map(|(_, _, s)| s.engines.get(e.key()))
+                .collect();
             v.map(|v| {
                 (
                     *e,
@@ -767,8 +775,9 @@ fn claim_figures(
         .collect();
     let sweep: Vec<SweepSeries> = per_engine
         .iter()
-        .map(|(l, k, se, beds)| SweepSeries {
-            label: l,
+        .map(|(e, k, se, beds)| SweepSeries {
+            label: e.key(),
+            source: (*e).into(),
             k,
             se,
             beds,
@@ -1055,16 +1064,26 @@ fn draw_malt_verdict(
     angles: &[crate::compare::malt_points::IndependentAngle],
 ) -> Result<()> {
     use crate::report::field_svg::{KPhiPoint, PhiBand, k_phi_plane};
+    use crate::report::palette::Source;
     let curve: Vec<(f64, f64)> = crate::analysis::malt::table(45.0, 0.5)?
         .into_iter()
         .filter(|(_, k)| *k <= 2e3)
         .collect();
-    let labels: Vec<(String, &crate::compare::malt_points::MaltPoint)> = points
+    // (label, engine key, group: one marker shape per case and scale, point)
+    type Labelled<'a> = (
+        String,
+        &'a str,
+        String,
+        &'a crate::compare::malt_points::MaltPoint,
+    );
+    let labels: Vec<Labelled> = points
         .iter()
         .flat_map(|m| {
             m.engines.iter().map(move |(engine, e)| {
                 (
                     format!("{} {engine}, phi v2 (R/d {:.1})", m.case, m.scale.r_over_d),
+                    engine.as_str(),
+                    format!("{} (R/d {:.1})", m.case, m.scale.r_over_d),
                     e,
                 )
             })
@@ -1072,8 +1091,11 @@ fn draw_malt_verdict(
         .collect();
     let kp: Vec<KPhiPoint> = labels
         .iter()
-        .map(|(l, e)| KPhiPoint {
+        .map(|(l, engine, group, e)| KPhiPoint {
             label: l,
+            source: Source::of_engine_key(engine),
+            group,
+            reported: false,
             phi_deg: e.phi_v2_deg,
             phi_err: e.phi_v2_sd_deg,
             k: e.k_phi,
@@ -1084,6 +1106,7 @@ fn draw_malt_verdict(
         .iter()
         .map(|a| PhiBand {
             label: &a.label,
+            source: a.engine.map_or(Source::Other, Source::from),
             phi_deg: a.phi_deg,
             half_width_deg: a.se_deg,
         })

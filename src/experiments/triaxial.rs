@@ -454,7 +454,7 @@ impl Experiment for Triaxial {
                 u.sample.note(),
                 at::inertial_number(c.strain_rate, c.diameter, c.density, u.sigma_c)
             ));
-            let mut curves: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+            let mut curves: Vec<(EngineKind, Vec<(f64, f64)>)> = Vec::new();
             let mut obs: Vec<Option<Observables>> = Vec::new();
             for (label, run) in [("native", native.get(k)), ("liggghts", reference.get(k))] {
                 let Some(run) = run else {
@@ -468,11 +468,10 @@ impl Experiment for Triaxial {
                 }
                 curves.push((
                     if label == "native" {
-                        "native"
+                        EngineKind::Native
                     } else {
-                        "LIGGGHTS"
-                    }
-                    .to_string(),
+                        self.reference_engine()
+                    },
                     pts.iter().map(|p| (p.eps_a, at::phi_deg(p.s))).collect(),
                 ));
                 match at::observables(&pts, &w) {
@@ -522,9 +521,9 @@ impl Experiment for Triaxial {
                     a.phi_peak - b.phi_peak
                 ));
             }
-            let series: Vec<(&str, &[(f64, f64)])> = curves
+            let series: Vec<crate::report::overlay::Line> = curves
                 .iter()
-                .map(|(l, s)| (l.as_str(), s.as_slice()))
+                .map(|(e, s)| crate::report::overlay::Line::new(e.label(), (*e).into(), s))
                 .collect();
             if !series.is_empty()
                 && let Err(e) = crate::report::svg_triaxial::phi_mob_overlay(
@@ -539,10 +538,11 @@ impl Experiment for Triaxial {
         }
         // The critical-state angle per engine (mean over units, SE = sd / sqrt(n)) for the
         // suite's cross-scale MALT verdict (docs/stress.md rule 6).
-        let angle = |engine: &str, v: &[f64]| {
+        let angle = |engine: EngineKind, v: &[f64]| {
             let n = v.len() as f64;
             crate::compare::malt_points::IndependentAngle {
                 label: format!("triaxial phi_cs, {engine}"),
+                engine: Some(engine),
                 phi_deg: v.iter().sum::<f64>() / n,
                 se_deg: at::sample_sd(v) / n.sqrt(),
             }
@@ -551,11 +551,14 @@ impl Experiment for Triaxial {
             let angles = crate::compare::malt_points::IndependentAngles {
                 case: c.name.clone(),
                 canonical_hash: crate::case::ValidatedCase::canonical_hash(c).to_string(),
-                angles: [("native", &cs_n), ("LIGGGHTS", &cs_r)]
-                    .into_iter()
-                    .filter(|(_, v)| !v.is_empty())
-                    .map(|(e, v)| angle(e, v))
-                    .collect(),
+                angles: [
+                    (EngineKind::Native, &cs_n),
+                    (self.reference_engine(), &cs_r),
+                ]
+                .into_iter()
+                .filter(|(_, v)| !v.is_empty())
+                .map(|(e, v)| angle(e, v))
+                .collect(),
             };
             if let Err(e) = angles.write(out) {
                 notes.push(format!("{e:#}"));

@@ -2,7 +2,7 @@
 //! velocity in the (r, z) plane (the paper's Fig. 5) with the incipient-yield region and
 //! the stagnant zone outlined, and the K-phi plane (Fig. 7) with error bars.
 
-use super::palette::{EMPTY, EMPTY_HATCH, Scale, Source};
+use super::palette::{EMPTY, EMPTY_HATCH, INTRUDER, INTRUDER_EDGE, Scale, Source};
 use super::plot::{Area, Caption, Entry, FONT, Key, Shape, canvas, draw_key, draw_marker, err};
 use anyhow::{Result, ensure};
 use plotters::prelude::*;
@@ -71,7 +71,10 @@ pub fn colour_bar(area: &Area<'_>, label: &str, scale: Scale, with_empty: bool) 
 
 /// Colour map with outlines: each outline is a cell set whose boundary edges are drawn;
 /// `intruder` = (radius, bottom z) in axis units draws the intruder's section. Cells
-/// without a value are grey and hatched, and the colour bar says so.
+/// without a value are light grey and hatched, and the colour bar says so; the intruder
+/// is a solid body, not missing data, so it is drawn opaque over its cells in a darker
+/// grey with a black outline and has its own legend entry: a reader can tell it from
+/// empty cells and from the scale's lowest values.
 #[allow(clippy::too_many_arguments)]
 pub fn rz_map(
     path: &Path,
@@ -118,11 +121,8 @@ pub fn rz_map(
         .collect();
     if intruder.is_some() {
         entries.push(Entry::new(
-            "intruder",
-            Key::Patch {
-                colour: BLACK,
-                opacity: 0.25,
-            },
+            "intruder (solid body, no grains)",
+            Key::Intruder,
         ));
     }
     let r1 = map.r0 + map.nr as f64 * map.spacing;
@@ -207,20 +207,29 @@ pub fn rz_map(
             .map_err(err("outline"))?;
     }
     if let Some((rad, zb)) = intruder {
+        let section = [(map.r0, zb), (rad, z1)];
         chart
-            .draw_series(std::iter::once(Rectangle::new(
-                [(map.r0, zb), (rad, z1)],
-                BLACK.mix(0.25).filled(),
-            )))
+            .draw_series([
+                Rectangle::new(section, INTRUDER.filled()),
+                Rectangle::new(section, INTRUDER_EDGE.stroke_width(2)),
+            ])
             .map_err(err("intruder"))?;
     }
     root.present().map_err(err("write svg"))?;
     Ok(())
 }
 
-/// A (phi, K_phi) point with its spreads (one standard deviation; 0 = none).
+/// A (phi, K_phi) point with its spreads (one standard deviation; 0 = none). Its style
+/// is data set by the code that measures it; `label` is the legend's text only.
 pub struct KPhiPoint<'a> {
     pub label: &'a str,
+    /// Who produced the point: its colour.
+    pub source: Source,
+    /// What points share a marker shape (a case, an estimator): one shape per group,
+    /// in order of first appearance.
+    pub group: &'a str,
+    /// A reported, not gated, value: drawn hollow.
+    pub reported: bool,
     pub phi_deg: f64,
     pub phi_err: f64,
     pub k: f64,
@@ -231,14 +240,16 @@ pub struct KPhiPoint<'a> {
 /// `phi_deg +- half_width_deg` across the whole K axis.
 pub struct PhiBand<'a> {
     pub label: &'a str,
+    /// Who measured the angle: the band's colour.
+    pub source: Source,
     pub phi_deg: f64,
     pub half_width_deg: f64,
 }
 
 /// The phi - K_phi plane with the MALT curve `(phi_deg, K)` on a log K axis, points
 /// with error bars (Fig. 7) and vertical bands of independently measured angles. Each
-/// point and band is its engine's colour (published values black); points of one
-/// case or estimator share a marker shape; a point labelled "reported" is hollow.
+/// point and band is its source's colour (published values black); points of one
+/// group (case or estimator) share a marker shape; a reported point is hollow.
 pub fn k_phi_plane(
     path: &Path,
     caption: &Caption,
@@ -262,21 +273,18 @@ pub fn k_phi_plane(
         .chain(pts.iter().map(|p| p.k + p.k_err))
         .fold(1.0, f64::max)
         * 1.3;
-    let mut variants: Vec<String> = Vec::new();
+    let mut groups: Vec<&str> = Vec::new();
     let styled: Vec<(&KPhiPoint, RGBColor, bool, Shape)> = pts
         .iter()
         .map(|p| {
-            let v = super::palette::variant_of(p.label);
-            let i = variants.iter().position(|w| *w == v).unwrap_or_else(|| {
-                variants.push(v);
-                variants.len() - 1
-            });
-            (
-                *p,
-                Source::of_label(p.label).colour(),
-                !p.label.contains("reported"),
-                Shape::nth(i),
-            )
+            let i = groups
+                .iter()
+                .position(|g| *g == p.group)
+                .unwrap_or_else(|| {
+                    groups.push(p.group);
+                    groups.len() - 1
+                });
+            (*p, p.source.colour(), !p.reported, Shape::nth(i))
         })
         .collect();
     let mut entries = vec![Entry::new(
@@ -294,7 +302,7 @@ pub fn k_phi_plane(
                 b.label, b.phi_deg, b.half_width_deg
             ),
             Key::Patch {
-                colour: Source::of_label(b.label).colour(),
+                colour: b.source.colour(),
                 opacity: 0.3,
             },
         ));
@@ -325,7 +333,7 @@ pub fn k_phi_plane(
         .draw()
         .map_err(err("axes"))?;
     for b in bands {
-        let col = Source::of_label(b.label).colour();
+        let col = b.source.colour();
         let w = b.half_width_deg.max(0.05);
         chart
             .draw_series(std::iter::once(Rectangle::new(
@@ -417,6 +425,9 @@ mod tests {
             &curve,
             &[KPhiPoint {
                 label: "native",
+                source: Source::Native,
+                group: "",
+                reported: false,
                 phi_deg: 25.0,
                 phi_err: 1.0,
                 k: 20.0,
@@ -424,6 +435,7 @@ mod tests {
             }],
             &[PhiBand {
                 label: "triaxial",
+                source: Source::Other,
                 phi_deg: 28.0,
                 half_width_deg: 0.5,
             }],
@@ -432,5 +444,71 @@ mod tests {
         let svg = std::fs::read_to_string(&q).unwrap();
         assert!(svg.contains("native (25.00 deg, 20.00)") && svg.contains("MALT"));
         assert!(svg.contains("triaxial (28.00 +- 0.50 deg)"));
+    }
+
+    /// The intruder is drawn apart from cells without data and from the scale's lowest
+    /// value: in a map whose intruder covers empty cells and cells at the scale's
+    /// minimum, the intruder's rect has its own fill (not the empty grey, not the
+    /// scale's colour at 0) and a dark outline, and the legend names it. Negative case:
+    /// the former translucent black over the hatched empty grey had no rect of its own
+    /// fill and no outline.
+    #[test]
+    fn intruder_is_not_an_empty_or_low_cell() {
+        use super::super::palette::hex;
+        let dir = tempfile::tempdir().unwrap();
+        let (nr, nz) = (8, 8);
+        // Empty cells at the top right, zeros (the scale's minimum) under the intruder.
+        let vals: Vec<f64> = (0..nr * nz)
+            .map(|c| match (c % nr, c / nr) {
+                (i, k) if k >= 6 && i >= 4 => f64::NAN,
+                (i, _) if i < 4 => 0.0,
+                (i, k) => (i + k) as f64 / 16.0,
+            })
+            .collect();
+        let map = RzMap {
+            nr,
+            nz,
+            r0: 0.0,
+            z0: -1.0,
+            spacing: 0.25,
+            values: &vals,
+        };
+        let scale = Scale::Sequential { lo: 0.0, hi: 1.0 };
+        let p = dir.path().join("gamma.svg");
+        rz_map(
+            &p,
+            &"gamma".into(),
+            "gamma",
+            &map,
+            scale,
+            &[],
+            Some((0.5, -0.5)),
+        )
+        .unwrap();
+        let svg = std::fs::read_to_string(&p).unwrap();
+        let doc = roxmltree::Document::parse(&svg).unwrap();
+        let rects: Vec<roxmltree::Node> = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("rect"))
+            .collect();
+        let filled = |c: &str| {
+            rects
+                .iter()
+                .filter(|n| n.attribute("fill") == Some(c))
+                .count()
+        };
+        let (empty, intruder, low) = (hex(EMPTY), hex(INTRUDER), hex(scale.colour(0.0)));
+        assert!(intruder != empty && intruder != low);
+        // Eight empty cells and the colour bar's swatch.
+        assert_eq!(filled(&empty), 9, "{svg}");
+        // The section and the legend's swatch.
+        assert_eq!(filled(&intruder), 2);
+        assert!(filled(&low) >= 32);
+        let outlined = rects
+            .iter()
+            .filter(|n| n.attribute("stroke") == Some(hex(INTRUDER_EDGE).as_str()))
+            .count();
+        assert!(outlined >= 2, "no intruder outline");
+        assert!(svg.contains("intruder (solid body, no grains)"));
     }
 }

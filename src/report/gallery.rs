@@ -9,9 +9,10 @@
 //! mobilised friction angle with a peak and a critical state), not measurements.
 
 use super::field_svg::{KPhiPoint, PhiBand, RzMap, k_phi_plane, rz_map};
-use super::palette::{OTHER, Scale};
+use super::overlay::Line;
+use super::palette::{OTHER, Scale, Source};
 use super::plot::Caption;
-use super::svg::{SweepSeries, fdr_overlay, sweep_with_error_bars};
+use super::svg::{FdrSeries, SweepSeries, fdr_overlay, sweep_with_error_bars};
 use super::svg_impact::depth_overlay;
 use super::svg_triaxial::phi_mob_overlay;
 use crate::analysis::fdr::{Fdr, steady_state_fit};
@@ -73,8 +74,8 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
     fdr_overlay(
         &path(FILES[0]),
         &[
-            ("native", &fa.h, &fa.p, Some(&ka)),
-            ("LIGGGHTS", &fb.h, &fb.p, Some(&kb)),
+            FdrSeries::new("native", Source::Native, &fa.h, &fa.p, Some(&ka)),
+            FdrSeries::new("LIGGGHTS", Source::Liggghts, &fb.h, &fb.p, Some(&kb)),
         ],
         &caption("FDR, native vs LIGGGHTS (mean of beds)"),
     )?;
@@ -83,24 +84,29 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
     let (da, db) = (depth_series(0.7, 1.0, 0.0), depth_series(0.7, 1.004, 0.3));
     depth_overlay(
         &path(FILES[1]),
-        &[("native", &da), ("LAMMPS", &db)],
+        &[
+            Line::new("native", Source::Native, &da),
+            Line::new("LAMMPS", Source::Lammps, &db),
+        ],
         &caption("D(t), native vs LAMMPS, v = 0.7 d/tau_c"),
     )?;
 
     // D(t) of a speed sweep: colour = speed, line style = engine.
     let speeds = [0.2, 0.4, 0.7, 1.0];
-    let runs: Vec<(String, Vec<(f64, f64)>)> = speeds
+    // (label, source, variant, points)
+    let runs: Vec<(String, Source, String, Vec<(f64, f64)>)> = speeds
         .iter()
         .flat_map(|&v| {
             [
-                (format!("native v={v}"), depth_series(v, 1.0, 0.0)),
-                (format!("LAMMPS v={v}"), depth_series(v, 1.003, 0.2)),
+                (Source::Native, depth_series(v, 1.0, 0.0)),
+                (Source::Lammps, depth_series(v, 1.003, 0.2)),
             ]
+            .map(|(e, s)| (format!("{} v={v}", e.name()), e, format!("v={v}"), s))
         })
         .collect();
-    let refs: Vec<(&str, &[(f64, f64)])> = runs
+    let refs: Vec<Line> = runs
         .iter()
-        .map(|(l, s)| (l.as_str(), s.as_slice()))
+        .map(|(l, e, v, s)| Line::new(l, *e, s).variant(v))
         .collect();
     depth_overlay(
         &path(FILES[2]),
@@ -140,12 +146,14 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
         &[
             SweepSeries {
                 label: "native",
+                source: Source::Native,
                 k: &ma,
                 se: &sa,
                 beds: &ba,
             },
             SweepSeries {
                 label: "LAMMPS",
+                source: Source::Lammps,
                 k: &mb,
                 se: &sb,
                 beds: &bb,
@@ -240,7 +248,10 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
         .collect();
     phi_mob_overlay(
         &path(FILES[6]),
-        &[("native", &pa), ("LIGGGHTS", &pb)],
+        &[
+            Line::new("native", Source::Native, &pa),
+            Line::new("LIGGGHTS", Source::Liggghts, &pb),
+        ],
         &caption("phi_mob(eps_a), sigma_c = 10 kPa, native vs LIGGGHTS"),
     )?;
 
@@ -253,6 +264,9 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
     let points = [
         KPhiPoint {
             label: "native, phi v2 (gated)",
+            source: Source::Native,
+            group: "phi v2",
+            reported: false,
             phi_deg: at(23.0)? + 0.8,
             phi_err: 1.1,
             k: 23.0,
@@ -260,6 +274,9 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
         },
         KPhiPoint {
             label: "LIGGGHTS, phi v2 (gated)",
+            source: Source::Liggghts,
+            group: "phi v2",
+            reported: false,
             phi_deg: at(24.0)? - 0.5,
             phi_err: 1.0,
             k: 24.0,
@@ -267,6 +284,9 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
         },
         KPhiPoint {
             label: "native, phi v1 (reported)",
+            source: Source::Native,
+            group: "phi v1",
+            reported: true,
             phi_deg: at(23.0)? - 2.0,
             phi_err: 1.5,
             k: 23.0,
@@ -274,6 +294,9 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
         },
         KPhiPoint {
             label: "LIGGGHTS, phi v1 (reported)",
+            source: Source::Liggghts,
+            group: "phi v1",
+            reported: true,
             phi_deg: at(24.0)? - 2.4,
             phi_err: 1.4,
             k: 24.0,
@@ -281,6 +304,9 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
         },
         KPhiPoint {
             label: "Feng et al. Table 3",
+            source: Source::Paper,
+            group: "Feng et al. Table 3",
+            reported: false,
             phi_deg: at(23.0)?,
             phi_err: 0.0,
             k: 23.0,
@@ -294,6 +320,7 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
         &points,
         &[PhiBand {
             label: "triaxial phi_cs, native",
+            source: Source::Native,
             phi_deg: 24.1,
             half_width_deg: 0.4,
         }],
@@ -304,7 +331,10 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
     let dc = depth_series(0.7, 1.12, 0.0);
     depth_overlay(
         &path(FILES[8]),
-        &[("native", &dc), ("LAMMPS", &db)],
+        &[
+            Line::new("native", Source::Native, &dc),
+            Line::new("LAMMPS", Source::Lammps, &db),
+        ],
         &caption("D(t), native vs LAMMPS").control(Some("friction x 0.8")),
     )?;
     Ok(FILES.iter().map(|f| dir.join(f)).collect())
@@ -376,23 +406,46 @@ mod tests {
         let line: Vec<(f64, f64)> = (0..50).map(|i| (i as f64, (i as f64).sqrt())).collect();
         let other: Vec<(f64, f64)> = line.iter().map(|q| (q.0, q.1 + 0.1)).collect();
         let c = Caption::new("t");
-        depth_overlay(&p("d.svg"), &[("native", &line), ("LAMMPS", &other)], &c).unwrap();
+        let (nat, lam, lig) = (Source::Native, Source::Lammps, Source::Liggghts);
+        depth_overlay(
+            &p("d.svg"),
+            &[
+                Line::new("native", nat, &line),
+                Line::new("LAMMPS", lam, &other),
+            ],
+            &c,
+        )
+        .unwrap();
         curves(
             &p("c.svg"),
-            &[("LIGGGHTS", &other), ("native", &line)],
+            &[
+                Line::new("LIGGGHTS", lig, &other),
+                Line::new("native", nat, &line),
+            ],
             &c,
             "x",
             "y",
             "u",
         )
         .unwrap();
-        phi_mob_overlay(&p("m.svg"), &[("native", &line), ("LIGGGHTS", &other)], &c).unwrap();
+        phi_mob_overlay(
+            &p("m.svg"),
+            &[
+                Line::new("native", nat, &line),
+                Line::new("LIGGGHTS", lig, &other),
+            ],
+            &c,
+        )
+        .unwrap();
         let h: Vec<f64> = line.iter().map(|q| q.0).collect();
         let (ya, yb): (Vec<f64>, Vec<f64>) =
             line.iter().zip(&other).map(|(a, b)| (a.1, b.1)).unzip();
         fdr_overlay(
             &p("f.svg"),
-            &[("native", &h, &ya, None), ("LIGGGHTS", &h, &yb, None)],
+            &[
+                FdrSeries::new("native", nat, &h, &ya, None),
+                FdrSeries::new("LIGGGHTS", lig, &h, &yb, None),
+            ],
             &c,
         )
         .unwrap();
@@ -417,12 +470,14 @@ mod tests {
             &[
                 SweepSeries {
                     label: "native",
+                    source: nat,
                     k: &[1.0, 2.0, 3.0],
                     se: &[0.1; 3],
                     beds: &beds,
                 },
                 SweepSeries {
                     label: "LAMMPS",
+                    source: lam,
                     k: &[1.1, 2.1, 3.1],
                     se: &[0.1; 3],
                     beds: &beds,
@@ -444,6 +499,9 @@ mod tests {
                 &[
                     KPhiPoint {
                         label: "native",
+                        source: nat,
+                        group: "",
+                        reported: false,
                         phi_deg: 20.0,
                         phi_err: 1.0,
                         k: 20.0,
@@ -451,6 +509,9 @@ mod tests {
                     },
                     KPhiPoint {
                         label: "LIGGGHTS",
+                        source: lig,
+                        group: "",
+                        reported: false,
                         phi_deg: 22.0,
                         phi_err: 1.0,
                         k: 22.0,
@@ -513,7 +574,10 @@ mod tests {
         let line: Vec<(f64, f64)> = (0..20).map(|i| (i as f64, i as f64)).collect();
         let title = "fig2: D(t), native vs LAMMPS";
         let (a, b) = (dir.path().join("a.svg"), dir.path().join("b.svg"));
-        let series = [("native", line.as_slice()), ("LAMMPS", line.as_slice())];
+        let series = [
+            Line::new("native", Source::Native, &line),
+            Line::new("LAMMPS", Source::Lammps, &line),
+        ];
         depth_overlay(
             &a,
             &series,

@@ -18,8 +18,34 @@ use anyhow::{Result, ensure};
 use plotters::prelude::*;
 use std::path::Path;
 
-/// `(label, [(x, y)])`; the label names the engine (and the variant, if any).
-pub type Line<'a> = (&'a str, &'a [(f64, f64)]);
+/// One line of an overlay. Its style comes from `source` and `variant`, set by the code
+/// that builds the line; `label` is the legend's text only.
+#[derive(Debug, Clone, Copy)]
+pub struct Line<'a> {
+    pub label: &'a str,
+    pub source: Source,
+    /// What tells lines of one source apart (a sweep value, a case); "" when there is
+    /// one of each source. Several variants make the figure a sweep: colour = variant.
+    pub variant: &'a str,
+    pub points: &'a [(f64, f64)],
+}
+
+impl<'a> Line<'a> {
+    /// A line of `source` with no variant.
+    pub fn new(label: &'a str, source: Source, points: &'a [(f64, f64)]) -> Line<'a> {
+        Line {
+            label,
+            source,
+            variant: "",
+            points,
+        }
+    }
+
+    /// The same line as variant `variant` of a sweep.
+    pub fn variant(self, variant: &'a str) -> Line<'a> {
+        Line { variant, ..self }
+    }
+}
 
 /// A fitted law drawn as a dashed line in its engine's colour with its legend entry
 /// (the law and its fitted values).
@@ -88,7 +114,7 @@ type Diff = (RGBColor, Source, Vec<(f64, f64)>, Grid);
 
 struct Styled<'a> {
     source: Source,
-    variant: String,
+    variant: &'a str,
     points: &'a [(f64, f64)],
     colour: RGBColor,
     dashed: bool,
@@ -118,19 +144,17 @@ pub fn overlay(
     fits: &[FitLine],
 ) -> Result<()> {
     ensure!(!lines.is_empty(), "overlay: no series to plot");
-    let mut variants: Vec<String> = Vec::new();
-    for (l, _) in lines {
-        let v = palette::variant_of(l);
-        if !variants.contains(&v) {
-            variants.push(v);
+    let mut variants: Vec<&str> = Vec::new();
+    for l in lines {
+        if !variants.contains(&l.variant) {
+            variants.push(l.variant);
         }
     }
     let sweep = variants.len() > 1;
     let styled: Vec<Styled> = lines
         .iter()
-        .map(|(l, p)| {
-            let source = Source::of_label(l);
-            let variant = palette::variant_of(l);
+        .map(|l| {
+            let (source, variant) = (l.source, l.variant);
             let vi = variants.iter().position(|v| *v == variant).unwrap_or(0);
             let native = source == Source::Native;
             Styled {
@@ -143,7 +167,7 @@ pub fn overlay(
                 dashed: sweep && source.dashed(),
                 width: if sweep || !native { 2 } else { 4 },
                 variant,
-                points: p,
+                points: l.points,
             }
         })
         .collect();
@@ -196,7 +220,7 @@ pub fn overlay(
         entries.push(Entry::new("colour = value", Key::Heading));
         for (i, v) in variants.iter().enumerate() {
             entries.push(Entry::new(
-                v.clone(),
+                *v,
                 Key::Line {
                     colour: palette::sweep_colour(i, variants.len()),
                     dashed: false,
@@ -205,9 +229,9 @@ pub fn overlay(
             ));
         }
     } else {
-        for (s, (l, _)) in styled.iter().zip(lines) {
+        for (s, l) in styled.iter().zip(lines) {
             entries.push(Entry::new(
-                *l,
+                l.label,
                 Key::Line {
                     colour: s.colour,
                     dashed: s.dashed,
@@ -256,7 +280,7 @@ pub fn overlay(
     let (x0, x1, mut y0, mut y1) = bounds(
         lines
             .iter()
-            .flat_map(|l| l.1.iter())
+            .flat_map(|l| l.points.iter())
             .chain(fits.iter().flat_map(|f| f.points.iter())),
     )
     .ok_or_else(|| anyhow::anyhow!("overlay: no finite points"))?;
@@ -394,5 +418,52 @@ mod tests {
         assert!(d.iter().all(|p| (p.1 - 1.0).abs() < 1e-12), "{d:?}");
         let back = vec![(0.0, 0.0), (1.0, 1.0), (0.5, 2.0)];
         assert!(difference(&back, &r).is_none());
+    }
+
+    /// A line's colour is its typed source, whatever its label says: a native line
+    /// labelled with every engine's name is native blue, and a LIGGGHTS line labelled
+    /// "native run" is vermillion. Negative control of the former label rule, which
+    /// coloured the second line native blue (its label contains "native") and left no
+    /// LIGGGHTS colour in the figure.
+    #[test]
+    fn colour_follows_the_source_not_the_label() {
+        use super::super::palette::{LAMMPS, LIGGGHTS, NATIVE, OTHER, hex};
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("o.svg");
+        let a: Vec<(f64, f64)> = (0..20).map(|i| (i as f64, i as f64)).collect();
+        let b: Vec<(f64, f64)> = a.iter().map(|q| (q.0, q.1 + 1.0)).collect();
+        overlay(
+            &p,
+            &"t".into(),
+            &Axes {
+                x: "x",
+                y: "y",
+                unit: "u",
+                y_down: false,
+            },
+            &[
+                Line::new("lammps native liggghts", Source::Native, &a),
+                Line::new("native run", Source::Liggghts, &b),
+            ],
+            &[],
+        )
+        .unwrap();
+        let svg = std::fs::read_to_string(&p).unwrap();
+        let doc = roxmltree::Document::parse(&svg).unwrap();
+        let strokes: std::collections::BTreeSet<String> = doc
+            .descendants()
+            .filter(|n| {
+                n.has_tag_name("polyline")
+                    && n.attribute("points")
+                        .is_some_and(|t| t.split_whitespace().count() >= 10)
+            })
+            .filter_map(|n| n.attribute("stroke").map(str::to_string))
+            .collect();
+        // Both lines, and the difference panel's line in the reference's colour.
+        let want: std::collections::BTreeSet<String> =
+            [hex(NATIVE), hex(LIGGGHTS)].into_iter().collect();
+        assert_eq!(strokes, want);
+        assert!(!svg.contains(&hex(LAMMPS)) && !svg.contains(&hex(OTHER)));
+        assert!(svg.contains("lammps native liggghts") && svg.contains("native run"));
     }
 }

@@ -9,6 +9,7 @@
 //! sequential scale samples viridis (van der Walt & Smith, matplotlib), perceptually
 //! uniform and readable in grey; the diverging scale is ColorBrewer's RdBu.
 
+use crate::rundata::provenance::EngineKind;
 use plotters::style::RGBColor;
 
 pub const NATIVE: RGBColor = RGBColor(0x00, 0x72, 0xB2);
@@ -23,14 +24,20 @@ pub const OTHER: RGBColor = RGBColor(0xCC, 0x79, 0xA7);
 /// contains, hatched with [`EMPTY_HATCH`].
 pub const EMPTY: RGBColor = RGBColor(0xC8, 0xC8, 0xC8);
 pub const EMPTY_HATCH: RGBColor = RGBColor(0x90, 0x90, 0x90);
+/// The intruder's section on a field map: a solid body, not a cell without data, so it
+/// is filled opaque in a dark neutral grey (no colour of either scale, and darker than
+/// [`EMPTY`], which is also hatched) and outlined in [`INTRUDER_EDGE`].
+pub const INTRUDER: RGBColor = RGBColor(0x60, 0x60, 0x60);
+pub const INTRUDER_EDGE: RGBColor = RGBColor(0, 0, 0);
 /// Zero lines and other guides.
 pub const GUIDE: RGBColor = RGBColor(0x80, 0x80, 0x80);
 /// The frame and stamp of a negative-control figure (Okabe-Ito orange).
 pub const CONTROL: RGBColor = RGBColor(0xE6, 0x9F, 0x00);
 
-/// Who produced a series. Figures are told by the series' label, which in granval always
-/// names its engine ("native", "LIGGGHTS", "LAMMPS") or the paper ("published", "Feng
-/// et al.", "Kondic et al.", "paper").
+/// Who produced a series. Every series carries its source as data, set where the
+/// series is built (from the run's [`EngineKind`], or by the code that reads a paper's
+/// values), so a figure's colours never depend on how its labels are worded: a label is
+/// display text only, and renaming it cannot recolour a figure.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Source {
     Native,
@@ -40,24 +47,24 @@ pub enum Source {
     Other,
 }
 
-impl Source {
-    /// The source a label names (case-insensitive); [`Source::Other`] if none.
-    pub fn of_label(label: &str) -> Source {
-        let l = label.to_ascii_lowercase();
-        if l.contains("native") {
-            Source::Native
-        } else if l.contains("liggghts") {
-            Source::Liggghts
-        } else if l.contains("lammps") {
-            Source::Lammps
-        } else if ["published", "paper", "feng et al", "kondic et al"]
-            .iter()
-            .any(|w| l.contains(w))
-        {
-            Source::Paper
-        } else {
-            Source::Other
+/// A run's engine is its series' source: callers holding a provenance (or the engine a
+/// run was made with) pass it on instead of naming the engine in text.
+impl From<EngineKind> for Source {
+    fn from(e: EngineKind) -> Source {
+        match e {
+            EngineKind::Native => Source::Native,
+            EngineKind::Liggghts => Source::Liggghts,
+            EngineKind::Lammps => Source::Lammps,
         }
+    }
+}
+
+impl Source {
+    /// The source of a series keyed by an engine's lower-case key in a run summary
+    /// ([`EngineKind::from_key`]); [`Source::Other`] for a key naming no engine, so an
+    /// unknown producer never borrows an engine's colour.
+    pub fn of_engine_key(key: &str) -> Source {
+        EngineKind::from_key(key).map_or(Source::Other, Source::from)
     }
 
     pub fn colour(self) -> RGBColor {
@@ -90,22 +97,6 @@ impl Source {
             Source::Other => "other",
         }
     }
-}
-
-/// The label with its engine's word removed: what distinguishes series of one engine
-/// (a sweep value, a case), e.g. "native v=0.4" -> "v=0.4".
-pub fn variant_of(label: &str) -> String {
-    let words: Vec<&str> = label
-        .split_whitespace()
-        .filter(|w| {
-            let w = w.trim_matches(|c: char| !c.is_ascii_alphanumeric());
-            !["native", "liggghts", "lammps"].contains(&w.to_ascii_lowercase().as_str())
-        })
-        .collect();
-    words
-        .join(" ")
-        .trim_matches(|c: char| c == ',' || c == ':' || c.is_whitespace())
-        .to_string()
 }
 
 /// viridis at 9 evenly spaced points of [0, 1] (matplotlib's table).
@@ -232,20 +223,26 @@ pub fn hex(c: RGBColor) -> String {
 mod tests {
     use super::*;
 
-    /// The label rule: an engine's word anywhere in a label picks its colour; a label
-    /// naming none is Other (so a new engine cannot silently borrow native blue).
+    /// Each engine is its own source, and a summary's engine key maps exactly (a key
+    /// naming no engine, or an engine's display name in other case, is Other: keys are
+    /// matched, never searched for words).
     #[test]
-    fn labels_name_their_source() {
-        assert_eq!(Source::of_label("native v=0.4"), Source::Native);
-        assert_eq!(Source::of_label("fig2 LAMMPS"), Source::Lammps);
-        assert_eq!(Source::of_label("case liggghts"), Source::Liggghts);
-        assert_eq!(Source::of_label("published values"), Source::Paper);
-        assert_eq!(Source::of_label("Feng et al. Table 3"), Source::Paper);
-        assert_eq!(Source::of_label("yield region"), Source::Other);
-        assert_eq!(variant_of("native v=0.4"), "v=0.4");
-        assert_eq!(variant_of("fig2-v0.7 LAMMPS"), "fig2-v0.7");
-        assert_eq!(variant_of("native"), "");
-        let all = [NATIVE, LIGGGHTS, LAMMPS, PAPER, OTHER, EMPTY];
+    fn engines_are_their_sources() {
+        assert_eq!(Source::from(EngineKind::Native), Source::Native);
+        assert_eq!(Source::from(EngineKind::Liggghts), Source::Liggghts);
+        assert_eq!(Source::from(EngineKind::Lammps), Source::Lammps);
+        for e in [EngineKind::Native, EngineKind::Liggghts, EngineKind::Lammps] {
+            assert_eq!(Source::from(e), Source::of_engine_key(e.key()));
+            // The key is the engine's serde form, the key summaries are written with.
+            assert_eq!(
+                serde_json::to_string(&e).unwrap(),
+                format!("\"{}\"", e.key())
+            );
+        }
+        assert_eq!(Source::of_engine_key("liggghts"), Source::Liggghts);
+        assert_eq!(Source::of_engine_key("lammps native"), Source::Other);
+        assert_eq!(Source::of_engine_key("paper"), Source::Other);
+        let all = [NATIVE, LIGGGHTS, LAMMPS, PAPER, OTHER, EMPTY, INTRUDER];
         for (i, a) in all.iter().enumerate() {
             for b in &all[i + 1..] {
                 assert_ne!(a, b);
@@ -253,7 +250,8 @@ mod tests {
         }
     }
 
-    /// The empty colour is no colour of either scale (checked at 1001 points), and a
+    /// The empty and intruder colours are no colour of either scale (checked at 1001
+    /// points), and a
     /// diverging scale maps 0 to white.
     #[test]
     fn empty_is_outside_both_scales() {
@@ -263,8 +261,10 @@ mod tests {
         assert_eq!(div.colour(0.0), RGBColor(0xF7, 0xF7, 0xF7));
         for k in 0..=1000 {
             let v = k as f64 / 1000.0;
-            assert_ne!(seq.colour(v), EMPTY);
-            assert_ne!(div.colour(2.0 * v - 1.0), EMPTY);
+            for c in [EMPTY, INTRUDER] {
+                assert_ne!(seq.colour(v), c);
+                assert_ne!(div.colour(2.0 * v - 1.0), c);
+            }
         }
         assert_eq!(seq.colour(f64::NAN), EMPTY);
         assert_eq!(viridis(0.0), RGBColor(0x44, 0x01, 0x54));

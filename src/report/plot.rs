@@ -7,7 +7,7 @@
 //! fixed-width rule and emits plain `<text>` elements with a generic font family,
 //! which every SVG viewer renders; no font files are needed.
 
-use super::palette::{self, CONTROL, EMPTY, EMPTY_HATCH};
+use super::palette::{CONTROL, EMPTY, EMPTY_HATCH, INTRUDER, INTRUDER_EDGE, Source};
 use anyhow::anyhow;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -97,6 +97,8 @@ pub enum Key {
     Patch { colour: RGBColor, opacity: f64 },
     /// The empty-cell swatch of field maps.
     Empty,
+    /// The intruder's swatch of field maps: its fill with its outline.
+    Intruder,
     /// No key: a heading over the entries below it.
     Heading,
 }
@@ -275,6 +277,18 @@ pub fn draw_key(area: &Area<'_>, key: Key, x: i32, y: i32) -> anyhow::Result<()>
                 .map_err(err("legend key"))?;
             }
         }
+        Key::Intruder => {
+            area.draw(&Rectangle::new(
+                [(x, y - 6), (x + 30, y + 6)],
+                INTRUDER.filled(),
+            ))
+            .map_err(err("legend key"))?;
+            area.draw(&Rectangle::new(
+                [(x, y - 6), (x + 30, y + 6)],
+                INTRUDER_EDGE.stroke_width(2),
+            ))
+            .map_err(err("legend key"))?;
+        }
         Key::Heading => {}
     }
     Ok(())
@@ -337,10 +351,9 @@ pub fn draw_legend(area: &Area<'_>, entries: &[Entry]) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The line key of a series from its label: its engine's colour, dashed for a
-/// reference engine when `dashed_refs`.
-pub fn engine_key(label: &str, width: u32, dashed_refs: bool) -> Key {
-    let s = palette::Source::of_label(label);
+/// The line key of a series of `s`: its source's colour, dashed for a reference engine
+/// when `dashed_refs`.
+pub fn engine_key(s: Source, width: u32, dashed_refs: bool) -> Key {
     Key::Line {
         colour: s.colour(),
         dashed: dashed_refs && s.dashed(),

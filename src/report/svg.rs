@@ -3,7 +3,7 @@
 //! along a sweep with error bars (K_phi of Table 3, a seed ensemble's final depth).
 //! The K-phi plane of the stress analysis is drawn in `field_svg`.
 
-use super::overlay::{Axes, FitLine, overlay};
+use super::overlay::{Axes, FitLine, Line, overlay};
 use super::palette::{PAPER, Source};
 use super::plot::{Caption, Entry, FONT, Key, Shape, canvas, err};
 use crate::analysis::fdr::LinearFit;
@@ -29,40 +29,70 @@ fn range<'a>(vals: impl Iterator<Item = &'a f64>, what: &str) -> Result<(f64, f6
     Ok((lo, hi))
 }
 
-/// One FDR series: label, h, p, optional steady-state fit.
-pub type FdrSeries<'a> = (&'a str, &'a [f64], &'a [f64], Option<&'a LinearFit>);
+/// One FDR series: its legend text, who produced it and its variant (see
+/// [`Line`]), h, p and the optional steady-state fit.
+#[derive(Debug, Clone, Copy)]
+pub struct FdrSeries<'a> {
+    pub label: &'a str,
+    pub source: Source,
+    pub variant: &'a str,
+    pub h: &'a [f64],
+    pub p: &'a [f64],
+    pub fit: Option<&'a LinearFit>,
+}
+
+impl<'a> FdrSeries<'a> {
+    /// A series of `source` with no variant.
+    pub fn new(
+        label: &'a str,
+        source: Source,
+        h: &'a [f64],
+        p: &'a [f64],
+        fit: Option<&'a LinearFit>,
+    ) -> FdrSeries<'a> {
+        FdrSeries {
+            label,
+            source,
+            variant: "",
+            h,
+            p,
+            fit,
+        }
+    }
+}
 
 /// Overlay of FDRs, each fit a dashed line in its engine's colour over the fit's own h
 /// range (`h_lo..h_hi`), labelled with the fitted law and its values. Axis labels
 /// follow eq 5; the difference panel is p_reference - p_native.
 pub fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], caption: &Caption) -> Result<()> {
     ensure!(!series.is_empty(), "fdr_overlay: no series to plot");
-    for (label, h, p, _) in series {
+    for s in series {
         ensure!(
-            h.len() == p.len(),
-            "series '{label}': h and p differ in length ({} vs {})",
-            h.len(),
-            p.len()
+            s.h.len() == s.p.len(),
+            "series '{}': h and p differ in length ({} vs {})",
+            s.label,
+            s.h.len(),
+            s.p.len()
         );
     }
     let pts: Vec<Vec<(f64, f64)>> = series
         .iter()
-        .map(|(_, h, p, _)| h.iter().copied().zip(p.iter().copied()).collect())
+        .map(|s| s.h.iter().copied().zip(s.p.iter().copied()).collect())
         .collect();
-    let lines: Vec<(&str, &[(f64, f64)])> = series
+    let lines: Vec<Line> = series
         .iter()
         .zip(&pts)
-        .map(|(s, p)| (s.0, p.as_slice()))
+        .map(|(s, p)| Line::new(s.label, s.source, p).variant(s.variant))
         .collect();
     let fits: Vec<FitLine> = series
         .iter()
-        .filter_map(|(label, _, _, fit)| {
-            fit.map(|f| FitLine {
+        .filter_map(|s| {
+            s.fit.map(|f| FitLine {
                 label: format!(
-                    "{label} fit p = K_phi h + p0: K_phi = {:.2} +- {:.2}, p0 = {:.2}, R^2 = {:.4}",
-                    f.k_phi, f.se_k, f.p0, f.r2
+                    "{} fit p = K_phi h + p0: K_phi = {:.2} +- {:.2}, p0 = {:.2}, R^2 = {:.4}",
+                    s.label, f.k_phi, f.se_k, f.p0, f.r2
                 ),
-                source: Source::of_label(label),
+                source: s.source,
                 points: (0..=50)
                     .map(|k| {
                         let x = f.h_lo + (f.h_hi - f.h_lo) * k as f64 / 50.0;
@@ -91,6 +121,8 @@ pub fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], caption: &Caption) -> 
 /// beds' values (drawn small, so the scatter a claim must beat is visible).
 pub struct SweepSeries<'a> {
     pub label: &'a str,
+    /// Who produced the values: the series' colour.
+    pub source: Source,
     pub k: &'a [f64],
     pub se: &'a [f64],
     pub beds: &'a [Vec<f64>],
@@ -160,7 +192,7 @@ pub fn sweep_with_error_bars(
     let (y0, y1) = padded(y0.min(0.0), y1);
     let mut entries: Vec<Entry> = Vec::new();
     for s in series {
-        let col = Source::of_label(s.label).colour();
+        let col = s.source.colour();
         entries.push(Entry::new(
             format!("{} mean +- 1 SE", s.label),
             Key::Marker {
@@ -204,7 +236,7 @@ pub fn sweep_with_error_bars(
         .draw()
         .map_err(err("axes"))?;
     for (i, s) in series.iter().enumerate() {
-        let col = Source::of_label(s.label).colour();
+        let col = s.source.colour();
         let off = (i as f64 - 0.5 * (series.len() as f64 - 1.0)) * dx;
         let pts: Vec<(f64, f64)> = x.iter().zip(s.k).map(|(a, k)| (a + off, *k)).collect();
         chart
@@ -277,7 +309,10 @@ mod tests {
         let path = dir.path().join("fdr.svg");
         fdr_overlay(
             &path,
-            &[("native", &h, &pa, Some(&fit)), ("liggghts", &h, &pb, None)],
+            &[
+                FdrSeries::new("native", Source::Native, &h, &pa, Some(&fit)),
+                FdrSeries::new("liggghts", Source::Liggghts, &h, &pb, None),
+            ],
             &"FDR overlay".into(),
         )
         .unwrap();
@@ -302,6 +337,7 @@ mod tests {
             &[0.5, 1.0, 2.0],
             &[SweepSeries {
                 label: "native",
+                source: Source::Native,
                 k: &[23.0, 23.2, 23.5],
                 se: &[0.5, 0.4, 0.6],
                 beds: &beds,
@@ -314,6 +350,7 @@ mod tests {
             svg.contains("v (cm/s)") && svg.contains("published values") && svg.contains("native")
         );
         assert!(k_phi_sweep(&q, &"t".into(), "x", &[1.0], &[], Some(&[1.0, 2.0])).is_err());
-        assert!(fdr_overlay(&path, &[("bad", &h, &pa[..3], None)], &"x".into()).is_err());
+        let bad = FdrSeries::new("bad", Source::Native, &h, &pa[..3], None);
+        assert!(fdr_overlay(&path, &[bad], &"x".into()).is_err());
     }
 }

@@ -3,15 +3,15 @@
 //! difference panel of [`super::overlay`], and grain maps (K Figs 24-27).
 
 use super::field_svg::colour_bar;
-use super::overlay::{Axes, overlay};
+use super::overlay::{Axes, Line, overlay};
 use super::palette::Scale;
 use super::plot::{Caption, FONT, canvas, err};
 use anyhow::{Result, ensure};
 use plotters::prelude::*;
 use std::path::Path;
 
-/// `(label, [(t / tau_c, D / d)])`.
-pub type DepthSeries<'a> = (&'a str, &'a [(f64, f64)]);
+/// A line of (t / tau_c, D / d).
+pub type DepthSeries<'a> = Line<'a>;
 
 /// D / d against t / tau_c, one line per engine and variant.
 pub fn depth_overlay(path: &Path, series: &[DepthSeries<'_>], caption: &Caption) -> Result<()> {
@@ -29,8 +29,8 @@ pub fn depth_overlay(path: &Path, series: &[DepthSeries<'_>], caption: &Caption)
     )
 }
 
-/// `(label, [(x, y)])` of a line plot.
-pub type Curve<'a> = (&'a str, &'a [(f64, f64)]);
+/// A line of a line plot.
+pub type Curve<'a> = Line<'a>;
 
 /// Lines on ordinary axes (K Figs 21-23: F(t), B0 against the force threshold); `unit`
 /// is y's unit in the difference panel.

@@ -2,13 +2,13 @@
 //! of the wall stresses against the axial strain, one line per engine, with the
 //! difference panel of [`super::overlay`].
 
-use super::overlay::{Axes, overlay};
+use super::overlay::{Axes, Line, overlay};
 use super::plot::Caption;
 use anyhow::Result;
 use std::path::Path;
 
-/// `(label, [(eps_a, phi_mob in degrees)])`.
-pub type PhiSeries<'a> = (&'a str, &'a [(f64, f64)]);
+/// A line of (eps_a, phi_mob in degrees).
+pub type PhiSeries<'a> = Line<'a>;
 
 pub fn phi_mob_overlay(path: &Path, series: &[PhiSeries<'_>], caption: &Caption) -> Result<()> {
     overlay(

@@ -20,6 +20,23 @@ impl EngineKind {
         matches!(self, EngineKind::Liggghts | EngineKind::Lammps)
     }
 
+    /// The lower-case key an engine is stored under (its serde form, and the key of
+    /// per-engine maps in run summaries).
+    pub fn key(self) -> &'static str {
+        match self {
+            EngineKind::Native => "native",
+            EngineKind::Liggghts => "liggghts",
+            EngineKind::Lammps => "lammps",
+        }
+    }
+
+    /// The engine whose [`EngineKind::key`] is exactly `key`; `None` otherwise.
+    pub fn from_key(key: &str) -> Option<EngineKind> {
+        [EngineKind::Native, EngineKind::Liggghts, EngineKind::Lammps]
+            .into_iter()
+            .find(|e| e.key() == key)
+    }
+
     pub fn label(self) -> &'static str {
         match self {
             EngineKind::Native => "native",

@@ -933,14 +933,12 @@ pub(crate) fn fdr_checks(
                 if let Some(c) = cp::published(case, o, label) {
                     checks.push(c);
                 }
-                curves.push((
-                    if label == "native" {
-                        "native"
-                    } else {
-                        "LIGGGHTS"
-                    },
-                    o,
-                ));
+                let engine = if label == "native" {
+                    EngineKind::Native
+                } else {
+                    EngineKind::Liggghts
+                };
+                curves.push((engine, o));
             }
             Some(Err(e)) => checks.push(Check::error(
                 name(&format!("{label} observables")),
@@ -963,7 +961,15 @@ pub(crate) fn fdr_checks(
     }
     let series: Vec<_> = curves
         .iter()
-        .map(|(l, o)| (*l, o.fdr.h.as_slice(), o.fdr.p.as_slice(), Some(&o.fit)))
+        .map(|(e, o)| {
+            crate::report::svg::FdrSeries::new(
+                e.label(),
+                (*e).into(),
+                &o.fdr.h,
+                &o.fdr.p,
+                Some(&o.fit),
+            )
+        })
         .collect();
     if !series.is_empty()
         && let Err(e) = crate::report::svg::fdr_overlay(

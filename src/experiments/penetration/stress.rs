@@ -456,6 +456,7 @@ fn run_checks(
         .filter(|(_, k)| *k <= 2e3)
         .collect();
     use crate::report::field_svg::{KPhiPoint, k_phi_plane};
+    use crate::rundata::provenance::EngineKind;
     // Both estimators for both engines (docs/stress.md rule 6: v1 beside v2), the gated
     // one named so; K_phi is the same FDR fit for both.
     let (gated, other) = if v2_gated { ("v2", "v1") } else { ("v1", "v2") };
@@ -465,9 +466,19 @@ fn run_checks(
         format!("native, phi {other} (reported)"),
         format!("LIGGGHTS, phi {other} (reported)"),
     ];
-    fn kp<'a>(label: &'a str, p: &EnginePoint) -> KPhiPoint<'a> {
+    let groups = [format!("phi {gated}"), format!("phi {other}")];
+    fn kp<'a>(
+        label: &'a str,
+        engine: EngineKind,
+        group: &'a str,
+        reported: bool,
+        p: &EnginePoint,
+    ) -> KPhiPoint<'a> {
         KPhiPoint {
             label,
+            source: engine.into(),
+            group,
+            reported,
             phi_deg: p.phi_deg,
             phi_err: p.phi_std_deg,
             k: p.k_phi,
@@ -475,13 +486,16 @@ fn run_checks(
         }
     }
     let mut points = vec![
-        kp(&labels[0], &np),
-        kp(&labels[1], &lp),
-        kp(&labels[2], onp),
-        kp(&labels[3], olp),
+        kp(&labels[0], EngineKind::Native, &groups[0], false, &np),
+        kp(&labels[1], EngineKind::Liggghts, &groups[0], false, &lp),
+        kp(&labels[2], EngineKind::Native, &groups[1], true, onp),
+        kp(&labels[3], EngineKind::Liggghts, &groups[1], true, olp),
     ];
     points.push(KPhiPoint {
         label: "Feng et al. Table 3",
+        source: crate::report::palette::Source::Paper,
+        group: "Feng et al. Table 3",
+        reported: false,
         phi_deg: malt::phi_of_k(23.00)?.to_degrees(),
         phi_err: 0.0,
         k: 23.00,
