@@ -93,8 +93,9 @@ pub fn write_all(dir: &Path) -> Result<Vec<PathBuf>> {
 
     // D(t) of a speed sweep: colour = speed, line style = engine.
     let speeds = [0.2, 0.4, 0.7, 1.0];
+    type Run = (String, Source, String, Vec<(f64, f64)>);
     // (label, source, variant, points)
-    let runs: Vec<(String, Source, String, Vec<(f64, f64)>)> = speeds
+    let runs: Vec<Run> = speeds
         .iter()
         .flat_map(|&v| {
             [
