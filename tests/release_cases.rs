@@ -163,6 +163,72 @@ fn kondic_fig9_case_sweeps_five_gravities_with_two_claims() {
     );
 }
 
+/// Kondic et al. Fig 9 on five seeds as registered: the one-bed case's physics on seeds
+/// 1-5 of the Fig 2 bed (nothing else differs), with both claims read as trends over
+/// ln g (depth and time of the maximum fall with g by 1 d and 5 tau_c per e-fold) and
+/// both controls.
+#[test]
+fn kondic_fig9_five_seed_case_is_the_one_bed_case_on_seeds_1_to_5_with_two_trends() {
+    use granval::case::impact2d::{Claim, ClaimQuantity, TrendDirection};
+    let load = |rel: &str| match AnyCase::load(&common::root().join(rel))
+        .unwrap_or_else(|e| panic!("{e}"))
+    {
+        AnyCase::Impact2d(c) => c,
+        _ => panic!("not an impact2d case"),
+    };
+    let one = load("cases/release/kondic-fig9-gravity.toml");
+    let five = load("cases/release/kondic-fig9-gravity-5seeds.toml");
+    assert_eq!(five.seeds, [1, 2, 3, 4, 5]);
+    assert_eq!(one.seed, 1);
+    let values = |c: &granval::case::impact2d::Impact2dCase| {
+        let mut x: Vec<f64> = c.variants.iter().map(|v| v.x).collect();
+        x.dedup();
+        x
+    };
+    assert_eq!(values(&one), values(&five));
+    assert_eq!(five.variants.len(), 25);
+    for v in &five.variants {
+        let base = one
+            .variants
+            .iter()
+            .find(|o| o.x == v.x)
+            .expect("every value of the one-bed case");
+        assert_eq!(v.speed, base.speed);
+        assert_eq!(v.gravity, base.gravity);
+        assert_eq!(
+            serde_json::to_string(&v.grains).unwrap(),
+            serde_json::to_string(&base.grains).unwrap()
+        );
+    }
+    let trends: Vec<(ClaimQuantity, f64, bool, TrendDirection)> = five
+        .claims
+        .iter()
+        .map(|k| match k {
+            Claim::Trend {
+                of,
+                min_slope,
+                log_x,
+                direction,
+                ..
+            } => (*of, *min_slope, *log_x, *direction),
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    assert_eq!(
+        trends,
+        vec![
+            (ClaimQuantity::FinalDepth, 1.0, true, TrendDirection::Falls),
+            (
+                ClaimQuantity::TimeOfMaxDepth,
+                5.0,
+                true,
+                TrendDirection::Falls
+            )
+        ]
+    );
+    assert_eq!(five.negative_controls.len(), 2);
+}
+
 /// Feng et al. Fig 3(b) as registered: four points differing only in mu_gg, on the
 /// frictionless case's seeds, and three claims over them.
 #[test]

@@ -455,7 +455,7 @@ pub enum TrendDirection {
 
 impl TrendDirection {
     /// +1 for `rises`, -1 for `falls`: the slope the claim judges is sign x slope.
-    pub fn sign(self) -> f64 {
+    pub(crate) fn sign(self) -> f64 {
         match self {
             TrendDirection::Rises => 1.0,
             TrendDirection::Falls => -1.0,

@@ -32,7 +32,7 @@ pub struct Line<'a> {
 
 impl<'a> Line<'a> {
     /// A line of `source` with no variant.
-    pub fn new(label: &'a str, source: Source, points: &'a [(f64, f64)]) -> Line<'a> {
+    pub(crate) fn new(label: &'a str, source: Source, points: &'a [(f64, f64)]) -> Line<'a> {
         Line {
             label,
             source,
@@ -42,7 +42,7 @@ impl<'a> Line<'a> {
     }
 
     /// The same line as variant `variant` of a sweep.
-    pub fn variant(self, variant: &'a str) -> Line<'a> {
+    pub(crate) fn variant(self, variant: &'a str) -> Line<'a> {
         Line { variant, ..self }
     }
 }

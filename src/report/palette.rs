@@ -27,8 +27,8 @@ pub const EMPTY_HATCH: RGBColor = RGBColor(0x90, 0x90, 0x90);
 /// The intruder's section on a field map: a solid body, not a cell without data, so it
 /// is filled opaque in a dark neutral grey (no colour of either scale, and darker than
 /// [`EMPTY`], which is also hatched) and outlined in [`INTRUDER_EDGE`].
-pub const INTRUDER: RGBColor = RGBColor(0x60, 0x60, 0x60);
-pub const INTRUDER_EDGE: RGBColor = RGBColor(0, 0, 0);
+pub(crate) const INTRUDER: RGBColor = RGBColor(0x60, 0x60, 0x60);
+pub(crate) const INTRUDER_EDGE: RGBColor = RGBColor(0, 0, 0);
 /// Zero lines and other guides.
 pub const GUIDE: RGBColor = RGBColor(0x80, 0x80, 0x80);
 /// The frame and stamp of a negative-control figure (Okabe-Ito orange).
@@ -63,7 +63,7 @@ impl Source {
     /// The source of a series keyed by an engine's lower-case key in a run summary
     /// ([`EngineKind::from_key`]); [`Source::Other`] for a key naming no engine, so an
     /// unknown producer never borrows an engine's colour.
-    pub fn of_engine_key(key: &str) -> Source {
+    pub(crate) fn of_engine_key(key: &str) -> Source {
         EngineKind::from_key(key).map_or(Source::Other, Source::from)
     }
 

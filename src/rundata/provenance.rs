@@ -22,7 +22,7 @@ impl EngineKind {
 
     /// The lower-case key an engine is stored under (its serde form, and the key of
     /// per-engine maps in run summaries).
-    pub fn key(self) -> &'static str {
+    pub(crate) fn key(self) -> &'static str {
         match self {
             EngineKind::Native => "native",
             EngineKind::Liggghts => "liggghts",
@@ -31,7 +31,7 @@ impl EngineKind {
     }
 
     /// The engine whose [`EngineKind::key`] is exactly `key`; `None` otherwise.
-    pub fn from_key(key: &str) -> Option<EngineKind> {
+    pub(crate) fn from_key(key: &str) -> Option<EngineKind> {
         [EngineKind::Native, EngineKind::Liggghts, EngineKind::Lammps]
             .into_iter()
             .find(|e| e.key() == key)
