@@ -14,6 +14,13 @@ fn penetration(rel: &str) -> PenetrationCase {
     }
 }
 
+fn impact2d(rel: &str) -> granval::case::impact2d::Impact2dCase {
+    match AnyCase::load(&common::root().join(rel)).unwrap_or_else(|e| panic!("{e}")) {
+        AnyCase::Impact2d(c) => c,
+        _ => panic!("{rel}: not an impact2d case"),
+    }
+}
+
 #[test]
 fn release_suite_lists_the_frictionless_and_mid_scale_cases() {
     let s = granval::experiments::suite::load(&common::root().join("cases"), "release").unwrap();
@@ -135,12 +142,7 @@ fn release_suite_records_under_reference_release() {
 #[test]
 fn kondic_fig9_case_sweeps_five_gravities_with_two_claims() {
     use granval::case::impact2d::{Claim, ClaimQuantity};
-    let c = match AnyCase::load(&common::root().join("cases/release/kondic-fig9-gravity.toml"))
-        .unwrap_or_else(|e| panic!("{e}"))
-    {
-        AnyCase::Impact2d(c) => c,
-        _ => panic!("not an impact2d case"),
-    };
+    let c = impact2d("cases/release/kondic-fig9-gravity.toml");
     let g: Vec<f64> = c.variants.iter().map(|v| v.x).collect();
     assert_eq!(g.len(), 5);
     assert!(g.windows(2).all(|w| w[0] > w[1]), "{g:?}");
@@ -170,12 +172,7 @@ fn kondic_fig9_case_sweeps_five_gravities_with_two_claims() {
 #[test]
 fn kondic_fig9_five_seed_case_is_the_one_bed_case_on_seeds_1_to_5_with_two_trends() {
     use granval::case::impact2d::{Claim, ClaimQuantity, TrendDirection};
-    let load = |rel: &str| match AnyCase::load(&common::root().join(rel))
-        .unwrap_or_else(|e| panic!("{e}"))
-    {
-        AnyCase::Impact2d(c) => c,
-        _ => panic!("not an impact2d case"),
-    };
+    let load = impact2d;
     let one = load("cases/release/kondic-fig9-gravity.toml");
     let five = load("cases/release/kondic-fig9-gravity-5seeds.toml");
     assert_eq!(five.seeds, [1, 2, 3, 4, 5]);
@@ -455,12 +452,7 @@ fn fig3a_3d_3g_points_differ_from_the_fig3b_point_only_as_registered() {
 fn kondic_fig11_case_sweeps_two_sizes_of_three_seeds_from_the_fig2_bed() {
     use granval::case::impact2d::{Claim, Impact2dCase};
     use granval::physics::dem2d::impact::bed_spec;
-    let load = |rel: &str| match AnyCase::load(&common::root().join(rel))
-        .unwrap_or_else(|e| panic!("{e}"))
-    {
-        AnyCase::Impact2d(c) => c,
-        _ => panic!("{rel}: not an impact2d case"),
-    };
+    let load = impact2d;
     let c: Impact2dCase = load("cases/release/kondic-fig11-size.toml");
     let fig2 = load("cases/impact2d/fig2-v0.7.toml");
     let d = c.scales.d;
@@ -533,10 +525,7 @@ fn kondic_five_seed_cases_are_the_fig2_bed_on_seeds_1_to_5_sharing_fig11_beds() 
     use granval::case::impact2d::{Claim, Impact2dCase};
     use granval::physics::dem2d::impact::bed_spec;
     let root = common::root();
-    let load = |rel: &str| match AnyCase::load(&root.join(rel)).unwrap_or_else(|e| panic!("{e}")) {
-        AnyCase::Impact2d(c) => c,
-        _ => panic!("{rel}: not an impact2d case"),
-    };
+    let load = impact2d;
     let fig2 = std::fs::read_to_string(root.join("cases/impact2d/fig2-speed.toml"))
         .unwrap()
         .replace("seed = 1\n", "seeds = [1, 2, 3, 4, 5]\n");

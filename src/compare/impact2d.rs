@@ -799,6 +799,23 @@ pub(crate) fn ensemble_stats(
         .collect()
 }
 
+/// Per seed, the least-squares slope of its values against `x` (one x per entry of
+/// `values`, the same seeds at every value: the bed-to-bed offset drops out), for every
+/// seed present at every value; a seed missing somewhere is left out, and the callers
+/// decide nothing unless every seed gave a slope.
+fn per_seed_slopes(values: &[&ValueStats], seeds: &[u64], x: &[f64]) -> Vec<f64> {
+    seeds
+        .iter()
+        .filter_map(|seed| {
+            let ys: Option<Vec<f64>> = values
+                .iter()
+                .map(|v| v.seeds.iter().find(|s| s.0 == *seed).map(|s| s.1))
+                .collect();
+            Estimate::slope(x, &ys?).map(|e| e.value)
+        })
+        .collect()
+}
+
 /// A claim on a seed ensemble in one engine (docs/impact2d.md, "Seed ensembles";
 /// docs/statistics.md): `increasing` tests the per-seed rise of every step against
 /// min_step; `trend` the mean per-seed slope against min_slope; `linear` the per-seed
@@ -872,17 +889,11 @@ fn ensemble_claim_check(
             // Per seed, the least-squares slope over every value (the same seeds at
             // every value: the bed-to-bed offset drops out), signed so that the claimed
             // direction is positive; the claim's slope is the mean over the seeds.
-            let slopes: Vec<f64> = case
-                .seeds
-                .iter()
-                .filter_map(|seed| {
-                    let ys: Option<Vec<f64>> = stats
-                        .iter()
-                        .map(|v| v.seeds.iter().find(|s| s.0 == *seed).map(|s| s.1))
-                        .collect();
-                    Estimate::slope(&x, &ys?).map(|e| sign * e.value)
-                })
-                .collect();
+            let slopes: Vec<f64> =
+                per_seed_slopes(&stats.iter().collect::<Vec<_>>(), &case.seeds, &x)
+                    .into_iter()
+                    .map(|b| sign * b)
+                    .collect();
             let per_seed = case
                 .seeds
                 .iter()
@@ -946,16 +957,7 @@ fn ensemble_claim_check(
             // Per seed, the least-squares slope over the values >= from; the claim's
             // slope is the mean of those (the seeds are the beds).
             let seeds: Vec<u64> = fit[0].seeds.iter().map(|s| s.0).collect();
-            let slopes: Vec<f64> = seeds
-                .iter()
-                .filter_map(|seed| {
-                    let ys: Option<Vec<f64>> = fit
-                        .iter()
-                        .map(|v| v.seeds.iter().find(|s| s.0 == *seed).map(|s| s.1))
-                        .collect();
-                    crate::numerics::stats::Estimate::slope(&x, &ys?).map(|e| e.value)
-                })
-                .collect();
+            let slopes = per_seed_slopes(&fit, &seeds, &x);
             let means_line = crate::analysis::impact::linear_r2(&x, &y)
                 .map(|(a, b, r2)| format!("mean D = {a:.3} + {b:.3} x, R^2 {r2:.4} (reported, never gated: docs/statistics.md)"))
                 .unwrap_or_else(|e| format!("no line through the means: {e:#}"));
@@ -966,7 +968,11 @@ fn ensemble_claim_check(
                 &[
                     super::Comparison {
                         what: format!("per-seed slope over {param} >= {from}"),
-                        estimate: crate::numerics::stats::Estimate::mean(&slopes),
+                        estimate: if slopes.len() == seeds.len() {
+                            Estimate::mean(&slopes)
+                        } else {
+                            None
+                        },
                         rule: super::Rule::Exceeds { delta: 0.0 },
                         m: 1,
                     },

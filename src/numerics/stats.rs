@@ -126,11 +126,20 @@ impl Estimate {
     /// The ordinary least-squares slope of y on x with its standard error and N - 2
     /// degrees of freedom (NIST e-Handbook 4.4.4.4). None with fewer than three points or
     /// no spread in x.
+    ///
+    /// y is taken relative to its first value (the slope and its SE do not depend on the
+    /// shift): values that are all equal then give a slope and an SE of exactly 0, not
+    /// the round-off of their mean, so a flat sweep (the same run at every value) is a
+    /// zero slope with no scatter and fails a strict "exceeds 0" (docs/statistics.md,
+    /// "Decision rules").
     pub(crate) fn slope(x: &[f64], y: &[f64]) -> Option<Estimate> {
         let n = x.len();
         if n < 3 || y.len() != n || x.iter().chain(y).any(|v| !v.is_finite()) {
             return None;
         }
+        let y0 = y[0];
+        let y: Vec<f64> = y.iter().map(|v| v - y0).collect();
+        let y = y.as_slice();
         let nf = n as f64;
         let mx = x.iter().sum::<f64>() / nf;
         let my = y.iter().sum::<f64>() / nf;
@@ -335,6 +344,42 @@ mod tests {
         assert!(e.se < 1e-12);
         assert_eq!(e.df, 2.0);
         assert!(Estimate::slope(&[1.0, 1.0, 1.0], &y[..3]).is_none());
+    }
+
+    /// A flat sweep (the same run at every value, as a "sweep ignored" control makes it)
+    /// is a slope of exactly 0 with no scatter, and a strict "exceeds 0" fails it. The
+    /// depth 0.1 is one whose mean of three copies is not 0.1 in floating point
+    /// ((0.1 + 0.1 + 0.1) / 3 = 0.10000000000000002), which is what used to give a
+    /// round-off slope and an INCONCLUSIVE flat sweep.
+    #[test]
+    fn a_flat_sweep_has_slope_exactly_zero_and_fails_exceeds_zero() {
+        let y = 0.1_f64;
+        assert_ne!((y + y + y) / 3.0, y, "the test needs a mean that rounds");
+        let x = [0.4, 0.7, 1.0];
+        let slopes: Vec<f64> = [0.1, 7.745646630997781, 11.23, 13.9, 9.7]
+            .iter()
+            .map(|&d| {
+                let e = Estimate::slope(&x, &[d, d, d]).unwrap();
+                assert_eq!((e.value, e.se), (0.0, 0.0), "depth {d}");
+                e.value
+            })
+            .collect();
+        let mean = Estimate::mean(&slopes).unwrap();
+        assert_eq!((mean.value, mean.sd), (0.0, 0.0));
+        assert_eq!(exceeds(&mean, 0.0, 1), Decision::Fail);
+        // The same seeds with a real rise of 0.3 per unit pass; with one of 0 +- scatter
+        // they stay undecided.
+        let rising: Vec<f64> = [0.1, 7.7, 11.2]
+            .iter()
+            .map(|&d| Estimate::slope(&x, &[d, d + 0.09, d + 0.18]).unwrap().value)
+            .collect();
+        assert_relative_eq!(rising[1], 0.3, epsilon = 1e-12);
+        assert_eq!(
+            exceeds(&Estimate::mean(&rising).unwrap(), 0.0, 1),
+            Decision::Pass
+        );
+        let scattered = Estimate::mean(&[0.2, -0.1, -0.05]).unwrap();
+        assert_eq!(exceeds(&scattered, 0.0, 1), Decision::Inconclusive);
     }
 
     fn est(value: f64, se: f64, n: usize) -> Estimate {
