@@ -515,6 +515,82 @@ fn kondic_fig11_case_sweeps_two_sizes_of_three_seeds_from_the_fig2_bed() {
     );
 }
 
+/// Kondic et al. Fig 12 at the paper's system as registered (before any W = 200 bed
+/// existed): the Fig 11 case's physics and rule at L = 100, W = 200 (20 000 disks), v =
+/// 0.7, on seeds 1-3, with a 500 tau_c final window in a 1600 tau_c run; only the
+/// interface claim (no size claim: one size); the friction-swap and two frozen-floor
+/// controls; not in the release suite until it is recorded.
+#[test]
+fn kondic_fig12_case_is_the_fig11_recipe_at_w200_and_v07() {
+    use granval::case::impact2d::Claim;
+    use granval::physics::dem2d::impact::bed_spec;
+    let fig11 = impact2d("cases/release/kondic-fig11-size.toml");
+    let c = impact2d("cases/release/kondic-fig12-interface-w200.toml");
+    let d = c.scales.d;
+    let tau = c.scales.tau_c;
+    let beds: Vec<(usize, f64, u64)> = c
+        .variants
+        .iter()
+        .map(|v| {
+            let b = c.bed_of(v);
+            (b.count, b.length / d, b.seed)
+        })
+        .collect();
+    assert_eq!(
+        beds,
+        vec![(20000, 100.0, 1), (20000, 100.0, 2), (20000, 100.0, 3)]
+    );
+    // Apart from the count, every bed is poured and settled as the Fig 11 (Fig 2) beds.
+    let spec = |c: &granval::case::impact2d::Impact2dCase, k: usize| {
+        let mut b = c.bed_of(&c.variants[k]);
+        b.count = 0;
+        serde_json::to_string(&bed_spec(c, &b)).unwrap()
+    };
+    assert_eq!(spec(&c, 0), spec(&fig11, 0));
+    assert!(
+        c.variants
+            .iter()
+            .all(|v| (v.speed / c.scales.velocity() - 0.7).abs() < 1e-12)
+    );
+    for (v, w) in c.variants.iter().zip(&fig11.variants) {
+        assert_eq!(v.gravity, w.gravity);
+        assert_eq!(
+            serde_json::to_string(&(&v.grains, &v.walls, &v.intruder)).unwrap(),
+            serde_json::to_string(&(&w.grains, &w.walls, &w.intruder)).unwrap()
+        );
+    }
+    assert_eq!(c.dt, fig11.dt);
+    assert!((c.n_steps as f64 * c.dt / tau - 1600.0).abs() < 1e-9);
+    assert!((c.final_window / tau - 500.0).abs() < 1e-9);
+    assert!(matches!(
+        c.claims[..],
+        [Claim::InterfaceSteadies { max_ratio, min_amplitude }]
+            if max_ratio == 0.5 && min_amplitude == 0.05
+    ));
+    assert!(c.track_interface);
+    assert_eq!(c.tolerances.interface_rms, fig11.tolerances.interface_rms);
+    let controls: Vec<_> = c
+        .negative_controls
+        .iter()
+        .map(|n| (n.perturbation, n.must_fail.clone()))
+        .collect();
+    let fig11_controls: Vec<_> = fig11
+        .negative_controls
+        .iter()
+        .filter(|n| n.perturbation.other_size_speed_factor == 1.0)
+        .map(|n| (n.perturbation, n.must_fail.clone()))
+        .collect();
+    assert_eq!(controls.len(), 3);
+    assert_eq!(controls, fig11_controls);
+    let s = granval::experiments::suite::load(&common::root().join("cases"), "release").unwrap();
+    assert!(
+        !s.cases
+            .iter()
+            .any(|e| e.path.ends_with("release/kondic-fig12-interface-w200.toml")),
+        "listed before it is recorded"
+    );
+}
+
 /// Kondic et al. Figs 8(b) and 6 on five seeds as registered: each is fig2-speed.toml (the
 /// Fig 2 bed) with only `seed = 1` turned into `seeds = [1, 2, 3, 4, 5]` (and, for Fig 6,
 /// the friction sweep at v = 0.7 in place of the speed sweep), down to the canonical hash;
