@@ -201,6 +201,10 @@ enum Cmd {
         /// compare engines) or `liggghts` (the deck pours and settles them; full size).
         #[arg(long, value_enum, default_value = "native")]
         bed: granval::experiments::penetration::deck_dir::BedBy,
+        /// Penetration: add a visualisation dump every N steps (the grains and the
+        /// intruder mesh as VTK that ParaView opens; `analyze` accepts the deck).
+        #[arg(long, value_name = "N")]
+        viz: Option<u64>,
         #[command(flatten)]
         common: Common,
     },
@@ -1269,10 +1273,16 @@ fn real_main() -> Result<ExitCode> {
             time,
             engine,
             bed,
+            viz,
             common,
         } => {
             let opts = options(&common);
             if let Some(suite) = suite {
+                if viz.is_some() {
+                    bail!(
+                        "--viz: not with --suite (a cluster suite's decks stay lean); write one case's deck with --viz"
+                    );
+                }
                 if engine.is_some()
                     || bed != granval::experiments::penetration::deck_dir::BedBy::Native
                 {
@@ -1306,10 +1316,16 @@ fn real_main() -> Result<ExitCode> {
                     e.name()
                 );
             }
+            if viz.is_some() && kind != "penetration" {
+                bail!(
+                    "{}: --viz: only penetration decks have a visualisation dump so far; this case is of kind {kind}",
+                    case.display()
+                );
+            }
             let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
             let dirs = match c {
                 AnyCase::Penetration(c) => {
-                    granval::experiments::penetration::deck_dir::write(&c, &out, bed, true)?
+                    granval::experiments::penetration::deck_dir::write(&c, &out, bed, true, viz)?
                 }
                 c => with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?,
             };

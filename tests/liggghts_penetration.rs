@@ -96,6 +96,7 @@ fn deck(units: Units, e: f64) -> PenetrationDeck {
         hard_particles: false,
         settle: None,
         header: Default::default(),
+        viz_every: None,
     }
 }
 

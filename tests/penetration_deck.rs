@@ -132,7 +132,7 @@ fn deck_directory_holds_the_exact_bed_and_a_readme() {
     let tmp = tempfile::tempdir().unwrap();
     let case = tiny_case(tmp.path());
     let out = tmp.path().join("deck");
-    let dirs = deck_dir::write(&case, &out, deck_dir::BedBy::Native, false).unwrap();
+    let dirs = deck_dir::write(&case, &out, deck_dir::BedBy::Native, false, None).unwrap();
     assert_eq!(dirs.len(), 2);
     for (k, d) in dirs.iter().enumerate() {
         let ck = case.realisation(k);
@@ -231,7 +231,7 @@ fn analyze_of_a_deck_run_reproduces_compare() {
     );
 
     let deck = tmp.path().join("deck");
-    let dirs = deck_dir::write(&case, &deck, deck_dir::BedBy::Native, false).unwrap();
+    let dirs = deck_dir::write(&case, &deck, deck_dir::BedBy::Native, false, None).unwrap();
     for (k, d) in dirs.iter().enumerate() {
         // `granval deck` writes exactly the inputs `compare` ran (in OUT/bed-K/liggghts/);
         // the deck's header carries the date it was written, so the deck is compared as
@@ -293,7 +293,7 @@ fn full_size_d2mm_deck_starts_under_mpirun() {
     let case = PenetrationCase::load(&root().join("cases/penetration/feng-table2-d2mm.toml"))
         .unwrap_or_else(|e| panic!("{e}"));
     let tmp = tempfile::tempdir().unwrap();
-    let dirs = deck_dir::write(&case, tmp.path(), deck_dir::BedBy::Liggghts, false).unwrap();
+    let dirs = deck_dir::write(&case, tmp.path(), deck_dir::BedBy::Liggghts, false, None).unwrap();
     let d = &dirs[0];
     // 100 settling steps, then every later command (bed dump, intruder placement, mesh,
     // move, force output) with 100 penetration steps.
@@ -452,4 +452,197 @@ fn records_carry_their_beds_and_a_moved_bed_changes_the_fingerprint() {
     assert!(moved[1].bed_from_record);
     assert_eq!(exp.fingerprint(&moved[0]).unwrap(), fingerprints[0]);
     assert_ne!(exp.fingerprint(&moved[1]).unwrap(), fingerprints[1]);
+}
+
+/// `granval deck --viz N`: every deck dumps the grains and the intruder mesh as VTK every
+/// N steps, and `inputs.json` records N, so `analyze` writes the same deck again and
+/// accepts it. Negative controls: the same deck with `viz_every` taken out of its
+/// `inputs.json` is refused by the rewrite check, naming `in.penetration`, and an interval
+/// beyond the run is refused when the deck is written. Live LIGGGHTS: the run writes one
+/// grains file per interval with every grain, and `analyze` reads the run.
+#[test]
+fn viz_deck_dumps_vtk_and_analyze_accepts_it_as_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = tiny_case(tmp.path());
+    let n_steps = pen::liggghts_deck(
+        &case.realisation(0),
+        &pen::prepare_bed(&case.realisation(0), false).unwrap(),
+    )
+    .unwrap()
+    .n_steps;
+    let every = (n_steps / 4).max(1);
+    let too_long = deck_dir::write(
+        &case,
+        &tmp.path().join("bad"),
+        deck_dir::BedBy::Native,
+        false,
+        Some(n_steps + 1),
+    )
+    .unwrap_err();
+    assert!(format!("{too_long:#}").contains("--viz"), "{too_long:#}");
+    let deck = tmp.path().join("deck");
+    let dirs = deck_dir::write(&case, &deck, deck_dir::BedBy::Native, false, Some(every)).unwrap();
+    let text = std::fs::read_to_string(dirs[0].join("in.penetration")).unwrap();
+    assert!(
+        text.contains(&format!(
+            "dump viz all custom/vtk {every} viz-grains-*.vtk id type radius x y z"
+        )) && text.contains(&format!(
+            "dump vizmesh all mesh/vtk {every} viz-intruder-*.vtk stress cad"
+        )),
+        "{text}"
+    );
+    let manifest = std::fs::read_to_string(dirs[0].join("inputs.json")).unwrap();
+    assert!(
+        manifest.contains(&format!("\"viz_every\": {every}")),
+        "{manifest}"
+    );
+    assert!(
+        std::fs::read_to_string(deck.join("README.md"))
+            .unwrap()
+            .contains("## Look at it")
+    );
+    // A deck written without --viz has no dump and no viz_every.
+    let plain = deck_dir::write(
+        &case,
+        &tmp.path().join("plain"),
+        deck_dir::BedBy::Native,
+        false,
+        None,
+    )
+    .unwrap();
+    assert!(
+        !std::fs::read_to_string(plain[0].join("in.penetration"))
+            .unwrap()
+            .contains("viz")
+    );
+    assert!(
+        !std::fs::read_to_string(plain[0].join("inputs.json"))
+            .unwrap()
+            .contains("viz_every")
+    );
+
+    let opts = Options {
+        reference_root: tmp.path().join("no-reference"),
+        ref_mode: RefMode::Live,
+        mpi_procs: 1,
+        ..Default::default()
+    };
+    // The control: the same directory with viz_every taken out of inputs.json (every
+    // fingerprint still matches) is refused by the rewrite check.
+    let control = tmp.path().join("control");
+    std::fs::create_dir_all(&control).unwrap();
+    for e in walk(&deck) {
+        let to = control.join(e.strip_prefix(&deck).unwrap());
+        std::fs::create_dir_all(to.parent().unwrap()).unwrap();
+        std::fs::copy(&e, &to).unwrap();
+    }
+    for k in 0..dirs.len() {
+        let m = control.join(format!("bed-{k}/inputs.json"));
+        let text = std::fs::read_to_string(&m).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let mut v = v.as_object().unwrap().clone();
+        assert!(v.remove("viz_every").is_some());
+        std::fs::write(&m, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    }
+    let err = deck_dir::analyze(&control, false, &opts, &tmp.path().join("a-control"))
+        .map(|_| ())
+        .expect_err("a deck whose dump inputs.json does not declare is refused");
+    assert!(format!("{err:#}").contains("in.penetration"), "{err:#}");
+
+    if !liggghts_or_skip("viz_deck_dumps_vtk_and_analyze_accepts_it_as_written") {
+        return;
+    }
+    let _mpi = common::mpi_lock();
+    for d in &dirs {
+        let o = run_liggghts(d, 1, &[]);
+        assert!(
+            o.status.success(),
+            "LIGGGHTS failed in {}: {}",
+            d.display(),
+            String::from_utf8_lossy(&o.stdout)
+        );
+        let mut grains: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+            .filter(|n| {
+                n.starts_with("viz-grains-") && n.ends_with(".vtk") && !n.contains("boundingBox")
+            })
+            .collect();
+        grains.sort();
+        assert_eq!(grains.len() as u64, n_steps / every + 1, "{grains:?}");
+        let first = std::fs::read_to_string(d.join("viz-grains-0.vtk")).unwrap();
+        let points = first
+            .lines()
+            .find(|l| l.starts_with("POINTS"))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|n| n.parse::<usize>().ok());
+        assert_eq!(points, Some(300), "{}", &first[..first.len().min(400)]);
+        assert!(d.join("viz-intruder-0.vtk").is_file());
+        vtk_reads(d);
+    }
+    let analyzed = deck_dir::analyze(&deck, false, &opts, &tmp.path().join("analyze")).unwrap();
+    assert!(!analyzed.checks.is_empty());
+    assert!(
+        analyzed.checks.iter().all(|c| !c.is_error()),
+        "{:?}",
+        analyzed.checks
+    );
+}
+
+/// Every file under `dir`.
+fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// The viz files of `d` read through VTK itself (ParaView's reader) when a Python with
+/// `vtkmodules` is here (Debian `python3-vtk9`): every grain with its arrays, every facet
+/// of the intruder with its stress. Without one it says so and checks nothing more.
+fn vtk_reads(d: &Path) {
+    const READ: &str = r#"
+import json, sys
+from vtkmodules.vtkIOLegacy import vtkGenericDataObjectReader
+def read(p):
+    r = vtkGenericDataObjectReader(); r.SetFileName(p); r.Update(); return r.GetOutput()
+g = read(sys.argv[1]); m = read(sys.argv[2])
+print(json.dumps({"points": g.GetNumberOfPoints(),
+    "arrays": sorted(g.GetPointData().GetArrayName(i) for i in range(g.GetPointData().GetNumberOfArrays())),
+    "facets": m.GetNumberOfCells(),
+    "facet_arrays": sorted(m.GetCellData().GetArrayName(i) for i in range(m.GetCellData().GetNumberOfArrays()))}))
+"#;
+    let py = std::env::var("GRANVAL_PYTHON").unwrap_or_else(|_| "/usr/bin/python3".into());
+    let o = Command::new(&py)
+        .args(["-c", READ])
+        .arg(d.join("viz-grains-0.vtk"))
+        .arg(d.join("viz-intruder-0.vtk"))
+        .output();
+    let Some(o) = o.ok().filter(|o| o.status.success()) else {
+        eprintln!("viz files not read through VTK: no Python with vtkmodules at {py}");
+        return;
+    };
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["points"], 300, "{v}");
+    for a in ["f", "id", "omega", "radius", "type", "v"] {
+        assert!(
+            v["arrays"].as_array().unwrap().iter().any(|x| x == a),
+            "{a}: {v}"
+        );
+    }
+    assert!(v["facets"].as_u64().unwrap() > 0, "{v}");
+    assert!(
+        v["facet_arrays"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|x| x == "normal_stress_average"),
+        "{v}"
+    );
 }

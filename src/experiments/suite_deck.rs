@@ -207,6 +207,7 @@ fn write_case(
                 dir,
                 super::penetration::deck_dir::BedBy::Native,
                 opts.progress,
+                None,
             )?;
             (
                 dirs,

@@ -93,6 +93,11 @@ pub struct PenetrationDeck {
     /// Title and leading paragraphs of the deck's header (the case, its description);
     /// the deck adds what it measures, its geometry and units.
     pub header: deck_text::Header,
+    /// A visualisation dump every this many steps of the penetration (`granval deck
+    /// --viz N`): the grains as `custom/vtk`, the intruder mesh as `mesh/vtk`, files
+    /// ParaView opens directly. granval never reads them; the deck directory's
+    /// `inputs.json` records N so that `analyze` accepts the deck as written.
+    pub viz_every: Option<u64>,
 }
 
 /// LIGGGHTS-side bed preparation, for beds too large to pour natively (the paper's
@@ -148,6 +153,14 @@ fn positive(name: &str, x: f64) -> Result<()> {
 
 /// Refuses inputs LIGGGHTS would refuse or that make no sense, naming field and value.
 pub(crate) fn validate(d: &PenetrationDeck) -> Result<()> {
+    if let Some(n) = d.viz_every
+        && (n == 0 || n > d.n_steps)
+    {
+        bail!(
+            "--viz: {n}: the visualisation dump interval must be a whole number of steps from 1 to the run's {} steps",
+            d.n_steps
+        );
+    }
     let n = d.materials.len();
     if n == 0 {
         bail!("penetration deck: no materials");
@@ -694,6 +707,9 @@ pub(crate) fn deck_text_with_snapshots(
         s.push('\n');
         s.push_str(&snapshots);
     }
+    if let Some(n) = d.viz_every {
+        viz_block(&mut s, n, d)?;
+    }
     deck_text::block(
         &mut s,
         &format!(
@@ -714,6 +730,42 @@ pub(crate) fn deck_text_with_snapshots(
         writeln!(s, "run {}", d.n_steps)?;
     }
     Ok(s)
+}
+
+/// File name patterns of the visualisation dump (`*` is the step).
+pub(crate) const VIZ_GRAINS: &str = "viz-grains-*.vtk";
+pub(crate) const VIZ_INTRUDER: &str = "viz-intruder-*.vtk";
+
+/// The visualisation dump of `granval deck --viz N`: what ParaView opens, written beside
+/// the measurement and never read by granval.
+fn viz_block(s: &mut String, n: u64, d: &PenetrationDeck) -> Result<()> {
+    let u = d.units;
+    deck_text::block(
+        s,
+        &format!(
+            "---- Visualisation (granval deck --viz {n}) ----\n\
+             Every {n} steps of the penetration: the grains as legacy VTK ({VIZ_GRAINS}: id, \
+             type, radius, position, velocity, force, angular velocity; {lu}, {vu}, {fu}) and the \
+             intruder mesh with the stress the grains put on each facet ({VIZ_INTRUDER}); LIGGGHTS \
+             adds the domain's box as viz-grains-boundingBox_*.vtk. Open \
+             either series in ParaView (File > Open, the `..` group) and draw the grains with \
+             the Point Gaussian representation scaled by `radius`. The container is a \
+             `wall/gran` primitive, not a mesh, so it is not in these files: a cylinder of \
+             radius {} m about the z axis, floor at z = {} m. granval never reads these files; \
+             `inputs.json` records --viz so `granval analyze` accepts this deck.",
+            f(d.container_radius),
+            f(d.floor_z),
+            lu = u.length_unit(),
+            vu = u.velocity_unit(),
+            fu = u.force_unit(),
+        ),
+    );
+    writeln!(
+        s,
+        "dump viz all custom/vtk {n} {VIZ_GRAINS} id type radius x y z vx vy vz fx fy fz omegax omegay omegaz"
+    )?;
+    writeln!(s, "dump vizmesh all mesh/vtk {n} {VIZ_INTRUDER} stress cad")?;
+    Ok(())
 }
 
 /// The settling loop and intruder placement of a [`Settle`] deck. `settle_checks` is an

@@ -134,6 +134,7 @@ pub fn liggghts_deck(case: &PenetrationCase, bed: &Bed) -> Result<PenetrationDec
         soft_particles: soft,
         hard_particles: hard,
         settle: None,
+        viz_every: None,
         header: crate::engines::deck_text::Header {
             title: format!(
                 "granval penetration case `{}`, bed seed {}: LIGGGHTS 3.8 input deck ({})",

@@ -43,12 +43,14 @@ pub(crate) fn settles_in_liggghts(dir: &Path) -> bool {
 }
 
 /// Prepares every bed of the case (or leaves that to LIGGGHTS) and writes the deck
-/// directory `out`.
+/// directory `out`, each deck with a visualisation dump every `viz_every` steps when
+/// given (`granval deck --viz N`; recorded in `inputs.json`, so `analyze` accepts it).
 pub fn write(
     case: &PenetrationCase,
     out: &Path,
     bed_by: BedBy,
     progress: bool,
+    viz_every: Option<u64>,
 ) -> Result<Vec<PathBuf>> {
     use crate::experiments::Experiment;
     super::Penetration {
@@ -69,7 +71,7 @@ pub fn write(
     for k in 0..case.ensemble_beds {
         let ck = case.realisation(k);
         let dir = out.join(bed_dir_name(k));
-        let (deck, psi, hash) = match bed_by {
+        let (mut deck, psi, hash) = match bed_by {
             BedBy::Native => {
                 let bed = prepare_bed(&ck, progress)?;
                 (
@@ -84,8 +86,11 @@ pub fn write(
                 None,
             ),
         };
+        deck.viz_every = viz_every;
         lp::write_deck_dir(&deck, &dir)?;
-        InputManifest::of_dir(&dir, case, k, ck.seed, hash)?.write(&dir)?;
+        let mut manifest = InputManifest::of_dir(&dir, case, k, ck.seed, hash)?;
+        manifest.viz_every = viz_every;
+        manifest.write(&dir)?;
         lines.push(format!(
             "| {} | {} | {} | {psi} | {} |",
             bed_dir_name(k),
@@ -95,12 +100,20 @@ pub fn write(
         ));
         dirs.push(dir);
     }
-    std::fs::write(out.join("README.md"), readme(case, &lines, bed_by))
-        .with_context(|| format!("cannot write {}", out.join("README.md").display()))?;
+    std::fs::write(
+        out.join("README.md"),
+        readme(case, &lines, bed_by, viz_every),
+    )
+    .with_context(|| format!("cannot write {}", out.join("README.md").display()))?;
     Ok(dirs)
 }
 
-fn readme(case: &PenetrationCase, rows: &[String], bed_by: BedBy) -> String {
+fn readme(
+    case: &PenetrationCase,
+    rows: &[String],
+    bed_by: BedBy,
+    viz_every: Option<u64>,
+) -> String {
     let prep = match bed_by {
         BedBy::Native => {
             "each prepared by granval's native engine (pour and settle, Feng et al. Sec. 2) and written exactly (`data.bed`); LIGGGHTS only penetrates"
@@ -126,11 +139,26 @@ fn readme(case: &PenetrationCase, rows: &[String], bed_by: BedBy) -> String {
          \x20   granval analyze DIR --report OUT\n\n\
          It checks that every run is complete, reduces each `force.txt` to the force-depth \
          relation while reading it, re-runs the native engine from the same `data.bed` (skip \
-         with `--no-native`) and writes the same report as `granval compare`.\n",
+         with `--no-native`) and writes the same report as `granval compare`.\n{viz}",
         name = case.name,
         desc = case.description,
         n = case.ensemble_beds,
         rows = rows.join("\n"),
+        viz = match viz_every {
+            None => String::new(),
+            Some(n) => format!(
+                "\n## Look at it\n\n\
+                 Written with `--viz {n}`: every {n} steps of the penetration each run also writes \
+                 `{}` (the grains: id, type, radius, position, velocity, force, angular velocity) \
+                 and `{}` (the intruder mesh with the stress on each facet), legacy VTK that \
+                 ParaView opens as a time series (LIGGGHTS adds the domain's box as \
+                 `viz-grains-boundingBox_*.vtk`); open them in ParaView (File > Open). Draw the grains as Point Gaussian \
+                 scaled by `radius`. These files are not needed by `analyze`; `inputs.json` \
+                 records `--viz`, so the deck is still the one granval wrote.\n",
+                lp::VIZ_GRAINS,
+                lp::VIZ_INTRUDER
+            ),
+        },
     )
 }
 
@@ -228,7 +256,7 @@ pub(crate) fn read_run(
             dir.join(super::inputs::MANIFEST_FILE).display()
         );
     }
-    check_case_inputs(&ck, &bed, dir, settled_by_liggghts)?;
+    check_case_inputs(&ck, &bed, dir, settled_by_liggghts, manifest.viz_every)?;
     let run = reduce_liggghts_dir(&ck, &bed, dir)?;
     Ok((bed, run))
 }
@@ -242,12 +270,14 @@ pub(crate) fn check_case_inputs(
     bed: &Bed,
     dir: &Path,
     settled_by_liggghts: bool,
+    viz_every: Option<u64>,
 ) -> Result<()> {
-    let deck = if settled_by_liggghts {
+    let mut deck = if settled_by_liggghts {
         liggghts_settle_deck(ck)?
     } else {
         liggghts_deck(ck, bed)?
     };
+    deck.viz_every = viz_every;
     for (name, mut text) in lp::input_files(&deck)? {
         if name == lp::DECK_FILE
             && std::fs::read_to_string(dir.join(name))

@@ -55,6 +55,10 @@ pub(crate) struct InputManifest {
     /// Fingerprint ([`deck_text::fingerprint`]: comments and layout aside) of each input
     /// file as written.
     pub inputs: BTreeMap<String, Sha256>,
+    /// The visualisation dump interval the deck was written with (`granval deck --viz
+    /// N`); none for a deck without one. `analyze` writes the deck again with it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viz_every: Option<u64>,
 }
 
 impl InputManifest {
@@ -87,6 +91,7 @@ impl InputManifest {
             seed,
             bed_sha256,
             inputs,
+            viz_every: None,
         })
     }
 

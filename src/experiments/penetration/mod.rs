@@ -689,7 +689,13 @@ impl Experiment for Penetration {
         // written from it, as the directory's manifest must list it.
         let manifest = inputs::InputManifest::read(dir)?;
         manifest.check(dir, &self.case, &self.case.source, u.k, u.case.seed)?;
-        deck_dir::check_case_inputs(&u.case, &u.bed, dir, manifest.settles_in_liggghts())?;
+        deck_dir::check_case_inputs(
+            &u.case,
+            &u.bed,
+            dir,
+            manifest.settles_in_liggghts(),
+            manifest.viz_every,
+        )?;
         Ok(RefRun {
             run: reduce_liggghts_dir(&u.case, &u.bed, dir)?,
             snapshots: None,
