@@ -409,6 +409,13 @@ enum ReleaseCmd {
         #[arg(long, default_value = ".")]
         repo: PathBuf,
     },
+    /// Print draft `[[expect]]` entries for every gated check of the digests that did
+    /// not pass (verdict, value, interval, date), each with an empty `reason` to write
+    /// before it goes into cases/suites/release.toml.
+    Expect {
+        #[arg(long, default_value = ".")]
+        repo: PathBuf,
+    },
 }
 
 #[derive(Subcommand)]
@@ -1594,6 +1601,11 @@ fn release(cmd: ReleaseCmd) -> Result<ExitCode> {
                 outln!("wrote {}", p.display());
             }
             outln!("now run `granval release table` to bring docs/release.md up to date");
+            Ok(ExitCode::SUCCESS)
+        }
+        ReleaseCmd::Expect { repo } => {
+            let digests = rs::read_digests(&repo.join(rs::DIGEST_DIR))?;
+            out!("{}", rs::expect_drafts(&digests));
             Ok(ExitCode::SUCCESS)
         }
         ReleaseCmd::Table { check, repo } => {

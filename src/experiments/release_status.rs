@@ -629,6 +629,68 @@ pub(crate) fn single_bed_verdict(detail: &str) -> Option<String> {
     (!word.is_empty()).then(|| word.to_string())
 }
 
+/// Draft `[[expect]]` entries (docs/statistics.md, "Registered expectations and the
+/// release gate") for every gated check the digests hold that did not pass: its name,
+/// verdict and the date it was judged; its value and 90 % interval when the check has a
+/// value that lies inside the first interval its detail prints. An EXPLORATORY check is
+/// never gated and gets none. Every draft has an empty `reason`, which the suite file
+/// refuses: a person says why each finding is expected before it can gate a release.
+pub fn expect_drafts(digests: &BTreeMap<(String, String), Digest>) -> String {
+    let quote = |s: &str| toml::Value::String(s.to_string()).to_string();
+    let mut out = String::from(
+        "# Drafts from docs/data/release/digests (`granval release expect`): fill in every\n\
+         # `reason` (an empty one is refused), then add them to cases/suites/release.toml.\n",
+    );
+    for d in digests.values() {
+        for c in &d.checks {
+            if c.status == Status::Pass || c.exploratory.is_some() {
+                continue;
+            }
+            let verdict = match c.status {
+                Status::Fail => "fail",
+                Status::Inconclusive => "inconclusive",
+                Status::NotCompared => "not_compared",
+                Status::Error => "error",
+                Status::Pass => unreachable!(),
+            };
+            out.push_str(&format!(
+                "\n# {} {}: {}\n[[expect]]\ncheck = {}\nverdict = {}\n",
+                d.holder,
+                d.name,
+                c.detail
+                    .chars()
+                    .take(160)
+                    .collect::<String>()
+                    .replace('\n', " "),
+                quote(&c.name),
+                quote(verdict)
+            ));
+            if c.value.is_finite() {
+                out.push_str(&format!("value = {:?}\n", c.value));
+                if let Some([lo, hi]) = numeric_interval(&c.detail)
+                    && lo <= c.value
+                    && c.value <= hi
+                {
+                    out.push_str(&format!("interval = [{lo:?}, {hi:?}]\n"));
+                }
+            }
+            out.push_str(&format!(
+                "reason = \"\"\nfound = {}\n",
+                quote(d.made_utc.get(..10).unwrap_or(&d.made_utc))
+            ));
+        }
+    }
+    out
+}
+
+/// The bounds of the first "[90 % interval lo, hi]" of a check's detail, as numbers.
+fn numeric_interval(detail: &str) -> Option<[f64; 2]> {
+    let text = interval_of(detail)?;
+    let (_, bounds) = text.split_once(": ")?;
+    let (lo, hi) = bounds.split_once(',')?;
+    Some([lo.trim().parse().ok()?, hi.trim().parse().ok()?])
+}
+
 /// `doc` with the text between [`BEGIN`] and [`END`] replaced by `section`.
 pub fn splice(doc: &str, section: &str) -> Result<String> {
     let (Some(b), Some(e)) = (doc.find(BEGIN), doc.find(END)) else {
@@ -716,6 +778,74 @@ mod tests {
         assert!(d[0].made_utc.starts_with("20"), "{}", d[0].made_utc);
         assert_eq!(d[0].rules_sha256.as_deref(), Some("ha"));
         assert_eq!(d[0].file_name(), "case-a.json");
+    }
+
+    /// Drafts of `[[expect]]`: one per gated check that did not pass, with the value and
+    /// the interval it was found with when the value lies inside the detail's interval,
+    /// none for a pass or an EXPLORATORY check; every draft is refused by the suite file
+    /// until its reason is written, and then loads as an expectation.
+    #[test]
+    fn expectation_drafts_pin_what_did_not_pass_and_need_a_reason() {
+        let mut inconclusive = check("a", "a: K_phi", -0.0188, 0.0953);
+        inconclusive.status = Status::Inconclusive;
+        inconclusive.passed = false;
+        inconclusive.detail =
+            "ln ratio: -0.0188 [90 % interval -0.1296, 0.0920] over 3 beds".into();
+        let mut failed = check("a", "a: FDR \"quoted\"", 0.3, 0.2);
+        failed.detail = "a first interval [90 % interval 1.0, 2.0] of something else".into();
+        let mut exploratory = check("a", "a: phi", 7.6, 1.5);
+        exploratory.exploratory = Some("case file changed after its record".into());
+        let mut no_value = check("a", "a: claim", f64::NAN, f64::NAN);
+        no_value.status = Status::Inconclusive;
+        no_value.passed = false;
+        let digest = Digest {
+            holder: "case".into(),
+            name: "a".into(),
+            made_utc: "2026-11-28T14:00:00Z".into(),
+            granval_commit: None,
+            rules_sha256: None,
+            runs: vec![],
+            checks: vec![
+                check("a", "a: passes", 0.1, 0.2),
+                inconclusive,
+                failed,
+                exploratory,
+                no_value,
+            ],
+            gate: vec![],
+        };
+        let map = BTreeMap::from([(("case".to_string(), "a".to_string()), digest)]);
+        let text = expect_drafts(&map);
+        #[derive(Deserialize)]
+        struct Drafts {
+            expect: Vec<crate::compare::expect::Expectation>,
+        }
+        let mut drafts: Drafts = toml::from_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        type Pin<'a> = (&'a str, Status, Option<f64>, Option<[f64; 2]>);
+        let got: Vec<Pin> = drafts
+            .expect
+            .iter()
+            .map(|e| (e.check.as_str(), e.verdict, e.value, e.interval))
+            .collect();
+        assert_eq!(
+            got,
+            vec![
+                (
+                    "a: K_phi",
+                    Status::Inconclusive,
+                    Some(-0.0188),
+                    Some([-0.1296, 0.092])
+                ),
+                ("a: FDR \"quoted\"", Status::Fail, Some(0.3), None),
+                ("a: claim", Status::Inconclusive, None, None),
+            ]
+        );
+        for e in &mut drafts.expect {
+            assert_eq!(e.found, "2026-11-28");
+            assert!(e.validate().unwrap_err().contains("reason"));
+            e.reason = "three beds cannot resolve it".into();
+            e.validate().unwrap();
+        }
     }
 
     /// A check of a case or claim the suite does not have is refused, naming it.
