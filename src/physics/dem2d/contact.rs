@@ -57,6 +57,7 @@ pub struct PairOut {
 /// Evaluates one pair; `None` when not touching (the shear history is then cleared,
 /// as LAMMPS does for a neighbour that is not in contact). `shear_update` is false
 /// during LAMMPS' setup force pass (`update->setupflag`).
+#[inline]
 pub(crate) fn hooke(
     c: &Coeffs,
     p: &PairIn,

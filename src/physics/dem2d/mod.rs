@@ -111,6 +111,65 @@ impl Excluded for Exclusions<'_> {
     }
 }
 
+/// What the contact law of one pair reads of the system (shared by the force pass and
+/// [`System::contact_forces`], so both evaluate the same expression).
+struct PairView<'a> {
+    disks: &'a [Disk],
+    /// The whole cluster's mass, which a cluster member brings into m_eff.
+    cluster_mass: Option<f64>,
+    coeffs: &'a [Coeffs],
+    n_types: usize,
+    bx: &'a Box2,
+}
+
+impl PairView<'_> {
+    #[inline]
+    fn meff_mass(&self, d: &Disk) -> f64 {
+        match (d.role, self.cluster_mass) {
+            (Role::Cluster, Some(m)) => m,
+            _ => d.mass,
+        }
+    }
+
+    /// The contact law on pair (i, j) with its stored shear `sh`.
+    #[inline]
+    fn pair(
+        &self,
+        i: usize,
+        j: usize,
+        sh: &mut [f64; 2],
+        shear_update: bool,
+        dt: f64,
+    ) -> Option<PairOut> {
+        let (a, b) = (&self.disks[i], &self.disks[j]);
+        let del = self.bx.delta(a.x, b.x);
+        // Most listed pairs are within the skin but not touching: decide that from the
+        // positions and radii alone, with the very test `hooke` makes, before loading
+        // velocities, spins and masses.
+        let rsq = del[0] * del[0] + del[1] * del[1];
+        let radsum = a.radius + b.radius;
+        if rsq >= radsum * radsum {
+            *sh = [0.0, 0.0];
+            return None;
+        }
+        let p = PairIn {
+            del,
+            ri: a.radius,
+            rj: b.radius,
+            vi: a.v,
+            vj: b.v,
+            wi: a.omega,
+            wj: b.omega,
+            mi: self.meff_mass(a),
+            mj: self.meff_mass(b),
+            frozen_i: a.role == Role::Frozen,
+            frozen_j: b.role == Role::Frozen,
+        };
+        let c = &self.coeffs[a.type_ * self.n_types + b.type_];
+        contact::hooke(c, &p, sh, shear_update, dt)
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct System {
     pub disks: Vec<Disk>,
@@ -195,9 +254,13 @@ impl System {
     }
 
     fn neighbours(&mut self, force: bool) {
-        self.xs.clear();
-        self.xs.extend(self.disks.iter().map(|d| d.x));
-        if force || self.list.needs_rebuild(&self.bx, &self.xs, self.skin) {
+        // The displacement check reads the disks in place: no copy of the positions
+        // unless the list is rebuilt.
+        if force
+            || self
+                .list
+                .needs_rebuild(&self.bx, self.disks.iter().map(|d| d.x), self.skin)
+        {
             for d in &mut self.disks {
                 d.x = self.bx.wrap(d.x);
             }
@@ -209,48 +272,38 @@ impl System {
         }
     }
 
-    /// Pair forces + gravity. Pairs are evaluated in parallel and summed serially in
-    /// list order, so the result is independent of the thread count.
+    /// Pair forces + gravity. Pairs are evaluated in parallel, each writing its result
+    /// and its shear in place (no allocation per step), and summed serially in list
+    /// order, so the result is independent of the thread count.
     fn forces(&mut self, shear_update: bool) {
         let dt = self.dt;
-        let disks = &self.disks;
-        let this = &*self;
-        let pairs = &self.list.pairs;
-        let out: Vec<(Option<PairOut>, [f64; 2])> = pairs
-            .par_iter()
-            .zip(self.list.shear.par_iter())
+        let n_pairs = self.list.pairs.len();
+        // `last` is fully overwritten below; resizing only allocates after a rebuild
+        // that grew the list.
+        self.last.resize(n_pairs, None);
+        let this = PairView {
+            disks: &self.disks,
+            cluster_mass: self.cluster.as_ref().map(|c| c.mass),
+            coeffs: &self.coeffs,
+            n_types: self.n_types,
+            bx: &self.bx,
+        };
+        self.last
+            .par_iter_mut()
+            .zip(self.list.shear.par_iter_mut())
+            .zip(self.list.pairs.par_iter())
             // Chunks large enough that small systems do not drown in scheduling.
             .with_min_len(2048)
-            .map(|(&(i, j), &sh)| {
-                let (i, j) = (i as usize, j as usize);
-                let (a, b) = (&disks[i], &disks[j]);
-                let p = PairIn {
-                    del: this.bx.delta(a.x, b.x),
-                    ri: a.radius,
-                    rj: b.radius,
-                    vi: a.v,
-                    vj: b.v,
-                    wi: a.omega,
-                    wj: b.omega,
-                    mi: this.meff_mass(i),
-                    mj: this.meff_mass(j),
-                    frozen_i: a.role == Role::Frozen,
-                    frozen_j: b.role == Role::Frozen,
-                };
-                let mut sh = sh;
-                let r = contact::hooke(this.coeff(a.type_, b.type_), &p, &mut sh, shear_update, dt);
-                (r, sh)
-            })
-            .collect();
+            .for_each(|((r, sh), &(i, j))| {
+                *r = this.pair(i as usize, j as usize, sh, shear_update, dt);
+            });
         for f in &mut self.f {
             *f = [0.0; 2];
         }
         for t in &mut self.torque {
             *t = 0.0;
         }
-        self.last.clear();
-        for (k, ((r, sh), &(i, j))) in out.into_iter().zip(&self.list.pairs).enumerate() {
-            self.list.shear[k] = sh;
+        for (r, &(i, j)) in self.last.iter().zip(&self.list.pairs) {
             if let Some(o) = r {
                 let (i, j) = (i as usize, j as usize);
                 self.f[i][0] += o.f[0];
@@ -260,7 +313,6 @@ impl System {
                 self.torque[i] += o.torque_i;
                 self.torque[j] += o.torque_j;
             }
-            self.last.push(r);
         }
         // fix gravity: f += m g after the pair forces (fix freeze then zeroes walls).
         for (d, f) in self.disks.iter().zip(&mut self.f) {

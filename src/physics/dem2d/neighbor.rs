@@ -64,13 +64,18 @@ pub trait Excluded: Sync {
 
 impl PairList {
     /// True when some disk moved more than half the skin since the last build.
-    pub(crate) fn needs_rebuild(&self, bx: &Box2, x: &[[f64; 2]], skin: f64) -> bool {
+    pub(crate) fn needs_rebuild(
+        &self,
+        bx: &Box2,
+        x: impl ExactSizeIterator<Item = [f64; 2]>,
+        skin: f64,
+    ) -> bool {
         if self.x_at_build.len() != x.len() {
             return true;
         }
         let lim = 0.25 * skin * skin;
-        x.iter().zip(&self.x_at_build).any(|(a, b)| {
-            let d = bx.delta(*a, *b);
+        x.zip(&self.x_at_build).any(|(a, b)| {
+            let d = bx.delta(a, *b);
             d[0] * d[0] + d[1] * d[1] > lim
         })
     }
@@ -88,9 +93,13 @@ impl PairList {
         let n = x.len();
         let mut small_max = 0.0f64;
         let typical = {
+            // The median (element n/2 in sorted order) by selection, O(n).
             let mut r: Vec<f64> = radius.to_vec();
-            r.sort_by(f64::total_cmp);
-            r.get(n / 2).copied().unwrap_or(0.0)
+            if n > 0 {
+                *r.select_nth_unstable_by(n / 2, f64::total_cmp).1
+            } else {
+                0.0
+            }
         };
         let large: Vec<bool> = radius.iter().map(|&r| r > 3.0 * typical).collect();
         for (k, &r) in radius.iter().enumerate() {
