@@ -42,16 +42,9 @@ pub(crate) fn settles_in_liggghts(dir: &Path) -> bool {
     dir.join(lp::LATTICE_FILE).exists()
 }
 
-/// Prepares every bed of the case (or leaves that to LIGGGHTS) and writes the deck
-/// directory `out`, each deck with a visualisation dump every `viz_every` steps when
-/// given (`granval deck --viz N`; recorded in `inputs.json`, so `analyze` accepts it).
-pub fn write(
-    case: &PenetrationCase,
-    out: &Path,
-    bed_by: BedBy,
-    progress: bool,
-    viz_every: Option<u64>,
-) -> Result<Vec<PathBuf>> {
+/// Checks the case as a run would (`preflight`) and starts the deck directory `out` with a
+/// verbatim copy of the case file: the first step of every penetration deck writer.
+fn start_deck_dir(case: &PenetrationCase, out: &Path) -> Result<()> {
     use crate::experiments::Experiment;
     super::Penetration {
         case: case.clone(),
@@ -66,6 +59,20 @@ pub fn write(
             out.join(CASE_FILE).display()
         )
     })?;
+    Ok(())
+}
+
+/// Prepares every bed of the case (or leaves that to LIGGGHTS) and writes the deck
+/// directory `out`, each deck with a visualisation dump every `viz_every` steps when
+/// given (`granval deck --viz N`; recorded in `inputs.json`, so `analyze` accepts it).
+pub fn write(
+    case: &PenetrationCase,
+    out: &Path,
+    bed_by: BedBy,
+    progress: bool,
+    viz_every: Option<u64>,
+) -> Result<Vec<PathBuf>> {
+    start_deck_dir(case, out)?;
     let mut dirs = Vec::new();
     let mut lines = Vec::new();
     for k in 0..case.ensemble_beds {
@@ -114,20 +121,7 @@ pub fn write(
 /// LIGGGHTS deck would read it.
 pub fn write_lammps(case: &PenetrationCase, out: &Path, progress: bool) -> Result<Vec<PathBuf>> {
     use crate::engines::lammps3d_penetration as lmp;
-    use crate::experiments::Experiment;
-    super::Penetration {
-        case: case.clone(),
-        stress: false,
-    }
-    .preflight()?;
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    std::fs::copy(&case.source, out.join(CASE_FILE)).with_context(|| {
-        format!(
-            "cannot copy {} to {}",
-            case.source.display(),
-            out.join(CASE_FILE).display()
-        )
-    })?;
+    start_deck_dir(case, out)?;
     let mut dirs = Vec::new();
     for k in 0..case.ensemble_beds {
         let ck = case.realisation(k);
