@@ -131,25 +131,17 @@ impl PairView<'_> {
         }
     }
 
-    /// The contact law on pair (i, j) with its stored shear `sh`.
+    /// The contact law's input for pair (i, j), or `None` when the two do not touch.
+    /// Most listed pairs are within the skin but not touching: that is decided from the
+    /// positions and radii alone, with the very test `hooke` makes, before loading
+    /// velocities, spins and masses.
     #[inline]
-    fn pair(
-        &self,
-        i: usize,
-        j: usize,
-        sh: &mut [f64; 2],
-        shear_update: bool,
-        dt: f64,
-    ) -> Option<PairOut> {
+    fn pair_in(&self, i: usize, j: usize) -> Option<(PairIn, &Coeffs)> {
         let (a, b) = (&self.disks[i], &self.disks[j]);
         let del = self.bx.delta(a.x, b.x);
-        // Most listed pairs are within the skin but not touching: decide that from the
-        // positions and radii alone, with the very test `hooke` makes, before loading
-        // velocities, spins and masses.
         let rsq = del[0] * del[0] + del[1] * del[1];
         let radsum = a.radius + b.radius;
         if rsq >= radsum * radsum {
-            *sh = [0.0, 0.0];
             return None;
         }
         let p = PairIn {
@@ -165,8 +157,27 @@ impl PairView<'_> {
             frozen_i: a.role == Role::Frozen,
             frozen_j: b.role == Role::Frozen,
         };
-        let c = &self.coeffs[a.type_ * self.n_types + b.type_];
-        contact::hooke(c, &p, sh, shear_update, dt)
+        Some((p, &self.coeffs[a.type_ * self.n_types + b.type_]))
+    }
+
+    /// The contact law on pair (i, j) with its stored shear `sh` (zeroed when the pair
+    /// does not touch).
+    #[inline]
+    fn pair(
+        &self,
+        i: usize,
+        j: usize,
+        sh: &mut [f64; 2],
+        shear_update: bool,
+        dt: f64,
+    ) -> Option<PairOut> {
+        match self.pair_in(i, j) {
+            Some((p, c)) => contact::hooke(c, &p, sh, shear_update, dt),
+            None => {
+                *sh = [0.0, 0.0];
+                None
+            }
+        }
     }
 }
 
@@ -239,18 +250,6 @@ impl System {
 
     pub fn time(&self) -> f64 {
         self.step as f64 * self.dt
-    }
-
-    fn coeff(&self, a: usize, b: usize) -> &Coeffs {
-        &self.coeffs[a * self.n_types + b]
-    }
-
-    /// Mass a disk brings into m_eff: the whole cluster's for a cluster member.
-    fn meff_mass(&self, k: usize) -> f64 {
-        match (self.disks[k].role, &self.cluster) {
-            (Role::Cluster, Some(c)) => c.mass,
-            _ => self.disks[k].mass,
-        }
     }
 
     fn neighbours(&mut self, force: bool) {
@@ -413,27 +412,21 @@ impl System {
     /// full-step velocities and the stored shear the same way). F_n is the component
     /// along the centre line; the tangential force is perpendicular to it.
     pub(crate) fn contact_forces(&self) -> Vec<(usize, usize, f64, f64)> {
+        let view = PairView {
+            disks: &self.disks,
+            cluster_mass: self.cluster.as_ref().map(|c| c.mass),
+            coeffs: &self.coeffs,
+            n_types: self.n_types,
+            bx: &self.bx,
+        };
         let mut out = Vec::new();
         for (&(i, j), &sh) in self.list.pairs.iter().zip(&self.list.shear) {
             let (i, j) = (i as usize, j as usize);
-            let (a, b) = (&self.disks[i], &self.disks[j]);
-            let p = PairIn {
-                del: self.bx.delta(a.x, b.x),
-                ri: a.radius,
-                rj: b.radius,
-                vi: a.v,
-                vj: b.v,
-                wi: a.omega,
-                wj: b.omega,
-                mi: self.meff_mass(i),
-                mj: self.meff_mass(j),
-                frozen_i: a.role == Role::Frozen,
-                frozen_j: b.role == Role::Frozen,
+            let Some((p, c)) = view.pair_in(i, j) else {
+                continue;
             };
             let mut sh = sh;
-            if let Some(o) =
-                contact::hooke(self.coeff(a.type_, b.type_), &p, &mut sh, false, self.dt)
-            {
+            if let Some(o) = contact::hooke(c, &p, &mut sh, false, self.dt) {
                 let r = p.del[0].hypot(p.del[1]);
                 let n = [p.del[0] / r, p.del[1] / r];
                 let f_n = o.f[0] * n[0] + o.f[1] * n[1];
