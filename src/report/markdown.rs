@@ -86,10 +86,18 @@ impl Report {
     /// The release gate's line; `strong`: its verdict in Markdown bold.
     pub(super) fn gate_line(&self, strong: &str) -> Option<String> {
         self.gate.as_ref().map(|g| {
-            let expected = g.rows.iter().filter(|r| r.holds).count();
-            let changed = g.rows.len() - expected;
+            let expected = g.rows.iter().filter(|r| r.holds && r.got.is_some()).count();
+            let not_run = g.rows.iter().filter(|r| r.holds && r.got.is_none()).count();
+            let changed = g.rows.len() - expected - not_run;
+            // A subset (`--only`) lists the findings it did not run; they are not counted
+            // as seen.
+            let not_run = if not_run > 0 {
+                format!(", {not_run} not run (a subset of the suite)")
+            } else {
+                String::new()
+            };
             format!(
-                "Release gate: {strong}{}{strong} ({expected} registered finding(s) as expected, {changed} change(s); docs/statistics.md). Every verdict below is the check's own.",
+                "Release gate: {strong}{}{strong} ({expected} registered finding(s) as expected{not_run}, {changed} change(s); docs/statistics.md). Every verdict below is the check's own.",
                 if g.passed() { "PASS" } else { "FAIL" }
             )
         })
@@ -189,6 +197,40 @@ mod tests {
     use crate::compare::{Check, Gate};
     use crate::report::CaseRun;
     use pulldown_cmark::{Event, Options, Parser, Tag, TagEnd};
+
+    /// A subset run (`--only`) counts as seen only the findings it ran; the others are
+    /// listed as not run, and a broken row is a change.
+    #[test]
+    fn gate_line_counts_seen_not_run_and_changed_findings_apart() {
+        let row = |got: Option<Status>, holds: bool| GateRow {
+            check: "c".into(),
+            expected: Status::Inconclusive,
+            got,
+            holds,
+            why: String::new(),
+        };
+        let mut r = Report::new(Vec::new(), Vec::new(), Vec::new());
+        r.gate = Some(GateOutcome {
+            rows: vec![
+                row(Some(Status::Inconclusive), true),
+                row(None, true),
+                row(None, true),
+            ],
+            exit_code: 0,
+        });
+        assert_eq!(
+            r.gate_line("").unwrap(),
+            "Release gate: PASS (1 registered finding(s) as expected, 2 not run (a subset of the suite), 0 change(s); docs/statistics.md). Every verdict below is the check's own."
+        );
+        r.gate = Some(GateOutcome {
+            rows: vec![row(Some(Status::Pass), false)],
+            exit_code: 1,
+        });
+        assert_eq!(
+            r.gate_line("").unwrap(),
+            "Release gate: FAIL (0 registered finding(s) as expected, 1 change(s); docs/statistics.md). Every verdict below is the check's own."
+        );
+    }
 
     /// Every table of `md` as GFM renders it: rows of cell texts (header first), and
     /// whether any cell held raw HTML.
