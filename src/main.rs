@@ -418,6 +418,17 @@ enum ReleaseCmd {
         #[arg(long, default_value = ".")]
         repo: PathBuf,
     },
+    /// The release gate over the digests, without running anything: every case and
+    /// claim judged under today's rules against the suite's `[[expect]]`, what changed,
+    /// and what still waits for a judgement. Exit 0 only when every case and claim (or
+    /// every one of `--only`) is judged and holds as registered.
+    Gate {
+        /// Only these cases or claims (their names; repeatable).
+        #[arg(long)]
+        only: Vec<String>,
+        #[arg(long, default_value = ".")]
+        repo: PathBuf,
+    },
 }
 
 #[derive(Subcommand)]
@@ -1624,6 +1635,11 @@ fn release(cmd: ReleaseCmd) -> Result<ExitCode> {
             }
             outln!("now run `granval release table` to bring docs/release.md up to date");
             Ok(ExitCode::SUCCESS)
+        }
+        ReleaseCmd::Gate { only, repo } => {
+            let (text, code) = rs::gate_of_digests(&repo, &only)?;
+            out!("{text}");
+            Ok(ExitCode::from(code as u8))
         }
         ReleaseCmd::Expect { repo } => {
             let digests = rs::read_digests(&repo.join(rs::DIGEST_DIR))?;

@@ -157,3 +157,57 @@ fn committed_digests_read_back() {
         assert!(!d.checks.is_empty(), "digest of {name:?} holds no check");
     }
 }
+
+/// The release gate over the digests (`granval release gate`): a judged case whose
+/// every finding is registered holds; moving one pinned interval, or dropping one
+/// expectation, is a change (exit 1); an unknown name is refused.
+#[test]
+fn the_gate_over_the_digests_holds_as_registered_and_fails_on_a_moved_pin() {
+    let case = "kondic-fig29-per-depth-4beds".to_string();
+    let (text, code) = rs::gate_of_digests(&repo(), std::slice::from_ref(&case)).unwrap();
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(": PASS"), "{text}");
+    assert!(
+        text.contains("6 registered finding(s) as expected, 0 change(s)"),
+        "{text}"
+    );
+
+    let suite = Path::new("cases/suites/release.toml");
+    let original = std::fs::read_to_string(repo().join(suite)).unwrap();
+    let pin = "interval = [0.354, 0.8656]";
+    assert_eq!(
+        original.matches(pin).count(),
+        2,
+        "the two engines' depth-1 pins"
+    );
+
+    let moved = scratch();
+    // The native depth-1 finding pinned where it was not found: value and interval.
+    let native = "value = 0.6097852796187895\ninterval = [0.354, 0.8656]";
+    assert!(original.contains(native));
+    let text_moved = original.replacen(native, "value = 0.95\ninterval = [0.9, 1.0]", 1);
+    std::fs::write(moved.path().join(suite), text_moved).unwrap();
+    let (text, code) = rs::gate_of_digests(moved.path(), std::slice::from_ref(&case)).unwrap();
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains("outside the pinned interval"), "{text}");
+    assert!(text.contains(": FAIL"), "{text}");
+
+    let dropped = scratch();
+    let start = original
+        .find("check = \"kondic-fig29-per-depth-4beds: claim (lammps)")
+        .unwrap();
+    let block = original[..start].rfind("[[expect]]").unwrap();
+    let end = block + original[block..].find("found = ").unwrap();
+    let end = end + original[end..].find('\n').unwrap() + 1;
+    let text_dropped = format!("{}{}", &original[..block], &original[end..]);
+    std::fs::write(dropped.path().join(suite), text_dropped).unwrap();
+    let (text, code) = rs::gate_of_digests(dropped.path(), std::slice::from_ref(&case)).unwrap();
+    assert_ne!(code, 0, "{text}");
+    assert!(
+        text.contains("CHANGED kondic-fig29-per-depth-4beds: claim (lammps)"),
+        "{text}"
+    );
+
+    let err = rs::gate_of_digests(&repo(), &["no-such-case".to_string()]).unwrap_err();
+    assert!(err.to_string().contains("no-such-case"), "{err}");
+}

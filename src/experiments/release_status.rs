@@ -716,6 +716,154 @@ pub fn generate(repo: &Path) -> Result<String> {
     Ok(table(&rows, &digests, &rules))
 }
 
+/// The release gate (docs/statistics.md, "Registered expectations and the release gate")
+/// over the digests instead of a fresh run: every case and claim of the suite (or of
+/// `only`) whose digest was judged under today's rules, against the suite's
+/// `[[expect]]`. It says where the release stands without running anything: what holds
+/// as registered, what changed, and which cases and claims still wait for a judgement
+/// under today's rules (no digest, or a stale one). Exit code: the gate's (0 every
+/// verdict as registered, 1 a change, 2 an undecided verdict where a decision was
+/// registered), and at least 1 while anything in scope waits.
+pub fn gate_of_digests(repo: &Path, only: &[String]) -> Result<(String, i32)> {
+    use std::fmt::Write as _;
+    let rules = CurrentRules::read(repo, "release")?;
+    let suite = super::suite::load(&repo.join("cases"), "release")?;
+    let digests = read_digests(&repo.join(DIGEST_DIR))?;
+    let mut units: Vec<(&str, &str, &str)> = rules
+        .cases
+        .iter()
+        .map(|(n, h)| ("case", n.as_str(), h.as_str()))
+        .chain(
+            rules
+                .claims
+                .iter()
+                .map(|(n, h)| ("claim", n.as_str(), h.as_str())),
+        )
+        .collect();
+    for o in only {
+        ensure!(
+            units.iter().any(|(_, n, _)| n == o),
+            "--only {o:?}: no case or claim of the release suite has this name"
+        );
+    }
+    if !only.is_empty() {
+        units.retain(|(_, n, _)| only.iter().any(|o| o == n));
+    }
+    let judged = |holder: &str, name: &str, hash: &str| {
+        digests
+            .get(&(holder.to_string(), name.to_string()))
+            .filter(|d| d.rules_sha256.as_deref() == Some(hash))
+    };
+    let checks: Vec<Check> = units
+        .iter()
+        .filter_map(|(h, n, r)| judged(h, n, r))
+        .flat_map(|d| d.checks.iter().cloned())
+        .collect();
+    let waiting: Vec<String> = units
+        .iter()
+        .filter(|(h, n, r)| judged(h, n, r).is_none())
+        .map(|(h, n, _)| {
+            let why = if digests.contains_key(&(h.to_string(), n.to_string())) {
+                "its digest was judged under other rules"
+            } else {
+                "no digest"
+            };
+            format!("{h} {n}: {why}")
+        })
+        .collect();
+    // The case or claim an expectation belongs to: the digest check of its name, else
+    // the longest case name it starts with, else the claim it is named after.
+    let unit_of = |check: &str| -> Option<(&str, String)> {
+        for d in digests.values() {
+            if d.checks.iter().any(|c| c.name == check) {
+                return Some((
+                    if d.holder == "case" { "case" } else { "claim" },
+                    d.name.clone(),
+                ));
+            }
+        }
+        rules
+            .cases
+            .keys()
+            .filter(|c| {
+                check.starts_with(&format!("{c}: ")) || check.starts_with(&format!("{c} ["))
+            })
+            .max_by_key(|c| c.len())
+            .map(|c| ("case", c.clone()))
+            .or_else(|| rules.claim_of(check).map(|c| ("claim", c.to_string())))
+    };
+    let mut expectations = Vec::new();
+    let mut unplaced = Vec::new();
+    let mut pending = 0;
+    for e in &suite.expectations {
+        match unit_of(&e.check) {
+            None => unplaced.push(e.check.clone()),
+            Some((h, n)) => match units.iter().find(|(uh, un, _)| *uh == h && *un == n) {
+                None => {}
+                Some((h, n, r)) if judged(h, n, r).is_some() => expectations.push(e.clone()),
+                Some(_) => pending += 1,
+            },
+        }
+    }
+    let mut exit = 0;
+    let mut rows = Vec::new();
+    if !checks.is_empty() {
+        let g = crate::compare::expect::release_gate(&checks, &expectations, true);
+        exit = g.exit_code;
+        rows = g.rows;
+    }
+    if !unplaced.is_empty() {
+        exit = exit.max(1);
+    }
+    let changed: Vec<&GateRow> = rows.iter().filter(|r| !r.holds).collect();
+    let held = rows.iter().filter(|r| r.holds && r.got.is_some()).count();
+    let verdict = match (exit, waiting.is_empty()) {
+        (0, true) => "PASS",
+        (0, false) => "INCOMPLETE",
+        _ => "FAIL",
+    };
+    if !waiting.is_empty() {
+        exit = exit.max(1);
+    }
+    let n_judged = units.len() - waiting.len();
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "Release gate over the digests ({DIGEST_DIR}): {verdict}\n\
+         {n_judged} of {} cases and claims judged under today's rules; {} checks, {held} \
+         registered finding(s) as expected, {} change(s); {pending} expectation(s) wait for \
+         their case or claim.",
+        units.len(),
+        checks.len(),
+        changed.len() + unplaced.len(),
+    );
+    for r in &changed {
+        let got = r
+            .got
+            .map_or("not in the digests".to_string(), |s| s.label().to_string());
+        let _ = writeln!(
+            out,
+            "  CHANGED {}: {got} where {} was expected: {}",
+            r.check,
+            r.expected.label(),
+            r.why
+        );
+    }
+    for c in &unplaced {
+        let _ = writeln!(
+            out,
+            "  CHANGED {c}: an [[expect]] that names no case or claim of the release suite"
+        );
+    }
+    if !waiting.is_empty() {
+        let _ = writeln!(out, "Waiting for a judgement under today's rules:");
+        for w in &waiting {
+            let _ = writeln!(out, "  {w}");
+        }
+    }
+    Ok((out, exit))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
