@@ -37,14 +37,14 @@ fn deck_engine_lammps_writes_a_lammps_deck_and_refuses_liggghts_beds() {
         "atom_style sphere",
         &format!("read_data {}", lp::DATA_FILE),
         "pair_style granular",
-        "pair_coeff 1 1 hertz/material 5.2e6 5e-1 3e-1 damping coeff_restitution tangential mindlin NULL 1.0 5e-1",
+        "pair_coeff 1 1 hertz/material 5.2e6 5e-1 3e-1 damping coeff_restitution tangential mindlin NULL 9.074852129730301e-1 5e-1",
         "pair_coeff 1 2 ",
         "fix floor all wall/gran granular hertz/material 5.2e6",
         "region container cylinder z 0 0 1.6e-2",
         "side in open 1 open 2",
         "region intruder cylinder z 0 0 5e-3",
         "side out units box move NULL NULL v_dz",
-        "fix wint all wall/gran/region granular hertz/material 5.2e6 5e-1 3e-1 damping coeff_restitution tangential mindlin NULL 1.0 3e-1 twisting none region intruder contacts",
+        "fix wint all wall/gran/region granular hertz/material 5.2e6 5e-1 3e-1 damping coeff_restitution tangential mindlin NULL 9.074852129730301e-1 3e-1 twisting none region intruder contacts",
         "compute fint all reduce sum f_wint[2] f_wint[3] f_wint[4]",
         "NO rolling resistance",
         "timestep 4e-5",
@@ -52,6 +52,8 @@ fn deck_engine_lammps_writes_a_lammps_deck_and_refuses_liggghts_beds() {
     ] {
         assert!(deck.contains(needle), "deck lacks {needle:?}:\n{deck}");
     }
+    // Mindlin's damping ratio is LIGGGHTS' sqrt(S_t / S_n) = sqrt(2 (1 - nu) / (2 - nu)).
+    assert!(((2.0 * 0.7 / 1.7_f64).sqrt() - 9.074852129730301e-1).abs() < 1e-15);
     let data = std::fs::read_to_string(out.join("bed-0").join(lp::DATA_FILE)).unwrap();
     assert!(
         data.contains("300 atoms")

@@ -9,8 +9,9 @@
 //! - Normal: LIGGGHTS `model hertz` with E, nu per type -> `hertz/material E e nu`
 //!   (grain pairs: LAMMPS mixes E and nu itself; walls: the wall's material).
 //! - Damping: LIGGGHTS' restitution-based Hertz damping -> `damping coeff_restitution`.
-//! - Tangential: LIGGGHTS `tangential history` -> `tangential mindlin NULL 1.0 mu`
-//!   (stiffness 8 G* a from E and nu; LIGGGHTS' history model also scales with a).
+//! - Tangential: LIGGGHTS `tangential history` -> `tangential mindlin NULL xt mu`
+//!   (stiffness 8 G* a from E and nu, as LIGGGHTS' S_t; damping ratio xt = sqrt(4 G* /
+//!   E*), which makes the tangential damping LIGGGHTS').
 //! - Rolling: LIGGGHTS `rolling_friction cdt` (constant torque mu_r R* F_n against the
 //!   relative rolling velocity, Feng eq 4) has no LAMMPS counterpart; `rolling sds` is
 //!   a spring-dashpot-slider whose stiffness and damping the case does not give. The
@@ -136,12 +137,25 @@ fn law(d: &PenetrationDeck, a: usize, b: usize, wall: bool) -> String {
     };
     let k = d.pairs.idx(a, b);
     format!(
-        "hertz/material {} {} {} damping coeff_restitution tangential mindlin NULL 1.0 {} twisting none",
+        "hertz/material {} {} {} damping coeff_restitution tangential mindlin NULL {} {} twisting none",
         g(e),
         g(d.pairs.restitution[k]),
         g(nu),
+        g(tangential_damping_ratio(nu)),
         g(d.pairs.friction[k])
     )
+}
+
+/// Mindlin's tangential damping ratio `xt` that makes LAMMPS' tangential damping
+/// LIGGGHTS' (docs/lammps-laws.md, "The three-code table"): LIGGGHTS damps with
+/// `2 sqrt(5/6) beta sqrt(S m*)`, S_n = 2 E* a normally and S_t = 8 G* a tangentially, so
+/// the tangential coefficient is sqrt(S_t / S_n) = sqrt(4 G* / E*) of the normal one;
+/// LAMMPS' `coeff_restitution` normal coefficient equals LIGGGHTS', and `mindlin` takes
+/// `xt` times it. With E and nu given per pair, as the deck gives them (LAMMPS mixes the
+/// pair's material with itself: E* = E / (2 (1 - nu^2)), G* = E / (4 (2 - nu) (1 + nu))),
+/// 4 G* / E* = 2 (1 - nu) / (2 - nu): 0.907 at nu = 0.3.
+fn tangential_damping_ratio(nu: f64) -> f64 {
+    (2.0 * (1.0 - nu) / (2.0 - nu)).sqrt()
 }
 
 /// Number of lines the force file holds after a complete run: LAMMPS 2025's `fix print`
@@ -228,9 +242,10 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
              pair_style granular, one pair_coeff per type pair, from the case's materials and \
              interactions: `hertz/material E e nu` (LIGGGHTS `model hertz`; unequal types: \
              LAMMPS' own mixing of E and nu), `damping coeff_restitution` (LIGGGHTS' \
-             restitution-based Hertz damping), `tangential mindlin NULL 1.0 mu` (LIGGGHTS \
+             restitution-based Hertz damping), `tangential mindlin NULL xt mu` (LIGGGHTS \
              `tangential history`: stiffness 8 G* a from E and nu, Coulomb limit mu, \
-             tangential damping ratio 1). {}",
+             tangential damping ratio xt = sqrt(4 G* / E*) = sqrt(2 (1 - nu) / (2 - nu)), \
+             which makes its tangential damping LIGGGHTS'). {}",
             if has_rolling {
                 format!(
                     "Rolling resistance: the case asks for LIGGGHTS `rolling_friction {}` \
