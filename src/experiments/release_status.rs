@@ -577,7 +577,10 @@ fn summary(checks: &[&Check], d: &Digest) -> String {
                     .strip_prefix(&format!("{}: ", d.name))
                     .unwrap_or(&c.name);
                 let value = crate::report::text::value(c);
-                let how = match (interval_of(&c.detail), single_bed_verdict(&c.detail)) {
+                let how = match (
+                    interval_of(&c.detail, c.value),
+                    single_bed_verdict(&c.detail),
+                ) {
                     (Some(iv), _) => format!("{value} [{iv}]"),
                     (None, Some(v)) => format!("{value} (one bed; the single-bed rule: {v})"),
                     (None, None) => value,
@@ -606,14 +609,38 @@ fn summary(checks: &[&Check], d: &Digest) -> String {
 }
 
 /// The interval a check's detail gives its value ("[90 % interval -0.56, 0.70]" ->
-/// "90 %: -0.56, 0.70"), the first one only: the number that decided the verdict.
-pub(crate) fn interval_of(detail: &str) -> Option<String> {
-    let at = detail.find("% interval ")?;
-    let open = detail[..at].rfind('[')?;
-    let close = at + detail[at..].find(']')?;
-    let level = detail[open + 1..at].trim();
-    let bounds = detail[at + "% interval ".len()..close].trim();
-    Some(format!("{level} %: {bounds}"))
+/// "90 %: -0.56, 0.70"): the first of the detail's intervals that holds `value`. A claim
+/// over several steps prints one interval per step and its value is the deciding step's,
+/// not always the first; an interval that does not hold the value (a negative control's
+/// count beside the interval of the gate it perturbed) is not the value's and is not
+/// shown.
+pub(crate) fn interval_of(detail: &str, value: f64) -> Option<String> {
+    let key = "% interval ";
+    let mut from = 0;
+    while let Some(rel) = detail[from..].find(key) {
+        let at = from + rel;
+        from = at + key.len();
+        let (Some(open), Some(close)) = (
+            detail[..at].rfind('['),
+            detail[at..].find(']').map(|c| at + c),
+        ) else {
+            continue;
+        };
+        let level = detail[open + 1..at].trim();
+        let bounds = detail[at + key.len()..close].trim();
+        let Some((lo, hi)) = bounds.split_once(',') else {
+            continue;
+        };
+        let (Ok(lo), Ok(hi)) = (lo.trim().parse::<f64>(), hi.trim().parse::<f64>()) else {
+            continue;
+        };
+        // The detail prints 4 decimals: allow the rounding.
+        let tol = 5e-5 * value.abs().max(1.0);
+        if lo - tol <= value && value <= hi + tol {
+            return Some(format!("{level} %: {bounds}"));
+        }
+    }
+    None
 }
 
 /// What the single-bed rule of docs/statistics.md would have said of a one-bed
@@ -667,7 +694,7 @@ pub fn expect_drafts(digests: &BTreeMap<(String, String), Digest>) -> String {
             ));
             if c.value.is_finite() {
                 out.push_str(&format!("value = {:?}\n", c.value));
-                if let Some([lo, hi]) = numeric_interval(&c.detail)
+                if let Some([lo, hi]) = numeric_interval(&c.detail, c.value)
                     && lo <= c.value
                     && c.value <= hi
                 {
@@ -683,9 +710,9 @@ pub fn expect_drafts(digests: &BTreeMap<(String, String), Digest>) -> String {
     out
 }
 
-/// The bounds of the first "[90 % interval lo, hi]" of a check's detail, as numbers.
-fn numeric_interval(detail: &str) -> Option<[f64; 2]> {
-    let text = interval_of(detail)?;
+/// The bounds of the detail's interval that holds `value` ([`interval_of`]), as numbers.
+fn numeric_interval(detail: &str, value: f64) -> Option<[f64; 2]> {
+    let text = interval_of(detail, value)?;
     let (_, bounds) = text.split_once(": ")?;
     let (lo, hi) = bounds.split_once(',')?;
     Some([lo.trim().parse().ok()?, hi.trim().parse().ok()?])
@@ -868,6 +895,26 @@ pub fn gate_of_digests(repo: &Path, only: &[String]) -> Result<(String, i32)> {
 mod tests {
     use super::*;
     use crate::compare::Gate;
+
+    /// The interval shown beside a value is the one that holds it: a claim's second
+    /// step, not its first; none for a control's count.
+    #[test]
+    fn the_interval_shown_is_the_one_that_holds_the_value() {
+        let two = "a: 0.9547 [90 % interval 0.7605, 1.1489] over 3 beds; \
+                   b: 0.3858 [90 % interval -0.2593, 1.0309] over 3 beds";
+        assert_eq!(
+            interval_of(two, 0.3858278805874269).as_deref(),
+            Some("90 %: -0.2593, 1.0309")
+        );
+        assert_eq!(
+            interval_of(two, 0.9547).as_deref(),
+            Some("90 %: 0.7605, 1.1489")
+        );
+        assert_eq!(interval_of(two, 1.5), None);
+        let control = "cannot bite (INCONCLUSIVE: -0.8430 [90 % interval -1.6541, -0.0318])";
+        assert_eq!(interval_of(control, 1.0), None);
+        assert_eq!(numeric_interval(two, 0.3858), Some([-0.2593, 1.0309]));
+    }
 
     fn rules() -> CurrentRules {
         let mut r = CurrentRules::default();
