@@ -133,6 +133,12 @@ enum Cmd {
         case: PathBuf,
         #[arg(long)]
         report: PathBuf,
+        /// The reference engine; it must be the case kind's (micro and penetration:
+        /// liggghts; impact2d: lammps). Penetration also takes `lammps`: LAMMPS 2025,
+        /// live, on the same natively prepared beds (docs/lammps-laws.md, "Penetration
+        /// in LAMMPS 2025"). Default: the case kind's.
+        #[arg(long)]
+        engine: Option<EngineName>,
         #[command(flatten)]
         common: Common,
     },
@@ -583,8 +589,57 @@ fn warnings(c: &AnyCase, path: &Path) -> Vec<String> {
         .collect()
 }
 
-/// `compare` of one case file into `out/<case name>/`.
-fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOutcome {
+/// `compare --engine E`: whether the reference is LAMMPS 2025 in place of LIGGGHTS (a
+/// penetration case only). An engine that is not the case kind's reference is refused
+/// (exit 2) before anything runs, and so is a recorded LAMMPS reference: there is none,
+/// so LAMMPS must run live (`--reference-mode auto` becomes `live`).
+fn lammps_reference(case: &Path, engine: Option<EngineName>, opts: &mut Options) -> Result<bool> {
+    let Some(engine) = engine else {
+        return Ok(false);
+    };
+    let c = load(case)?;
+    let own = match &c {
+        AnyCase::Impact2d(_) => EngineName::Lammps,
+        _ => EngineName::Liggghts,
+    };
+    if engine == own {
+        return Ok(false);
+    }
+    let AnyCase::Penetration(_) = &c else {
+        bail!(
+            "{}: --engine {}: this case's reference engine is {} (only a penetration case also takes lammps)",
+            case.display(),
+            engine.name(),
+            own.name()
+        );
+    };
+    if engine != EngineName::Lammps {
+        bail!(
+            "{}: --engine {}: the native engine is what is compared; --engine names the reference (liggghts or lammps)",
+            case.display(),
+            engine.name()
+        );
+    }
+    match opts.ref_mode {
+        RefMode::Recorded => bail!(
+            "{}: --engine lammps --reference-mode recorded: there are no recorded LAMMPS penetration runs; LAMMPS 2025 runs live",
+            case.display()
+        ),
+        RefMode::Auto => opts.ref_mode = RefMode::Live,
+        RefMode::Live => {}
+    }
+    Ok(true)
+}
+
+/// `compare` of one case file into `out/<case name>/`; `lammps3d`: a penetration case
+/// against LAMMPS 2025 instead of LIGGGHTS ([`lammps_reference`] checked it may).
+fn compare_one(
+    path: &Path,
+    stress: bool,
+    lammps3d: bool,
+    opts: &Options,
+    out: &Path,
+) -> CaseOutcome {
     match AnyCase::load(path) {
         Err(e) => CaseOutcome {
             checks: vec![granval::compare::Check::error(
@@ -602,7 +657,17 @@ fn compare_one(path: &Path, stress: bool, opts: &Options, out: &Path) -> CaseOut
             }
             let name = case.name().to_string();
             let dir = out.join(&name);
-            let mut o = with_experiment!(case, stress, |exp| runner::compare(&exp, opts, &dir));
+            let mut o = match case {
+                AnyCase::Penetration(case) if lammps3d => {
+                    let exp = granval::experiments::penetration::Penetration {
+                        case,
+                        stress,
+                        reference: granval::rundata::provenance::EngineKind::Lammps,
+                    };
+                    runner::compare(&exp, opts, &dir)
+                }
+                case => with_experiment!(case, stress, |exp| runner::compare(&exp, opts, &dir)),
+            };
             o.notes.splice(0..0, warned);
             // The case's figures are under its own directory of the report.
             for s in &mut o.sections {
@@ -1048,15 +1113,18 @@ fn real_main() -> Result<ExitCode> {
         Cmd::Compare {
             case,
             report,
+            engine,
             common,
         } => {
+            let mut opts = options(&common);
+            let lammps3d = lammps_reference(&case, engine, &mut opts)?;
             let _out = claim(
                 &report,
                 "--report",
                 common.force,
                 &protected(&common).input(&case),
             )?;
-            let o = compare_one(&case, false, &options(&common), &report);
+            let o = compare_one(&case, false, lammps3d, &opts, &report);
             finish(
                 &report_of(vec![o]),
                 &report,
@@ -1111,7 +1179,7 @@ fn real_main() -> Result<ExitCode> {
                     gate_theory: e.theory,
                     ..opts.clone()
                 };
-                outcomes.push(compare_one(&e.path, e.stress, &o, &report));
+                outcomes.push(compare_one(&e.path, e.stress, false, &o, &report));
                 say!(
                     "   {} took {:.0} s",
                     e.path.display(),
@@ -1515,6 +1583,7 @@ fn real_main() -> Result<ExitCode> {
             let exp = granval::experiments::penetration::Penetration {
                 case: pc,
                 stress: true,
+                reference: granval::rundata::provenance::EngineKind::Liggghts,
             };
             let o = runner::compare(&exp, &opts, &out);
             finish(
@@ -1540,6 +1609,7 @@ fn real_main() -> Result<ExitCode> {
                     Chaotic::Penetration(granval::experiments::penetration::Penetration {
                         case: pc,
                         stress: false,
+                        reference: granval::rundata::provenance::EngineKind::Liggghts,
                     })
                 }
                 AnyCase::Impact2d(ic) => {

@@ -13,6 +13,9 @@ use granval::experiments::penetration::bed::prepare_bed;
 use granval::experiments::penetration::deck_dir::lammps_deck;
 use std::path::Path;
 
+/// The force file the LAMMPS deck writes (the deck's `fix print` names it).
+const FORCE_FILE: &str = "force.lammps.txt";
+
 fn tiny_case(dir: &Path) -> PenetrationCase {
     let path = dir.join("tiny.toml");
     std::fs::write(&path, common::tiny_penetration_toml(0.010, "", "")).unwrap();
@@ -156,4 +159,257 @@ fn lammps_smoke_run_resists_like_the_native_engine() {
         (1.0 / 3.0..=3.0).contains(&ratio),
         "LAMMPS force {l_deep} N vs native {n_deep} N: ratio {ratio} outside [1/3, 3]"
     );
+}
+
+/// `granval compare --engine lammps` refuses, before anything runs (exit 2, naming the
+/// option): a recorded LAMMPS reference (there is none), a case whose reference cannot
+/// be LAMMPS 2025 (micro), and `native` named as the reference.
+#[test]
+fn compare_engine_lammps_refuses_what_it_cannot_do() {
+    let tmp = tempfile::tempdir().unwrap();
+    let case = tiny_case(tmp.path());
+    let micro = common::root().join("cases/micro/glass-head-on.toml");
+    for (case, args, needle) in [
+        (
+            case.source.clone(),
+            vec!["--engine", "lammps", "--reference-mode", "recorded"],
+            "--reference-mode recorded",
+        ),
+        (micro, vec!["--engine", "lammps"], "only a penetration case"),
+        (
+            case.source.clone(),
+            vec!["--engine", "native"],
+            "--engine names the reference",
+        ),
+    ] {
+        let o = common::granval()
+            .arg("compare")
+            .arg(&case)
+            .args(&args)
+            .arg("--report")
+            .arg(tmp.path().join("report"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!tmp.path().join("report").join("tiny").exists());
+    }
+}
+
+/// `granval compare --engine lammps` on the tiny case (two beds of 300 grains): LAMMPS
+/// 2025 runs each bed from the natively prepared grains, its force file goes through the
+/// LIGGGHTS binner into the same FDR, K_phi and distance checks, with its provenance
+/// and a run seal that names LAMMPS. The verdict itself is not asserted (two tiny beds,
+/// and the tiny case has rolling resistance that the LAMMPS deck lacks): what is
+/// asserted is that the comparison is made against LAMMPS and says so.
+#[test]
+fn compare_engine_lammps_judges_the_native_engine_against_lammps() {
+    let test = "compare --engine lammps";
+    let live =
+        granval::engines::lammps3d::probe_reference().unwrap_or_else(|e| panic!("[{test}] {e:#}"));
+    let Some(_) = live else {
+        assert!(
+            !common::require_live(),
+            "[{test}] GRANVAL_REQUIRE_LIVE=1 but LAMMPS (22 Jul 2025) is not installed"
+        );
+        common::engineless(test, "SKIPPED: LAMMPS 22 Jul 2025 is not installed");
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("tiny.toml");
+    std::fs::write(
+        &path,
+        common::tiny_penetration_toml(0.010, "", "\n[ensemble]\nbeds = 2\n"),
+    )
+    .unwrap();
+    let report = tmp.path().join("report");
+    let o = common::granval()
+        .arg("compare")
+        .arg(&path)
+        .args(["--engine", "lammps", "--report"])
+        .arg(&report)
+        .output()
+        .unwrap();
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    eprintln!("[{test}] exit {:?}\n{out}", o.status.code());
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("report.json")).unwrap())
+            .unwrap_or_else(|e| panic!("[{test}] report.json: {e}\n{err}"));
+    let text = json.to_string();
+    assert!(
+        !text.contains("\"error\""),
+        "[{test}] an error check: {text}"
+    );
+    let runs = json["runs"].as_array().unwrap();
+    assert_eq!(runs[0]["reference_engine"], "LAMMPS", "{text}");
+    assert!(
+        runs[0]["reference_version"]
+            .as_str()
+            .unwrap()
+            .contains("22 Jul 2025"),
+        "{text}"
+    );
+    let checks = json["checks"].as_array().unwrap();
+    let k_phi = checks
+        .iter()
+        .find(|c| c["name"].as_str().unwrap().contains("K_phi"))
+        .unwrap_or_else(|| panic!("no K_phi check: {text}"));
+    eprintln!("[{test}] {k_phi}");
+    assert!(
+        checks
+            .iter()
+            .any(|c| c["name"].as_str().unwrap().contains("FDR distance")),
+        "{text}"
+    );
+    let case_dir = report.join("tiny");
+    for k in 0..2 {
+        let dir = case_dir.join(format!("bed-{k}")).join("lammps");
+        assert!(dir.join(FORCE_FILE).exists(), "{}", dir.display());
+        let prov = std::fs::read_to_string(dir.join("provenance.json")).unwrap();
+        assert!(
+            prov.contains("\"engine\": \"lammps\"") && prov.contains("22 Jul 2025"),
+            "{prov}"
+        );
+    }
+    let seal = std::fs::read_to_string(case_dir.join("run-seal.json")).unwrap();
+    assert!(seal.contains("\"reference_engine\": \"lammps\""), "{seal}");
+    let summary = std::fs::read_to_string(case_dir.join("summary.json")).unwrap();
+    assert!(
+        summary.contains("\"lammps\"") && !summary.contains("\"liggghts\""),
+        "{summary}"
+    );
+    assert!(case_dir.join("fdr_lammps.csv").exists());
+}
+
+/// `granval deck --engine lammps`, LAMMPS run by hand in each bed directory as its README
+/// says, then `granval analyze`: the report is `compare --engine lammps`'s, check for
+/// check (same beds, same LAMMPS, one core: the same numbers). A bed directory brought
+/// back with an edited data file, or with its force file cut short, is refused (exit 2),
+/// naming the file.
+#[test]
+fn analyze_reads_a_lammps_deck_directory_run_by_hand() {
+    let test = "analyze LAMMPS deck";
+    let live =
+        granval::engines::lammps3d::probe_reference().unwrap_or_else(|e| panic!("[{test}] {e:#}"));
+    let Some(_) = live else {
+        assert!(
+            !common::require_live(),
+            "[{test}] GRANVAL_REQUIRE_LIVE=1 but LAMMPS (22 Jul 2025) is not installed"
+        );
+        common::engineless(test, "SKIPPED: LAMMPS 22 Jul 2025 is not installed");
+        return;
+    };
+    let lmp = granval::engines::lammps3d::binary().unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("tiny.toml");
+    std::fs::write(
+        &path,
+        common::tiny_penetration_toml(0.010, "", "\n[ensemble]\nbeds = 2\n"),
+    )
+    .unwrap();
+    let deck = tmp.path().join("deck");
+    let o = common::granval()
+        .args(["deck", "--engine", "lammps"])
+        .arg(&path)
+        .arg("-o")
+        .arg(&deck)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let readme = std::fs::read_to_string(deck.join("README.md")).unwrap();
+    assert!(
+        readme.contains("granval analyze DIR") && readme.contains(FORCE_FILE),
+        "{readme}"
+    );
+    for k in 0..2 {
+        let dir = deck.join(format!("bed-{k}"));
+        assert!(dir.join("inputs.json").exists());
+        let st = std::process::Command::new(&lmp)
+            .args([
+                "-in",
+                lp::DECK_FILE,
+                "-log",
+                "log.lammps",
+                "-screen",
+                "none",
+            ])
+            .current_dir(&dir)
+            .status()
+            .unwrap();
+        assert!(st.success(), "[{test}] LAMMPS in {}", dir.display());
+    }
+    let analyzed = tmp.path().join("analyzed");
+    let o = common::granval()
+        .arg("analyze")
+        .arg(&deck)
+        .arg("--report")
+        .arg(&analyzed)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    let read = |dir: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap())
+            .unwrap_or_else(|e| panic!("[{test}] {}: {e}\n{err}", dir.display()))
+    };
+    let a = read(&analyzed);
+    assert_eq!(a["runs"][0]["reference_engine"], "LAMMPS", "{a}");
+    let compared = tmp.path().join("compared");
+    let o = common::granval()
+        .arg("compare")
+        .arg(&path)
+        .args(["--engine", "lammps", "--report"])
+        .arg(&compared)
+        .output()
+        .unwrap();
+    assert!(o.status.code().is_some());
+    let c = read(&compared);
+    let values = |r: &serde_json::Value| -> Vec<(String, String)> {
+        r["checks"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|k| (k["name"].to_string(), k["value"].to_string()))
+            .collect()
+    };
+    assert!(!values(&a).is_empty());
+    assert_eq!(values(&a), values(&c), "[{test}] analyze vs compare");
+    eprintln!("[{test}] analyze = compare: {:?}", values(&a));
+    // Negative controls: an edited data file, a force file cut short.
+    let bed0 = deck.join("bed-0");
+    let data = std::fs::read_to_string(bed0.join(lp::DATA_FILE)).unwrap();
+    let edited = data.replacen(" 2.5e3 ", " 2.6e3 ", 1);
+    assert_ne!(edited, data);
+    std::fs::write(bed0.join(lp::DATA_FILE), &edited).unwrap();
+    let o = common::granval()
+        .arg("analyze")
+        .arg(&deck)
+        .arg("--report")
+        .arg(tmp.path().join("edited"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains(lp::DATA_FILE), "{err}");
+    std::fs::write(bed0.join(lp::DATA_FILE), &data).unwrap();
+    let force = std::fs::read_to_string(bed0.join(FORCE_FILE)).unwrap();
+    let cut: Vec<&str> = force.lines().collect();
+    std::fs::write(
+        bed0.join(FORCE_FILE),
+        cut[..cut.len() - 3].join("\n") + "\n",
+    )
+    .unwrap();
+    let o = common::granval()
+        .arg("analyze")
+        .arg(&deck)
+        .arg("--report")
+        .arg(tmp.path().join("cut"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains(FORCE_FILE) && err.contains("lines"), "{err}");
 }

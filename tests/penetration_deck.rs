@@ -220,6 +220,7 @@ fn analyze_of_a_deck_run_reproduces_compare() {
     let exp = Penetration {
         case: case.clone(),
         stress: false,
+        reference: granval::rundata::provenance::EngineKind::Liggghts,
     };
     let compared = runner::compare(&exp, &opts, &cmp_dir);
     assert!(compared.run.is_some(), "{:?}", compared.checks);
@@ -351,6 +352,7 @@ fn records_carry_their_beds_and_a_moved_bed_changes_the_fingerprint() {
     let exp = Penetration {
         case: case.clone(),
         stress: false,
+        reference: granval::rundata::provenance::EngineKind::Liggghts,
     };
     let reference_root = tmp.path().join("reference");
     let record = reference::record_root(&reference_root, exp.kind(), exp.name());

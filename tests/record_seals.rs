@@ -293,6 +293,7 @@ fn every_penetration_record_holds_the_outputs_of_its_own_deck() {
                 let exp = granval::experiments::penetration::Penetration {
                     case: c.clone(),
                     stress: false,
+                    reference: granval::rundata::provenance::EngineKind::Liggghts,
                 };
                 reference::verify(
                     &root,
@@ -309,6 +310,7 @@ fn every_penetration_record_holds_the_outputs_of_its_own_deck() {
                     let exp = granval::experiments::penetration::Penetration {
                         case: c.clone(),
                         stress: false,
+                        reference: granval::rundata::provenance::EngineKind::Liggghts,
                     };
                     let v = verify_lean(&exp, &root).unwrap();
                     let units = exp

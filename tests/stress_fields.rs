@@ -356,6 +356,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
     let exp = Penetration {
         case: case.clone(),
         stress: true,
+        reference: granval::rundata::provenance::EngineKind::Liggghts,
     };
     let native = exp
         .run_native(&unit, Role::Main, dir.path(), &Options::default())
@@ -1041,6 +1042,7 @@ fn stress_run() -> Option<&'static StressRun> {
         let exp = Penetration {
             case: case.clone(),
             stress: true,
+            reference: granval::rundata::provenance::EngineKind::Liggghts,
         };
         let outcome = granval::experiments::runner::compare(&exp, &opts, &out);
         common::show("stress tiny", &outcome.checks);
@@ -1264,6 +1266,7 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
     let exp = Penetration {
         case: case.clone(),
         stress: false,
+        reference: granval::rundata::provenance::EngineKind::Liggghts,
     };
     let plain = tempfile::tempdir().unwrap();
     let units = exp.units(&run.opts).unwrap();
@@ -1319,6 +1322,7 @@ fn stress_reuse_reanalyses_the_snapshots_of_a_run() {
     let exp = Penetration {
         case: run.case.clone(),
         stress: true,
+        reference: granval::rundata::provenance::EngineKind::Liggghts,
     };
     let again = granval::experiments::runner::compare(&exp, &opts, &out);
     assert!(again.run.is_some(), "{:?}", again.checks);
@@ -1341,6 +1345,7 @@ fn stress_reuse_reanalyses_the_snapshots_of_a_run() {
     let other = Penetration {
         case: windows3,
         stress: true,
+        reference: granval::rundata::provenance::EngineKind::Liggghts,
     };
     let refused = granval::experiments::runner::compare(&other, &opts, &out);
     let e = refused

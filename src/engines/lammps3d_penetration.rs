@@ -1,9 +1,9 @@
 //! LAMMPS 22 Jul 2025 deck for the penetration experiment (Feng et al., Sec. 2): the
 //! same settled bed and the same constant-speed cylindrical intruder as the LIGGGHTS
 //! deck ([`crate::engines::liggghts::penetration`]), written from the same
-//! [`PenetrationDeck`] with LAMMPS' own granular commands. First stage: the deck and its
-//! data file only; runner and force-depth reduction come next (docs/lammps-laws.md,
-//! "Penetration in LAMMPS 2025").
+//! [`PenetrationDeck`] with LAMMPS' own granular commands, and the checked run with its
+//! provenance ([`run`]) that `granval compare --engine lammps` reduces to the force-depth
+//! relation (docs/lammps-laws.md, "Penetration in LAMMPS 2025").
 //!
 //! What maps and what does not (also in the deck's comments):
 //! - Normal: LIGGGHTS `model hertz` with E, nu per type -> `hertz/material E e nu`
@@ -29,6 +29,7 @@ use crate::engines::lammps3d::{self as l3, Lammps3d};
 use crate::engines::liggghts::penetration::{PenetrationDeck, Units};
 use crate::engines::process::{self, Transcript};
 use crate::physics::dem::lammps_granular::mixed_material;
+use crate::rundata::provenance::{EngineKind, Provenance, Sha256, now_utc};
 use anyhow::{Context, Result, bail};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -460,6 +461,20 @@ pub(crate) fn parse_force_file(path: &Path) -> Result<Vec<ForceLine>> {
 /// early-stopping LAMMPS is an error carrying its transcript. Returns the force lines
 /// and LAMMPS' wall time (s).
 pub fn run_dir(lmp: &Lammps3d, dir: &Path, expected: usize) -> Result<(Vec<ForceLine>, f64)> {
+    let f = run_finished(lmp, dir, expected)?;
+    Ok((f.lines, f.wall_time_s))
+}
+
+/// What a finished, checked run left: its force lines and what its provenance names.
+struct Finished {
+    lines: Vec<ForceLine>,
+    wall_time_s: f64,
+    version: String,
+    command: String,
+    warnings: Vec<String>,
+}
+
+fn run_finished(lmp: &Lammps3d, dir: &Path, expected: usize) -> Result<Finished> {
     process::remove_stale(
         dir,
         &[
@@ -491,7 +506,8 @@ pub fn run_dir(lmp: &Lammps3d, dir: &Path, expected: usize) -> Result<(Vec<Force
                 .into(),
         ));
     }
-    if let Err(why) = l3::check_banner(&tr.version(l3::VERSION_PREFIX)) {
+    let version = tr.version(l3::VERSION_PREFIX);
+    if let Err(why) = l3::check_banner(&version) {
         return Err(fail(why));
     }
     let lines = parse_force_file(&dir.join(FORCE_FILE)).map_err(|e| fail(format!("{e:#}")))?;
@@ -501,5 +517,115 @@ pub fn run_dir(lmp: &Lammps3d, dir: &Path, expected: usize) -> Result<(Vec<Force
             lines.len()
         )));
     }
-    Ok((lines, fin.wall_time_s))
+    Ok(Finished {
+        lines,
+        wall_time_s: fin.wall_time_s,
+        version,
+        command,
+        warnings: tr.warnings(),
+    })
+}
+
+/// Fingerprint of the deck and data file of `d`, in the order LAMMPS reads them: what a
+/// run's provenance and a run seal name as the reference engine's input.
+pub(crate) fn input_hash(d: &PenetrationDeck) -> Result<Sha256> {
+    let files = inputs(d)?;
+    Ok(deck_text::fingerprint(
+        &files.iter().map(|(_, t)| t.as_str()).collect::<Vec<_>>(),
+    ))
+}
+
+/// One LAMMPS 2025 penetration run of `d` in `dir`: the inputs written, LAMMPS run and
+/// checked as [`run_dir`] does, and the provenance of the run (version line, command,
+/// input fingerprint, wall time, LAMMPS' warnings). `case_file` is the case it is of.
+pub(crate) fn run(
+    lmp: &Lammps3d,
+    d: &PenetrationDeck,
+    dir: &Path,
+    case_file: &Path,
+) -> Result<(Vec<ForceLine>, Provenance)> {
+    write_inputs(d, dir)?;
+    let f = run_finished(lmp, dir, expected_samples(d))?;
+    let mut notes = vec![format!("run directory: {}", dir.display())];
+    notes.extend(f.warnings);
+    Ok((
+        f.lines,
+        Provenance {
+            engine: EngineKind::Lammps,
+            version: f.version,
+            command: f.command,
+            input_hash: input_hash(d)?,
+            date: now_utc(),
+            wall_time_s: f.wall_time_s,
+            threads: 1,
+            case_file: case_file.display().to_string(),
+            notes,
+        },
+    ))
+}
+
+/// The outputs of a run made by hand in `dir` (a `granval deck --engine lammps`
+/// directory, run here or on a cluster), checked as [`run`] checks its own: the deck
+/// and data file there are those of `d` (comments and number notation aside), no
+/// `ERROR` in LAMMPS' output, the log ends with `Total wall time` under LAMMPS 22 Jul
+/// 2025, and the force file holds every line the deck writes. Returns the force lines
+/// and the run's provenance (no command or wall time: granval did not run it).
+pub(crate) fn read_finished(
+    d: &PenetrationDeck,
+    dir: &Path,
+    case_file: &Path,
+) -> Result<(Vec<ForceLine>, Provenance)> {
+    for (name, text) in inputs(d)? {
+        deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
+    }
+    let tr = Transcript::read(l3::TRANSCRIPT, dir);
+    if tr.log.is_empty() {
+        bail!(
+            "{}: no {}: LAMMPS did not run here (run `lmp -in {DECK_FILE} -log {}` in it first)",
+            dir.display(),
+            l3::LOG_FILE,
+            l3::LOG_FILE
+        );
+    }
+    if !tr.errors.is_empty() {
+        bail!(
+            "{}: ERROR in the LAMMPS output: {}",
+            dir.display(),
+            tr.errors.join(" | ")
+        );
+    }
+    if !tr.log.contains("Total wall time") {
+        bail!(
+            "{}: {} does not end with `Total wall time`: LAMMPS stopped early (or is still running)",
+            dir.display(),
+            l3::LOG_FILE
+        );
+    }
+    let version = tr.version(l3::VERSION_PREFIX);
+    l3::check_banner(&version).map_err(|why| anyhow::anyhow!("{}: LAMMPS {why}", dir.display()))?;
+    let lines = parse_force_file(&dir.join(FORCE_FILE))?;
+    let expected = expected_samples(d);
+    if lines.len() != expected {
+        bail!(
+            "{}: holds {} lines, the deck writes {expected}: the run did not finish or the file was cut",
+            dir.join(FORCE_FILE).display(),
+            lines.len()
+        );
+    }
+    let mut notes = vec![format!("run directory: {} (run by hand)", dir.display())];
+    notes.extend(tr.warnings());
+    Ok((
+        lines,
+        Provenance {
+            engine: EngineKind::Lammps,
+            version,
+            command: "run outside granval".into(),
+            input_hash: input_hash(d)?,
+            date: now_utc(),
+            wall_time_s: f64::NAN,
+            threads: 1,
+            case_file: case_file.display().to_string(),
+            notes,
+        },
+    ))
 }

@@ -171,7 +171,14 @@ pub fn penetration(
     }
     let pa: Vec<_> = prepared.iter().collect();
     let pb: Vec<_> = nudged.iter().collect();
-    let range = fit_range_of(case, &units, &pa, &pb);
+    // The nudged runs sit where the reference engine's would: labelled as before.
+    let range = fit_range_of(
+        case,
+        &units,
+        &pa,
+        &pb,
+        crate::rundata::provenance::EngineKind::Liggghts,
+    );
     let h_max = super::penetration::k_phi_fit_end(case, &range);
     ensure!(
         range.not_compared.is_none() || h_max.is_infinite(),

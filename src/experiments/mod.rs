@@ -47,6 +47,7 @@ macro_rules! with_experiment {
                 let $exp = $crate::experiments::penetration::Penetration {
                     case,
                     stress: $stress,
+                    reference: $crate::rundata::provenance::EngineKind::Liggghts,
                 };
                 $body
             }

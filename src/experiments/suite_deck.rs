@@ -201,6 +201,7 @@ fn write_case(
             let exp = super::penetration::Penetration {
                 case: c.clone(),
                 stress: false,
+                reference: crate::rundata::provenance::EngineKind::Liggghts,
             };
             let dirs = super::penetration::deck_dir::write(
                 &c,

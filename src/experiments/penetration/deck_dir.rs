@@ -49,6 +49,7 @@ fn start_deck_dir(case: &PenetrationCase, out: &Path) -> Result<()> {
     super::Penetration {
         case: case.clone(),
         stress: false,
+        reference: crate::rundata::provenance::EngineKind::Liggghts,
     }
     .preflight()?;
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
@@ -123,6 +124,7 @@ pub fn write_lammps(case: &PenetrationCase, out: &Path, progress: bool) -> Resul
     use crate::engines::lammps3d_penetration as lmp;
     start_deck_dir(case, out)?;
     let mut dirs = Vec::new();
+    let mut lines = Vec::new();
     for k in 0..case.ensemble_beds {
         let ck = case.realisation(k);
         let dir = out.join(bed_dir_name(k));
@@ -130,9 +132,61 @@ pub fn write_lammps(case: &PenetrationCase, out: &Path, progress: bool) -> Resul
         let deck = lammps_deck(&ck, &bed)?;
         lmp::write_inputs(&deck, &dir)
             .with_context(|| format!("{}: no LAMMPS penetration deck", case.source.display()))?;
+        InputManifest::of_dir(&dir, case, k, ck.seed, Some(bed_hash(&bed)))?.write(&dir)?;
+        lines.push(format!(
+            "| {} | {} | {} | {:.4} | {} |",
+            bed_dir_name(k),
+            ck.seed,
+            deck.particles.len(),
+            bed.psi,
+            deck.n_steps
+        ));
         dirs.push(dir);
     }
+    std::fs::write(out.join("README.md"), lammps_readme(case, &lines))
+        .with_context(|| format!("cannot write {}", out.join("README.md").display()))?;
     Ok(dirs)
+}
+
+/// The README of a LAMMPS 2025 deck directory: what it holds, how to run it, how to
+/// bring it back.
+fn lammps_readme(case: &PenetrationCase, rows: &[String]) -> String {
+    use crate::engines::lammps3d_penetration as lmp;
+    let log = crate::engines::lammps3d::LOG_FILE;
+    format!(
+        "# LAMMPS 2025 penetration decks for `{name}` (written by granval)\n\n\
+         {desc}\n\n\
+         {n} independent bed(s), each prepared by granval's native engine (pour and settle, \
+         Feng et al. Sec. 2) and written exactly (`{data}`); LAMMPS only penetrates. The laws \
+         are LAMMPS' `pair_style granular` counterparts of the case's (docs/lammps-laws.md in \
+         the granval repository: Hertz with restitution damping, Mindlin tangential with \
+         LIGGGHTS' damping ratio, **no rolling resistance**; the intruder is an exact moving \
+         cylinder region). The case file is copied as `{CASE_FILE}`.\n\n\
+         | directory | seed | grains | packing fraction | steps |\n|---|---|---|---|---|\n{rows}\n\n\
+         ## Run\n\n\
+         Each `bed-K` directory is self-contained and needs LAMMPS 22 Jul 2025 with the \
+         GRANULAR package. One core:\n\n\
+         \x20   for d in bed-*; do (cd $d && lmp -in {deck} -log {log}); done\n\n\
+         N MPI ranks:\n\n\
+         \x20   for d in bed-*; do (cd $d && mpirun -np N lmp -in {deck} -log {log}); done\n\n\
+         The beds are independent jobs: on a cluster submit one job per directory.\n\n\
+         ## Analyse\n\n\
+         Bring the directory back (at least `{CASE_FILE}` and every `bed-K` with its inputs, \
+         `inputs.json`, `{force}` and `{log}`) and run\n\n\
+         \x20   granval analyze DIR --report OUT\n\n\
+         It checks that every run is complete and that its inputs are the ones granval wrote \
+         (`inputs.json`), reduces each `{force}` (`step t z_bottom fx fy fz`, SI, f = force of \
+         the grains on the intruder) to the force-depth relation, re-runs the native engine \
+         from the same bed (skip with `--no-native`) and writes the same report as \
+         `granval compare CASE --engine lammps`.\n",
+        name = case.name,
+        desc = case.description,
+        n = case.ensemble_beds,
+        rows = rows.join("\n"),
+        data = lmp::DATA_FILE,
+        deck = lmp::DECK_FILE,
+        force = lmp::FORCE_FILE,
+    )
 }
 
 /// The engine-neutral description of one penetration run (the LIGGGHTS deck's inputs,
@@ -223,10 +277,20 @@ fn read_bed_as(case: &PenetrationCase, dir: &Path, settled_by_liggghts: bool) ->
             Vec::new(),
         )
     };
+    Ok(bed_of(case, particles, bodies))
+}
+
+/// A bed read back from a deck directory, with its surface height and packing fraction
+/// computed as the native preparation computes them.
+fn bed_of(
+    case: &PenetrationCase,
+    particles: Vec<crate::case::Particle>,
+    bodies: Vec<crate::case::clumps::Clump>,
+) -> Bed {
     let spheres = packing::grain_spheres(case, &particles, &bodies);
     let surface_z = packing::surface_height(case, &spheres);
     let psi = packing::packing_fraction(case, &particles, &bodies, surface_z);
-    Ok(Bed {
+    Bed {
         particles,
         bodies,
         surface_z,
@@ -234,7 +298,7 @@ fn read_bed_as(case: &PenetrationCase, dir: &Path, settled_by_liggghts: bool) ->
         ke_ratio: f64::NAN,
         settle_time: f64::NAN,
         ke_at_end_of_pour: f64::NAN,
-    })
+    }
 }
 
 /// The `bed-K` directories of a deck directory, in K order.
@@ -296,6 +360,57 @@ pub(crate) fn read_run(
     Ok((bed, run))
 }
 
+/// A LAMMPS 2025 run directory of bed `k` of `case`, checked and reduced as
+/// [`read_run`] checks a LIGGGHTS one: exactly the inputs its manifest lists, of this case
+/// and bed; the deck and data file those granval writes for this case on the bed the
+/// data file holds; a finished LAMMPS 2025 run with every force line
+/// ([`crate::engines::lammps3d_penetration::read_finished`]).
+pub(crate) fn read_lammps_run(
+    case: &PenetrationCase,
+    case_file: &Path,
+    k: usize,
+    dir: &Path,
+) -> Result<(Bed, super::bed::EngineRun)> {
+    use crate::engines::lammps3d_penetration as lmp;
+    let ck = case.realisation(k);
+    let manifest = InputManifest::read(dir)?;
+    manifest.check(dir, case, case_file, k, ck.seed)?;
+    ensure!(
+        manifest.is_lammps(),
+        "{}: not a LAMMPS deck (its inputs.json lists {:?})",
+        dir.display(),
+        manifest.inputs.keys().collect::<Vec<_>>()
+    );
+    let particles = lp::parse_data_file(&dir.join(lmp::DATA_FILE), Units::Si)?;
+    let bed = bed_of(&ck, particles, Vec::new());
+    if let Some(want) = &manifest.bed_sha256 {
+        let got = bed_hash(&bed);
+        ensure!(
+            &got == want,
+            "{}: the bed read from it has sha256 {got}, {} names {want}",
+            dir.display(),
+            dir.join(super::inputs::MANIFEST_FILE).display()
+        );
+    }
+    let deck = lammps_deck(&ck, &bed)?;
+    let (lines, mut provenance) = lmp::read_finished(&deck, dir, case_file)?;
+    provenance.notes.push(packing::bed_note(&ck, &bed));
+    provenance
+        .notes
+        .push(format!("bed sha256 {}", bed_hash(&bed)));
+    let mut b = super::bed::binner(&ck, &bed)?;
+    for l in &lines {
+        b.push(l.z_bottom, l.f[2])?;
+    }
+    let run = super::bed::EngineRun {
+        fdr: b.fdr(),
+        samples: b.samples(),
+        provenance,
+        force_file: Some(dir.join(lmp::FORCE_FILE)),
+    };
+    Ok((bed, run))
+}
+
 /// Errors unless every input in `dir` is the one granval writes for bed `ck` on `bed`
 /// (comments and number notation aside), as `read_run_dir` checks a micro or impact2d
 /// deck directory; a deck with contact snapshot dumps (a `stress` run) is compared with
@@ -340,12 +455,24 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
     use crate::experiments::Experiment;
     let case_file = dir.join(CASE_FILE);
     let case = PenetrationCase::load(&case_file)?;
+    let beds = bed_dirs(dir)?;
+    // A LAMMPS deck directory (`deck --engine lammps`) or a `compare --engine lammps`
+    // output: its first bed says which; every bed is then read as that engine's.
+    let lammps = beds.first().is_some_and(|b| {
+        let deck = crate::engines::lammps3d_penetration::DECK_FILE;
+        b.join(deck).exists() || b.join("lammps").join(deck).exists()
+    });
+    let engine = if lammps {
+        crate::rundata::provenance::EngineKind::Lammps
+    } else {
+        crate::rundata::provenance::EngineKind::Liggghts
+    };
     let exp = super::Penetration {
         case: case.clone(),
         stress: false,
+        reference: engine,
     };
     exp.preflight()?;
-    let beds = bed_dirs(dir)?;
     ensure!(
         !beds.is_empty(),
         "{}: no bed-0, bed-1, ... directories (written by `granval deck`)",
@@ -364,12 +491,18 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
     let mut reference = Vec::new();
     let mut notes = Vec::new();
     for (k, bdir) in beds.iter().enumerate() {
-        let bdir = if bdir.join("liggghts").join(lp::DECK_FILE).exists() {
-            bdir.join("liggghts")
+        let deck = if lammps {
+            crate::engines::lammps3d_penetration::DECK_FILE
+        } else {
+            lp::DECK_FILE
+        };
+        let bdir = if bdir.join(engine.key()).join(deck).exists() {
+            bdir.join(engine.key())
         } else {
             bdir.clone()
         };
-        let (bed, run) = read_run(&case, &case_file, k, &bdir)
+        let read = if lammps { read_lammps_run } else { read_run };
+        let (bed, run) = read(&case, &case_file, k, &bdir)
             .with_context(|| format!("bed {k}: run directory {}", bdir.display()))?;
         notes.push(format!(
             "bed {k}: {} grains read from {} (sha256 {}), surface z = {:.6e} m, psi = {:.4}; its inputs are the ones granval wrote for this case (inputs.json) and its outputs are of that deck",
@@ -429,6 +562,7 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             .filter_map(|r| r.slow.as_ref())
             .collect::<Vec<_>>(),
         &reference.iter().collect::<Vec<_>>(),
+        engine,
         out_dir,
         None,
     );
@@ -441,10 +575,17 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             reference_force: reference[k]
                 .force_file
                 .clone()
-                .context("the LIGGGHTS run names no force file")?,
+                .with_context(|| format!("the {engine} run names no force file"))?,
         })
     };
-    super::seal_summary(&case, (0..units.len()).map(runs), &summary, out_dir, &mut v);
+    super::seal_summary(
+        &case,
+        (0..units.len()).map(runs),
+        &summary,
+        engine,
+        out_dir,
+        &mut v,
+    );
     notes.extend(v.notes);
     let wall = |it: &mut dyn Iterator<Item = f64>| it.sum::<f64>();
     Ok(CaseOutcome {
@@ -453,7 +594,7 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
             case: case.name.clone(),
             case_file: dir.join(CASE_FILE).display().to_string(),
             test_engine: "none".into(),
-            reference_engine: "LIGGGHTS".into(),
+            reference_engine: engine.to_string(),
             reference_version: reference
                 .first()
                 .map(|r| r.provenance.version.clone())

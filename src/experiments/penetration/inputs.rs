@@ -16,6 +16,7 @@
 //! engine settled for this case (which would take the settling again to prove).
 
 use crate::engines::deck_text;
+use crate::engines::lammps3d_penetration as lmp;
 use crate::engines::liggghts::clump_bed;
 use crate::engines::liggghts::penetration as lp;
 use crate::rundata::provenance::Sha256;
@@ -29,12 +30,14 @@ pub(crate) const MANIFEST_FILE: &str = "inputs.json";
 /// Every file name an input of a penetration run directory can have: one present that
 /// the manifest does not list is foreign (it would change what `analyze` reads, e.g. a
 /// `data.lattice` makes the directory a LIGGGHTS-settled one).
-const INPUT_NAMES: [&str; 5] = [
+const INPUT_NAMES: [&str; 7] = [
     lp::DECK_FILE,
     lp::DATA_FILE,
     lp::LATTICE_FILE,
     clump_bed::BODIES_FILE,
     lp::STL_FILE,
+    lmp::DECK_FILE,
+    lmp::DATA_FILE,
 ];
 
 /// `inputs.json` of a run directory.
@@ -78,10 +81,11 @@ impl InputManifest {
             }
         }
         ensure!(
-            inputs.contains_key(lp::DECK_FILE),
-            "{}: no {} to record",
+            inputs.contains_key(lp::DECK_FILE) != inputs.contains_key(lmp::DECK_FILE),
+            "{}: neither {} (LIGGGHTS) nor {} (LAMMPS) alone to record",
             dir.display(),
-            lp::DECK_FILE
+            lp::DECK_FILE,
+            lmp::DECK_FILE
         );
         Ok(InputManifest {
             granval: env!("CARGO_PKG_VERSION").into(),
@@ -182,6 +186,11 @@ impl InputManifest {
             }
         }
         Ok(())
+    }
+
+    /// Whether this directory's deck is LAMMPS 2025's (`granval deck --engine lammps`).
+    pub(crate) fn is_lammps(&self) -> bool {
+        self.inputs.contains_key(lmp::DECK_FILE)
     }
 
     /// Whether this directory's deck settles its own bed in LIGGGHTS.

@@ -45,6 +45,10 @@ pub struct Penetration {
     pub case: PenetrationCase,
     /// Take contact snapshots and gate the stress fields too.
     pub stress: bool,
+    /// The reference engine: LIGGGHTS (the papers' code), or LAMMPS 2025 on the same
+    /// natively prepared beds (`granval compare --engine lammps`; docs/lammps-laws.md,
+    /// "Penetration in LAMMPS 2025"), live only and without the stress option.
+    pub reference: EngineKind,
 }
 
 /// One bed of the ensemble.
@@ -343,6 +347,46 @@ fn liggghts_run(
     })
 }
 
+/// One LAMMPS 2025 run of unit `u` in `dir` from the deck `granval deck --engine lammps`
+/// writes for the same bed, its force file reduced by the same binner as LIGGGHTS'.
+fn lammps_run(
+    case: &PenetrationCase,
+    u: &Unit,
+    dir: &Path,
+    limits: crate::engines::process::Limits,
+) -> Result<RefRun> {
+    use crate::engines::lammps3d;
+    let binary = lammps3d::binary().with_context(|| {
+        format!(
+            "{}=none: LAMMPS 2025 is switched off, but the comparison runs it",
+            lammps3d::ENV_VAR
+        )
+    })?;
+    let lmp = lammps3d::Lammps3d { binary, limits };
+    let deck = deck_dir::lammps_deck(&u.case, &u.bed)?;
+    let (lines, mut provenance) =
+        crate::engines::lammps3d_penetration::run(&lmp, &deck, dir, &case.source)?;
+    let mut b = binner(&u.case, &u.bed)?;
+    for l in &lines {
+        b.push(l.z_bottom, l.f[2])?;
+    }
+    inputs::InputManifest::of_dir(dir, case, u.k, u.case.seed, Some(u.bed_hash.clone()))?
+        .write(dir)?;
+    provenance.notes.push(packing::bed_note(&u.case, &u.bed));
+    provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
+    write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
+    Ok(RefRun {
+        run: EngineRun {
+            fdr: b.fdr(),
+            samples: b.samples(),
+            provenance,
+            force_file: Some(dir.join(crate::engines::lammps3d_penetration::FORCE_FILE)),
+        },
+        snapshots: None,
+        study_snapshots: None,
+    })
+}
+
 /// How far LIGGGHTS' bodies at step 0 of the penetration (its start dump) are from the
 /// native engine's start from the same bed: zero when the insertion was exact and the
 /// native start reproduces LIGGGHTS' insertion step and run boundary.
@@ -372,6 +416,18 @@ fn clump_start_note(case: &PenetrationCase, bed: &Bed, dir: &Path, np: usize) ->
 }
 
 impl Penetration {
+    /// The paths that exist for LIGGGHTS as the reference only: with LAMMPS, `what` is
+    /// refused by name rather than read as if it were LIGGGHTS'.
+    fn liggghts_only(&self, what: &str) -> Result<()> {
+        ensure!(
+            self.reference == EngineKind::Liggghts,
+            "{}: {what} exists for LIGGGHTS as the reference only, not for {}; compare with LAMMPS live (`granval compare --engine lammps`)",
+            self.case.source.display(),
+            self.reference
+        );
+        Ok(())
+    }
+
     /// A negative control whose gates include a stress gate (phi, published phi, MALT)
     /// needs the snapshots too: its native run takes them (stress option only).
     fn control_takes_snapshots(&self, role: Role) -> bool {
@@ -408,7 +464,13 @@ impl Experiment for Penetration {
         "penetration"
     }
     fn reference_engine(&self) -> EngineKind {
-        EngineKind::Liggghts
+        self.reference
+    }
+    fn probe_reference(&self) -> Result<Option<String>> {
+        match self.reference {
+            EngineKind::Lammps => crate::engines::lammps3d::probe_reference(),
+            e => super::reference::probe(e),
+        }
     }
 
     fn estimate(&self) -> Estimate {
@@ -435,6 +497,17 @@ impl Experiment for Penetration {
     }
 
     fn preflight(&self) -> Result<()> {
+        if self.reference == EngineKind::Lammps {
+            let src = self.case.source.display();
+            ensure!(
+                !self.stress,
+                "{src}: the stress option with LAMMPS as the reference is not built (LAMMPS writes no contact snapshots here); compare it without the stress option"
+            );
+            ensure!(
+                self.case.clump.is_none(),
+                "{src}: [clump]: the LAMMPS penetration deck takes sphere beds only"
+            );
+        }
         ensure!(
             !(self.stress && self.case.clump.is_some()),
             "{}: the stress fields of a bed of clumps are not built (contact snapshots and coarse graining are per sphere); run it without the stress option",
@@ -541,10 +614,20 @@ impl Experiment for Penetration {
     }
 
     fn fingerprint(&self, u: &Unit) -> Result<Sha256> {
-        lp::input_hash_of(&liggghts_deck(&u.case, &u.bed)?)
+        match self.reference {
+            EngineKind::Lammps => crate::engines::lammps3d_penetration::input_hash(
+                &deck_dir::lammps_deck(&u.case, &u.bed)?,
+            ),
+            _ => lp::input_hash_of(&liggghts_deck(&u.case, &u.bed)?),
+        }
     }
     fn engine_input(&self, u: &Unit) -> Result<Vec<(&'static str, String)>> {
-        lp::input_files(&liggghts_deck(&u.case, &u.bed)?)
+        match self.reference {
+            EngineKind::Lammps => crate::engines::lammps3d_penetration::inputs(
+                &deck_dir::lammps_deck(&u.case, &u.bed)?,
+            ),
+            _ => lp::input_files(&liggghts_deck(&u.case, &u.bed)?),
+        }
     }
 
     fn run_native(&self, u: &Unit, role: Role, dir: &Path, opts: &Options) -> Result<NativeRun> {
@@ -603,6 +686,9 @@ impl Experiment for Penetration {
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<RefRun> {
         let limits = super::engine_limits(self, opts);
+        if self.reference == EngineKind::Lammps {
+            return lammps_run(&self.case, u, dir, limits);
+        }
         let mut main = liggghts_run(&self.case, u, u.plan.as_ref(), dir, opts, &limits)?;
         if let Some(sp) = &u.study_plan {
             let sdir = dir.join(STUDY_DIR);
@@ -614,6 +700,7 @@ impl Experiment for Penetration {
     }
 
     fn record(&self, u: &Unit, run: &RefRun, run_dir: &Path, rec: &Path) -> Result<()> {
+        self.liggghts_only("a record under reference/")?;
         std::fs::create_dir_all(rec).with_context(|| format!("cannot create {}", rec.display()))?;
         let grains: &[&str] = if u.bed.bodies.is_empty() {
             &[lp::DATA_FILE]
@@ -663,6 +750,7 @@ impl Experiment for Penetration {
     }
 
     fn read_record(&self, u: &Unit, name: &str, seal: &Verified) -> Result<RefRun> {
+        self.liggghts_only("a recorded reference (--reference-mode recorded)")?;
         // Every file the reduction reads must be sealed.
         for f in [lp::FORCE_FILE, lp::LOG_FILE, lp::DECK_FILE, PROVENANCE_FILE] {
             seal.file(name, f)?;
@@ -685,6 +773,9 @@ impl Experiment for Penetration {
     }
 
     fn read_run_dir(&self, u: &Unit, dir: &Path) -> Result<RefRun> {
+        // `granval analyze` of penetration deck directories goes through
+        // [`deck_dir::analyze`], which reads LAMMPS directories too; this path is LIGGGHTS'.
+        self.liggghts_only("reading a run directory through the runner")?;
         // The bed is this unit's (granval prepared it): the deck on disk must be the one
         // written from it, as the directory's manifest must list it.
         let manifest = inputs::InputManifest::read(dir)?;
@@ -761,6 +852,7 @@ impl Experiment for Penetration {
                 .filter_map(|r| r.slow.as_ref())
                 .collect::<Vec<_>>(),
             &reference.iter().map(|r| &r.run).collect::<Vec<_>>(),
+            self.reference,
             out,
             opts.control.as_deref(),
         );
@@ -788,6 +880,7 @@ impl Experiment for Penetration {
             &self.case,
             (0..units.len()).map(runs),
             &summary,
+            self.reference,
             out,
             &mut v,
         );
@@ -802,12 +895,13 @@ pub(crate) fn seal_summary<'a>(
     case: &PenetrationCase,
     beds: impl Iterator<Item = Result<run_seal::BedRuns<'a>>>,
     summary: &crate::compare::sweep::CaseSummary,
+    reference_engine: EngineKind,
     out: &Path,
     v: &mut Verdict,
 ) {
     let sealed = beds
         .collect::<Result<Vec<_>>>()
-        .and_then(|beds| run_seal::write(out, case, &beds, summary, &v.checks));
+        .and_then(|beds| run_seal::write(out, case, &beds, summary, reference_engine, &v.checks));
     if let Err(e) = sealed {
         v.checks.push(Check::error(
             format!("{}: run seal", case.name),
@@ -827,6 +921,7 @@ pub(crate) fn fit_range_of(
     units: &[Unit],
     native: &[&EngineRun],
     reference: &[&EngineRun],
+    reference_engine: EngineKind,
 ) -> cp::FitRange {
     let bed_height = units
         .iter()
@@ -840,7 +935,7 @@ pub(crate) fn fit_range_of(
         )
     };
     let mut failed = Vec::new();
-    for (label, runs) in [("native", native), ("liggghts", reference)] {
+    for (label, runs) in [("native", native), (reference_engine.key(), reference)] {
         if runs.is_empty() {
             continue;
         }
@@ -872,12 +967,14 @@ pub(crate) fn k_phi_fit_end(case: &PenetrationCase, range: &cp::FitRange) -> f64
 /// Every FDR check of the experiment from the runs of both engines, with the FDR CSVs
 /// and the overlay SVG written to `out`, and the case's summary. Shared by `compare` and
 /// `analyze`, so both give the same report from the same runs.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn fdr_checks(
     case: &PenetrationCase,
     units: &[Unit],
     native: &[&EngineRun],
     native_slow: &[&EngineRun],
     reference: &[&EngineRun],
+    reference_engine: EngineKind,
     out: &Path,
     control: Option<&str>,
 ) -> (Verdict, crate::compare::sweep::CaseSummary) {
@@ -905,7 +1002,7 @@ pub(crate) fn fdr_checks(
         native: native_o,
         reference,
         summary,
-    } = summarize(case, units, native, reference);
+    } = summarize(case, units, native, reference, reference_engine);
     notes.push(range.text());
     let obs = |r: &[&EngineRun]| {
         let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
@@ -913,7 +1010,7 @@ pub(crate) fn fdr_checks(
     };
     let _ = std::fs::create_dir_all(out);
     let mut curves = Vec::new();
-    for (label, o) in [("native", &native_o), ("liggghts", &reference)] {
+    for (label, o) in [("native", &native_o), (reference_engine.key(), &reference)] {
         match o {
             Some(Ok(o)) => {
                 checks.extend(cp::fit_coverage(case, o, label));
@@ -942,7 +1039,7 @@ pub(crate) fn fdr_checks(
                 let engine = if label == "native" {
                     EngineKind::Native
                 } else {
-                    EngineKind::Liggghts
+                    reference_engine
                 };
                 curves.push((engine, o));
             }
@@ -1019,8 +1116,9 @@ pub(crate) fn summarize(
     units: &[Unit],
     native: &[&EngineRun],
     reference: &[&EngineRun],
+    reference_engine: EngineKind,
 ) -> Summarized {
-    let range = fit_range_of(case, units, native, reference);
+    let range = fit_range_of(case, units, native, reference, reference_engine);
     let h_max = k_phi_fit_end(case, &range);
     let obs = |r: &[&EngineRun]| {
         let f: Vec<&crate::analysis::fdr::Fdr> = r.iter().map(|r| &r.fdr).collect();
@@ -1028,7 +1126,7 @@ pub(crate) fn summarize(
     };
     let reference = (!reference.is_empty()).then(|| obs(reference));
     let native = (!native.is_empty()).then(|| obs(native));
-    let summary = summary(case, units, &native, &reference);
+    let summary = summary(case, units, &native, &reference, reference_engine);
     Summarized {
         range,
         h_max,
@@ -1044,11 +1142,12 @@ fn summary(
     units: &[Unit],
     native: &Option<Result<cp::Observables>>,
     reference: &Option<Result<cp::Observables>>,
+    reference_engine: EngineKind,
 ) -> crate::compare::sweep::CaseSummary {
     use crate::compare::sweep::{CaseSummary, EngineSummary};
     let psi = units.iter().map(|u| u.bed.psi).sum::<f64>() / units.len().max(1) as f64;
     let mut engines = std::collections::BTreeMap::new();
-    for (label, o) in [("native", native), ("liggghts", reference)] {
+    for (label, o) in [("native", native), (reference_engine.key(), reference)] {
         if let Some(Ok(o)) = o {
             engines.insert(
                 label.to_string(),

@@ -26,7 +26,7 @@ use crate::compare::{Check, Status};
 use crate::engines::liggghts::penetration as lp;
 use crate::physics::dem::packing::Bed;
 use crate::rundata::file_seal;
-use crate::rundata::provenance::Sha256;
+use crate::rundata::provenance::{EngineKind, Sha256};
 use anyhow::{Context, Result, bail, ensure};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -55,6 +55,20 @@ pub(crate) struct RunSeal {
     pub files: BTreeMap<String, Sha256>,
     /// The run's own verdict: its checks, each with its status.
     pub verdict: Vec<(String, Status)>,
+    /// The reference engine whose force files `reference_force` names: LIGGGHTS
+    /// (`force.txt`), or LAMMPS 2025 (`force.lammps.txt`, `compare --engine lammps`).
+    /// Written only when it is not LIGGGHTS, so seals of LIGGGHTS runs, older ones
+    /// included, are as they were.
+    #[serde(default = "liggghts", skip_serializing_if = "is_liggghts")]
+    pub reference_engine: EngineKind,
+}
+
+fn liggghts() -> EngineKind {
+    EngineKind::Liggghts
+}
+
+fn is_liggghts(e: &EngineKind) -> bool {
+    *e == EngineKind::Liggghts
 }
 
 /// One bed of a sealed run.
@@ -108,26 +122,36 @@ fn inside_or_copy(dir: &Path, path: &Path, k: usize) -> Result<String> {
     Ok(rel)
 }
 
-/// The FDR of one force file of bed `u`: a native `force.csv` or a LIGGGHTS `force.txt`
-/// (SI), binned as the run binned it.
-fn fdr_of(u_case: &PenetrationCase, bed: &Bed, path: &Path, native: bool) -> Result<EngineRun> {
+/// The FDR of one force file of bed `u` written by `engine`: a native `force.csv`, a
+/// LIGGGHTS `force.txt` (SI) or a LAMMPS 2025 `force.lammps.txt`, binned as the run
+/// binned it.
+fn fdr_of(
+    u_case: &PenetrationCase,
+    bed: &Bed,
+    path: &Path,
+    engine: EngineKind,
+) -> Result<EngineRun> {
     let mut b = binner(u_case, bed)?;
-    if native {
-        for s in crate::rundata::force::read_force_csv(path)? {
-            b.push(s.z_bottom, s.f[2])?;
+    match engine {
+        EngineKind::Native => {
+            for s in crate::rundata::force::read_force_csv(path)? {
+                b.push(s.z_bottom, s.f[2])?;
+            }
         }
-    } else {
-        lp::for_each_force_sample(path, lp::Units::Si, |s| b.push(s.z_bottom, s.f[2]))?;
+        EngineKind::Liggghts => {
+            lp::for_each_force_sample(path, lp::Units::Si, |s| b.push(s.z_bottom, s.f[2]))?
+        }
+        EngineKind::Lammps => {
+            for l in crate::engines::lammps3d_penetration::parse_force_file(path)? {
+                b.push(l.z_bottom, l.f[2])?;
+            }
+        }
     }
     Ok(EngineRun {
         fdr: b.fdr(),
         samples: b.samples(),
         provenance: crate::rundata::provenance::Provenance {
-            engine: if native {
-                crate::rundata::provenance::EngineKind::Native
-            } else {
-                crate::rundata::provenance::EngineKind::Liggghts
-            },
+            engine,
             version: String::new(),
             command: String::new(),
             input_hash: Sha256::of(b""),
@@ -147,14 +171,15 @@ fn summary_from_files(
     units: &[Unit],
     native: &[Option<PathBuf>],
     reference: &[PathBuf],
+    reference_engine: EngineKind,
 ) -> Result<CaseSummary> {
     let mut n = Vec::new();
     let mut r = Vec::new();
     for (k, u) in units.iter().enumerate() {
         if let Some(p) = &native[k] {
-            n.push(fdr_of(&u.case, &u.bed, p, true)?);
+            n.push(fdr_of(&u.case, &u.bed, p, EngineKind::Native)?);
         }
-        r.push(fdr_of(&u.case, &u.bed, &reference[k], false)?);
+        r.push(fdr_of(&u.case, &u.bed, &reference[k], reference_engine)?);
     }
     ensure!(
         n.is_empty() || n.len() == units.len(),
@@ -165,6 +190,7 @@ fn summary_from_files(
         units,
         &n.iter().collect::<Vec<_>>(),
         &r.iter().collect::<Vec<_>>(),
+        reference_engine,
     )
     .summary)
 }
@@ -182,6 +208,7 @@ pub fn write(
     case: &PenetrationCase,
     beds: &[BedRuns],
     in_memory: &CaseSummary,
+    reference_engine: EngineKind,
     checks: &[Check],
 ) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -220,6 +247,7 @@ pub fn write(
             .iter()
             .map(|s| dir.join(&s.reference_force))
             .collect::<Vec<_>>(),
+        reference_engine,
     )?;
     let text = summary_text(&from_files)?;
     if text != summary_text(in_memory)? {
@@ -239,6 +267,7 @@ pub fn write(
         beds: sealed,
         files: file_seal::seal(dir, names.iter().map(String::as_str))?,
         verdict: checks.iter().map(|c| (c.name.clone(), c.status)).collect(),
+        reference_engine,
     };
     let p = dir.join(RUN_SEAL_FILE);
     std::fs::write(&p, serde_json::to_string_pretty(&seal)? + "\n")
@@ -370,6 +399,7 @@ pub fn verify(dir: &Path, case: &PenetrationCase) -> Result<Verified> {
             .iter()
             .map(|s| dir.join(&s.reference_force))
             .collect::<Vec<_>>(),
+        seal.reference_engine,
     )
     .with_context(|| format!("{}: the sealed force files", seal_path.display()))?;
     let stored = std::fs::read_to_string(&summary_path)
@@ -395,6 +425,18 @@ pub fn verify(dir: &Path, case: &PenetrationCase) -> Result<Verified> {
 pub(crate) fn sealed_test_run(
     case: &PenetrationCase,
     dir: &Path,
+    p: impl Fn(usize, f64) -> f64,
+) -> Result<()> {
+    sealed_test_run_of(case, dir, EngineKind::Liggghts, p)
+}
+
+/// [`sealed_test_run`] with `reference` as the reference engine (its force file in
+/// `bed-K/<engine>/`, in the columns LIGGGHTS and LAMMPS 2025 both write).
+#[cfg(test)]
+pub(crate) fn sealed_test_run_of(
+    case: &PenetrationCase,
+    dir: &Path,
+    reference_engine: EngineKind,
     p: impl Fn(usize, f64) -> f64,
 ) -> Result<()> {
     use crate::rundata::force::{ForceSample, write_force_csv};
@@ -432,10 +474,15 @@ pub(crate) fn sealed_test_run(
             .collect();
         let bdir = dir.join(bed_dir_name(k));
         std::fs::create_dir_all(bdir.join("native"))?;
-        std::fs::create_dir_all(bdir.join("liggghts"))?;
+        std::fs::create_dir_all(bdir.join(reference_engine.key()))?;
         let native = bdir.join("native").join(super::FORCE_CSV);
         write_force_csv(&native, &samples)?;
-        let reference = bdir.join("liggghts").join(lp::FORCE_FILE);
+        let reference = bdir
+            .join(reference_engine.key())
+            .join(match reference_engine {
+                EngineKind::Lammps => crate::engines::lammps3d_penetration::FORCE_FILE,
+                _ => lp::FORCE_FILE,
+            });
         let mut text = String::from(
             "# step t z_bottom fx fy fz (units SI: s, m, N; f = force of the grains on the intruder)\n",
         );
@@ -459,6 +506,7 @@ pub(crate) fn sealed_test_run(
         &units,
         &runs.iter().map(|r| Some(r.0.clone())).collect::<Vec<_>>(),
         &runs.iter().map(|r| r.1.clone()).collect::<Vec<_>>(),
+        reference_engine,
     )?;
     let beds: Vec<BedRuns> = units
         .iter()
@@ -470,7 +518,7 @@ pub(crate) fn sealed_test_run(
             reference_force: r.clone(),
         })
         .collect();
-    write(dir, case, &beds, &in_memory, &[])
+    write(dir, case, &beds, &in_memory, reference_engine, &[])
 }
 
 #[cfg(test)]
@@ -495,6 +543,36 @@ mod tests {
         for n in needles {
             assert!(e.contains(n), "missing {n:?} in {e}");
         }
+    }
+
+    /// A run against LAMMPS 2025 seals its engine: the summary's reference side is
+    /// keyed `lammps` and verifies from the LAMMPS force files; a LIGGGHTS seal does not
+    /// write the field (its bytes are as before); and the same force files claimed as
+    /// LIGGGHTS' do not verify as a LAMMPS run's summary.
+    #[test]
+    fn a_lammps_run_seals_its_engine() {
+        let d = tempfile::tempdir().unwrap();
+        let c = case();
+        sealed_test_run_of(&c, d.path(), EngineKind::Lammps, |b, h| {
+            (20.0 + b as f64) * h + 3.0
+        })
+        .unwrap();
+        let v = verify(d.path(), &c).unwrap();
+        assert_eq!(v.seal.reference_engine, EngineKind::Lammps);
+        assert!(v.summary.engines.contains_key("lammps"));
+        assert!(!v.summary.engines.contains_key("liggghts"));
+        let text = std::fs::read_to_string(d.path().join(RUN_SEAL_FILE)).unwrap();
+        assert!(text.contains("\"reference_engine\": \"lammps\""), "{text}");
+        let (l, _) = sealed();
+        let text = std::fs::read_to_string(l.path().join(RUN_SEAL_FILE)).unwrap();
+        assert!(!text.contains("reference_engine"), "{text}");
+        // The seal edited to say LIGGGHTS: the summary (keyed lammps) no longer follows.
+        let p = d.path().join(RUN_SEAL_FILE);
+        let mut seal: RunSeal =
+            serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+        seal.reference_engine = EngineKind::Liggghts;
+        std::fs::write(&p, serde_json::to_string(&seal).unwrap()).unwrap();
+        refused(d.path(), &c, &["does not follow"]);
     }
 
     /// The negative control: a run's own sealed summary verifies, and verification gives

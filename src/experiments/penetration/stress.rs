@@ -556,6 +556,7 @@ fn fit_range(
         units,
         &native.iter().map(|r| &r.run).collect::<Vec<_>>(),
         &reference.iter().map(|r| &r.run).collect::<Vec<_>>(),
+        crate::rundata::provenance::EngineKind::Liggghts,
     );
     let h_max = super::k_phi_fit_end(case, &range);
     let origin = format!(
