@@ -336,6 +336,25 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
     },
+    /// The agreement of several codes on the same beds of a penetration case, from the
+    /// sealed summaries of runs made separately (`compare`, `compare --engine lammps`,
+    /// `analyze` of a deck directory): for each pair of codes the per-bed ln(K_a / K_b)
+    /// judged as the case's K_phi gate (equivalence within ln(1 + compare.k_phi_rel))
+    /// and against a chaos record (docs/lammps-laws.md, "The three-code table").
+    Agreement {
+        case: PathBuf,
+        /// A run's output directory (repeatable; two engines or more among them).
+        #[arg(long, required = true)]
+        runs: Vec<PathBuf>,
+        /// The chaos record (`granval chaos`) the pairs are set against.
+        #[arg(long)]
+        chaos: PathBuf,
+        #[arg(long)]
+        report: PathBuf,
+        /// Clear a non-empty report directory instead of refusing it.
+        #[arg(long)]
+        force: bool,
+    },
     /// Coarse-graining throughput: N contacts onto a G^3 grid (all fields).
     CgBench {
         #[arg(long, default_value_t = 1_000_000)]
@@ -1504,7 +1523,10 @@ fn real_main() -> Result<ExitCode> {
                         || c.gate == granval::compare::Gate::Published
                 })
             {
-                show!("--no-native: LIGGGHTS observables only, nothing compared between engines");
+                let engines = granval::compare::sweep::CaseSummary::read(&report)
+                    .map(|s| s.engines.into_keys().collect::<Vec<_>>().join(", "))
+                    .unwrap_or_else(|_| "the reference engine".into());
+                show!("--no-native: {engines} observables only, nothing compared between engines");
             }
             Ok(code)
         }
@@ -1590,6 +1612,29 @@ fn real_main() -> Result<ExitCode> {
                 &report_of(vec![o]),
                 &out,
                 &format!("{}: stress fields and MALT", exp.name()),
+            )
+        }
+        Cmd::Agreement {
+            case,
+            runs,
+            chaos,
+            report,
+            force,
+        } => {
+            let mut keep = Protected::default()
+                .input(&case)
+                .input(&chaos)
+                .store(Path::new("reference"), "the reference store");
+            for r in &runs {
+                keep = keep.store(r, "a run directory being read");
+            }
+            let _out = claim(&report, "--report", force, &keep)?;
+            let o = granval::experiments::penetration::agreement::agreement(&case, &runs, &chaos)?;
+            let r = report_of(vec![o]);
+            finish(
+                &r,
+                &report,
+                &format!("granval agreement {}", case.display()),
             )
         }
         Cmd::Chaos {

@@ -93,3 +93,62 @@ fn hand_written_summaries_make_every_claim_an_error() {
     }
     assert!(!checks.iter().any(|c| c["status"] == "pass"), "{t}");
 }
+
+/// `granval agreement` reads only sealed runs too: a hand-written summary of the
+/// three-code case with three engines is refused (exit 2, naming the missing run seal),
+/// as are a case of another kind and a chaos record that is not one.
+#[test]
+fn agreement_refuses_hand_written_summaries() {
+    let case_file = common::root().join("cases/penetration/three-code-ci.toml");
+    let AnyCase::Penetration(pc) = AnyCase::load(&case_file).unwrap() else {
+        panic!("{}", case_file.display())
+    };
+    let runs = tempfile::tempdir().unwrap();
+    let e = |k: f64| EngineSummary {
+        k_phi: k,
+        k_phi_se_regression: 0.01,
+        k_phi_beds: vec![k; pc.ensemble_beds],
+        bed_fdrs: Vec::new(),
+        p: Vec::new(),
+        h: Vec::new(),
+        psi: 0.6,
+    };
+    let d = runs.path().join(&pc.name);
+    std::fs::create_dir_all(&d).unwrap();
+    CaseSummary {
+        case: pc.name.clone(),
+        canonical_hash: granval::case::ValidatedCase::canonical_hash(&pc).to_string(),
+        bed_hashes: (0..pc.ensemble_beds).map(|k| format!("{k:064}")).collect(),
+        engines: [
+            ("native".to_string(), e(26.0)),
+            ("liggghts".into(), e(26.0)),
+            ("lammps".into(), e(26.0)),
+        ]
+        .into(),
+    }
+    .write(&d)
+    .unwrap();
+    let chaos = common::root().join("docs/data/chaos/ci-seeds-20261200.json");
+    let out = tempfile::tempdir().unwrap();
+    let run = |case: &std::path::Path, chaos: &std::path::Path, name: &str| {
+        common::granval()
+            .arg("agreement")
+            .arg(case)
+            .arg("--runs")
+            .arg(runs.path())
+            .arg("--chaos")
+            .arg(chaos)
+            .arg("--report")
+            .arg(out.path().join(name))
+            .output()
+            .unwrap()
+    };
+    common::expect(&run(&case_file, &chaos, "a"), 2, &["no run seal"]);
+    let micro = common::root().join("cases/micro/head-on-e09.toml");
+    common::expect(&run(&micro, &chaos, "b"), 2, &["penetration case"]);
+    common::expect(
+        &run(&case_file, &case_file, "c"),
+        2,
+        &["not a chaos record"],
+    );
+}

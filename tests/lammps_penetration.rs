@@ -92,16 +92,9 @@ fn force_file_parser_refuses_broken_lines() {
 #[test]
 fn lammps_smoke_run_resists_like_the_native_engine() {
     let test = "lammps penetration smoke";
-    let live =
-        granval::engines::lammps3d::probe_reference().unwrap_or_else(|e| panic!("[{test}] {e:#}"));
-    let Some(_) = live else {
-        assert!(
-            !common::require_live(),
-            "[{test}] GRANVAL_REQUIRE_LIVE=1 but LAMMPS (22 Jul 2025) is not installed"
-        );
-        common::engineless(test, "SKIPPED: LAMMPS 22 Jul 2025 is not installed");
+    if !common::lammps3d_live(test) {
         return;
-    };
+    }
     let tmp = tempfile::tempdir().unwrap();
     let case = tiny_case(tmp.path());
     let bed = prepare_bed(&case, false).unwrap();
@@ -206,16 +199,9 @@ fn compare_engine_lammps_refuses_what_it_cannot_do() {
 #[test]
 fn compare_engine_lammps_judges_the_native_engine_against_lammps() {
     let test = "compare --engine lammps";
-    let live =
-        granval::engines::lammps3d::probe_reference().unwrap_or_else(|e| panic!("[{test}] {e:#}"));
-    let Some(_) = live else {
-        assert!(
-            !common::require_live(),
-            "[{test}] GRANVAL_REQUIRE_LIVE=1 but LAMMPS (22 Jul 2025) is not installed"
-        );
-        common::engineless(test, "SKIPPED: LAMMPS 22 Jul 2025 is not installed");
+    if !common::lammps3d_live(test) {
         return;
-    };
+    }
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("tiny.toml");
     std::fs::write(
@@ -256,7 +242,7 @@ fn compare_engine_lammps_judges_the_native_engine_against_lammps() {
     let checks = json["checks"].as_array().unwrap();
     let k_phi = checks
         .iter()
-        .find(|c| c["name"].as_str().unwrap().contains("K_phi"))
+        .find(|c| c["gate"] == "k_phi")
         .unwrap_or_else(|| panic!("no K_phi check: {text}"));
     eprintln!("[{test}] {k_phi}");
     assert!(
@@ -283,6 +269,63 @@ fn compare_engine_lammps_judges_the_native_engine_against_lammps() {
         "{summary}"
     );
     assert!(case_dir.join("fdr_lammps.csv").exists());
+
+    // `granval agreement` on this run alone: its pair native / LAMMPS is the run's own
+    // K_phi gate, value and verdict, and the exit code says the verdict. The same run
+    // with one per-bed K_phi edited in its summary is refused (exit 2: the summary differs from its seal).
+    let chaos = common::root().join("docs/data/chaos/ci-seeds-20261200.json");
+    let agree = |runs: &Path, out: &str| {
+        common::granval()
+            .arg("agreement")
+            .arg(&path)
+            .arg("--runs")
+            .arg(runs)
+            .arg("--chaos")
+            .arg(&chaos)
+            .arg("--report")
+            .arg(tmp.path().join(out))
+            .output()
+            .unwrap()
+    };
+    let o = agree(&report, "agreement");
+    let aj: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(tmp.path().join("agreement/report.json")).unwrap(),
+    )
+    .unwrap_or_else(|e| panic!("[{test}] agreement: {e}\n{}", common::text(&o)));
+    let pairs = aj["checks"].as_array().unwrap();
+    assert_eq!(pairs.len(), 1, "{aj}");
+    assert!(
+        pairs[0]["name"]
+            .as_str()
+            .unwrap()
+            .ends_with("K_phi native / lammps"),
+        "{aj}"
+    );
+    assert_eq!(pairs[0]["value"], k_phi["value"], "{aj}\n{k_phi}");
+    assert_eq!(pairs[0]["status"], k_phi["status"], "{aj}\n{k_phi}");
+    let code = match k_phi["status"].as_str().unwrap() {
+        "pass" => 0,
+        "fail" => 1,
+        _ => 2,
+    };
+    assert_eq!(o.status.code(), Some(code), "{}", common::text(&o));
+    let md = std::fs::read_to_string(tmp.path().join("agreement/report.md")).unwrap();
+    assert!(
+        md.contains("Codes against chaos") && md.contains("| native / lammps | 2 |"),
+        "{md}"
+    );
+    let edited = summary.replacen(
+        "\"k_phi_beds\": [\n",
+        "\"k_phi_beds\": [\n      1.5e1,\n",
+        1,
+    );
+    assert_ne!(edited, summary);
+    std::fs::write(case_dir.join("summary.json"), edited).unwrap();
+    common::expect(
+        &agree(&report, "agreement2"),
+        2,
+        &["summary.json: content differs from its seal"],
+    );
 }
 
 /// `granval deck --engine lammps`, LAMMPS run by hand in each bed directory as its README
@@ -293,16 +336,9 @@ fn compare_engine_lammps_judges_the_native_engine_against_lammps() {
 #[test]
 fn analyze_reads_a_lammps_deck_directory_run_by_hand() {
     let test = "analyze LAMMPS deck";
-    let live =
-        granval::engines::lammps3d::probe_reference().unwrap_or_else(|e| panic!("[{test}] {e:#}"));
-    let Some(_) = live else {
-        assert!(
-            !common::require_live(),
-            "[{test}] GRANVAL_REQUIRE_LIVE=1 but LAMMPS (22 Jul 2025) is not installed"
-        );
-        common::engineless(test, "SKIPPED: LAMMPS 22 Jul 2025 is not installed");
+    if !common::lammps3d_live(test) {
         return;
-    };
+    }
     let lmp = granval::engines::lammps3d::binary().unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("tiny.toml");

@@ -408,18 +408,15 @@ pub fn micro(lmp: &Lammps3d, case: &Case, dir: &Path) -> Result<Provenance> {
     })
 }
 
-/// The provenance of a run made by hand in `dir` (a `granval deck` directory): the deck
-/// and data file there are the case's as LAMMPS reads them, no `ERROR` in its output,
-/// the log ends with `Total wall time` under LAMMPS 22 Jul 2025, and the dump holds
-/// every frame of every particle ([`micro`] checks the same after its own runs).
-pub(crate) fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
-    for (name, text) in micro_inputs(case)? {
-        deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
-    }
+/// The transcript of a LAMMPS 2025 run made by hand in `dir` (from its deck `deck_file`),
+/// checked: a log that ends with `Total wall time`, no `ERROR` in it or on the screen,
+/// the version banner of 22 Jul 2025. Returns the version line and the provenance notes
+/// (where it ran, LAMMPS' warnings).
+pub(crate) fn finished_by_hand(dir: &Path, deck_file: &str) -> Result<(String, Vec<String>)> {
     let tr = Transcript::read(TRANSCRIPT, dir);
     if tr.log.is_empty() {
         bail!(
-            "{}: no {LOG_FILE}: LAMMPS did not run here (run `lmp -in {DECK_FILE} -log {LOG_FILE}` in it first)",
+            "{}: no {LOG_FILE}: LAMMPS did not run here (run `lmp -in {deck_file} -log {LOG_FILE}` in it first)",
             dir.display()
         );
     }
@@ -438,9 +435,21 @@ pub(crate) fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
     }
     let version = tr.version(VERSION_PREFIX);
     check_banner(&version).map_err(|why| anyhow::anyhow!("{}: LAMMPS {why}", dir.display()))?;
-    check_dump(case, &dir.join(DUMP_FILE))?;
     let mut notes = vec![format!("run directory: {} (run by hand)", dir.display())];
     notes.extend(tr.warnings());
+    Ok((version, notes))
+}
+
+/// The provenance of a run made by hand in `dir` (a `granval deck` directory): the deck
+/// and data file there are the case's as LAMMPS reads them, no `ERROR` in its output,
+/// the log ends with `Total wall time` under LAMMPS 22 Jul 2025, and the dump holds
+/// every frame of every particle ([`micro`] checks the same after its own runs).
+pub(crate) fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
+    for (name, text) in micro_inputs(case)? {
+        deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
+    }
+    let (version, notes) = finished_by_hand(dir, DECK_FILE)?;
+    check_dump(case, &dir.join(DUMP_FILE))?;
     Ok(Provenance {
         engine: EngineKind::Lammps,
         version,

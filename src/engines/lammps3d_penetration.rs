@@ -578,31 +578,7 @@ pub(crate) fn read_finished(
     for (name, text) in inputs(d)? {
         deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
     }
-    let tr = Transcript::read(l3::TRANSCRIPT, dir);
-    if tr.log.is_empty() {
-        bail!(
-            "{}: no {}: LAMMPS did not run here (run `lmp -in {DECK_FILE} -log {}` in it first)",
-            dir.display(),
-            l3::LOG_FILE,
-            l3::LOG_FILE
-        );
-    }
-    if !tr.errors.is_empty() {
-        bail!(
-            "{}: ERROR in the LAMMPS output: {}",
-            dir.display(),
-            tr.errors.join(" | ")
-        );
-    }
-    if !tr.log.contains("Total wall time") {
-        bail!(
-            "{}: {} does not end with `Total wall time`: LAMMPS stopped early (or is still running)",
-            dir.display(),
-            l3::LOG_FILE
-        );
-    }
-    let version = tr.version(l3::VERSION_PREFIX);
-    l3::check_banner(&version).map_err(|why| anyhow::anyhow!("{}: LAMMPS {why}", dir.display()))?;
+    let (version, notes) = l3::finished_by_hand(dir, DECK_FILE)?;
     let lines = parse_force_file(&dir.join(FORCE_FILE))?;
     let expected = expected_samples(d);
     if lines.len() != expected {
@@ -612,8 +588,6 @@ pub(crate) fn read_finished(
             lines.len()
         );
     }
-    let mut notes = vec![format!("run directory: {} (run by hand)", dir.display())];
-    notes.extend(tr.warnings());
     Ok((
         lines,
         Provenance {

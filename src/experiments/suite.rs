@@ -516,7 +516,7 @@ fn resolve_control(
 /// (`DIR/<name>/summary.json`, as `check` writes, or `DIR/summary.json` naming the case,
 /// as `compare` / `stress --out DIR` write). Found is not accepted: [`gather`] verifies
 /// its run seal.
-fn find_summary(dirs: &[PathBuf], name: &str) -> Option<PathBuf> {
+pub(crate) fn find_summary(dirs: &[PathBuf], name: &str) -> Option<PathBuf> {
     use crate::compare::sweep::SUMMARY_FILE;
     dirs.iter().find_map(|d| {
         let own = d.join(name);

@@ -84,7 +84,7 @@ impl Source {
     }
 
     /// The reference engines a native series is compared with.
-    pub fn is_reference_engine(self) -> bool {
+    pub(crate) fn is_reference_engine(self) -> bool {
         matches!(self, Source::Liggghts | Source::Lammps)
     }
 
@@ -121,7 +121,7 @@ pub fn viridis(t: f64) -> RGBColor {
 /// 0, its last at 1), linear between neighbours in RGB and rounded to the nearest
 /// integer; `t` outside [0, 1] is clamped and a `t` that is not finite is 0. One rule
 /// for every scale, so viridis and RdBu cannot drift apart in how they are sampled.
-pub fn interpolate(table: &[(u8, u8, u8)], t: f64) -> RGBColor {
+pub(crate) fn interpolate(table: &[(u8, u8, u8)], t: f64) -> RGBColor {
     assert!(table.len() >= 2, "a colour table needs two entries");
     let t = if t.is_finite() {
         t.clamp(0.0, 1.0)

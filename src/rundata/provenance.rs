@@ -154,7 +154,7 @@ pub fn read_provenance(path: &Path) -> Result<Provenance> {
 
 /// The git commit this granval was built from, when the build knew it (build.rs): what
 /// computed a run seal or judged a report.
-pub fn git_commit() -> Option<String> {
+pub(crate) fn git_commit() -> Option<String> {
     option_env!("GRANVAL_GIT_COMMIT")
         .filter(|c| !c.is_empty())
         .map(str::to_string)

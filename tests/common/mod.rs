@@ -87,6 +87,22 @@ pub fn live_or_skip(engine: EngineKind, test: &str, what_is_skipped: &str) -> bo
     live
 }
 
+/// Whether LAMMPS 22 Jul 2025 (the 3D reference, `engines::lammps3d`) runs live here: a
+/// binary that fails its probe panics; a missing one panics when live engines are
+/// required (CI), else the test says it was skipped.
+pub fn lammps3d_live(test: &str) -> bool {
+    let live =
+        granval::engines::lammps3d::probe_reference().unwrap_or_else(|e| panic!("[{test}] {e:#}"));
+    if live.is_none() {
+        assert!(
+            !require_live(),
+            "[{test}] GRANVAL_REQUIRE_LIVE=1 but LAMMPS (22 Jul 2025) is not installed"
+        );
+        engineless(test, "SKIPPED: LAMMPS 22 Jul 2025 is not installed");
+    }
+    live.is_some()
+}
+
 /// Whether `engine` runs live here; panics when live engines are required but missing,
 /// and says loudly when a test falls back to the recorded references.
 pub fn live(engine: EngineKind, test: &str) -> bool {

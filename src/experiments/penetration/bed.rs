@@ -20,6 +20,16 @@ pub struct EngineRun {
     pub force_file: Option<std::path::PathBuf>,
 }
 
+/// The two notes every reference-engine run of `bed` carries in its provenance: the bed
+/// (grains, packing fraction, seed: what `--reuse` matches) and its sha256 (what the
+/// summaries pair beds by).
+pub(crate) fn push_bed_notes(provenance: &mut Provenance, case: &PenetrationCase, bed: &Bed) {
+    provenance.notes.push(packing::bed_note(case, bed));
+    provenance
+        .notes
+        .push(format!("bed sha256 {}", bed_hash(bed)));
+}
+
 /// The streaming eq-5 reducer of a run from `bed`: its own psi and surface.
 pub(crate) fn binner(case: &PenetrationCase, bed: &Bed) -> Result<FdrBinner> {
     FdrBinner::new(

@@ -328,6 +328,36 @@ pub(crate) fn bed_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(found.into_iter().map(|(_, p)| p).collect())
 }
 
+/// Bed `k`'s realisation of `case` and the manifest of its directory `dir`, checked
+/// against them: exactly the inputs it lists, of this case (canonical hash), bed number
+/// and seed.
+fn checked_manifest(
+    case: &PenetrationCase,
+    case_file: &Path,
+    k: usize,
+    dir: &Path,
+) -> Result<(PenetrationCase, InputManifest)> {
+    let ck = case.realisation(k);
+    let manifest = InputManifest::read(dir)?;
+    manifest.check(dir, case, case_file, k, ck.seed)?;
+    Ok((ck, manifest))
+}
+
+/// The bed read from `dir` is the one its manifest names (manifests of beds the
+/// reference engine settles name none).
+fn check_bed_hash(manifest: &InputManifest, bed: &Bed, dir: &Path) -> Result<()> {
+    if let Some(want) = &manifest.bed_sha256 {
+        let got = bed_hash(bed);
+        ensure!(
+            &got == want,
+            "{}: the bed read from it has sha256 {got}, {} names {want}",
+            dir.display(),
+            dir.join(super::inputs::MANIFEST_FILE).display()
+        );
+    }
+    Ok(())
+}
+
 /// A LIGGGHTS run directory of bed `k` of `case` (`ck`: its realisation), checked and
 /// reduced: the directory holds exactly the inputs its manifest lists, of this case and
 /// bed ([`InputManifest::check`]); the inputs are the ones granval writes for this case
@@ -341,20 +371,10 @@ pub(crate) fn read_run(
     k: usize,
     dir: &Path,
 ) -> Result<(Bed, super::bed::EngineRun)> {
-    let ck = case.realisation(k);
-    let manifest = InputManifest::read(dir)?;
-    manifest.check(dir, case, case_file, k, ck.seed)?;
+    let (ck, manifest) = checked_manifest(case, case_file, k, dir)?;
     let settled_by_liggghts = manifest.settles_in_liggghts();
     let bed = read_bed_as(&ck, dir, settled_by_liggghts)?;
-    if let Some(want) = &manifest.bed_sha256 {
-        let got = bed_hash(&bed);
-        ensure!(
-            &got == want,
-            "{}: the bed read from it has sha256 {got}, {} names {want}",
-            dir.display(),
-            dir.join(super::inputs::MANIFEST_FILE).display()
-        );
-    }
+    check_bed_hash(&manifest, &bed, dir)?;
     check_case_inputs(&ck, &bed, dir, settled_by_liggghts, manifest.viz_every)?;
     let run = reduce_liggghts_dir(&ck, &bed, dir)?;
     Ok((bed, run))
@@ -372,9 +392,7 @@ pub(crate) fn read_lammps_run(
     dir: &Path,
 ) -> Result<(Bed, super::bed::EngineRun)> {
     use crate::engines::lammps3d_penetration as lmp;
-    let ck = case.realisation(k);
-    let manifest = InputManifest::read(dir)?;
-    manifest.check(dir, case, case_file, k, ck.seed)?;
+    let (ck, manifest) = checked_manifest(case, case_file, k, dir)?;
     ensure!(
         manifest.is_lammps(),
         "{}: not a LAMMPS deck (its inputs.json lists {:?})",
@@ -383,21 +401,10 @@ pub(crate) fn read_lammps_run(
     );
     let particles = lp::parse_data_file(&dir.join(lmp::DATA_FILE), Units::Si)?;
     let bed = bed_of(&ck, particles, Vec::new());
-    if let Some(want) = &manifest.bed_sha256 {
-        let got = bed_hash(&bed);
-        ensure!(
-            &got == want,
-            "{}: the bed read from it has sha256 {got}, {} names {want}",
-            dir.display(),
-            dir.join(super::inputs::MANIFEST_FILE).display()
-        );
-    }
+    check_bed_hash(&manifest, &bed, dir)?;
     let deck = lammps_deck(&ck, &bed)?;
     let (lines, mut provenance) = lmp::read_finished(&deck, dir, case_file)?;
-    provenance.notes.push(packing::bed_note(&ck, &bed));
-    provenance
-        .notes
-        .push(format!("bed sha256 {}", bed_hash(&bed)));
+    super::bed::push_bed_notes(&mut provenance, &ck, &bed);
     let mut b = super::bed::binner(&ck, &bed)?;
     for l in &lines {
         b.push(l.z_bottom, l.f[2])?;

@@ -15,6 +15,7 @@
 //! bed K with its outputs), `OUT/bed-K/native/` (force.csv, provenance.json, snapshots),
 //! `OUT/fdr_*.csv`, `OUT/fdr.svg`, and with stress the fields and `k_phi.svg`.
 
+pub mod agreement;
 pub mod bed;
 pub mod deck_dir;
 pub(crate) mod inputs;
@@ -233,10 +234,7 @@ pub fn reduce_liggghts_dir(case: &PenetrationCase, bed: &Bed, dir: &Path) -> Res
     let mut b = binner(case, bed)?;
     let mut provenance = lp::read_outputs(&deck, dir, |s| b.push(s.z_bottom, s.f[2]))
         .with_context(|| format!("LIGGGHTS run in {}", dir.display()))?;
-    provenance.notes.push(packing::bed_note(case, bed));
-    provenance
-        .notes
-        .push(format!("bed sha256 {}", bed::bed_hash(bed)));
+    bed::push_bed_notes(&mut provenance, case, bed);
     Ok(EngineRun {
         fdr: b.fdr(),
         samples: b.samples(),
@@ -316,8 +314,7 @@ fn liggghts_run(
     bar.finish_and_clear();
     inputs::InputManifest::of_dir(dir, case, u.k, u.case.seed, Some(u.bed_hash.clone()))?
         .write(dir)?;
-    provenance.notes.push(packing::bed_note(&u.case, &u.bed));
-    provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
+    bed::push_bed_notes(&mut provenance, &u.case, &u.bed);
     if !u.bed.bodies.is_empty() {
         provenance
             .notes
@@ -372,8 +369,7 @@ fn lammps_run(
     }
     inputs::InputManifest::of_dir(dir, case, u.k, u.case.seed, Some(u.bed_hash.clone()))?
         .write(dir)?;
-    provenance.notes.push(packing::bed_note(&u.case, &u.bed));
-    provenance.notes.push(format!("bed sha256 {}", u.bed_hash));
+    bed::push_bed_notes(&mut provenance, &u.case, &u.bed);
     write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
     Ok(RefRun {
         run: EngineRun {
