@@ -1602,11 +1602,7 @@ fn real_main() -> Result<ExitCode> {
             } else {
                 claim(&out, "--out", common.force, &keep)?
             };
-            let exp = granval::experiments::penetration::Penetration {
-                case: pc,
-                stress: true,
-                reference: granval::rundata::provenance::EngineKind::Liggghts,
-            };
+            let exp = granval::experiments::penetration::Penetration::against_liggghts(pc, true);
             let o = runner::compare(&exp, &opts, &out);
             finish(
                 &report_of(vec![o]),
@@ -1650,13 +1646,9 @@ fn real_main() -> Result<ExitCode> {
                 Impact2d(granval::experiments::impact2d::Impact2d),
             }
             let exp = match load(&case)? {
-                AnyCase::Penetration(pc) => {
-                    Chaotic::Penetration(granval::experiments::penetration::Penetration {
-                        case: pc,
-                        stress: false,
-                        reference: granval::rundata::provenance::EngineKind::Liggghts,
-                    })
-                }
+                AnyCase::Penetration(pc) => Chaotic::Penetration(
+                    granval::experiments::penetration::Penetration::against_liggghts(pc, false),
+                ),
                 AnyCase::Impact2d(ic) => {
                     Chaotic::Impact2d(granval::experiments::impact2d::Impact2d { case: ic })
                 }

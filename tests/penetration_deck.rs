@@ -217,11 +217,7 @@ fn analyze_of_a_deck_run_reproduces_compare() {
         ..Default::default()
     };
     let cmp_dir = tmp.path().join("compare");
-    let exp = Penetration {
-        case: case.clone(),
-        stress: false,
-        reference: granval::rundata::provenance::EngineKind::Liggghts,
-    };
+    let exp = Penetration::against_liggghts(case.clone(), false);
     let compared = runner::compare(&exp, &opts, &cmp_dir);
     assert!(compared.run.is_some(), "{:?}", compared.checks);
     assert!(!compared.checks.is_empty());
@@ -349,11 +345,7 @@ fn records_carry_their_beds_and_a_moved_bed_changes_the_fingerprint() {
     use granval::physics::dem::packing::Bed;
     let tmp = tempfile::tempdir().unwrap();
     let case = tiny_case(tmp.path());
-    let exp = Penetration {
-        case: case.clone(),
-        stress: false,
-        reference: granval::rundata::provenance::EngineKind::Liggghts,
-    };
+    let exp = Penetration::against_liggghts(case.clone(), false);
     let reference_root = tmp.path().join("reference");
     let record = reference::record_root(&reference_root, exp.kind(), exp.name());
     let plain = exp.units(&Options::default()).unwrap();

@@ -290,11 +290,10 @@ fn every_penetration_record_holds_the_outputs_of_its_own_deck() {
             // the unit directories the seal gives back. A record without beds may be
             // compressed too: its files (data file included) come back the same way.
             let compressed = (!holds_its_beds(&root)).then(|| {
-                let exp = granval::experiments::penetration::Penetration {
-                    case: c.clone(),
-                    stress: false,
-                    reference: granval::rundata::provenance::EngineKind::Liggghts,
-                };
+                let exp = granval::experiments::penetration::Penetration::against_liggghts(
+                    c.clone(),
+                    false,
+                );
                 reference::verify(
                     &root,
                     exp.source(),
@@ -307,11 +306,10 @@ fn every_penetration_record_holds_the_outputs_of_its_own_deck() {
             });
             let lean = (!root.join("bed-0").join("data.bed").exists() && holds_its_beds(&root))
                 .then(|| {
-                    let exp = granval::experiments::penetration::Penetration {
-                        case: c.clone(),
-                        stress: false,
-                        reference: granval::rundata::provenance::EngineKind::Liggghts,
-                    };
+                    let exp = granval::experiments::penetration::Penetration::against_liggghts(
+                        c.clone(),
+                        false,
+                    );
                     let v = verify_lean(&exp, &root).unwrap();
                     let units = exp
                         .units(&Options {

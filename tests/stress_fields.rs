@@ -353,11 +353,7 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
         plan: Some(plan.clone()),
         study_plan: None,
     };
-    let exp = Penetration {
-        case: case.clone(),
-        stress: true,
-        reference: granval::rundata::provenance::EngineKind::Liggghts,
-    };
+    let exp = Penetration::against_liggghts(case.clone(), true);
     let native = exp
         .run_native(&unit, Role::Main, dir.path(), &Options::default())
         .unwrap();
@@ -1039,11 +1035,7 @@ fn stress_run() -> Option<&'static StressRun> {
             ..Default::default()
         };
         let out = root.join("stress");
-        let exp = Penetration {
-            case: case.clone(),
-            stress: true,
-            reference: granval::rundata::provenance::EngineKind::Liggghts,
-        };
+        let exp = Penetration::against_liggghts(case.clone(), true);
         let outcome = granval::experiments::runner::compare(&exp, &opts, &out);
         common::show("stress tiny", &outcome.checks);
         for n in &outcome.notes {
@@ -1263,11 +1255,7 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
     }
     // The same beds run natively without snapshots give the same K_phi: taking
     // snapshots does not perturb the run.
-    let exp = Penetration {
-        case: case.clone(),
-        stress: false,
-        reference: granval::rundata::provenance::EngineKind::Liggghts,
-    };
+    let exp = Penetration::against_liggghts(case.clone(), false);
     let plain = tempfile::tempdir().unwrap();
     let units = exp.units(&run.opts).unwrap();
     let fdrs: Vec<_> = units
@@ -1319,11 +1307,7 @@ fn stress_reuse_reanalyses_the_snapshots_of_a_run() {
         reuse: true,
         ..run.opts.clone()
     };
-    let exp = Penetration {
-        case: run.case.clone(),
-        stress: true,
-        reference: granval::rundata::provenance::EngineKind::Liggghts,
-    };
+    let exp = Penetration::against_liggghts(run.case.clone(), true);
     let again = granval::experiments::runner::compare(&exp, &opts, &out);
     assert!(again.run.is_some(), "{:?}", again.checks);
     assert_eq!(
@@ -1342,11 +1326,7 @@ fn stress_reuse_reanalyses_the_snapshots_of_a_run() {
     // --reuse refuses snapshots taken with other windows.
     let mut windows3 = run.case.clone();
     windows3.snapshot_window = 3;
-    let other = Penetration {
-        case: windows3,
-        stress: true,
-        reference: granval::rundata::provenance::EngineKind::Liggghts,
-    };
+    let other = Penetration::against_liggghts(windows3, true);
     let refused = granval::experiments::runner::compare(&other, &opts, &out);
     let e = refused
         .checks

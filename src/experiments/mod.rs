@@ -44,11 +44,8 @@ macro_rules! with_experiment {
                 $body
             }
             $crate::case::AnyCase::Penetration(case) => {
-                let $exp = $crate::experiments::penetration::Penetration {
-                    case,
-                    stress: $stress,
-                    reference: $crate::rundata::provenance::EngineKind::Liggghts,
-                };
+                let $exp =
+                    $crate::experiments::penetration::Penetration::against_liggghts(case, $stress);
                 $body
             }
             $crate::case::AnyCase::Impact2d(case) => {

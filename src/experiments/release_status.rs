@@ -377,7 +377,9 @@ pub fn table(
          \"not re-judged\": no report under docs/statistics.md has been digested yet; \
          \"stale\": the case's or claim's rules changed after that report. Counts are of the \
          gated checks (an EXPLORATORY check is counted apart); the checks that did not pass \
-         are named, every check is in \"Checks of each re-judged case and claim\" below.\n\n",
+         are named, every check is in \"Checks of each re-judged case and claim\" below. \
+         Whether a registered expectation holds is judged against today's `[[expect]]` of \
+         the suite, as `granval release gate` judges it, not as the digested report did.\n\n",
     );
     s.push_str("| source | claim | case | rule fixed before the run | before docs/statistics.md | under docs/statistics.md | run | why it changed |\n");
     s.push_str("|---|---|---|---|---|---|---|---|\n");
@@ -739,8 +741,44 @@ pub fn splice(doc: &str, section: &str) -> Result<String> {
 pub fn generate(repo: &Path) -> Result<String> {
     let rules = CurrentRules::read(repo, "release")?;
     let rows = read_rows(&repo.join(ROWS_FILE), &rules)?;
-    let digests = read_digests(&repo.join(DIGEST_DIR))?;
+    let suite = super::suite::load(&repo.join("cases"), "release")?;
+    let digests = judged_today(
+        read_digests(&repo.join(DIGEST_DIR))?,
+        &rules,
+        &suite.expectations,
+    );
     Ok(table(&rows, &digests, &rules))
+}
+
+/// The digests with their gate rows judged against today's `[[expect]]` instead of the
+/// rows their report had. A finding registered after its report ran (the usual order:
+/// run, read, register with a reason) would otherwise be shown as "DOES NOT HOLD" for
+/// ever, while `granval release gate` says it holds; the table must say what the gate
+/// says. A digest judged under other rules (stale) gets no rows: today's expectations
+/// are not about its checks, and its row already says it is stale.
+pub(crate) fn judged_today(
+    mut digests: BTreeMap<(String, String), Digest>,
+    rules: &CurrentRules,
+    expectations: &[crate::compare::expect::Expectation],
+) -> BTreeMap<(String, String), Digest> {
+    for d in digests.values_mut() {
+        let current = if d.holder == "case" {
+            rules.cases.get(&d.name)
+        } else {
+            rules.claims.get(&d.name)
+        };
+        d.gate = if d.rules_sha256.is_some() && d.rules_sha256.as_ref() == current {
+            let own: Vec<_> = expectations
+                .iter()
+                .filter(|e| d.checks.iter().any(|c| c.name == e.check))
+                .cloned()
+                .collect();
+            crate::compare::expect::release_gate(&d.checks, &own, true).rows
+        } else {
+            Vec::new()
+        };
+    }
+    digests
 }
 
 /// The release gate (docs/statistics.md, "Registered expectations and the release gate")
@@ -1092,6 +1130,69 @@ mod tests {
         changed.cases.insert("a".into(), "another hash".into());
         let (now, _) = row_now(&row, &digests, &changed);
         assert!(now.contains("a: stale (its rules changed"), "{now}");
+    }
+
+    /// The table judges a digest's expectations as today's gate does: a finding
+    /// registered after its report ran holds (the report's own row said it did not), a
+    /// registered verdict the check no longer has does not, and a stale digest gets no
+    /// judgement at all.
+    #[test]
+    fn expectations_are_judged_against_todays_registration() {
+        let mut failing = check("a", "a: K_phi", 0.5, 0.2);
+        failing.status = Status::Inconclusive;
+        failing.passed = false;
+        let t = report_dir(vec![failing, check("a", "a: FDR", 0.1, 0.2)]);
+        let r = rules();
+        let mut digests = BTreeMap::new();
+        for mut d in digests_of_report(t.path(), &r).unwrap() {
+            // What the report's own gate said before the finding was registered.
+            d.gate = crate::compare::expect::release_gate(&d.checks, &[], true).rows;
+            digests.insert((d.holder.clone(), d.name.clone()), d);
+        }
+        let old = &digests[&("case".to_string(), "a".to_string())].gate;
+        assert!(old.len() == 1 && !old[0].holds, "{old:?}");
+        let expect = |verdict: Status| crate::compare::expect::Expectation {
+            check: "a: K_phi".into(),
+            verdict,
+            value: None,
+            interval: None,
+            reason: "three beds cannot resolve it".into(),
+            found: "2026-11-29".into(),
+        };
+        let row = Row {
+            source: "S".into(),
+            claim: "C".into(),
+            cases: vec!["a".into()],
+            claims: vec![],
+            setup: String::new(),
+            only_matching: vec![],
+            rule: "R".into(),
+            before: "B".into(),
+            change: String::new(),
+        };
+        let today = judged_today(digests.clone(), &r, &[expect(Status::Inconclusive)]);
+        let gate = &today[&("case".to_string(), "a".to_string())].gate;
+        assert!(gate.len() == 1 && gate[0].holds, "{gate:?}");
+        let text = table(std::slice::from_ref(&row), &today, &r);
+        assert!(!text.contains("NOT HOLD"), "{text}");
+        assert!(text.contains("INCONCLUSIVE (holds)"), "{text}");
+
+        let today = judged_today(digests.clone(), &r, &[expect(Status::Fail)]);
+        let text = table(std::slice::from_ref(&row), &today, &r);
+        assert!(
+            text.contains("1 registered expectation(s) DO NOT HOLD")
+                && text.contains("FAIL (DOES NOT HOLD)"),
+            "{text}"
+        );
+
+        let mut changed = r.clone();
+        changed.cases.insert("a".into(), "another hash".into());
+        let stale = judged_today(digests, &changed, &[expect(Status::Inconclusive)]);
+        assert!(
+            stale[&("case".to_string(), "a".to_string())]
+                .gate
+                .is_empty()
+        );
     }
 
     #[test]

@@ -198,11 +198,7 @@ fn write_case(
     let name = case.name().to_string();
     let (dirs, files, engine, estimate, hash) = match case {
         AnyCase::Penetration(c) => {
-            let exp = super::penetration::Penetration {
-                case: c.clone(),
-                stress: false,
-                reference: crate::rundata::provenance::EngineKind::Liggghts,
-            };
+            let exp = super::penetration::Penetration::against_liggghts(c.clone(), false);
             let dirs = super::penetration::deck_dir::write(
                 &c,
                 dir,

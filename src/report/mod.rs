@@ -114,7 +114,7 @@ impl Report {
     }
 
     /// Checks ran and every one is EXPLORATORY: nothing was gated.
-    pub fn nothing_gated(&self) -> bool {
+    pub(crate) fn nothing_gated(&self) -> bool {
         !self.checks.is_empty() && self.checks.iter().all(|c| c.exploratory.is_some())
     }
 

@@ -263,6 +263,7 @@ pub fn agreement(case_file: &Path, runs: &[PathBuf], chaos_file: &Path) -> Resul
         figures: Vec::new(),
     };
     let mut notes = g.sources;
+    notes.push(chaos_provenance(&case.name, &g.bed_hashes, &chaos));
     notes.push(format!(
         "margin ln(1 + {}) = {:.4} (the case's compare.k_phi_rel); chaos record {}",
         case.tolerances.k_phi_rel,
@@ -279,6 +280,35 @@ pub fn agreement(case_file: &Path, runs: &[PathBuf], chaos_file: &Path) -> Resul
         ],
     }
     .for_case(&case.name))
+}
+
+/// Whose chaos the pairs are judged against: this case on these beds, or a record
+/// borrowed from another case or other beds (allowed, since a family shares one chaos
+/// spread, but a reader must see that s_c was not measured on the table's beds).
+fn chaos_provenance(case: &str, bed_hashes: &[String], chaos: &ChaosRecord) -> String {
+    let same_case = chaos.case == case;
+    let same_beds = chaos.bed_hashes == bed_hashes;
+    match (same_case, same_beds) {
+        (true, true) => format!(
+            "chaos record of this case on these {} beds (family {:?})",
+            bed_hashes.len(),
+            chaos.family
+        ),
+        (true, false) => format!(
+            "chaos record of this case on other beds ({} beds, family {:?}): s_c is of the same \
+             physics, not of the table's beds",
+            chaos.bed_hashes.len(),
+            chaos.family
+        ),
+        (false, _) => format!(
+            "chaos record of another case ({:?}, {} beds, family {:?}), not of {case:?}: s_c \
+             is borrowed from that case; judge F against it only if the two cases share their \
+             physics",
+            chaos.case,
+            chaos.bed_hashes.len(),
+            chaos.family
+        ),
+    }
 }
 
 #[cfg(test)]
@@ -376,6 +406,28 @@ mod tests {
             p[2].chaos.verdict.contains("systematic"),
             "{:?}",
             p[2].chaos
+        );
+    }
+
+    /// The report says whose chaos it judges against: the table's own case and beds,
+    /// its case on other beds, or another case.
+    #[test]
+    fn the_chaos_record_is_named_as_own_or_borrowed() {
+        let chaos = ChaosRecord::read(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/data/chaos/three-code-ci.json"),
+        )
+        .unwrap();
+        let own = chaos_provenance(&chaos.case, &chaos.bed_hashes, &chaos);
+        assert!(
+            own.starts_with("chaos record of this case on these 8 beds"),
+            "{own}"
+        );
+        let other_beds = chaos_provenance(&chaos.case, &chaos.bed_hashes[..3], &chaos);
+        assert!(other_beds.contains("on other beds"), "{other_beds}");
+        let other = chaos_provenance("another-case", &chaos.bed_hashes, &chaos);
+        assert!(
+            other.contains("of another case") && other.contains("borrowed"),
+            "{other}"
         );
     }
 }

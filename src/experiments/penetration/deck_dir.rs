@@ -46,12 +46,7 @@ pub(crate) fn settles_in_liggghts(dir: &Path) -> bool {
 /// verbatim copy of the case file: the first step of every penetration deck writer.
 fn start_deck_dir(case: &PenetrationCase, out: &Path) -> Result<()> {
     use crate::experiments::Experiment;
-    super::Penetration {
-        case: case.clone(),
-        stress: false,
-        reference: crate::rundata::provenance::EngineKind::Liggghts,
-    }
-    .preflight()?;
+    super::Penetration::against_liggghts(case.clone(), false).preflight()?;
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     std::fs::copy(&case.source, out.join(CASE_FILE)).with_context(|| {
         format!(
@@ -559,26 +554,19 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
         ));
     }
     // `--no-native`: the reference side alone (its published-value checks).
-    let natives: Vec<super::NativeRun> = Vec::new();
-    let (mut v, summary) = fdr_checks(
-        &case,
-        &units,
-        &natives.iter().map(|r| &r.run).collect::<Vec<_>>(),
-        &natives
-            .iter()
-            .filter_map(|r| r.slow.as_ref())
-            .collect::<Vec<_>>(),
-        &reference.iter().collect::<Vec<_>>(),
-        engine,
-        out_dir,
-        None,
-    );
-    let runs = |k: usize| -> Result<super::run_seal::BedRuns> {
+    let runs = super::FdrRuns {
+        native: Vec::new(),
+        native_slow: Vec::new(),
+        reference: reference.iter().collect(),
+        reference_engine: engine,
+    };
+    let (mut v, summary) = fdr_checks(&case, &units, &runs, out_dir, None);
+    let bed_runs = |k: usize| -> Result<super::run_seal::BedRuns> {
         let u = &units[k];
         Ok(super::run_seal::BedRuns {
             unit: u,
             engine_input: exp.fingerprint(u)?,
-            native_force: natives.get(k).and_then(|r| r.run.force_file.clone()),
+            native_force: None,
             reference_force: reference[k]
                 .force_file
                 .clone()
@@ -587,7 +575,7 @@ pub fn analyze(dir: &Path, native: bool, opts: &Options, out_dir: &Path) -> Resu
     };
     super::seal_summary(
         &case,
-        (0..units.len()).map(runs),
+        (0..units.len()).map(bed_runs),
         &summary,
         engine,
         out_dir,

@@ -412,6 +412,16 @@ fn clump_start_note(case: &PenetrationCase, bed: &Bed, dir: &Path, np: usize) ->
 }
 
 impl Penetration {
+    /// The experiment of `case` against LIGGGHTS, the reference engine of penetration
+    /// cases unless `compare --engine lammps` names LAMMPS, with stress fields or not.
+    pub fn against_liggghts(case: PenetrationCase, stress: bool) -> Penetration {
+        Penetration {
+            case,
+            stress,
+            reference: EngineKind::Liggghts,
+        }
+    }
+
     /// The paths that exist for LIGGGHTS as the reference only: with LAMMPS, `what` is
     /// refused by name rather than read as if it were LIGGGHTS'.
     fn liggghts_only(&self, what: &str) -> Result<()> {
@@ -839,19 +849,13 @@ impl Experiment for Penetration {
         out: &Path,
         opts: &Options,
     ) -> Verdict {
-        let (mut v, summary) = fdr_checks(
-            &self.case,
-            units,
-            &native.iter().map(|r| &r.run).collect::<Vec<_>>(),
-            &native
-                .iter()
-                .filter_map(|r| r.slow.as_ref())
-                .collect::<Vec<_>>(),
-            &reference.iter().map(|r| &r.run).collect::<Vec<_>>(),
-            self.reference,
-            out,
-            opts.control.as_deref(),
-        );
+        let runs = FdrRuns {
+            native: native.iter().map(|r| &r.run).collect(),
+            native_slow: native.iter().filter_map(|r| r.slow.as_ref()).collect(),
+            reference: reference.iter().map(|r| &r.run).collect(),
+            reference_engine: self.reference,
+        };
+        let (mut v, summary) = fdr_checks(&self.case, units, &runs, out, opts.control.as_deref());
         let main_run = native.iter().all(|r| r.snapshots.is_some());
         if self.stress && main_run {
             let s = stress::checks(&self.case, units, native, reference, out, opts);
@@ -960,20 +964,33 @@ pub(crate) fn k_phi_fit_end(case: &PenetrationCase, range: &cp::FitRange) -> f64
     }
 }
 
+/// The runs one penetration report is made from, per bed in bed order: the native
+/// engine's at the case's speed and at its quasi-static speed (empty when the case has
+/// none), and the reference engine's (empty for `analyze --no-native`'s other side).
+pub(crate) struct FdrRuns<'a> {
+    pub native: Vec<&'a EngineRun>,
+    pub native_slow: Vec<&'a EngineRun>,
+    pub reference: Vec<&'a EngineRun>,
+    pub reference_engine: EngineKind,
+}
+
 /// Every FDR check of the experiment from the runs of both engines, with the FDR CSVs
 /// and the overlay SVG written to `out`, and the case's summary. Shared by `compare` and
 /// `analyze`, so both give the same report from the same runs.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn fdr_checks(
     case: &PenetrationCase,
     units: &[Unit],
-    native: &[&EngineRun],
-    native_slow: &[&EngineRun],
-    reference: &[&EngineRun],
-    reference_engine: EngineKind,
+    runs: &FdrRuns,
     out: &Path,
     control: Option<&str>,
 ) -> (Verdict, crate::compare::sweep::CaseSummary) {
+    let FdrRuns {
+        native,
+        native_slow,
+        reference,
+        reference_engine,
+    } = runs;
+    let reference_engine = *reference_engine;
     let name = |w: &str| format!("{}: {w}", case.name);
     let mut notes: Vec<String> = units
         .iter()
