@@ -992,6 +992,21 @@ mod tests {
         c
     }
 
+    /// A status-table row over `cases`, its texts placeholders.
+    fn row_of(cases: &[&str]) -> Row {
+        Row {
+            source: "S".into(),
+            claim: "C".into(),
+            cases: cases.iter().map(|c| c.to_string()).collect(),
+            claims: vec![],
+            setup: String::new(),
+            only_matching: vec![],
+            rule: "R".into(),
+            before: "B".into(),
+            change: String::new(),
+        }
+    }
+
     fn report_dir(checks: Vec<Check>) -> tempfile::TempDir {
         let t = tempfile::tempdir().unwrap();
         let r = Report::new(checks, Vec::new(), Vec::new());
@@ -1128,17 +1143,7 @@ mod tests {
         for d in digests_of_report(t.path(), &r).unwrap() {
             digests.insert((d.holder.clone(), d.name.clone()), d);
         }
-        let row = Row {
-            source: "S".into(),
-            claim: "C".into(),
-            cases: vec!["a".into(), "b".into()],
-            claims: vec![],
-            setup: String::new(),
-            only_matching: vec![],
-            rule: "R".into(),
-            before: "B".into(),
-            change: String::new(),
-        };
+        let row = row_of(&["a", "b"]);
         let (now, run) = row_now(&row, &digests, &r);
         assert!(
             now.contains("a: 1 INCONCLUSIVE, 1 pass (INCONCLUSIVE K_phi: 0.5")
@@ -1181,17 +1186,7 @@ mod tests {
             reason: "three beds cannot resolve it".into(),
             found: "2026-11-29".into(),
         };
-        let row = Row {
-            source: "S".into(),
-            claim: "C".into(),
-            cases: vec!["a".into()],
-            claims: vec![],
-            setup: String::new(),
-            only_matching: vec![],
-            rule: "R".into(),
-            before: "B".into(),
-            change: String::new(),
-        };
+        let row = row_of(&["a"]);
         let today = judged_today(digests.clone(), &r, &[expect(Status::Inconclusive)]);
         let gate = &today[&("case".to_string(), "a".to_string())].gate;
         assert!(gate.len() == 1 && gate[0].holds, "{gate:?}");
