@@ -60,6 +60,26 @@ impl Expectation {
     }
 }
 
+/// Checks a suite file's `[[expect]]` list as a whole: every entry on its own
+/// ([`Expectation::validate`]) and no check named twice (two entries for one check would
+/// make the gate's judgement depend on their order). The suite loader and the release
+/// status table read the same list, so they refuse the same files with the same words.
+pub(crate) fn check_list(file: &std::path::Path, list: &[Expectation]) -> anyhow::Result<()> {
+    for (k, e) in list.iter().enumerate() {
+        e.validate().map_err(|why| {
+            anyhow::anyhow!("{}: expect[{k}] ({}): {why}", file.display(), e.check)
+        })?;
+        if let Some(j) = list[..k].iter().position(|o| o.check == e.check) {
+            anyhow::bail!(
+                "{}: expect[{k}] and expect[{j}] both name the check \"{}\"",
+                file.display(),
+                e.check
+            );
+        }
+    }
+    Ok(())
+}
+
 /// How one check stands against what was registered for it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GateRow {
@@ -320,6 +340,25 @@ mod tests {
             e.validate()
                 .unwrap_err()
                 .contains("outside its own interval")
+        );
+    }
+
+    #[test]
+    fn a_list_naming_one_check_twice_is_refused_with_both_places() {
+        let file = std::path::Path::new("cases/suites/x.toml");
+        let a = expect("a", Status::Fail, Some([0.0, 1.0]));
+        let b = expect("b", Status::Inconclusive, None);
+        assert!(check_list(file, &[a.clone(), b.clone()]).is_ok());
+        let msg = check_list(file, &[a.clone(), b, a])
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("cases/suites/x.toml"), "{msg}");
+        assert!(msg.contains("expect[2] and expect[0]"), "{msg}");
+        let bad = expect("c", Status::Error, None);
+        let msg = check_list(file, &[bad]).unwrap_err().to_string();
+        assert!(
+            msg.contains("expect[0] (c)") && msg.contains("never an expected outcome"),
+            "{msg}"
         );
     }
 }

@@ -750,8 +750,8 @@ pub fn generate(repo: &Path) -> Result<String> {
 }
 
 /// The release suite's `[[expect]]`, read from its file alone (the table needs no case
-/// file parsed: a case whose rules changed is shown as stale, not refused), each
-/// checked as the suite loader checks it.
+/// file parsed: a case whose rules changed is shown as stale, not refused), checked as
+/// the suite loader checks them.
 fn registered_expectations(repo: &Path) -> Result<Vec<crate::compare::expect::Expectation>> {
     let path = repo.join("cases/suites/release.toml");
     let table: toml::Table = read_text(&path, "a suite file")?
@@ -764,11 +764,7 @@ fn registered_expectations(repo: &Path) -> Result<Vec<crate::compare::expect::Ex
         .clone()
         .try_into()
         .with_context(|| format!("{}: [[expect]]", path.display()))?;
-    for (k, e) in exps.iter().enumerate() {
-        e.validate().map_err(|why| {
-            anyhow::anyhow!("{}: expect[{k}] ({}): {why}", path.display(), e.check)
-        })?;
-    }
+    crate::compare::expect::check_list(&path, &exps)?;
     Ok(exps)
 }
 

@@ -375,18 +375,7 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
             paper_k_phi: c.paper_k_phi,
         });
     }
-    for (k, e) in f.expectations.iter().enumerate() {
-        e.validate().map_err(|why| {
-            anyhow::anyhow!("{}: expect[{k}] ({}): {why}", path.display(), e.check)
-        })?;
-        if let Some(j) = f.expectations[..k].iter().position(|o| o.check == e.check) {
-            bail!(
-                "{}: expect[{k}] and expect[{j}] both name the check \"{}\"",
-                path.display(),
-                e.check
-            );
-        }
-    }
+    crate::compare::expect::check_list(&path, &f.expectations)?;
     let repo = cases_root.parent().unwrap_or(Path::new("."));
     let mut families = Vec::new();
     for (k, fam) in f.families.into_iter().enumerate() {
