@@ -697,6 +697,21 @@ fn liggghts_snapshot_matches_native_contacts() {
         &[0],
     )
     .unwrap();
+    let mut dumps: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|n| n.starts_with("snap_"))
+        .collect();
+    dumps.sort();
+    assert_eq!(
+        dumps,
+        [
+            "snap_atoms.0.txt.zst",
+            "snap_pair.0.txt.zst",
+            "snap_wall.0.txt.zst"
+        ],
+        "the dumps are kept, compressed"
+    );
     let (grains, contacts, dropped) =
         granval::engines::liggghts::snapshot::read_snapshot(dir.path(), 0, deck.units).unwrap();
     assert_eq!(dropped, 0, "one core reports each pair once");
@@ -1127,7 +1142,10 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
                 snapshot::read_meta(&ld.join("snapshots"), i).unwrap().step,
                 step
             );
-            assert!(granval::engines::liggghts::snapshot::pair_file(&ld, step).exists());
+            // Kept compressed beside the converted snapshots.
+            let pair = granval::engines::liggghts::snapshot::pair_file(&ld, step);
+            assert!(!pair.exists());
+            assert!(pair.with_extension("txt.zst").exists(), "{}", pair.display());
         }
     }
     // The beds are different beds: their phis differ.

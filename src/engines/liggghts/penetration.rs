@@ -1103,7 +1103,7 @@ pub fn run_with_snapshots(
     if dir.exists() {
         for e in std::fs::read_dir(dir)? {
             let name = e?.file_name().to_string_lossy().to_string();
-            if name.starts_with("snap_") && name.ends_with(".txt") {
+            if super::snapshot::is_dump_name(&name) {
                 std::fs::remove_file(dir.join(&name))
                     .with_context(|| format!("cannot remove stale {name}"))?;
             }
@@ -1113,6 +1113,14 @@ pub fn run_with_snapshots(
     let (samples, mut prov) = run_existing(d, dir, mpi_procs, limits)?;
     prov.notes
         .insert(2, format!("intruder STL: {} segments", files.stl_segments));
+    if !snapshot_steps.is_empty() {
+        let (before, after) = super::snapshot::compress_dumps(dir)?;
+        prov.notes.push(format!(
+            "contact dumps kept zstd-compressed: {:.1} MB -> {:.1} MB",
+            before as f64 / 1e6,
+            after as f64 / 1e6
+        ));
+    }
     Ok((samples, prov))
 }
 

@@ -147,11 +147,87 @@ pub(crate) struct DumpReader<R> {
     line: String,
 }
 
-impl DumpReader<std::io::BufReader<crate::rundata::fsio::Bounded>> {
+impl DumpReader<Box<dyn BufRead>> {
+    /// Opens the dump at `path`, or its compressed form `path.zst`
+    /// ([`compress_dumps`]) when only that exists; either is bounded as every engine
+    /// output is, and what a compressed one decompresses to by the same size.
     pub fn open(path: &Path) -> Result<Self> {
+        let zst = compressed_name(path);
+        if !path.exists() && zst.exists() {
+            let f = crate::rundata::fsio::open_engine_output(&zst, "a LIGGGHTS contact dump")?;
+            let dec = zstd::stream::Decoder::new(f)
+                .with_context(|| format!("{}: not a zstd stream", zst.display()))?;
+            let bounded = std::io::Read::take(dec, crate::rundata::fsio::max_engine_output());
+            return Ok(DumpReader::new(
+                Box::new(std::io::BufReader::new(bounded)),
+                &zst,
+            ));
+        }
         let f = crate::rundata::fsio::open_engine_output(path, "a LIGGGHTS contact dump")?;
-        Ok(DumpReader::new(std::io::BufReader::new(f), path))
+        Ok(DumpReader::new(Box::new(std::io::BufReader::new(f)), path))
     }
+}
+
+/// `snap_pair.K.txt` -> `snap_pair.K.txt.zst`.
+fn compressed_name(path: &Path) -> PathBuf {
+    let mut s = path.as_os_str().to_owned();
+    s.push(".zst");
+    PathBuf::from(s)
+}
+
+/// Whether `name` is one of the snapshot dumps the deck block writes, plain or
+/// compressed (what a new run with snapshots replaces).
+pub(crate) fn is_dump_name(name: &str) -> bool {
+    [PAIR_PREFIX, WALL_PREFIX, ATOMS_PREFIX]
+        .iter()
+        .any(|p| name.starts_with(&format!("{p}.")))
+        && (name.ends_with(".txt") || name.ends_with(".txt.zst"))
+}
+
+/// zstd level of the kept dumps: LIGGGHTS writes every value with 17 significant digits,
+/// which level 3 shrinks about as much as the converted snapshots (measured in
+/// docs/stress.md) at a fraction of the run's time.
+const DUMP_ZSTD_LEVEL: i32 = 3;
+
+/// Replaces every snapshot dump LIGGGHTS left in `dir` by its zstd-compressed form
+/// (`snap_pair.K.txt` -> `snap_pair.K.txt.zst`, read back by [`read_snapshot`] as it
+/// was). The raw dumps are the run's evidence, so they are kept, but as written they are
+/// about as large as every other output of a stress bed together. Each file is written
+/// under a temporary name, flushed to disk, renamed, and only then is the plain file
+/// removed: an interrupted compression leaves the plain dump, never neither. Returns the
+/// bytes before and after.
+pub(crate) fn compress_dumps(dir: &Path) -> Result<(u64, u64)> {
+    let (mut before, mut after) = (0u64, 0u64);
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .with_context(|| format!("cannot list {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().to_string()))
+        .filter(|n| is_dump_name(n) && n.ends_with(".txt"))
+        .collect();
+    names.sort();
+    for name in names {
+        let src = dir.join(&name);
+        let dst = compressed_name(&src);
+        let tmp = dir.join(format!(".{name}.zst.partial"));
+        let mut input =
+            std::fs::File::open(&src).with_context(|| format!("cannot open {}", src.display()))?;
+        let out = std::fs::File::create(&tmp)
+            .with_context(|| format!("cannot create {}", tmp.display()))?;
+        let mut enc = zstd::stream::Encoder::new(out, DUMP_ZSTD_LEVEL)
+            .with_context(|| format!("cannot start zstd for {}", tmp.display()))?;
+        before += std::io::copy(&mut input, &mut enc)
+            .with_context(|| format!("cannot compress {}", src.display()))?;
+        let out = enc
+            .finish()
+            .with_context(|| format!("cannot finish {}", tmp.display()))?;
+        out.sync_all()
+            .with_context(|| format!("cannot flush {}", tmp.display()))?;
+        after += out.metadata()?.len();
+        std::fs::rename(&tmp, &dst)
+            .with_context(|| format!("cannot rename {} to {}", tmp.display(), dst.display()))?;
+        std::fs::remove_file(&src)
+            .with_context(|| format!("cannot remove {} after compressing it", src.display()))?;
+    }
+    Ok((before, after))
 }
 
 impl<R: BufRead> DumpReader<R> {
@@ -420,5 +496,37 @@ mod tests {
         assert!(deck_block(&[10, 10], 30).is_err());
         assert!(deck_block(&[40], 30).is_err());
         assert!(deck_block(&[], 30).unwrap().is_empty());
+    }
+
+    #[test]
+    fn compressed_dumps_read_back_as_written_and_replace_the_plain_ones() {
+        let dir = tempfile::tempdir().unwrap();
+        let text = "ITEM: TIMESTEP\n7\nITEM: NUMBER OF ENTRIES\n2\nITEM: BOX BOUNDS ff ff ff\n0 1\n0 1\n0 1\nITEM: ENTRIES a b\n1.25 2\n3 4.000000000000001\n";
+        let pair = pair_file(dir.path(), 7);
+        std::fs::write(&pair, text).unwrap();
+        std::fs::write(dir.path().join("other.txt"), "kept as it is").unwrap();
+        let plain = read_one(&pair, 7).unwrap();
+        let (before, after) = compress_dumps(dir.path()).unwrap();
+        assert_eq!(before, text.len() as u64);
+        assert!(after > 0);
+        assert!(!pair.exists(), "the plain dump is replaced");
+        assert!(dir.path().join("snap_pair.7.txt.zst").exists());
+        assert!(
+            dir.path().join("other.txt").exists(),
+            "only dumps are compressed"
+        );
+        let back = read_one(&pair, 7).unwrap();
+        assert_eq!(
+            (back.step, &back.columns, &back.values),
+            (plain.step, &plain.columns, &plain.values)
+        );
+        // Nothing left to compress: a second call changes nothing.
+        assert_eq!(compress_dumps(dir.path()).unwrap(), (0, 0));
+        assert!(is_dump_name("snap_atoms.0.txt") && is_dump_name("snap_wall.10.txt.zst"));
+        assert!(!is_dump_name("snapshot_00_grains.csv.zst") && !is_dump_name("snap_pair.7.log"));
+        // A damaged compressed dump is an error naming it, never an empty snapshot.
+        std::fs::write(dir.path().join("snap_pair.7.txt.zst"), b"not zstd").unwrap();
+        let e = format!("{:#}", read_one(&pair, 7).unwrap_err());
+        assert!(e.contains("snap_pair.7.txt.zst"), "{e}");
     }
 }
