@@ -46,7 +46,7 @@ fn g(x: f64) -> String {
 }
 
 /// Refuses what this deck cannot express, naming the field and value.
-fn check(d: &PenetrationDeck) -> Result<()> {
+pub(crate) fn check(d: &PenetrationDeck) -> Result<()> {
     if !d.bodies.is_empty() || d.clump.is_some() {
         bail!(
             "bed: a clump (multisphere) bed of {} bodies: the LAMMPS penetration deck takes sphere beds only",
@@ -122,11 +122,24 @@ pub(crate) fn data_text(d: &PenetrationDeck) -> Result<String> {
     Ok(s)
 }
 
-/// The sub-model keywords for types `a`, `b` (0-based); `wall`: `b` is a wall's
-/// material, whose E and nu LAMMPS' wall fixes use unmixed.
-fn law(d: &PenetrationDeck, a: usize, b: usize, wall: bool) -> String {
+/// The doubles of one `hertz/material E e nu damping coeff_restitution tangential
+/// mindlin NULL xt mu` law of the deck: what [`law`] prints and what the native engine
+/// with LAMMPS' laws ([`crate::physics::dem::lammps_penetration`]) sets up from, so the
+/// two start from the same numbers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct DeckLaw {
+    pub e_mod: f64,
+    pub restitution: f64,
+    pub nu: f64,
+    pub xt: f64,
+    pub mu: f64,
+}
+
+/// The law of types `a`, `b` (0-based); `wall`: `b` is a wall's material, whose E and
+/// nu LAMMPS' wall fixes use unmixed.
+pub(crate) fn law_values(d: &PenetrationDeck, a: usize, b: usize, wall: bool) -> DeckLaw {
     let (ma, mb) = (&d.materials[a], &d.materials[b]);
-    let (e, nu) = if wall {
+    let (e_mod, nu) = if wall {
         (mb.youngs_modulus, mb.poisson_ratio)
     } else {
         mixed_material(
@@ -137,13 +150,25 @@ fn law(d: &PenetrationDeck, a: usize, b: usize, wall: bool) -> String {
         )
     };
     let k = d.pairs.idx(a, b);
+    DeckLaw {
+        e_mod,
+        restitution: d.pairs.restitution[k],
+        nu,
+        xt: tangential_damping_ratio(nu),
+        mu: d.pairs.friction[k],
+    }
+}
+
+/// The sub-model keywords for types `a`, `b` (0-based); `wall` as in [`law_values`].
+fn law(d: &PenetrationDeck, a: usize, b: usize, wall: bool) -> String {
+    let l = law_values(d, a, b, wall);
     format!(
         "hertz/material {} {} {} damping coeff_restitution tangential mindlin NULL {} {} twisting none",
-        g(e),
-        g(d.pairs.restitution[k]),
-        g(nu),
-        g(tangential_damping_ratio(nu)),
-        g(d.pairs.friction[k])
+        g(l.e_mod),
+        g(l.restitution),
+        g(l.nu),
+        g(l.xt),
+        g(l.mu)
     )
 }
 

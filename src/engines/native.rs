@@ -114,6 +114,37 @@ pub fn penetration(
     ))
 }
 
+/// A penetration run with LAMMPS' laws: `deck`, the LAMMPS 2025 deck of one bed (what
+/// `granval deck --engine lammps` writes, [`crate::experiments::penetration::deck_dir::lammps_deck`]),
+/// stepped by the native engine with LAMMPS' contact laws, walls and order of operations
+/// ([`dem::lammps_penetration`]) under the control `pert`. The force samples are those
+/// the deck's `fix print` writes (step 0, then every `force_every` steps).
+pub fn penetration_lammps_laws(
+    case: &PenetrationCase,
+    deck: &crate::engines::liggghts::penetration::PenetrationDeck,
+    pert: &Perturbation,
+    on_step: impl FnMut(u64, u64),
+) -> Result<(Vec<ForceSample>, Provenance)> {
+    let start = Instant::now();
+    let samples = dem::lammps_penetration::run(deck, pert, on_step)?;
+    let notes = vec![format!(
+        "the LAMMPS 2025 deck of {} grains (input {}), stepped natively with LAMMPS' laws",
+        deck.particles.len(),
+        crate::engines::lammps3d_penetration::input_hash(deck)?
+    )];
+    Ok((
+        samples,
+        provenance(
+            case.canonical_hash(),
+            &case.source,
+            start,
+            "3D DEM, LAMMPS granular laws",
+            pert,
+            notes,
+        ),
+    ))
+}
+
 /// A 2D impact scene.
 #[allow(clippy::too_many_arguments)]
 pub fn impact2d(

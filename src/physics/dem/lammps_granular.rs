@@ -225,7 +225,56 @@ pub(crate) fn calculate_forces(
     history_update: bool,
 ) -> Output {
     let (_, rsq, radsum, reff) = check_contact(c);
-    let r = rsq.sqrt();
+    forces_at(c, k, dt, hist, history_update, rsq.sqrt(), radsum, reff)
+}
+
+/// `GranularModel::check_contact` for contact type WALLREGION (`fix wall/gran/region`):
+/// the distance `r` to the region's surface is given (`Region::surface`), rsq = r r,
+/// radsum = radi, and the effective radius is radi when the surface is flat (`radj` =
+/// the region contact's `radius` = 0) and radi radj / (radi + radj) otherwise (radj =
+/// -2 R on the inside of a cylinder's mantle, 2 R on its outside: region_cylinder.cpp).
+/// Returns (touch, radsum, reff).
+pub(crate) fn check_region_contact(radi: f64, radj: f64, r: f64) -> (bool, f64, f64) {
+    let rsq = r * r;
+    let radsum = radi;
+    let reff = if radj == 0.0 {
+        radi
+    } else {
+        radi * radj / (radi + radj)
+    };
+    (rsq < radsum * radsum, radsum, reff)
+}
+
+/// `GranularModel::calculate_forces` for contact type WALLREGION: as
+/// [`calculate_forces`], but with the region's own surface distance `r` (LAMMPS does not
+/// recompute it from `dx` there) and the effective radius of [`check_region_contact`]
+/// (`c.radj` is the region contact's `radius`; `c.omegaj` zero). Torque on the grain:
+/// radi (n x fs), as for every wall.
+pub(crate) fn calculate_region_forces(
+    c: &Contact,
+    r: f64,
+    k: &Coeffs,
+    dt: f64,
+    hist: &mut History,
+    history_update: bool,
+) -> Output {
+    debug_assert!(c.wall, "a region contact is a wall contact");
+    let (_, radsum, reff) = check_region_contact(c.radi, c.radj, r);
+    forces_at(c, k, dt, hist, history_update, r, radsum, reff)
+}
+
+/// The body of `GranularModel::calculate_forces` once r, radsum and Reff are known.
+#[allow(clippy::too_many_arguments)]
+fn forces_at(
+    c: &Contact,
+    k: &Coeffs,
+    dt: f64,
+    hist: &mut History,
+    history_update: bool,
+    r: f64,
+    radsum: f64,
+    reff: f64,
+) -> Output {
     let rinv = 1.0 / r;
     let delta = radsum - r;
     let d_r = delta * reff;
