@@ -75,6 +75,7 @@ fn deck(units: Units, e: f64) -> PenetrationDeck {
             rolling_friction: vec![0.01; n * n],
         },
         rolling: RollingModel::Cdt,
+        tangential_damping: None,
         dt: 2e-5,
         gravity: 9.81,
         container_radius: RC,

@@ -182,3 +182,130 @@ fn native_lammps_laws_refuse_what_they_cannot_express() {
     .unwrap_err();
     assert!(format!("{err:#}").contains("clump"), "{err:#}");
 }
+
+/// The tiny case with LAMMPS' own laws: `[models] family = "lammps"`, `hertz/material`,
+/// `mindlin` with the damping ratio `xt`, no rolling resistance (`tail`: appended).
+fn lammps_family_toml(xt: &str, rolling: &str, tail: &str) -> String {
+    let text = common::tiny_penetration_toml(0.010, "", tail);
+    let models = "normal = \"hertz\"\ntangential = \"history\"\nrolling = \"cdt\"\n";
+    assert!(
+        text.contains(models),
+        "tests/data/penetration-tiny.toml changed shape"
+    );
+    text.replacen(
+        models,
+        &format!(
+            "family = \"lammps\"\nnormal = \"hertz/material\"\ntangential = \"mindlin\"\nrolling = \"{rolling}\"\ntangential_damping = {xt}\n"
+        ),
+        1,
+    )
+}
+
+/// A penetration case may say `family = "lammps"`: it loads with its own xt (and a
+/// canonical hash of its own), the LAMMPS deck prints that xt, the LIGGGHTS deck and
+/// the native engine with LIGGGHTS' laws refuse it naming the field, and what the
+/// LAMMPS deck cannot carry (rolling resistance) is refused at load.
+#[test]
+fn lammps_family_penetration_case_loads_and_is_routed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("tiny-lammps.toml");
+    std::fs::write(&path, lammps_family_toml("0.5", "none", "")).unwrap();
+    let case = PenetrationCase::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(matches!(
+        case.family,
+        granval::case::family::ContactFamily::Lammps(_)
+    ));
+    let lig_path = tmp.path().join("tiny.toml");
+    std::fs::write(&lig_path, common::tiny_penetration_toml(0.010, "", "")).unwrap();
+    let lig = PenetrationCase::load(&lig_path).unwrap();
+    assert_ne!(case.canonical_hash(), lig.canonical_hash());
+
+    let bed = prepare_bed(&case, false).unwrap();
+    let deck = lammps_deck(&case, &bed).unwrap();
+    let text = lp::write_inputs(&deck, &tmp.path().join("deck"))
+        .and_then(|_| {
+            Ok(std::fs::read_to_string(
+                tmp.path().join("deck").join(lp::DECK_FILE),
+            )?)
+        })
+        .unwrap();
+    assert!(
+        text.contains("tangential mindlin NULL 5e-1 5e-1"),
+        "the case's xt is not in the deck:\n{text}"
+    );
+    let err = granval::experiments::penetration::bed::liggghts_deck(&case, &bed).unwrap_err();
+    assert!(format!("{err:#}").contains("models.family"), "{err:#}");
+    let err = granval::engines::native::penetration(
+        &case,
+        &bed,
+        &Perturbation::default(),
+        &[],
+        |_| Ok(()),
+        |_, _| {},
+    )
+    .unwrap_err();
+    assert!(format!("{err:#}").contains("models.family"), "{err:#}");
+
+    let sds = tmp.path().join("sds.toml");
+    std::fs::write(&sds, lammps_family_toml("0.5", "sds", "")).unwrap();
+    let err = PenetrationCase::load(&sds).unwrap_err().to_string();
+    assert!(
+        err.contains("models.rolling") && err.contains("sds"),
+        "{err}"
+    );
+}
+
+/// `granval compare --engine lammps` on a LAMMPS-family case: the native side runs
+/// LAMMPS' laws (its provenance says so) and LAMMPS 2025 is the reference, both from
+/// the same natively prepared bed; the comparison has no error check.
+#[test]
+fn compare_engine_lammps_runs_the_native_engine_with_lammps_laws() {
+    let test = "compare --engine lammps, LAMMPS-family case";
+    if !common::lammps3d_live(test) {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("tiny.toml");
+    std::fs::write(&path, lammps_family_toml("0.907", "none", "")).unwrap();
+    let report = tmp.path().join("report");
+    let o = common::granval()
+        .arg("compare")
+        .arg(&path)
+        .args(["--engine", "lammps", "--report"])
+        .arg(&report)
+        .output()
+        .unwrap();
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    eprintln!("[{test}] exit {:?}\n{out}", o.status.code());
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("report.json")).unwrap())
+            .unwrap_or_else(|e| panic!("[{test}] report.json: {e}\n{err}"));
+    let text = json.to_string();
+    assert!(
+        !text.contains("\"error\""),
+        "[{test}] an error check: {text}"
+    );
+    assert_eq!(json["runs"][0]["reference_engine"], "LAMMPS", "{text}");
+    // The native side's provenance names LAMMPS' laws.
+    let native = report.join("tiny").join("bed-0").join("native");
+    let prov = std::fs::read_to_string(native.join("provenance.json"))
+        .unwrap_or_else(|e| panic!("[{test}] {}: {e}", native.display()));
+    assert!(
+        prov.contains("LAMMPS granular laws")
+            && prov.contains("stepped natively with LAMMPS' laws"),
+        "[{test}] {prov}"
+    );
+    // Same laws, same bed: the two K_phi agree far inside the gate's margin (measured
+    // 2026-11-29: 397.96 native, 397.26 LAMMPS, +0.18 %; FDR distance 0.0028).
+    let fdr = json["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["gate"] == "fdr_distance")
+        .unwrap_or_else(|| panic!("no FDR distance check: {text}"));
+    let d = fdr["value"].as_f64().unwrap();
+    assert!(d < 0.02, "[{test}] FDR distance {d}");
+}

@@ -4,7 +4,7 @@
 
 use super::error::{CaseError, Ctx};
 use super::validate::{finite, override_pairs, physics, positive};
-use super::{Gate, Material, NegativeControl, PairTable, RollingModel, schema};
+use super::{ContactFamily, Gate, Material, NegativeControl, PairTable, RollingModel, schema};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -391,6 +391,12 @@ pub struct PenetrationCase {
     pub gravity: f64,
     pub neighbor_skin: f64,
     pub rolling: RollingModel,
+    /// `[models] family`: LIGGGHTS' laws (the default), or LAMMPS' `pair_style granular`
+    /// laws, which the native engine runs as LAMMPS' deck does
+    /// ([`crate::physics::dem::lammps_penetration`]) and only LAMMPS can be the
+    /// reference of (docs/lammps-laws.md, "The native engine with LAMMPS' laws in
+    /// penetration").
+    pub family: ContactFamily,
     pub materials: Vec<Material>,
     /// The pairs of the penetration (both engines).
     pub pairs: PairTable,
@@ -486,6 +492,9 @@ impl PenetrationCase {
             "beds": self.ensemble_beds,
         });
         // Only when present, so the hashes (and seals) of cases without it are unchanged.
+        if let (ContactFamily::Lammps(m), Some(o)) = (&self.family, view.as_object_mut()) {
+            o.insert("lammps".into(), serde_json::json!(m));
+        }
         if let (Some(p), Some(o)) = (&self.settle_pairs, view.as_object_mut()) {
             o.insert("settle_pairs".into(), serde_json::json!(p));
         }
@@ -493,6 +502,14 @@ impl PenetrationCase {
             o.insert("clump".into(), serde_json::json!(t));
         }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
+    }
+
+    /// LAMMPS' sub-model coefficients when the case is of the LAMMPS family.
+    pub(crate) fn lammps(&self) -> Option<&super::LammpsModels> {
+        match &self.family {
+            ContactFamily::Lammps(m) => Some(m),
+            ContactFamily::Liggghts => None,
+        }
     }
 
     /// The case the bed is prepared with: the pairs of `[[interactions]]`, without the
@@ -532,8 +549,9 @@ impl PenetrationCase {
 
     fn validated(raw: File, ctx: Ctx, path: &Path) -> Result<PenetrationCase, CaseError> {
         let (rolling, materials, bed_pairs) =
-            physics(&ctx, &raw.models, &raw.materials, &raw.interactions, false)?;
+            physics(&ctx, &raw.models, &raw.materials, &raw.interactions, true)?;
         let n_types = materials.len();
+        let family = penetration_family(&ctx, &raw, n_types)?;
         let (pairs, settle_pairs) = if raw.penetration_interactions.is_empty() {
             (bed_pairs, None)
         } else {
@@ -602,6 +620,13 @@ impl PenetrationCase {
             density,
             diameter,
         )?;
+        if clump.is_some() && family != ContactFamily::Liggghts {
+            return Err(ctx.bad(
+                "models.family",
+                "lammps",
+                "a clump bed is LIGGGHTS' fix multisphere; the LAMMPS penetration deck takes sphere beds only",
+            ));
+        }
         let packing_guess = raw.bed.packing_guess;
         if !(packing_guess > 0.0 && packing_guess < 0.75) {
             return Err(ctx.bad("bed.packing_guess", packing_guess, "must lie in (0, 0.75)"));
@@ -889,6 +914,7 @@ impl PenetrationCase {
         )?;
         Ok(PenetrationCase {
             negative_controls,
+            family,
             name: raw.case.name,
             description: raw.case.description,
             source: path.to_path_buf(),
@@ -951,6 +977,33 @@ fn plausibility(raw: &File) -> Vec<String> {
     w.extend(size("intruder.diameter", raw.intruder.diameter));
     w.extend(templates(&raw.clump_templates));
     w
+}
+
+/// `[models] family` of a penetration case. The LAMMPS family takes the micro cases'
+/// keywords (`hertz/material`, `mindlin` with `tangential_damping` xt), without rolling
+/// resistance: the LAMMPS penetration deck writes none (`rolling sds` would need a
+/// per-pair stiffness and damping that deck does not carry).
+fn penetration_family(ctx: &Ctx, raw: &File, n_types: usize) -> Result<ContactFamily, CaseError> {
+    if !super::family::is_lammps(ctx, &raw.models)? {
+        return Ok(ContactFamily::Liggghts);
+    }
+    if raw.models.rolling != "none" {
+        return Err(ctx.bad(
+            "models.rolling",
+            &raw.models.rolling,
+            "a LAMMPS-family penetration case has no rolling resistance (\"none\"): the LAMMPS penetration deck writes none",
+        ));
+    }
+    let m = super::family::lammps_models(
+        ctx,
+        &raw.models,
+        &raw.interactions,
+        n_types,
+        &[],
+        &[],
+        false,
+    )?;
+    Ok(ContactFamily::Lammps(m))
 }
 
 /// The clump template of a bed of non-spherical grains, checked against `[bed]`: the

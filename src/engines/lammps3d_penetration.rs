@@ -154,7 +154,9 @@ pub(crate) fn law_values(d: &PenetrationDeck, a: usize, b: usize, wall: bool) ->
         e_mod,
         restitution: d.pairs.restitution[k],
         nu,
-        xt: tangential_damping_ratio(nu),
+        xt: d
+            .tangential_damping
+            .unwrap_or_else(|| tangential_damping_ratio(nu)),
         mu: d.pairs.friction[k],
     }
 }
@@ -270,8 +272,16 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
              LAMMPS' own mixing of E and nu), `damping coeff_restitution` (LIGGGHTS' \
              restitution-based Hertz damping), `tangential mindlin NULL xt mu` (LIGGGHTS \
              `tangential history`: stiffness 8 G* a from E and nu, Coulomb limit mu, \
-             tangential damping ratio xt = sqrt(4 G* / E*) = sqrt(2 (1 - nu) / (2 - nu)), \
-             which makes its tangential damping LIGGGHTS'). {}",
+             tangential damping ratio {}). {}",
+            match d.tangential_damping {
+                Some(xt) => format!(
+                    "xt = {} as the case gives it: a case of LAMMPS' own laws, `[models] family = \"lammps\"`",
+                    g(xt)
+                ),
+                None => "xt = sqrt(4 G* / E*) = sqrt(2 (1 - nu) / (2 - nu)), which makes its \
+                         tangential damping LIGGGHTS'"
+                    .to_string(),
+            },
             if has_rolling {
                 format!(
                     "Rolling resistance: the case asks for LIGGGHTS `rolling_friction {}` \

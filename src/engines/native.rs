@@ -88,6 +88,11 @@ pub fn penetration(
     on_snapshot: impl FnMut(&Simulation) -> Result<()>,
     on_step: impl FnMut(u64, u64),
 ) -> Result<(Vec<ForceSample>, Provenance)> {
+    anyhow::ensure!(
+        case.family == crate::case::family::ContactFamily::Liggghts,
+        "{}: models.family = \"lammps\": this is the native engine with LIGGGHTS' laws; a LAMMPS-family case runs in `penetration_lammps_laws`",
+        case.source.display()
+    );
     let start = Instant::now();
     let samples = dem::penetration::run_with_snapshots(
         case,

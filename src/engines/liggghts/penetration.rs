@@ -55,6 +55,10 @@ pub struct PenetrationDeck {
     pub materials: Vec<Material>,
     pub pairs: PairTable,
     pub rolling: RollingModel,
+    /// LAMMPS family: the case's `tangential mindlin` damping ratio xt; `None` (a
+    /// LIGGGHTS-family case): the LAMMPS deck uses the xt that makes Mindlin's
+    /// tangential damping LIGGGHTS' ([`crate::engines::lammps3d_penetration`]).
+    pub tangential_damping: Option<f64>,
     pub dt: f64,
     /// m/s^2, along -z.
     pub gravity: f64,

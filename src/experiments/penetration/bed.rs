@@ -109,8 +109,21 @@ pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
 }
 
 /// The LIGGGHTS deck of a penetration case started from `bed` (identical grains,
-/// container, intruder start and speed as the native run).
+/// container, intruder start and speed as the native run). A case of the LAMMPS family
+/// is refused: LIGGGHTS 3.8 has no `tangential mindlin`, only LAMMPS 2025 can run it.
 pub fn liggghts_deck(case: &PenetrationCase, bed: &Bed) -> Result<PenetrationDeck> {
+    if case.family != crate::case::ContactFamily::Liggghts {
+        anyhow::bail!(
+            "{}: models.family = \"lammps\": LAMMPS' granular laws have no LIGGGHTS 3.8 deck; the reference of a LAMMPS-family penetration case is LAMMPS 2025 (`--engine lammps`)",
+            case.source.display()
+        );
+    }
+    penetration_deck(case, bed)
+}
+
+/// The engine-neutral inputs of one penetration run from `bed` (the LIGGGHTS deck's
+/// fields, SI), whatever the case's family.
+pub(crate) fn penetration_deck(case: &PenetrationCase, bed: &Bed) -> Result<PenetrationDeck> {
     use crate::engines::liggghts::penetration::Units;
     let (lo, hi) = packing::domain(case, dem::penetration::box_top(case, bed));
     // LIGGGHTS refuses E < 5e6 Pa (Table 2's G = 1 MPa gives E = 2.6 MPa) in SI *and* in
@@ -122,6 +135,7 @@ pub fn liggghts_deck(case: &PenetrationCase, bed: &Bed) -> Result<PenetrationDec
         materials: case.materials.clone(),
         pairs: case.pairs.clone(),
         rolling: case.rolling,
+        tangential_damping: case.lammps().map(|m| m.tangential_damping),
         dt: case.dt,
         gravity: case.gravity,
         container_radius: case.container_radius,

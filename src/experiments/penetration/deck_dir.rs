@@ -187,7 +187,7 @@ fn lammps_readme(case: &PenetrationCase, rows: &[String]) -> String {
 /// The engine-neutral description of one penetration run (the LIGGGHTS deck's inputs,
 /// all SI), in SI units for LAMMPS.
 pub fn lammps_deck(case: &PenetrationCase, bed: &Bed) -> Result<lp::PenetrationDeck> {
-    let mut deck = liggghts_deck(case, bed)?;
+    let mut deck = super::bed::penetration_deck(case, bed)?;
     deck.units = Units::Si;
     Ok(deck)
 }

@@ -127,6 +127,35 @@ fn native_run(
     }
     let n = crate::physics::dem::penetration::n_steps(case, bed);
     let bar = crate::report::progress::bar(progress, n, "native");
+    if case.lammps().is_some() {
+        // LAMMPS' laws: the LAMMPS deck of this bed, stepped natively.
+        ensure!(
+            plan.is_none(),
+            "{}: models.family = \"lammps\": contact snapshots (stress fields) are not written by the native engine with LAMMPS' laws",
+            case.source.display()
+        );
+        let deck = deck_dir::lammps_deck(case, bed)?;
+        let (samples, mut provenance) = crate::engines::native::penetration_lammps_laws(
+            case,
+            &deck,
+            &role.perturbation(),
+            |s, _| bar.set_position(s),
+        )?;
+        bar.finish_and_clear();
+        provenance.notes.push(packing::bed_note(case, bed));
+        write_force_csv(&dir.join(FORCE_CSV), &samples)?;
+        write_provenance(&dir.join(PROVENANCE_FILE), &provenance)?;
+        let mut b = binner(case, bed)?;
+        for s in &samples {
+            b.push(s.z_bottom, s.f[2])?;
+        }
+        return Ok(EngineRun {
+            fdr: b.fdr(),
+            samples: b.samples(),
+            provenance,
+            force_file: Some(dir.join(FORCE_CSV)),
+        });
+    }
     let snap_dir = dir.join(SNAPSHOT_DIR);
     let steps = plan.map(|p| p.steps.clone()).unwrap_or_default();
     let (samples, provenance) = crate::engines::native::penetration(
