@@ -119,53 +119,11 @@ enum SchedulerName {
 #[derive(Subcommand)]
 enum Cmd {
     /// Run one case in one engine; outputs (per unit: the case, a bed, a variant) under OUT.
-    Run {
-        case: PathBuf,
-        #[arg(long, value_enum, default_value = "native")]
-        engine: EngineName,
-        #[arg(long)]
-        out: PathBuf,
-        #[command(flatten)]
-        common: Common,
-    },
+    Run(RunArgs),
     /// Run a case in the native engine and the reference engine and compare them.
-    Compare {
-        case: PathBuf,
-        #[arg(long)]
-        report: PathBuf,
-        /// The reference engine; it must be the case kind's (micro and penetration:
-        /// liggghts; impact2d: lammps). Penetration also takes `lammps`: LAMMPS 2025,
-        /// live, on the same natively prepared beds (docs/lammps-laws.md, "Penetration
-        /// in LAMMPS 2025"). Default: the case kind's.
-        #[arg(long)]
-        engine: Option<EngineName>,
-        #[command(flatten)]
-        common: Common,
-    },
+    Compare(CompareArgs),
     /// Run every case of a suite (cases/suites/NAME.toml) and write one combined report.
-    Check {
-        #[arg(long, default_value = "micro")]
-        suite: String,
-        #[arg(long)]
-        report: PathBuf,
-        #[arg(long, default_value = "cases")]
-        cases: PathBuf,
-        /// Only these case files of the suite (repeatable).
-        #[arg(long)]
-        only: Vec<PathBuf>,
-        /// Earlier output directories (`check --report`, `compare --report`, `stress
-        /// --out`) whose case summaries the suite's claims across cases may use
-        /// (repeatable); this run's own outputs come first.
-        #[arg(long)]
-        runs: Vec<PathBuf>,
-        /// Run no case: evaluate the suite's claims across cases from the summaries in
-        /// `--runs` (cases run separately, or on a cluster and brought back with
-        /// `analyze`). A claim none of whose cases is there is left out with a note.
-        #[arg(long, requires = "runs", conflicts_with = "only")]
-        claims_only: bool,
-        #[command(flatten)]
-        common: Common,
-    },
+    Check(CheckArgs),
     /// Write the reference engine's input for a case (one directory per unit), ready to
     /// run here or on a cluster; README with the one-core and mpirun commands (`--np N`
     /// sets N in it), the expected outputs and the `granval analyze` command.
@@ -174,62 +132,11 @@ enum Cmd {
     /// (or `--only` these) under OUT/cases/, with OUT/units.tsv (one line per engine run),
     /// OUT/suite.json and OUT/submit.sh (one Slurm job array per engine, then the
     /// analysis job); docs/cluster.md.
-    Deck {
-        #[arg(required_unless_present = "suite", conflicts_with = "suite")]
-        case: Option<PathBuf>,
-        #[arg(short = 'o', long = "out")]
-        out: PathBuf,
-        /// Every case of this suite (cases/suites/NAME.toml), for a cluster (needs
-        /// `--scheduler`).
-        #[arg(long, requires = "scheduler")]
-        suite: Option<String>,
-        /// With `--suite`: only these case files of the suite (repeatable).
-        #[arg(long, requires = "suite")]
-        only: Vec<PathBuf>,
-        /// With `--suite`: where the suites and cases are.
-        #[arg(long, default_value = "cases", requires = "suite")]
-        cases: PathBuf,
-        /// With `--suite`: write job scripts for this scheduler (`slurm`).
-        #[arg(long, value_enum, requires = "suite")]
-        scheduler: Option<SchedulerName>,
-        /// With `--scheduler`: the partition the jobs ask for (default: the cluster's).
-        #[arg(long, requires = "scheduler")]
-        partition: Option<String>,
-        /// With `--scheduler`: each job's time limit, `auto` (from the case's estimate,
-        /// as granval's own engine timeout: docs/cluster.md) or HH:MM:SS.
-        #[arg(long, default_value = "auto", requires = "scheduler")]
-        time: String,
-        /// The engine the deck is for; it must be the case kind's reference engine
-        /// (micro and penetration: liggghts; impact2d: lammps). Default: that engine.
-        /// Penetration also takes `lammps`: a LAMMPS 2025 deck of the same natively
-        /// prepared bed (docs/lammps-laws.md, "Penetration in LAMMPS 2025").
-        #[arg(long, value_enum)]
-        engine: Option<EngineName>,
-        /// Penetration: who prepares the beds: `native` (exact `data.bed`, needed to
-        /// compare engines) or `liggghts` (the deck pours and settles them; full size).
-        #[arg(long, value_enum, default_value = "native")]
-        bed: granval::experiments::penetration::deck_dir::BedBy,
-        /// Penetration: add a visualisation dump every N steps (the grains and the
-        /// intruder mesh as VTK that ParaView opens; `analyze` accepts the deck).
-        #[arg(long, value_name = "N")]
-        viz: Option<u64>,
-        #[command(flatten)]
-        common: Common,
-    },
+    Deck(DeckArgs),
     /// Analyse a deck directory (`granval deck`) after the engine ran in it, here or on
     /// a cluster: checks every run completed from the case's unedited inputs, then the
     /// same observables, checks and report as `granval compare`.
-    Analyze {
-        dir: PathBuf,
-        #[arg(long)]
-        report: PathBuf,
-        /// Penetration only: do not re-run the native engine from the same beds
-        /// (LIGGGHTS observables and published-value checks only).
-        #[arg(long)]
-        no_native: bool,
-        #[command(flatten)]
-        common: Common,
-    },
+    Analyze(AnalyzeArgs),
     /// Where the units of a suite directory (`granval deck --suite`) stand: done, running
     /// (Slurm's word when `squeue` is here), failed (with the last lines of its log) or
     /// missing. Exit 0 when every unit is done, 1 otherwise.
@@ -243,13 +150,7 @@ enum Cmd {
     /// Validate a case file without running anything and print what follows from it:
     /// grain count, Rayleigh (or collision) time and the time step's fraction of it,
     /// steps, estimated run time and output, the resource limits. Exit 0 if valid.
-    Validate {
-        case: PathBuf,
-        /// Accept a case whose estimated steps, output or memory exceed the limits (as
-        /// `--allow-large` does for the commands that run it).
-        #[arg(long)]
-        allow_large: bool,
-    },
+    Validate(ValidateArgs),
     /// Reference data management.
     Reference {
         #[command(subcommand)]
@@ -266,95 +167,23 @@ enum Cmd {
     /// `--penetration` on bed 0 of a penetration case (native 2 threads vs LIGGGHTS np 2),
     /// `--clumps` on bed 0 of the CI bed of rigid dimers.
     /// Best of `--reps`, every repetition printed, memory per particle.
-    Bench {
-        /// Number of spheres in the packing.
-        #[arg(long, default_value_t = 10_000)]
-        n: usize,
-        /// Timed steps per engine (packing; with `--penetration` the default is 10 000).
-        #[arg(long)]
-        steps: Option<u64>,
-        /// Repetitions per engine, interleaved so load hits all alike; the best is reported.
-        #[arg(long, default_value_t = 3)]
-        reps: usize,
-        /// Time the penetration of bed 0 of CASE instead of the packing: same bed, same
-        /// intruder start and speed in both engines.
-        #[arg(long, num_args = 0..=1, default_missing_value = "cases/penetration/ci.toml")]
-        penetration: Option<PathBuf>,
-        /// The penetration benchmark on a bed of rigid clumps: bed 0 of
-        /// `cases/penetration/ci-dimers.toml` (`--penetration` with that case).
-        #[arg(long, conflicts_with = "penetration")]
-        clumps: bool,
-        /// Throughput against bed size: settled packings of each N of `--ns` (cached
-        /// under $GRANVAL_BED_CACHE, else the temp dir), native 1 and 2 threads,
-        /// LIGGGHTS 1 process and `mpirun -np 2`, ratios and bytes per particle.
-        #[arg(long, conflicts_with_all = ["penetration", "clumps"])]
-        scaling: bool,
-        /// Bed sizes of `--scaling`, comma separated.
-        #[arg(long, value_delimiter = ',', default_values_t = granval::bench::scaling::DEFAULT_NS)]
-        ns: Vec<usize>,
-        /// With `--scaling`: also time the native engine without spatial sorting,
-        /// interleaved (the engine before it).
-        #[arg(long, requires = "scaling")]
-        unsorted: bool,
-        /// With `--scaling`: particle-steps per timed run (steps = this / N, 50..4000).
-        #[arg(long, requires = "scaling", default_value_t = granval::bench::scaling::DEFAULT_BUDGET)]
-        budget: f64,
-    },
+    Bench(BenchArgs),
     /// Stress and velocity fields of a penetration case from both engines, every bed of
     /// its ensemble: phi per engine, (phi, K_phi) against MALT, CSV/VTK/SVG under OUT
     /// (`compare` with the stress option; needs a live LIGGGHTS).
-    Stress {
-        case: PathBuf,
-        #[arg(long)]
-        out: PathBuf,
-        /// Re-analyse the snapshots of an earlier run in OUT instead of running again.
-        #[arg(long)]
-        reuse: bool,
-        /// Gaussian range w of eq 6 in grain diameters (sensitivity studies only).
-        #[arg(long)]
-        kernel_width: Option<f64>,
-        /// Also the estimator study (docs/stress.md): null window, Janssen check and
-        /// convergence with 1-40 snapshots and the grid spacing, from one extra run per
-        /// bed in each engine (DIR/study.json, DIR/study_*.csv).
-        #[arg(long)]
-        study: bool,
-        #[command(flatten)]
-        common: Common,
-    },
+    Stress(StressArgs),
     /// The chaos baseline (docs/statistics.md): every bed of a penetration case (every
     /// variant of an impact2d case) runs natively twice, as prepared and with every grain
     /// moved by one ulp; writes OUT/chaos.json with each bed's K_phi pair and the chaos
     /// spread of ln K_phi (each variant's final depth pair and the spread of their
     /// difference in d).
-    Chaos {
-        case: PathBuf,
-        #[arg(long)]
-        out: PathBuf,
-        /// The family of cases this one stands for (e.g. "spheres, CI scale").
-        #[arg(long)]
-        family: String,
-        #[command(flatten)]
-        common: Common,
-    },
+    Chaos(ChaosArgs),
     /// The agreement of several codes on the same beds of a penetration case, from the
     /// sealed summaries of runs made separately (`compare`, `compare --engine lammps`,
     /// `analyze` of a deck directory): for each pair of codes the per-bed ln(K_a / K_b)
     /// judged as the case's K_phi gate (equivalence within ln(1 + compare.k_phi_rel))
     /// and against a chaos record (docs/lammps-laws.md, "The three-code table").
-    Agreement {
-        case: PathBuf,
-        /// A run's output directory (repeatable; two engines or more among them).
-        #[arg(long, required = true)]
-        runs: Vec<PathBuf>,
-        /// The chaos record (`granval chaos`) the pairs are set against.
-        #[arg(long)]
-        chaos: PathBuf,
-        #[arg(long)]
-        report: PathBuf,
-        /// Clear a non-empty report directory instead of refusing it.
-        #[arg(long)]
-        force: bool,
-    },
+    Agreement(AgreementArgs),
     /// Coarse-graining throughput: N contacts onto a G^3 grid (all fields).
     CgBench {
         #[arg(long, default_value_t = 1_000_000)]
@@ -374,6 +203,217 @@ enum Cmd {
         #[arg(long)]
         table: bool,
     },
+}
+
+/// Arguments of `granval run`.
+#[derive(clap::Args)]
+struct RunArgs {
+    case: PathBuf,
+    #[arg(long, value_enum, default_value = "native")]
+    engine: EngineName,
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Arguments of `granval compare`.
+#[derive(clap::Args)]
+struct CompareArgs {
+    case: PathBuf,
+    #[arg(long)]
+    report: PathBuf,
+    /// The reference engine; it must be the case kind's (micro and penetration:
+    /// liggghts; impact2d: lammps). Penetration also takes `lammps`: LAMMPS 2025,
+    /// live, on the same natively prepared beds (docs/lammps-laws.md, "Penetration
+    /// in LAMMPS 2025"). Default: the case kind's.
+    #[arg(long)]
+    engine: Option<EngineName>,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Arguments of `granval check`.
+#[derive(clap::Args)]
+struct CheckArgs {
+    #[arg(long, default_value = "micro")]
+    suite: String,
+    #[arg(long)]
+    report: PathBuf,
+    #[arg(long, default_value = "cases")]
+    cases: PathBuf,
+    /// Only these case files of the suite (repeatable).
+    #[arg(long)]
+    only: Vec<PathBuf>,
+    /// Earlier output directories (`check --report`, `compare --report`, `stress
+    /// --out`) whose case summaries the suite's claims across cases may use
+    /// (repeatable); this run's own outputs come first.
+    #[arg(long)]
+    runs: Vec<PathBuf>,
+    /// Run no case: evaluate the suite's claims across cases from the summaries in
+    /// `--runs` (cases run separately, or on a cluster and brought back with
+    /// `analyze`). A claim none of whose cases is there is left out with a note.
+    #[arg(long, requires = "runs", conflicts_with = "only")]
+    claims_only: bool,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Arguments of `granval deck`.
+#[derive(clap::Args)]
+struct DeckArgs {
+    #[arg(required_unless_present = "suite", conflicts_with = "suite")]
+    case: Option<PathBuf>,
+    #[arg(short = 'o', long = "out")]
+    out: PathBuf,
+    /// Every case of this suite (cases/suites/NAME.toml), for a cluster (needs
+    /// `--scheduler`).
+    #[arg(long, requires = "scheduler")]
+    suite: Option<String>,
+    /// With `--suite`: only these case files of the suite (repeatable).
+    #[arg(long, requires = "suite")]
+    only: Vec<PathBuf>,
+    /// With `--suite`: where the suites and cases are.
+    #[arg(long, default_value = "cases", requires = "suite")]
+    cases: PathBuf,
+    /// With `--suite`: write job scripts for this scheduler (`slurm`).
+    #[arg(long, value_enum, requires = "suite")]
+    scheduler: Option<SchedulerName>,
+    /// With `--scheduler`: the partition the jobs ask for (default: the cluster's).
+    #[arg(long, requires = "scheduler")]
+    partition: Option<String>,
+    /// With `--scheduler`: each job's time limit, `auto` (from the case's estimate,
+    /// as granval's own engine timeout: docs/cluster.md) or HH:MM:SS.
+    #[arg(long, default_value = "auto", requires = "scheduler")]
+    time: String,
+    /// The engine the deck is for; it must be the case kind's reference engine
+    /// (micro and penetration: liggghts; impact2d: lammps). Default: that engine.
+    /// Penetration also takes `lammps`: a LAMMPS 2025 deck of the same natively
+    /// prepared bed (docs/lammps-laws.md, "Penetration in LAMMPS 2025").
+    #[arg(long, value_enum)]
+    engine: Option<EngineName>,
+    /// Penetration: who prepares the beds: `native` (exact `data.bed`, needed to
+    /// compare engines) or `liggghts` (the deck pours and settles them; full size).
+    #[arg(long, value_enum, default_value = "native")]
+    bed: granval::experiments::penetration::deck_dir::BedBy,
+    /// Penetration: add a visualisation dump every N steps (the grains and the
+    /// intruder mesh as VTK that ParaView opens; `analyze` accepts the deck).
+    #[arg(long, value_name = "N")]
+    viz: Option<u64>,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Arguments of `granval analyze`.
+#[derive(clap::Args)]
+struct AnalyzeArgs {
+    dir: PathBuf,
+    #[arg(long)]
+    report: PathBuf,
+    /// Penetration only: do not re-run the native engine from the same beds
+    /// (LIGGGHTS observables and published-value checks only).
+    #[arg(long)]
+    no_native: bool,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Arguments of `granval validate`.
+#[derive(clap::Args)]
+struct ValidateArgs {
+    case: PathBuf,
+    /// Accept a case whose estimated steps, output or memory exceed the limits (as
+    /// `--allow-large` does for the commands that run it).
+    #[arg(long)]
+    allow_large: bool,
+}
+
+/// Arguments of `granval bench`.
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Number of spheres in the packing.
+    #[arg(long, default_value_t = 10_000)]
+    n: usize,
+    /// Timed steps per engine (packing; with `--penetration` the default is 10 000).
+    #[arg(long)]
+    steps: Option<u64>,
+    /// Repetitions per engine, interleaved so load hits all alike; the best is reported.
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
+    /// Time the penetration of bed 0 of CASE instead of the packing: same bed, same
+    /// intruder start and speed in both engines.
+    #[arg(long, num_args = 0..=1, default_missing_value = "cases/penetration/ci.toml")]
+    penetration: Option<PathBuf>,
+    /// The penetration benchmark on a bed of rigid clumps: bed 0 of
+    /// `cases/penetration/ci-dimers.toml` (`--penetration` with that case).
+    #[arg(long, conflicts_with = "penetration")]
+    clumps: bool,
+    /// Throughput against bed size: settled packings of each N of `--ns` (cached
+    /// under $GRANVAL_BED_CACHE, else the temp dir), native 1 and 2 threads,
+    /// LIGGGHTS 1 process and `mpirun -np 2`, ratios and bytes per particle.
+    #[arg(long, conflicts_with_all = ["penetration", "clumps"])]
+    scaling: bool,
+    /// Bed sizes of `--scaling`, comma separated.
+    #[arg(long, value_delimiter = ',', default_values_t = granval::bench::scaling::DEFAULT_NS)]
+    ns: Vec<usize>,
+    /// With `--scaling`: also time the native engine without spatial sorting,
+    /// interleaved (the engine before it).
+    #[arg(long, requires = "scaling")]
+    unsorted: bool,
+    /// With `--scaling`: particle-steps per timed run (steps = this / N, 50..4000).
+    #[arg(long, requires = "scaling", default_value_t = granval::bench::scaling::DEFAULT_BUDGET)]
+    budget: f64,
+}
+
+/// Arguments of `granval stress`.
+#[derive(clap::Args)]
+struct StressArgs {
+    case: PathBuf,
+    #[arg(long)]
+    out: PathBuf,
+    /// Re-analyse the snapshots of an earlier run in OUT instead of running again.
+    #[arg(long)]
+    reuse: bool,
+    /// Gaussian range w of eq 6 in grain diameters (sensitivity studies only).
+    #[arg(long)]
+    kernel_width: Option<f64>,
+    /// Also the estimator study (docs/stress.md): null window, Janssen check and
+    /// convergence with 1-40 snapshots and the grid spacing, from one extra run per
+    /// bed in each engine (DIR/study.json, DIR/study_*.csv).
+    #[arg(long)]
+    study: bool,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Arguments of `granval chaos`.
+#[derive(clap::Args)]
+struct ChaosArgs {
+    case: PathBuf,
+    #[arg(long)]
+    out: PathBuf,
+    /// The family of cases this one stands for (e.g. "spheres, CI scale").
+    #[arg(long)]
+    family: String,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Arguments of `granval agreement`.
+#[derive(clap::Args)]
+struct AgreementArgs {
+    case: PathBuf,
+    /// A run's output directory (repeatable; two engines or more among them).
+    #[arg(long, required = true)]
+    runs: Vec<PathBuf>,
+    /// The chaos record (`granval chaos`) the pairs are set against.
+    #[arg(long)]
+    chaos: PathBuf,
+    #[arg(long)]
+    report: PathBuf,
+    /// Clear a non-empty report directory instead of refusing it.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(clap::Args)]
@@ -1096,596 +1136,19 @@ fn real_main() -> Result<ExitCode> {
         format: cli.format,
     });
     match cli.cmd {
-        Cmd::Run {
-            case,
-            engine,
-            out,
-            common,
-        } => {
-            let opts = options(&common);
-            let c = load(&case)?;
-            let wrong = match (&c, engine) {
-                (AnyCase::Impact2d(_), EngineName::Liggghts) => Some("2D: use native or lammps"),
-                (
-                    AnyCase::Micro(_) | AnyCase::Penetration(_) | AnyCase::Triaxial(_),
-                    EngineName::Lammps,
-                ) => Some("3D: use native or liggghts"),
-                _ => None,
-            };
-            if let Some(w) = wrong {
-                bail!("{}: --engine does not fit this case ({w})", case.display());
-            }
-            let _out = claim(
-                &out,
-                "--out",
-                common.force,
-                &protected(&common).input(&case),
-            )?;
-            let native = engine == EngineName::Native;
-            let lines =
-                with_experiment!(c, false, |exp| runner::run_one(&exp, native, &opts, &out))?;
-            for l in lines {
-                show!("{l}");
-            }
-            Ok(ExitCode::SUCCESS)
-        }
-        Cmd::Compare {
-            case,
-            report,
-            engine,
-            common,
-        } => {
-            let mut opts = options(&common);
-            let lammps3d = lammps_reference(&case, engine, &mut opts)?;
-            let _out = claim(
-                &report,
-                "--report",
-                common.force,
-                &protected(&common).input(&case),
-            )?;
-            let o = compare_one(&case, false, lammps3d, &opts, &report);
-            finish(
-                &report_of(vec![o]),
-                &report,
-                &format!("granval compare {}", case.display()),
-            )
-        }
-        Cmd::Check {
-            suite,
-            report,
-            cases,
-            only,
-            runs,
-            claims_only,
-            common,
-        } => {
-            let s = suite::load(&cases, &suite)?;
-            let mut entries = s.cases.clone();
-            if claims_only {
-                entries.clear();
-            } else if !only.is_empty() {
-                entries = only_entries(&s, &only)?;
-            }
-            for r in &runs {
-                if !r.is_dir() {
-                    bail!(
-                        "--runs {}: no such directory (an earlier output directory of check, compare or stress)",
-                        r.display()
-                    );
-                }
-            }
-            let mut keep = protected(&common)
-                .input(suite::manifest(&cases, &suite))
-                .input(&cases);
-            for e in &s.cases {
-                keep = keep.input(&e.path);
-            }
-            for r in &runs {
-                keep = keep.store(r, "the --runs directory");
-            }
-            let _out = claim(&report, "--report", common.force, &keep)?;
-            let mut opts = options(&common);
-            opts.reference_root = s.reference_root(&opts.reference_root);
-            // Which rules came before their records, decided before anything runs
-            // (docs/statistics.md, "Registration").
-            let registration =
-                granval::experiments::registration::of_suite(&s, &opts.reference_root)?;
-            let started = std::time::Instant::now();
-            let mut outcomes = Vec::new();
-            for e in &entries {
-                let t = std::time::Instant::now();
-                let o = Options {
-                    gate_theory: e.theory,
-                    ..opts.clone()
-                };
-                outcomes.push(compare_one(&e.path, e.stress, false, &o, &report));
-                say!(
-                    "   {} took {:.0} s",
-                    e.path.display(),
-                    t.elapsed().as_secs_f64()
-                );
-            }
-            let mut dirs = vec![report.clone()];
-            dirs.extend(runs);
-            let r = suite_report(
-                &s,
-                outcomes,
-                &dirs,
-                &report,
-                claims_only || !only.is_empty(),
-                registration.as_ref(),
-                entries.len(),
-                started,
-            );
-            finish(&r, &report, &format!("granval check --suite {suite}"))
-        }
-        Cmd::Reference {
-            cmd:
-                RefCmd::Refresh {
-                    suite,
-                    cases,
-                    reference,
-                    only,
-                    engine,
-                },
-        } => {
-            let s = suite::load(&cases, &suite)?;
-            let reference = s.reference_root(&reference);
-            let paths: Vec<PathBuf> = match only {
-                Some(p) => vec![p],
-                None => s.cases.into_iter().map(|e| e.path).collect(),
-            };
-            // One process, as `compare` runs the reference by default (penetration runs
-            // use at least two either way).
-            let opts = Options {
-                reference_root: reference,
-                mpi_procs: 1,
-                progress: output().progress(),
-                engine_timeout: engine.engine_timeout,
-                engine_stall: engine.engine_stall,
-                ..Options::default()
-            };
-            for p in paths {
-                let c = load(&p)?;
-                let lines = with_experiment!(c, false, |exp| runner::refresh(&exp, &opts))?;
-                for l in lines {
-                    show!("{l}");
-                }
-            }
-            Ok(ExitCode::SUCCESS)
-        }
-        Cmd::Reference {
-            cmd: RefCmd::Lean { records, add_beds },
-        } => {
-            let (reference_root, paths) = records.resolve()?;
-            let opts = Options {
-                reference_root,
-                progress: output().progress(),
-                ..Options::default()
-            };
-            for p in &paths {
-                let c = load(p)?;
-                match with_experiment!(c, false, |exp| runner::lean_record(&exp, &opts, add_beds))?
-                {
-                    Some(lines) => {
-                        for l in lines {
-                            show!("{l}");
-                        }
-                    }
-                    None => show!(
-                        "{}: no record under {}",
-                        p.display(),
-                        opts.reference_root.display()
-                    ),
-                }
-            }
-            Ok(ExitCode::SUCCESS)
-        }
-        Cmd::Reference {
-            cmd: RefCmd::Verify { records },
-        } => {
-            let (reference_root, paths) = records.resolve()?;
-            let opts = Options {
-                reference_root,
-                progress: true,
-                ..Options::default()
-            };
-            let (mut verified, mut failed) = (0, 0);
-            for p in &paths {
-                let c = load(p)?;
-                match with_experiment!(c, false, |exp| runner::verify_record(&exp, &opts)) {
-                    Ok(Some(line)) => {
-                        verified += 1;
-                        show!("{line}");
-                    }
-                    Ok(None) => show!(
-                        "{}: no record under {}",
-                        p.display(),
-                        opts.reference_root.display()
-                    ),
-                    Err(e) => {
-                        failed += 1;
-                        eprintln!("error: {}: {e:#}", p.display());
-                    }
-                }
-            }
-            if failed > 0 || verified == 0 {
-                bail!(
-                    "{failed} of {} record(s) did not verify, {verified} did",
-                    paths.len()
-                );
-            }
-            show!("{verified} record(s) verified");
-            Ok(ExitCode::SUCCESS)
-        }
+        Cmd::Run(a) => run(a),
+        Cmd::Compare(a) => compare(a),
+        Cmd::Check(a) => check(a),
+        Cmd::Reference { cmd } => reference(cmd),
         Cmd::Status { dir, not_done } => status(&dir, not_done.as_deref()),
         Cmd::Release { cmd } => release(cmd),
-        Cmd::Validate { case, allow_large } => {
-            let c = load(&case)?;
-            let (kind, engine) = match &c {
-                AnyCase::Micro(_) => ("micro", "LIGGGHTS"),
-                AnyCase::Penetration(_) => ("penetration", "LIGGGHTS"),
-                AnyCase::Impact2d(_) => ("impact2d", "LAMMPS"),
-                AnyCase::Triaxial(_) => ("triaxial", "LIGGGHTS"),
-            };
-            // Exactly what `compare` refuses before it runs (the reference engine's
-            // limits, the start state, the resource limits): a case that validates runs.
-            let (name, lines, refused) = with_experiment!(c, false, |exp| {
-                exp.preflight()?;
-                anyhow::Ok((
-                    exp.name().to_string(),
-                    granval::experiments::validation_summary(&exp),
-                    granval::experiments::limits::refuse(
-                        &exp.estimate(),
-                        &case.display().to_string(),
-                    ),
-                ))
-            })?;
-            let refused = refused.filter(|_| !allow_large);
-            show!(
-                "{}: {} {kind} case `{name}` (reference engine {engine})",
-                case.display(),
-                if refused.is_some() {
-                    "too large to run here:"
-                } else {
-                    "valid"
-                }
-            );
-            let w = lines.iter().map(|l| l.label.len()).max().unwrap_or(0);
-            for l in &lines {
-                if l.comment.is_empty() {
-                    show!("  {:<w$}  {}", l.label, l.value);
-                } else {
-                    show!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
-                }
-            }
-            if let Some(why) = refused {
-                bail!("{}: refused before running: {why}", case.display());
-            }
-            show!(
-                "next: granval deck {} -o DIR   (the {engine} input to read or run), granval compare {} --report OUT",
-                case.display(),
-                case.display()
-            );
-            Ok(ExitCode::SUCCESS)
-        }
-        Cmd::Deck {
-            case,
-            out,
-            suite,
-            only,
-            cases,
-            scheduler,
-            partition,
-            time,
-            engine,
-            bed,
-            viz,
-            common,
-        } => {
-            let opts = options(&common);
-            if let Some(suite) = suite {
-                if viz.is_some() {
-                    bail!(
-                        "--viz: not with --suite (a cluster suite's decks stay lean); write one case's deck with --viz"
-                    );
-                }
-                if engine.is_some()
-                    || bed != granval::experiments::penetration::deck_dir::BedBy::Native
-                {
-                    bail!(
-                        "--suite: each case's deck is for its reference engine with natively prepared beds; drop --engine and --bed"
-                    );
-                }
-                let Some(SchedulerName::Slurm) = scheduler else {
-                    bail!("--suite needs --scheduler slurm");
-                };
-                return deck_suite(
-                    &suite, &cases, &only, &out, partition, &time, &common, &opts,
-                );
-            }
-            let case = case.context("give a case file or --suite NAME")?;
-            let c = load(&case)?;
-            let (kind, wanted) = match &c {
-                AnyCase::Micro(_) => ("micro", EngineName::Liggghts),
-                AnyCase::Penetration(_) => ("penetration", EngineName::Liggghts),
-                AnyCase::Impact2d(_) => ("impact2d", EngineName::Lammps),
-                AnyCase::Triaxial(_) => ("triaxial", EngineName::Liggghts),
-            };
-            let lammps_penetration = matches!(
-                (&c, engine),
-                (AnyCase::Penetration(_), Some(EngineName::Lammps))
-            );
-            if lammps_penetration && viz.is_some() {
-                bail!(
-                    "--engine lammps --viz: the LAMMPS penetration deck has no visualisation dump yet (the LIGGGHTS deck has)"
-                );
-            }
-            if lammps_penetration
-                && bed != granval::experiments::penetration::deck_dir::BedBy::Native
-            {
-                bail!(
-                    "--engine lammps --bed liggghts: the LAMMPS penetration deck reads beds granval prepared natively (--bed native)"
-                );
-            }
-            if let Some(e) = engine
-                && e != wanted
-                && !lammps_penetration
-            {
-                bail!(
-                    "{}: --engine {}: a {kind} case is compared against {} (its reference engine); granval writes no {} deck for it",
-                    case.display(),
-                    e.name(),
-                    wanted.name(),
-                    e.name()
-                );
-            }
-            if viz.is_some() && kind != "penetration" {
-                bail!(
-                    "{}: --viz: only penetration decks have a visualisation dump so far; this case is of kind {kind}",
-                    case.display()
-                );
-            }
-            let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
-            let dirs = match c {
-                AnyCase::Penetration(c) if lammps_penetration => {
-                    granval::experiments::penetration::deck_dir::write_lammps(&c, &out, true)?
-                }
-                AnyCase::Penetration(c) => {
-                    granval::experiments::penetration::deck_dir::write(&c, &out, bed, true, viz)?
-                }
-                c => with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?,
-            };
-            for d in &dirs {
-                show!("{}", d.display());
-            }
-            show!(
-                "{} deck director{} written",
-                dirs.len(),
-                if dirs.len() == 1 { "y" } else { "ies" }
-            );
-            Ok(ExitCode::SUCCESS)
-        }
-        Cmd::Analyze {
-            dir,
-            report,
-            no_native,
-            common,
-        } => {
-            if let Some(rec) = granval::experiments::suite_deck::read_record(&dir)? {
-                return analyze_suite(&dir, rec, &report, no_native, &common);
-            }
-            let case_file = dir.join("case.toml");
-            let _out = claim(
-                &report,
-                "--report",
-                common.force,
-                &protected(&common)
-                    .input(&case_file)
-                    .store(&dir, "the deck directory being analysed"),
-            )?;
-            let c = load(&case_file).with_context(|| {
-                format!(
-                    "{}: not a `granval deck` directory (it holds case.toml)",
-                    dir.display()
-                )
-            })?;
-            let warned = warnings(&c, &case_file);
-            let mut o = match c {
-                AnyCase::Penetration(_) => granval::experiments::penetration::deck_dir::analyze(
-                    &dir,
-                    !no_native,
-                    &options(&common),
-                    &report,
-                )?,
-                c => {
-                    if no_native {
-                        bail!(
-                            "--no-native: only for penetration deck directories; {} is another kind",
-                            case_file.display()
-                        );
-                    }
-                    with_experiment!(c, false, |exp| runner::analyze(
-                        &exp,
-                        &options(&common),
-                        &dir,
-                        &report
-                    ))
-                }
-            };
-            o.notes.splice(0..0, warned);
-            let r = report_of(vec![o]);
-            let code = finish(&r, &report, &format!("granval analyze {}", dir.display()))?;
-            if no_native
-                && !r.errored
-                && r.checks.iter().all(|c| {
-                    c.gate == granval::compare::Gate::Coverage
-                        || c.gate == granval::compare::Gate::Published
-                })
-            {
-                let engines = granval::compare::sweep::CaseSummary::read(&report)
-                    .map(|s| s.engines.into_keys().collect::<Vec<_>>().join(", "))
-                    .unwrap_or_else(|_| "the reference engine".into());
-                show!("--no-native: {engines} observables only, nothing compared between engines");
-            }
-            Ok(code)
-        }
-        Cmd::Bench {
-            n,
-            steps,
-            reps,
-            penetration,
-            clumps,
-            scaling,
-            ns,
-            unsorted,
-            budget,
-        } => {
-            if scaling {
-                if ns.is_empty() || ns.contains(&0) || budget.is_nan() || budget <= 0.0 || reps == 0
-                {
-                    eprintln!(
-                        "error: --ns needs bed sizes above 0, --budget a positive number and --reps at least 1 (got --ns {ns:?} --budget {budget} --reps {reps})"
-                    );
-                    return Ok(ExitCode::from(2));
-                }
-                granval::bench::scaling::run(&granval::bench::scaling::ScalingOptions {
-                    ns,
-                    budget,
-                    reps,
-                    seed: 1,
-                    unsorted,
-                    liggghts: true,
-                    cache: granval::bench::scaling::cache_dir(),
-                })?;
-                return Ok(ExitCode::SUCCESS);
-            }
-            let penetration =
-                penetration.or(clumps.then(|| PathBuf::from(granval::bench::CLUMP_BENCH_CASE)));
-            match penetration {
-                Some(case) => {
-                    granval::bench::run_penetration(&case, steps.unwrap_or(10_000), reps)?;
-                }
-                None => granval::bench::run(n, steps.unwrap_or(2000), reps)?,
-            }
-            Ok(ExitCode::SUCCESS)
-        }
-        Cmd::Stress {
-            case,
-            out,
-            reuse,
-            kernel_width,
-            study,
-            common,
-        } => {
-            let mut opts = options(&common);
-            opts.reuse = reuse;
-            opts.study = study;
-            opts.stress = true;
-            opts.mpi_procs = opts.mpi_procs.max(2);
-            if let Some(w) = kernel_width
-                && !(w.is_finite() && w > 0.0 && w <= 5.0)
-            {
-                bail!("--kernel-width {w}: must lie in (0, 5] grain diameters");
-            }
-            opts.kernel_width = kernel_width;
-            let c = load(&case)?;
-            let AnyCase::Penetration(pc) = c else {
-                bail!(
-                    "{}: `granval stress` takes a penetration case",
-                    case.display()
-                );
-            };
-            let keep = protected(&common).input(&case);
-            let _out = if reuse {
-                output_dir::reuse(&out, "--out", &keep, &command_line())?
-            } else {
-                claim(&out, "--out", common.force, &keep)?
-            };
-            let exp = granval::experiments::penetration::Penetration::against_liggghts(pc, true);
-            let o = runner::compare(&exp, &opts, &out);
-            finish(
-                &report_of(vec![o]),
-                &out,
-                &format!("{}: stress fields and MALT", exp.name()),
-            )
-        }
-        Cmd::Agreement {
-            case,
-            runs,
-            chaos,
-            report,
-            force,
-        } => {
-            let mut keep = Protected::default()
-                .input(&case)
-                .input(&chaos)
-                .store(Path::new("reference"), "the reference store");
-            for r in &runs {
-                keep = keep.store(r, "a run directory being read");
-            }
-            let _out = claim(&report, "--report", force, &keep)?;
-            let o = granval::experiments::penetration::agreement::agreement(&case, &runs, &chaos)?;
-            let r = report_of(vec![o]);
-            finish(
-                &r,
-                &report,
-                &format!("granval agreement {}", case.display()),
-            )
-        }
-        Cmd::Chaos {
-            case,
-            out,
-            family,
-            common,
-        } => {
-            use granval::experiments::chaos;
-            /// The experiments `granval chaos` replicates.
-            enum Chaotic {
-                Penetration(granval::experiments::penetration::Penetration),
-                Impact2d(granval::experiments::impact2d::Impact2d),
-            }
-            let exp = match load(&case)? {
-                AnyCase::Penetration(pc) => Chaotic::Penetration(
-                    granval::experiments::penetration::Penetration::against_liggghts(pc, false),
-                ),
-                AnyCase::Impact2d(ic) => {
-                    Chaotic::Impact2d(granval::experiments::impact2d::Impact2d { case: ic })
-                }
-                other => bail!(
-                    "{}: `granval chaos` takes a penetration or impact2d case, not a {} case: the chaos baseline (docs/statistics.md) is a spread over the beds of a granular flow, which such a case has not",
-                    case.display(),
-                    match other {
-                        AnyCase::Micro(_) => "micro",
-                        _ => "triaxial",
-                    }
-                ),
-            };
-            let _out = claim(
-                &out,
-                "--out",
-                common.force,
-                &protected(&common).input(&case),
-            )?;
-            let r = match &exp {
-                Chaotic::Penetration(e) => chaos::penetration(e, &family, &options(&common), &out)?,
-                Chaotic::Impact2d(e) => chaos::impact2d(e, &family, &options(&common), &out)?,
-            };
-            r.write(&out)?;
-            let (s, n) = r.spread();
-            show!(
-                "{}: chaos spread of {} s_c = {s:.4} over {n} beds (per bed: {}); {}",
-                r.case,
-                r.quantity(),
-                r.values()
-                    .iter()
-                    .map(|c| format!("{c:+.4}"))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                out.join(chaos::CHAOS_FILE).display()
-            );
-            Ok(ExitCode::SUCCESS)
-        }
+        Cmd::Validate(a) => validate(a),
+        Cmd::Deck(a) => deck(a),
+        Cmd::Analyze(a) => analyze(a),
+        Cmd::Bench(a) => bench(a),
+        Cmd::Stress(a) => stress(a),
+        Cmd::Agreement(a) => agreement(a),
+        Cmd::Chaos(a) => chaos(a),
         Cmd::CgBench { contacts, grid } => {
             let t = granval::analysis::cg_bench::time_cg(contacts, grid)?;
             outln!(
@@ -1722,6 +1185,617 @@ fn real_main() -> Result<ExitCode> {
             if phi.is_none() && k.is_none() && !table {
                 bail!("give --phi DEG, --k VALUE or --table");
             }
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}
+
+/// `granval run`: one case in one engine, outputs per unit under `--out`.
+fn run(a: RunArgs) -> Result<ExitCode> {
+    let RunArgs {
+        case,
+        engine,
+        out,
+        common,
+    } = a;
+    let opts = options(&common);
+    let c = load(&case)?;
+    let wrong = match (&c, engine) {
+        (AnyCase::Impact2d(_), EngineName::Liggghts) => Some("2D: use native or lammps"),
+        (
+            AnyCase::Micro(_) | AnyCase::Penetration(_) | AnyCase::Triaxial(_),
+            EngineName::Lammps,
+        ) => Some("3D: use native or liggghts"),
+        _ => None,
+    };
+    if let Some(w) = wrong {
+        bail!("{}: --engine does not fit this case ({w})", case.display());
+    }
+    let _out = claim(
+        &out,
+        "--out",
+        common.force,
+        &protected(&common).input(&case),
+    )?;
+    let native = engine == EngineName::Native;
+    let lines = with_experiment!(c, false, |exp| runner::run_one(&exp, native, &opts, &out))?;
+    for l in lines {
+        show!("{l}");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `granval compare`: a case in the native and the reference engine, one report.
+fn compare(a: CompareArgs) -> Result<ExitCode> {
+    let CompareArgs {
+        case,
+        report,
+        engine,
+        common,
+    } = a;
+    let mut opts = options(&common);
+    let lammps3d = lammps_reference(&case, engine, &mut opts)?;
+    let _out = claim(
+        &report,
+        "--report",
+        common.force,
+        &protected(&common).input(&case),
+    )?;
+    let o = compare_one(&case, false, lammps3d, &opts, &report);
+    finish(
+        &report_of(vec![o]),
+        &report,
+        &format!("granval compare {}", case.display()),
+    )
+}
+
+/// `granval check`: every case of a suite (or `--only` some, or none with
+/// `--claims-only`), then the suite's claims across cases and the release gate, one report.
+fn check(a: CheckArgs) -> Result<ExitCode> {
+    let CheckArgs {
+        suite,
+        report,
+        cases,
+        only,
+        runs,
+        claims_only,
+        common,
+    } = a;
+    let s = suite::load(&cases, &suite)?;
+    let mut entries = s.cases.clone();
+    if claims_only {
+        entries.clear();
+    } else if !only.is_empty() {
+        entries = only_entries(&s, &only)?;
+    }
+    for r in &runs {
+        if !r.is_dir() {
+            bail!(
+                "--runs {}: no such directory (an earlier output directory of check, compare or stress)",
+                r.display()
+            );
+        }
+    }
+    let mut keep = protected(&common)
+        .input(suite::manifest(&cases, &suite))
+        .input(&cases);
+    for e in &s.cases {
+        keep = keep.input(&e.path);
+    }
+    for r in &runs {
+        keep = keep.store(r, "the --runs directory");
+    }
+    let _out = claim(&report, "--report", common.force, &keep)?;
+    let mut opts = options(&common);
+    opts.reference_root = s.reference_root(&opts.reference_root);
+    // Which rules came before their records, decided before anything runs
+    // (docs/statistics.md, "Registration").
+    let registration = granval::experiments::registration::of_suite(&s, &opts.reference_root)?;
+    let started = std::time::Instant::now();
+    let mut outcomes = Vec::new();
+    for e in &entries {
+        let t = std::time::Instant::now();
+        let o = Options {
+            gate_theory: e.theory,
+            ..opts.clone()
+        };
+        outcomes.push(compare_one(&e.path, e.stress, false, &o, &report));
+        say!(
+            "   {} took {:.0} s",
+            e.path.display(),
+            t.elapsed().as_secs_f64()
+        );
+    }
+    let mut dirs = vec![report.clone()];
+    dirs.extend(runs);
+    let r = suite_report(
+        &s,
+        outcomes,
+        &dirs,
+        &report,
+        claims_only || !only.is_empty(),
+        registration.as_ref(),
+        entries.len(),
+        started,
+    );
+    finish(&r, &report, &format!("granval check --suite {suite}"))
+}
+
+/// `granval deck`: the reference engine's input for a case, or for every case of a suite
+/// with job scripts for a scheduler.
+fn deck(a: DeckArgs) -> Result<ExitCode> {
+    let DeckArgs {
+        case,
+        out,
+        suite,
+        only,
+        cases,
+        scheduler,
+        partition,
+        time,
+        engine,
+        bed,
+        viz,
+        common,
+    } = a;
+    let opts = options(&common);
+    if let Some(suite) = suite {
+        if viz.is_some() {
+            bail!(
+                "--viz: not with --suite (a cluster suite's decks stay lean); write one case's deck with --viz"
+            );
+        }
+        if engine.is_some() || bed != granval::experiments::penetration::deck_dir::BedBy::Native {
+            bail!(
+                "--suite: each case's deck is for its reference engine with natively prepared beds; drop --engine and --bed"
+            );
+        }
+        let Some(SchedulerName::Slurm) = scheduler else {
+            bail!("--suite needs --scheduler slurm");
+        };
+        return deck_suite(
+            &suite, &cases, &only, &out, partition, &time, &common, &opts,
+        );
+    }
+    let case = case.context("give a case file or --suite NAME")?;
+    let c = load(&case)?;
+    let (kind, wanted) = match &c {
+        AnyCase::Micro(_) => ("micro", EngineName::Liggghts),
+        AnyCase::Penetration(_) => ("penetration", EngineName::Liggghts),
+        AnyCase::Impact2d(_) => ("impact2d", EngineName::Lammps),
+        AnyCase::Triaxial(_) => ("triaxial", EngineName::Liggghts),
+    };
+    let lammps_penetration = matches!(
+        (&c, engine),
+        (AnyCase::Penetration(_), Some(EngineName::Lammps))
+    );
+    if lammps_penetration && viz.is_some() {
+        bail!(
+            "--engine lammps --viz: the LAMMPS penetration deck has no visualisation dump yet (the LIGGGHTS deck has)"
+        );
+    }
+    if lammps_penetration && bed != granval::experiments::penetration::deck_dir::BedBy::Native {
+        bail!(
+            "--engine lammps --bed liggghts: the LAMMPS penetration deck reads beds granval prepared natively (--bed native)"
+        );
+    }
+    if let Some(e) = engine
+        && e != wanted
+        && !lammps_penetration
+    {
+        bail!(
+            "{}: --engine {}: a {kind} case is compared against {} (its reference engine); granval writes no {} deck for it",
+            case.display(),
+            e.name(),
+            wanted.name(),
+            e.name()
+        );
+    }
+    if viz.is_some() && kind != "penetration" {
+        bail!(
+            "{}: --viz: only penetration decks have a visualisation dump so far; this case is of kind {kind}",
+            case.display()
+        );
+    }
+    let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
+    let dirs = match c {
+        AnyCase::Penetration(c) if lammps_penetration => {
+            granval::experiments::penetration::deck_dir::write_lammps(&c, &out, true)?
+        }
+        AnyCase::Penetration(c) => {
+            granval::experiments::penetration::deck_dir::write(&c, &out, bed, true, viz)?
+        }
+        c => with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?,
+    };
+    for d in &dirs {
+        show!("{}", d.display());
+    }
+    show!(
+        "{} deck director{} written",
+        dirs.len(),
+        if dirs.len() == 1 { "y" } else { "ies" }
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `granval analyze`: a deck directory (or suite directory) after its engine ran, checked
+/// against its unedited inputs, reduced as `compare` reduces a live run.
+fn analyze(a: AnalyzeArgs) -> Result<ExitCode> {
+    let AnalyzeArgs {
+        dir,
+        report,
+        no_native,
+        common,
+    } = a;
+    if let Some(rec) = granval::experiments::suite_deck::read_record(&dir)? {
+        return analyze_suite(&dir, rec, &report, no_native, &common);
+    }
+    let case_file = dir.join("case.toml");
+    let _out = claim(
+        &report,
+        "--report",
+        common.force,
+        &protected(&common)
+            .input(&case_file)
+            .store(&dir, "the deck directory being analysed"),
+    )?;
+    let c = load(&case_file).with_context(|| {
+        format!(
+            "{}: not a `granval deck` directory (it holds case.toml)",
+            dir.display()
+        )
+    })?;
+    let warned = warnings(&c, &case_file);
+    let mut o = match c {
+        AnyCase::Penetration(_) => granval::experiments::penetration::deck_dir::analyze(
+            &dir,
+            !no_native,
+            &options(&common),
+            &report,
+        )?,
+        c => {
+            if no_native {
+                bail!(
+                    "--no-native: only for penetration deck directories; {} is another kind",
+                    case_file.display()
+                );
+            }
+            with_experiment!(c, false, |exp| runner::analyze(
+                &exp,
+                &options(&common),
+                &dir,
+                &report
+            ))
+        }
+    };
+    o.notes.splice(0..0, warned);
+    let r = report_of(vec![o]);
+    let code = finish(&r, &report, &format!("granval analyze {}", dir.display()))?;
+    if no_native
+        && !r.errored
+        && r.checks.iter().all(|c| {
+            c.gate == granval::compare::Gate::Coverage
+                || c.gate == granval::compare::Gate::Published
+        })
+    {
+        let engines = granval::compare::sweep::CaseSummary::read(&report)
+            .map(|s| s.engines.into_keys().collect::<Vec<_>>().join(", "))
+            .unwrap_or_else(|_| "the reference engine".into());
+        show!("--no-native: {engines} observables only, nothing compared between engines");
+    }
+    Ok(code)
+}
+
+/// `granval bench`: throughput of the native engine against LIGGGHTS in the same run.
+fn bench(a: BenchArgs) -> Result<ExitCode> {
+    let BenchArgs {
+        n,
+        steps,
+        reps,
+        penetration,
+        clumps,
+        scaling,
+        ns,
+        unsorted,
+        budget,
+    } = a;
+    if scaling {
+        if ns.is_empty() || ns.contains(&0) || budget.is_nan() || budget <= 0.0 || reps == 0 {
+            eprintln!(
+                "error: --ns needs bed sizes above 0, --budget a positive number and --reps at least 1 (got --ns {ns:?} --budget {budget} --reps {reps})"
+            );
+            return Ok(ExitCode::from(2));
+        }
+        granval::bench::scaling::run(&granval::bench::scaling::ScalingOptions {
+            ns,
+            budget,
+            reps,
+            seed: 1,
+            unsorted,
+            liggghts: true,
+            cache: granval::bench::scaling::cache_dir(),
+        })?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    let penetration =
+        penetration.or(clumps.then(|| PathBuf::from(granval::bench::CLUMP_BENCH_CASE)));
+    match penetration {
+        Some(case) => {
+            granval::bench::run_penetration(&case, steps.unwrap_or(10_000), reps)?;
+        }
+        None => granval::bench::run(n, steps.unwrap_or(2000), reps)?,
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `granval stress`: stress and velocity fields of a penetration case in both engines.
+fn stress(a: StressArgs) -> Result<ExitCode> {
+    let StressArgs {
+        case,
+        out,
+        reuse,
+        kernel_width,
+        study,
+        common,
+    } = a;
+    let mut opts = options(&common);
+    opts.reuse = reuse;
+    opts.study = study;
+    opts.stress = true;
+    opts.mpi_procs = opts.mpi_procs.max(2);
+    if let Some(w) = kernel_width
+        && !(w.is_finite() && w > 0.0 && w <= 5.0)
+    {
+        bail!("--kernel-width {w}: must lie in (0, 5] grain diameters");
+    }
+    opts.kernel_width = kernel_width;
+    let c = load(&case)?;
+    let AnyCase::Penetration(pc) = c else {
+        bail!(
+            "{}: `granval stress` takes a penetration case",
+            case.display()
+        );
+    };
+    let keep = protected(&common).input(&case);
+    let _out = if reuse {
+        output_dir::reuse(&out, "--out", &keep, &command_line())?
+    } else {
+        claim(&out, "--out", common.force, &keep)?
+    };
+    let exp = granval::experiments::penetration::Penetration::against_liggghts(pc, true);
+    let o = runner::compare(&exp, &opts, &out);
+    finish(
+        &report_of(vec![o]),
+        &out,
+        &format!("{}: stress fields and MALT", exp.name()),
+    )
+}
+
+/// `granval agreement`: the pairwise agreement of several codes on the same beds.
+fn agreement(a: AgreementArgs) -> Result<ExitCode> {
+    let AgreementArgs {
+        case,
+        runs,
+        chaos,
+        report,
+        force,
+    } = a;
+    let mut keep = Protected::default()
+        .input(&case)
+        .input(&chaos)
+        .store(Path::new("reference"), "the reference store");
+    for r in &runs {
+        keep = keep.store(r, "a run directory being read");
+    }
+    let _out = claim(&report, "--report", force, &keep)?;
+    let o = granval::experiments::penetration::agreement::agreement(&case, &runs, &chaos)?;
+    let r = report_of(vec![o]);
+    finish(
+        &r,
+        &report,
+        &format!("granval agreement {}", case.display()),
+    )
+}
+
+/// `granval chaos`: the chaos baseline of a case (every bed twice, once moved by one ulp).
+fn chaos(a: ChaosArgs) -> Result<ExitCode> {
+    let ChaosArgs {
+        case,
+        out,
+        family,
+        common,
+    } = a;
+    use granval::experiments::chaos;
+    /// The experiments `granval chaos` replicates.
+    enum Chaotic {
+        Penetration(granval::experiments::penetration::Penetration),
+        Impact2d(granval::experiments::impact2d::Impact2d),
+    }
+    let exp = match load(&case)? {
+        AnyCase::Penetration(pc) => Chaotic::Penetration(
+            granval::experiments::penetration::Penetration::against_liggghts(pc, false),
+        ),
+        AnyCase::Impact2d(ic) => {
+            Chaotic::Impact2d(granval::experiments::impact2d::Impact2d { case: ic })
+        }
+        other => bail!(
+            "{}: `granval chaos` takes a penetration or impact2d case, not a {} case: the chaos baseline (docs/statistics.md) is a spread over the beds of a granular flow, which such a case has not",
+            case.display(),
+            match other {
+                AnyCase::Micro(_) => "micro",
+                _ => "triaxial",
+            }
+        ),
+    };
+    let _out = claim(
+        &out,
+        "--out",
+        common.force,
+        &protected(&common).input(&case),
+    )?;
+    let r = match &exp {
+        Chaotic::Penetration(e) => chaos::penetration(e, &family, &options(&common), &out)?,
+        Chaotic::Impact2d(e) => chaos::impact2d(e, &family, &options(&common), &out)?,
+    };
+    r.write(&out)?;
+    let (s, n) = r.spread();
+    show!(
+        "{}: chaos spread of {} s_c = {s:.4} over {n} beds (per bed: {}); {}",
+        r.case,
+        r.quantity(),
+        r.values()
+            .iter()
+            .map(|c| format!("{c:+.4}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        out.join(chaos::CHAOS_FILE).display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `granval validate`: what `compare` would refuse before running, and what follows
+/// from the case (grains, time step, steps, estimated time and output), running nothing.
+fn validate(a: ValidateArgs) -> Result<ExitCode> {
+    let ValidateArgs { case, allow_large } = a;
+    let c = load(&case)?;
+    let (kind, engine) = match &c {
+        AnyCase::Micro(_) => ("micro", "LIGGGHTS"),
+        AnyCase::Penetration(_) => ("penetration", "LIGGGHTS"),
+        AnyCase::Impact2d(_) => ("impact2d", "LAMMPS"),
+        AnyCase::Triaxial(_) => ("triaxial", "LIGGGHTS"),
+    };
+    // Exactly what `compare` refuses before it runs (the reference engine's
+    // limits, the start state, the resource limits): a case that validates runs.
+    let (name, lines, refused) = with_experiment!(c, false, |exp| {
+        exp.preflight()?;
+        anyhow::Ok((
+            exp.name().to_string(),
+            granval::experiments::validation_summary(&exp),
+            granval::experiments::limits::refuse(&exp.estimate(), &case.display().to_string()),
+        ))
+    })?;
+    let refused = refused.filter(|_| !allow_large);
+    show!(
+        "{}: {} {kind} case `{name}` (reference engine {engine})",
+        case.display(),
+        if refused.is_some() {
+            "too large to run here:"
+        } else {
+            "valid"
+        }
+    );
+    let w = lines.iter().map(|l| l.label.len()).max().unwrap_or(0);
+    for l in &lines {
+        if l.comment.is_empty() {
+            show!("  {:<w$}  {}", l.label, l.value);
+        } else {
+            show!("  {:<w$}  {}  ({})", l.label, l.value, l.comment);
+        }
+    }
+    if let Some(why) = refused {
+        bail!("{}: refused before running: {why}", case.display());
+    }
+    show!(
+        "next: granval deck {} -o DIR   (the {engine} input to read or run), granval compare {} --report OUT",
+        case.display(),
+        case.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `granval reference ...`: records refreshed from the live engine, made lean, verified.
+fn reference(cmd: RefCmd) -> Result<ExitCode> {
+    match cmd {
+        RefCmd::Refresh {
+            suite,
+            cases,
+            reference,
+            only,
+            engine,
+        } => {
+            let s = suite::load(&cases, &suite)?;
+            let reference = s.reference_root(&reference);
+            let paths: Vec<PathBuf> = match only {
+                Some(p) => vec![p],
+                None => s.cases.into_iter().map(|e| e.path).collect(),
+            };
+            // One process, as `compare` runs the reference by default (penetration runs
+            // use at least two either way).
+            let opts = Options {
+                reference_root: reference,
+                mpi_procs: 1,
+                progress: output().progress(),
+                engine_timeout: engine.engine_timeout,
+                engine_stall: engine.engine_stall,
+                ..Options::default()
+            };
+            for p in paths {
+                let c = load(&p)?;
+                let lines = with_experiment!(c, false, |exp| runner::refresh(&exp, &opts))?;
+                for l in lines {
+                    show!("{l}");
+                }
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        RefCmd::Lean { records, add_beds } => {
+            let (reference_root, paths) = records.resolve()?;
+            let opts = Options {
+                reference_root,
+                progress: output().progress(),
+                ..Options::default()
+            };
+            for p in &paths {
+                let c = load(p)?;
+                match with_experiment!(c, false, |exp| runner::lean_record(&exp, &opts, add_beds))?
+                {
+                    Some(lines) => {
+                        for l in lines {
+                            show!("{l}");
+                        }
+                    }
+                    None => show!(
+                        "{}: no record under {}",
+                        p.display(),
+                        opts.reference_root.display()
+                    ),
+                }
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        RefCmd::Verify { records } => {
+            let (reference_root, paths) = records.resolve()?;
+            let opts = Options {
+                reference_root,
+                progress: true,
+                ..Options::default()
+            };
+            let (mut verified, mut failed) = (0, 0);
+            for p in &paths {
+                let c = load(p)?;
+                match with_experiment!(c, false, |exp| runner::verify_record(&exp, &opts)) {
+                    Ok(Some(line)) => {
+                        verified += 1;
+                        show!("{line}");
+                    }
+                    Ok(None) => show!(
+                        "{}: no record under {}",
+                        p.display(),
+                        opts.reference_root.display()
+                    ),
+                    Err(e) => {
+                        failed += 1;
+                        eprintln!("error: {}: {e:#}", p.display());
+                    }
+                }
+            }
+            if failed > 0 || verified == 0 {
+                bail!(
+                    "{failed} of {} record(s) did not verify, {verified} did",
+                    paths.len()
+                );
+            }
+            show!("{verified} record(s) verified");
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -1145,7 +1145,11 @@ fn stress_pipeline_end_to_end_on_a_tiny_bed() {
             // Kept compressed beside the converted snapshots.
             let pair = granval::engines::liggghts::snapshot::pair_file(&ld, step);
             assert!(!pair.exists());
-            assert!(pair.with_extension("txt.zst").exists(), "{}", pair.display());
+            assert!(
+                pair.with_extension("txt.zst").exists(),
+                "{}",
+                pair.display()
+            );
         }
     }
     // The beds are different beds: their phis differ.
