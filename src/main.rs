@@ -653,10 +653,21 @@ fn warnings(c: &AnyCase, path: &Path) -> Vec<String> {
 /// (exit 2) before anything runs, and so is a recorded LAMMPS reference: there is none,
 /// so LAMMPS must run live (`--reference-mode auto` becomes `live`).
 fn lammps_reference(case: &Path, engine: Option<EngineName>, opts: &mut Options) -> Result<bool> {
+    let c = load(case)?;
+    // A LAMMPS-family penetration case has LAMMPS' laws, which LIGGGHTS' deck cannot
+    // write: refused here, before anything runs, not by the deck writer mid-run.
+    if let AnyCase::Penetration(p) = &c
+        && matches!(p.family, granval::case::family::ContactFamily::Lammps(_))
+        && engine != Some(EngineName::Lammps)
+    {
+        bail!(
+            "{}: models.family = \"lammps\": LAMMPS' pair_style granular laws run only against LAMMPS 2025; compare it with --engine lammps (LIGGGHTS' deck writes LIGGGHTS' laws)",
+            case.display()
+        );
+    }
     let Some(engine) = engine else {
         return Ok(false);
     };
-    let c = load(case)?;
     let own = match &c {
         AnyCase::Impact2d(_) => EngineName::Lammps,
         _ => EngineName::Liggghts,

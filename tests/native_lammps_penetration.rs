@@ -309,3 +309,31 @@ fn compare_engine_lammps_runs_the_native_engine_with_lammps_laws() {
     let d = fdr["value"].as_f64().unwrap();
     assert!(d < 0.02, "[{test}] FDR distance {d}");
 }
+
+/// A LAMMPS-family case compared against LIGGGHTS (the default reference, or
+/// `--engine liggghts`) is refused before anything runs: exit 2, the file and the field
+/// named, no report directory made. No engine is needed for the refusal.
+#[test]
+fn compare_refuses_a_lammps_family_case_against_liggghts() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("tiny.toml");
+    std::fs::write(&path, lammps_family_toml("0.907", "none", "")).unwrap();
+    for engine in [None, Some("liggghts")] {
+        let report = tmp.path().join("report");
+        let mut cmd = common::granval();
+        cmd.arg("compare").arg(&path);
+        if let Some(e) = engine {
+            cmd.args(["--engine", e]);
+        }
+        let o = cmd.arg("--report").arg(&report).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{engine:?}: {err}");
+        assert!(
+            err.contains("tiny.toml")
+                && err.contains("models.family")
+                && err.contains("--engine lammps"),
+            "{engine:?}: {err}"
+        );
+        assert!(!report.exists(), "{engine:?}: a report directory was made");
+    }
+}

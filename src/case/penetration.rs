@@ -393,7 +393,7 @@ pub struct PenetrationCase {
     pub rolling: RollingModel,
     /// `[models] family`: LIGGGHTS' laws (the default), or LAMMPS' `pair_style granular`
     /// laws, which the native engine runs as LAMMPS' deck does
-    /// ([`crate::physics::dem::lammps_penetration`]) and only LAMMPS can be the
+    /// ([`crate::engines::native::lammps_penetration`]) and only LAMMPS can be the
     /// reference of (docs/lammps-laws.md, "The native engine with LAMMPS' laws in
     /// penetration").
     pub family: ContactFamily,

@@ -124,7 +124,7 @@ pub(crate) fn data_text(d: &PenetrationDeck) -> Result<String> {
 
 /// The doubles of one `hertz/material E e nu damping coeff_restitution tangential
 /// mindlin NULL xt mu` law of the deck: what [`law`] prints and what the native engine
-/// with LAMMPS' laws ([`crate::physics::dem::lammps_penetration`]) sets up from, so the
+/// with LAMMPS' laws ([`crate::engines::native::lammps_penetration`]) sets up from, so the
 /// two start from the same numbers.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct DeckLaw {

@@ -2,6 +2,8 @@
 //! engines and leave the same run data (frames streamed to `particles.csv`, force
 //! samples, impact series), each with its provenance.
 
+mod lammps_penetration;
+
 use crate::case::Perturbation;
 use crate::case::penetration::PenetrationCase;
 use crate::physics::dem::{self, Simulation, packing::Bed};
@@ -122,7 +124,7 @@ pub fn penetration(
 /// A penetration run with LAMMPS' laws: `deck`, the LAMMPS 2025 deck of one bed (what
 /// `granval deck --engine lammps` writes, [`crate::experiments::penetration::deck_dir::lammps_deck`]),
 /// stepped by the native engine with LAMMPS' contact laws, walls and order of operations
-/// ([`dem::lammps_penetration`]) under the control `pert`. The force samples are those
+/// ([`lammps_penetration`]) under the control `pert`. The force samples are those
 /// the deck's `fix print` writes (step 0, then every `force_every` steps).
 pub fn penetration_lammps_laws(
     case: &PenetrationCase,
@@ -131,7 +133,7 @@ pub fn penetration_lammps_laws(
     on_step: impl FnMut(u64, u64),
 ) -> Result<(Vec<ForceSample>, Provenance)> {
     let start = Instant::now();
-    let samples = dem::lammps_penetration::run(deck, pert, on_step)?;
+    let samples = lammps_penetration::run(deck, pert, on_step)?;
     let notes = vec![format!(
         "the LAMMPS 2025 deck of {} grains (input {}), stepped natively with LAMMPS' laws",
         deck.particles.len(),

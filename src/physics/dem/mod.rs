@@ -10,7 +10,6 @@ pub mod contacts;
 pub mod intruder;
 pub(crate) mod lammps_granular;
 pub(crate) mod lammps_micro;
-pub(crate) mod lammps_penetration;
 mod lanes;
 mod moving_walls;
 pub mod neighbor;

@@ -6,7 +6,7 @@
 //! Input is the [`PenetrationDeck`] itself (the bed granval prepared natively, the
 //! container, the intruder, the laws [`lp::law_values`] prints), so both sides start
 //! from the same doubles. What is ported, from which LAMMPS sources:
-//! - contact law: [`super::lammps_granular`] (`GranularModel::calculate_forces`), with
+//! - contact law: [`crate::physics::dem::lammps_granular`] (`GranularModel::calculate_forces`), with
 //!   the region-wall variant of `GranularModel::check_contact` (contact type
 //!   WALLREGION: the region's surface distance `r` is used as given, Reff from the
 //!   region contact's curvature radius);
@@ -44,14 +44,14 @@
 //! order: equal up to round-off, which the bed's chaos then amplifies
 //! (docs/lammps-laws.md, "The native engine with LAMMPS' laws in penetration").
 
-use super::lammps_granular::{
-    Coeffs, Contact, History, calculate_forces, calculate_region_forces, check_contact,
-    check_region_contact,
-};
-use super::lammps_micro::gravity_acceleration;
 use crate::case::Perturbation;
 use crate::engines::lammps3d_penetration as lp;
 use crate::engines::liggghts::penetration::PenetrationDeck;
+use crate::physics::dem::lammps_granular::{
+    Coeffs, Contact, History, calculate_forces, calculate_region_forces, check_contact,
+    check_region_contact,
+};
+use crate::physics::dem::lammps_micro::gravity_acceleration;
 use crate::rundata::force::ForceSample;
 use anyhow::{Result, bail};
 use std::collections::HashMap;
