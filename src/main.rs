@@ -706,6 +706,7 @@ fn lammps_reference(case: &Path, engine: Option<EngineName>, opts: &mut Options)
 fn compare_one(
     path: &Path,
     stress: bool,
+    quasi_static: bool,
     lammps3d: bool,
     opts: &Options,
     out: &Path,
@@ -721,12 +722,22 @@ fn compare_one(
         .for_case(&path.display().to_string()),
         Ok(case) => {
             say!("== {} ({})", case.name(), path.display());
-            let warned = warnings(&case, path);
+            let mut warned = warnings(&case, path);
             for w in &warned {
                 eprintln!("{w}");
             }
             let name = case.name().to_string();
             let dir = out.join(&name);
+            let mut case = case;
+            if let AnyCase::Penetration(c) = &mut case
+                && !quasi_static
+                && let Some(v2) = c.quasi_static_speed.take()
+            {
+                warned.push(format!(
+                    "{}: the quasi-static test at {v2} m/s ([quasi_static]) is not run in this suite (its entry says quasi_static = false)",
+                    path.display()
+                ));
+            }
             let mut o = match case {
                 AnyCase::Penetration(case) if lammps3d => {
                     let exp = granval::experiments::penetration::Penetration {
@@ -1252,7 +1263,7 @@ fn compare(a: CompareArgs) -> Result<ExitCode> {
         common.force,
         &protected(&common).input(&case),
     )?;
-    let o = compare_one(&case, false, lammps3d, &opts, &report);
+    let o = compare_one(&case, false, true, lammps3d, &opts, &report);
     finish(
         &report_of(vec![o]),
         &report,
@@ -1310,7 +1321,14 @@ fn check(a: CheckArgs) -> Result<ExitCode> {
             gate_theory: e.theory,
             ..opts.clone()
         };
-        outcomes.push(compare_one(&e.path, e.stress, false, &o, &report));
+        outcomes.push(compare_one(
+            &e.path,
+            e.stress,
+            e.quasi_static,
+            false,
+            &o,
+            &report,
+        ));
         say!(
             "   {} took {:.0} s",
             e.path.display(),

@@ -11,6 +11,7 @@
 //! path = "penetration/ci.toml"
 //! stress = true                # also the stress fields, phi and MALT (penetration)
 //! theory = false               # report the MALT comparison without gating it
+//! quasi_static = false         # skip the case's `[quasi_static]` runs here (penetration)
 //!
 //! [[claim]]                    # a paper's claim over several of its cases, per engine
 //! name = "K_phi rises with mu_gg"
@@ -139,6 +140,10 @@ struct Entry {
     /// Gate the comparisons with theory (MALT); default true.
     #[serde(default = "yes")]
     theory: bool,
+    /// Run the case's `[quasi_static]` test (Feng Sec. 3, a second native run per bed at
+    /// the slower speed); default true.
+    #[serde(default = "yes")]
+    quasi_static: bool,
 }
 
 fn yes() -> bool {
@@ -152,6 +157,9 @@ pub struct SuiteCase {
     pub stress: bool,
     /// Whether theory comparisons are gated here (else reported only).
     pub theory: bool,
+    /// Whether the case's `[quasi_static]` runs and check happen here (a suite may
+    /// leave that test to another suite that runs it on its own beds).
+    pub quasi_static: bool,
 }
 
 #[derive(Debug, Clone)]
@@ -308,6 +316,7 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
                 path: p,
                 stress: e.stress,
                 theory: e.theory,
+                quasi_static: e.quasi_static,
             });
         }
     }
@@ -1253,6 +1262,34 @@ mod tests {
 
     /// Two case files with one `[case] name`, or one file listed twice, are refused
     /// naming both; distinct names load (the negative control).
+    /// A suite entry may leave the case's quasi-static test out (`quasi_static = false`);
+    /// by default it runs, as does theory gating; any other value is refused.
+    #[test]
+    fn entries_say_whether_the_quasi_static_test_runs() {
+        let d = tempfile::tempdir().unwrap();
+        let named = |n: &str| format!("[case]\nname = \"{n}\"\nkind = \"micro\"\n");
+        write(
+            d.path(),
+            "description = \"d\"\n[[case]]\npath = \"release/a.toml\"\nquasi_static = false\n[[case]]\npath = \"release/b.toml\"\n",
+        );
+        std::fs::write(d.path().join("release/a.toml"), named("x")).unwrap();
+        std::fs::write(d.path().join("release/b.toml"), named("y")).unwrap();
+        let s = load(d.path(), "s").unwrap();
+        assert_eq!(
+            s.cases
+                .iter()
+                .map(|c| (c.quasi_static, c.theory))
+                .collect::<Vec<_>>(),
+            [(false, true), (true, true)]
+        );
+        write(
+            d.path(),
+            "description = \"d\"\n[[case]]\npath = \"release/a.toml\"\nquasi_static = \"no\"\n",
+        );
+        let e = format!("{:#}", load(d.path(), "s").unwrap_err());
+        assert!(e.contains("quasi_static"), "{e}");
+    }
+
     #[test]
     fn case_names_are_unique_within_a_suite() {
         let d = tempfile::tempdir().unwrap();
