@@ -255,6 +255,12 @@ struct CheckArgs {
     /// `analyze`). A claim none of whose cases is there is left out with a note.
     #[arg(long, requires = "runs", conflicts_with = "only")]
     claims_only: bool,
+    /// Continue an interrupted check in its own `--report` directory: native
+    /// penetration runs that finished there (same case, bed, negative control and
+    /// granval commit) and LIGGGHTS stress runs whose deck and snapshots are complete
+    /// are read back instead of run again; everything else runs again.
+    #[arg(long, conflicts_with_all = ["claims_only", "force"])]
+    reuse: bool,
     #[command(flatten)]
     common: Common,
 }
@@ -1281,6 +1287,7 @@ fn check(a: CheckArgs) -> Result<ExitCode> {
         only,
         runs,
         claims_only,
+        reuse,
         common,
     } = a;
     let s = suite::load(&cases, &suite)?;
@@ -1307,8 +1314,13 @@ fn check(a: CheckArgs) -> Result<ExitCode> {
     for r in &runs {
         keep = keep.store(r, "the --runs directory");
     }
-    let _out = claim(&report, "--report", common.force, &keep)?;
+    let _out = if reuse {
+        output_dir::reuse(&report, "--report", &keep, &command_line())?
+    } else {
+        claim(&report, "--report", common.force, &keep)?
+    };
     let mut opts = options(&common);
+    opts.reuse = reuse;
     opts.reference_root = s.reference_root(&opts.reference_root);
     // Which rules came before their records, decided before anything runs
     // (docs/statistics.md, "Registration").

@@ -163,3 +163,78 @@ fn ci_case_carries_the_quasi_static_speed_and_the_mu_gg_control() {
         suite.cases
     );
 }
+
+/// `--reuse` (`check --reuse`, `stress --reuse`) takes an earlier native run of a bed as
+/// this one only when it is the same case, bed, physics and build: the run is read back
+/// (same force samples, a "reused from" note), while a run under a negative control's
+/// perturbation, or one computed by another granval build, is refused by name.
+#[test]
+fn reuse_takes_only_a_run_of_the_same_physics_and_build() {
+    use granval::experiments::penetration::Penetration;
+    use granval::experiments::{Experiment, Options, Role};
+    let case = PenetrationCase::from_toml_str(&tiny(""), Path::new("tiny.toml")).unwrap();
+    let exp = Penetration::against_liggghts(case, false);
+    let opts = Options::default();
+    let units = exp.units(&opts).unwrap();
+    let u = &units[0];
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("bed-0");
+    let first = exp.run_native(u, Role::Main, &dir, &opts).unwrap();
+    let reuse = Options {
+        reuse: true,
+        ..opts.clone()
+    };
+    let again = exp.run_native(u, Role::Main, &dir, &reuse).unwrap();
+    assert_eq!(again.run.samples, first.run.samples);
+    assert_eq!(
+        format!("{:?}", again.run.fdr),
+        format!("{:?}", first.run.fdr)
+    );
+    assert!(
+        again
+            .run
+            .provenance
+            .notes
+            .iter()
+            .any(|n| n.starts_with("reused from")),
+        "{:?}",
+        again.run.provenance.notes
+    );
+    // A control's perturbation is other physics: the main run is not its run.
+    let pert = granval::case::Perturbation {
+        friction_factor: 0.8,
+        ..Default::default()
+    };
+    let e = format!(
+        "{:#}",
+        exp.run_native(u, Role::Control(&pert), &dir, &reuse)
+            .err()
+            .expect("a main run reused as a control's")
+    );
+    assert!(
+        e.contains("other physics") && e.contains("without --reuse"),
+        "{e}"
+    );
+    // A run another build computed (its commit note edited) is refused.
+    let prov = dir.join("provenance.json");
+    let text = std::fs::read_to_string(&prov).unwrap();
+    assert!(text.contains("computed by granval at commit "), "{text}");
+    std::fs::write(
+        &prov,
+        text.replace(
+            "computed by granval at commit ",
+            "computed by granval at commit 0",
+        ),
+    )
+    .unwrap();
+    let e = format!(
+        "{:#}",
+        exp.run_native(u, Role::Main, &dir, &reuse)
+            .err()
+            .expect("another build's run reused")
+    );
+    assert!(
+        e.contains("another granval build") && e.contains("without --reuse"),
+        "{e}"
+    );
+}

@@ -287,7 +287,7 @@ fn one_report_directory_one_run() {
     assert_eq!(codes, [Some(0), Some(2)], "both claimed the same report");
 }
 
-/// `stress --reuse` reads only a directory granval wrote (its marker).
+/// `stress --reuse` and `check --reuse` read only a directory granval wrote (its marker).
 #[test]
 fn reuse_needs_a_directory_granval_wrote() {
     let d = tempfile::tempdir().unwrap();
@@ -298,6 +298,23 @@ fn reuse_needs_a_directory_granval_wrote() {
         .output()
         .unwrap();
     expect(&o, 2, &["--reuse", ".granval-output"]);
+    // `check --reuse` as well; and it cannot be asked to clear the directory too.
+    let o = common::granval()
+        .args(["check", "--suite", "ci", "--reuse", "--report"])
+        .arg(d.path())
+        .output()
+        .unwrap();
+    expect(&o, 2, &["--reuse", ".granval-output"]);
+    let o = common::granval()
+        .args(["check", "--suite", "ci", "--reuse", "--force", "--report"])
+        .arg(d.path())
+        .output()
+        .unwrap();
+    expect(&o, 2, &["--reuse", "--force"]);
+    assert_eq!(
+        std::fs::read_to_string(d.path().join("snapshots.txt")).unwrap(),
+        "hand-made"
+    );
 }
 
 // ---- bounded reads -------------------------------------------------------------------

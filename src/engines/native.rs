@@ -18,6 +18,18 @@ use std::path::Path;
 use std::time::Instant;
 
 /// Provenance of an in-process run that began at `start`.
+/// The note of a native run under a negative control's perturbation (none for the
+/// paper's physics): what `--reuse` compares before it takes an earlier run as this one.
+pub(crate) fn perturbation_note(pert: &Perturbation) -> Option<String> {
+    (!pert.is_none()).then(|| format!("PERTURBED physics (negative control): {pert:?}"))
+}
+
+/// The note naming the granval build (its git commit) that computed a native run, when
+/// the build knew it: `--reuse` takes an earlier run only from the same build.
+pub(crate) fn build_note() -> Option<String> {
+    crate::rundata::provenance::git_commit().map(|c| format!("computed by granval at commit {c}"))
+}
+
 pub fn provenance(
     input_hash: Sha256,
     case_file: &Path,
@@ -26,9 +38,10 @@ pub fn provenance(
     pert: &Perturbation,
     mut notes: Vec<String>,
 ) -> Provenance {
-    if !pert.is_none() {
-        notes.insert(0, format!("PERTURBED physics (negative control): {pert:?}"));
+    if let Some(n) = perturbation_note(pert) {
+        notes.insert(0, n);
     }
+    notes.extend(build_note());
     Provenance {
         engine: EngineKind::Native,
         version: format!("granval {} native {what}", env!("CARGO_PKG_VERSION")),

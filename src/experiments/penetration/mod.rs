@@ -122,7 +122,7 @@ fn native_run(
         bed
     };
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    if reuse && let Some(run) = reuse_native(case, bed, plan, dir)? {
+    if reuse && let Some(run) = reuse_native(case, bed, &role.perturbation(), plan, dir)? {
         return Ok(run);
     }
     let n = crate::physics::dem::penetration::n_steps(case, bed);
@@ -216,6 +216,7 @@ fn check_reused_plan(plan: &SnapshotPlan, snap_dir: &Path) -> Result<()> {
 fn reuse_native(
     case: &PenetrationCase,
     bed: &Bed,
+    pert: &crate::case::Perturbation,
     plan: Option<&SnapshotPlan>,
     dir: &Path,
 ) -> Result<Option<EngineRun>> {
@@ -227,6 +228,33 @@ fn reuse_native(
         check_reused_plan(p, &dir.join(SNAPSHOT_DIR))?;
     }
     let mut provenance = read_provenance(&prov)?;
+    // The same physics (a control's perturbation, or none) and the same build, or the
+    // run is not this one.
+    let perturbed = provenance.notes.iter().find(|n| n.starts_with("PERTURBED"));
+    let wanted = crate::engines::native::perturbation_note(pert);
+    ensure!(
+        perturbed == wanted.as_ref(),
+        "{}: --reuse found a run under other physics ({}; this run is {}); run without --reuse",
+        dir.display(),
+        perturbed.map_or("the case's own physics", |s| s.as_str()),
+        wanted.as_deref().unwrap_or("the case's own physics")
+    );
+    let build = crate::engines::native::build_note().with_context(|| {
+        format!(
+            "{}: --reuse: this granval was built without its git commit, so it cannot tell its own runs from another build's; run without --reuse",
+            dir.display()
+        )
+    })?;
+    ensure!(
+        provenance.notes.contains(&build),
+        "{}: --reuse found a run computed by another granval build ({}; this is {build}); run without --reuse",
+        dir.display(),
+        provenance
+            .notes
+            .iter()
+            .find(|n| n.starts_with("computed by granval"))
+            .map_or("no commit recorded", |s| s.as_str())
+    );
     let bed_note = packing::bed_note(case, bed);
     ensure!(
         provenance.input_hash == case.canonical_hash()
