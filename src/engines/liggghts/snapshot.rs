@@ -176,8 +176,13 @@ fn compressed_name(path: &Path) -> PathBuf {
 }
 
 /// Whether `name` is one of the snapshot dumps the deck block writes, plain or
-/// compressed (what a new run with snapshots replaces).
+/// compressed, or the temporary file of a compression that was interrupted
+/// (`.NAME.zst.partial`): what a new run with snapshots replaces.
 pub(crate) fn is_dump_name(name: &str) -> bool {
+    let name = name
+        .strip_prefix('.')
+        .and_then(|n| n.strip_suffix(".zst.partial"))
+        .unwrap_or(name);
     [PAIR_PREFIX, WALL_PREFIX, ATOMS_PREFIX]
         .iter()
         .any(|p| name.starts_with(&format!("{p}.")))
@@ -524,6 +529,10 @@ mod tests {
         assert_eq!(compress_dumps(dir.path()).unwrap(), (0, 0));
         assert!(is_dump_name("snap_atoms.0.txt") && is_dump_name("snap_wall.10.txt.zst"));
         assert!(!is_dump_name("snapshot_00_grains.csv.zst") && !is_dump_name("snap_pair.7.log"));
+        // An interrupted compression's temporary file is cleared with the dumps by the
+        // next run, but never taken for a dump to compress or read.
+        assert!(is_dump_name(".snap_pair.7.txt.zst.partial"));
+        assert!(!is_dump_name(".snap_pair.7.txt") && !is_dump_name("snap_pair.7.txt.zst.partial"));
         // A damaged compressed dump is an error naming it, never an empty snapshot.
         std::fs::write(dir.path().join("snap_pair.7.txt.zst"), b"not zstd").unwrap();
         let e = format!("{:#}", read_one(&pair, 7).unwrap_err());
