@@ -628,10 +628,17 @@ fn live_timeout_kills_the_run() {
         .expect_err("must time out");
         let msg = format!("{err:#}");
         println!("np={np}: {msg}");
-        assert!(
-            msg.contains("LIGGGHTS ran for 1.0 s, the limit (--engine-timeout 1.0 s); its processes were ended"),
-            "{msg}"
-        );
+        // The watchdog ends the run at the limit; how long after it noticed depends on
+        // the machine's load (1.1 s seen beside a CI run), so the elapsed time printed is
+        // read, not matched.
+        let ran: f64 = msg
+            .split_once("LIGGGHTS ran for ")
+            .and_then(|(_, r)| {
+                r.split_once(" s, the limit (--engine-timeout 1.0 s); its processes were ended")
+            })
+            .and_then(|(t, _)| t.parse().ok())
+            .unwrap_or_else(|| panic!("{msg}"));
+        assert!((1.0..10.0).contains(&ran), "{msg}");
         assert!(t0.elapsed() < Duration::from_secs(10), "killed promptly");
     }
 }
