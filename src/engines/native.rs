@@ -17,7 +17,6 @@ use anyhow::Result;
 use std::path::Path;
 use std::time::Instant;
 
-/// Provenance of an in-process run that began at `start`.
 /// The note of a native run under a negative control's perturbation (none for the
 /// paper's physics): what `--reuse` compares before it takes an earlier run as this one.
 pub(crate) fn perturbation_note(pert: &Perturbation) -> Option<String> {
@@ -30,6 +29,7 @@ pub(crate) fn build_note() -> Option<String> {
     crate::rundata::provenance::git_commit().map(|c| format!("computed by granval at commit {c}"))
 }
 
+/// Provenance of an in-process run that began at `start`.
 pub fn provenance(
     input_hash: Sha256,
     case_file: &Path,
