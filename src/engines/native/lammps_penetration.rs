@@ -616,20 +616,13 @@ impl Engine {
     /// A grain that left the closed box or became non-finite ends the run, as
     /// `thermo_modify lost error` ends LAMMPS'.
     fn check(&self, step: u64) -> Result<()> {
-        for (i, x) in self.x.iter().enumerate() {
-            let finite = x
-                .iter()
-                .chain(&self.v[i])
-                .chain(&self.omega[i])
-                .all(|c| c.is_finite());
-            if !finite {
-                bail!("grain {} is no longer finite at step {step}", self.id[i]);
-            }
-            if (0..3).any(|k| x[k] < self.lo[k] || x[k] > self.hi[k]) {
-                bail!("grain {} left the box at step {step}", self.id[i]);
-            }
-        }
-        Ok(())
+        crate::physics::dem::lammps_micro::check_lost(
+            &self.id,
+            [&self.x, &self.v, &self.omega],
+            (self.lo, self.hi),
+            ("grain", "box"),
+            step,
+        )
     }
 
     /// Forces of step `step` (0: `Verlet::setup`, history not advanced); returns the

@@ -244,17 +244,32 @@ pub(crate) fn gravity_acceleration(g: V3) -> V3 {
 /// A particle that left the box or became non-finite ends the run (LAMMPS: `thermo_modify
 /// lost error` with `boundary f f f`).
 fn check_state(s: &State, case: &Case, step: u64) -> Result<()> {
-    for (i, x) in s.x.iter().enumerate() {
-        let finite = x
-            .iter()
-            .chain(&s.v[i])
-            .chain(&s.omega[i])
-            .all(|c| c.is_finite());
-        if !finite {
-            bail!("particle {} is no longer finite at step {step}", s.id[i]);
+    check_lost(
+        &s.id,
+        [&s.x, &s.v, &s.omega],
+        (case.domain_lo, case.domain_hi),
+        ("particle", "domain"),
+        step,
+    )
+}
+
+/// `thermo_modify lost error` in a closed box `(lo, hi)`: the first of the atoms `id`
+/// (positions, velocities, angular velocities in `xvw`) that is non-finite or outside
+/// the box ends the run, named as `(atom, box)` (the micro cases' particles and domain,
+/// the penetration bed's grains and box).
+pub(crate) fn check_lost(
+    id: &[u64],
+    [x, v, w]: [&[V3]; 3],
+    (lo, hi): (V3, V3),
+    (what, region): (&str, &str),
+    step: u64,
+) -> Result<()> {
+    for (i, xi) in x.iter().enumerate() {
+        if !xi.iter().chain(&v[i]).chain(&w[i]).all(|c| c.is_finite()) {
+            bail!("{what} {} is no longer finite at step {step}", id[i]);
         }
-        if (0..3).any(|c| x[c] < case.domain_lo[c] || x[c] > case.domain_hi[c]) {
-            bail!("particle {} left the domain at step {step}", s.id[i]);
+        if (0..3).any(|c| xi[c] < lo[c] || xi[c] > hi[c]) {
+            bail!("{what} {} left the {region} at step {step}", id[i]);
         }
     }
     Ok(())
