@@ -1432,9 +1432,9 @@ fn deck(a: DeckArgs) -> Result<ExitCode> {
             e.name()
         );
     }
-    if viz.is_some() && kind != "penetration" {
+    if viz.is_some() && kind == "triaxial" {
         bail!(
-            "{}: --viz: only penetration decks have a visualisation dump so far; this case is of kind {kind}",
+            "{}: --viz: the triaxial deck has no visualisation dump (penetration, micro and impact2d decks have)",
             case.display()
         );
     }
@@ -1446,7 +1446,13 @@ fn deck(a: DeckArgs) -> Result<ExitCode> {
         AnyCase::Penetration(c) => {
             granval::experiments::penetration::deck_dir::write(&c, &out, bed, true, viz)?
         }
-        c => with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?,
+        c => {
+            let opts = Options {
+                viz_every: viz,
+                ..opts
+            };
+            with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?
+        }
     };
     for d in &dirs {
         show!("{}", d.display());

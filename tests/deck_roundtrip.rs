@@ -116,17 +116,32 @@ fn same_checks(analyzed: &Report, compared: &Report) {
 /// `np`: the MPI ranks `run` uses; `compare` runs the engine with as many, because a
 /// different domain decomposition changes the round-off, which a granular flow
 /// amplifies. `edit`: also check that an edited deck is refused (it costs another
-/// preparation of the units).
-fn round_trip(case: &str, engine: &str, run: &[&str], np: &str, outputs: &[&str], edit: bool) {
+/// preparation of the units). `viz`: write the deck with `--viz N` and the files its
+/// visualisation dump must leave (a glob's prefix and suffix, at least two frames).
+fn round_trip(
+    case: &str,
+    engine: &str,
+    run: &[&str],
+    np: &str,
+    outputs: &[&str],
+    edit: bool,
+    viz: Option<(&str, (&str, &str))>,
+) {
     let tmp = tempfile::tempdir().unwrap();
     let t = |n: &str| tmp.path().join(n).display().to_string();
     let (deck, analyzed, compared) = (t("deck"), t("analyze"), t("compare"));
-    granval(
-        &["deck", case, "-o", &deck, "--engine", engine, "--np", "2"],
-        0,
-    );
+    let mut args = vec!["deck", case, "-o", &deck, "--engine", engine, "--np", "2"];
+    if let Some((n, _)) = viz {
+        args.extend(["--viz", n]);
+    }
+    granval(&args, 0);
     let deck = Path::new(&deck);
     let readme = std::fs::read_to_string(deck.join("README.txt")).unwrap();
+    assert_eq!(
+        readme.contains("\nVisualisation\n"),
+        viz.is_some(),
+        "{readme}"
+    );
     // The README gives the commands this test runs (as root, mpirun also needs
     // --allow-run-as-root, which the README says), and the way back.
     let said: Vec<&str> = run
@@ -155,6 +170,37 @@ fn round_trip(case: &str, engine: &str, run: &[&str], np: &str, outputs: &[&str]
             by_hand(d, run);
             for o in outputs {
                 assert!(d.join(o).exists(), "{o} missing in {}", d.display());
+            }
+            if let Some((_, (prefix, suffix))) = viz {
+                let frames = std::fs::read_dir(d)
+                    .unwrap()
+                    .filter_map(|e| e.ok()?.file_name().into_string().ok())
+                    .filter(|f| f.starts_with(prefix) && f.ends_with(suffix))
+                    .count();
+                assert!(frames >= 2, "{frames} {prefix}*{suffix} in {}", d.display());
+                // The first frame holds the particles with their radius, in the
+                // engine's own format (legacy VTK, LAMMPS text dump).
+                let first = std::fs::read_to_string(d.join(format!("{prefix}0{suffix}"))).unwrap();
+                let header = if suffix == ".vtk" {
+                    "DATASET POLYDATA"
+                } else {
+                    "ITEM: ATOMS id type radius x y z"
+                };
+                assert!(
+                    first.contains(header) && first.contains("radius"),
+                    "{first}"
+                );
+                if let (".vtk", Some(py)) = (suffix, common::vtk_python()) {
+                    // As ParaView reads it: every particle, with every array.
+                    let v = common::vtk_legacy_summary(&py, &d.join(format!("{prefix}0{suffix}")));
+                    assert!(v["points"].as_u64().unwrap() >= 2, "{v}");
+                    for a in ["f", "id", "omega", "radius", "type", "v"] {
+                        assert!(
+                            v["point_arrays"].as_array().unwrap().iter().any(|x| x == a),
+                            "{a}: {v}"
+                        );
+                    }
+                }
             }
         }
     }
@@ -222,6 +268,28 @@ fn micro_deck_run_by_hand_analyzes_as_compare() {
         "1",
         &["dump.granval", "log.liggghts"],
         true,
+        None,
+    );
+}
+
+/// `granval deck --viz N`: the LIGGGHTS micro deck also writes legacy VTK of every
+/// particle, and `analyze` accepts the deck because it declares the dump: the same check
+/// values as `compare`. Then the dump edited (one more column) is another deck, refused.
+#[test]
+fn micro_deck_with_a_visualisation_dump_analyzes_as_compare() {
+    let name = "micro_deck_with_a_visualisation_dump_analyzes_as_compare";
+    if !common::live(EngineKind::Liggghts, name) {
+        common::engineless(name, "SKIPPED: the round trip needs LIGGGHTS run by hand");
+        return;
+    }
+    round_trip(
+        "cases/micro/head-on-e05.toml",
+        "liggghts",
+        &["liggghts", "-in", "in.granval", "-log", "log.liggghts"],
+        "1",
+        &["dump.granval", "log.liggghts"],
+        false,
+        Some(("100", ("viz-", ".vtk"))),
     );
 }
 
@@ -273,6 +341,7 @@ fn impact2d_deck_run_by_hand_under_mpirun_analyzes_as_compare() {
         "2",
         &["intruder.txt", "snap.dump", "log.lammps"],
         false,
+        Some(("500", ("viz-", ".lammpstrj"))),
     );
 }
 
@@ -340,4 +409,55 @@ fn validate_prints_the_derived_quantities_and_runs_nothing() {
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("bad.toml") && err.contains("dt"), "{err}");
+}
+
+/// `--viz` without an engine: the LAMMPS 2025 micro deck gets the LAMMPS text dump, the
+/// LIGGGHTS one the VTK dump, each before the run and once; an interval outside the run
+/// and a triaxial deck (which has no visualisation dump) are refused with exit 2, naming
+/// the option, and nothing is written.
+#[test]
+fn deck_viz_writes_the_engines_dump_and_refuses_what_it_cannot() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (case, deck_file, line) in [
+        (
+            "cases/micro-lammps/head-on-e09.toml",
+            "in.lammps3d",
+            "dump viz all custom 7 viz-*.lammpstrj id type radius x y z",
+        ),
+        (
+            "cases/micro/head-on-e05.toml",
+            "in.granval",
+            "dump viz all custom/vtk 7 viz-*.vtk id type radius x y z",
+        ),
+    ] {
+        let out = tmp.path().join(deck_file);
+        let o = out.display().to_string();
+        granval(&["deck", case, "-o", &o, "--viz", "7"], 0);
+        let deck = std::fs::read_to_string(out.join(deck_file)).unwrap();
+        assert_eq!(deck.matches("dump viz ").count(), 1, "{deck}");
+        let (dump, run) = (deck.find(line).expect(line), deck.rfind("\nrun ").unwrap());
+        assert!(dump < run, "{deck}");
+    }
+    for (k, (case, viz)) in [
+        ("cases/micro/head-on-e05.toml", "0"),
+        ("cases/micro/head-on-e05.toml", "1000000"),
+        ("cases/release/triaxial-table2.toml", "10"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let out = tmp.path().join(format!("refused-{k}"));
+        let o = common::granval()
+            .args(["deck", case, "-o"])
+            .arg(&out)
+            .args(["--viz", viz])
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{case} --viz {viz}: {o:?}");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains("--viz"),
+            "{o:?}"
+        );
+        assert!(!out.join("README.txt").exists());
+    }
 }

@@ -90,7 +90,7 @@ fn lammps_rows(sys: &System, n: u64, every: u64, name: &str) -> Vec<(u64, u64, [
     // records are test fixtures, not sealed cases: the check is done here). Left out:
     // thermo lines (screen output only) and the z extent of the 2D box (no physics).
     let today = tempfile::tempdir().unwrap();
-    lammps::write_inputs(sys, &outputs, today.path()).unwrap();
+    lammps::write_inputs(sys, &outputs, today.path(), None).unwrap();
     for f in [lammps::DECK_FILE, lammps::DATA_FILE] {
         // Compared as the engine reads them (comments out, numbers as f64s): the
         // records predate the commented, plain-notation decks.

@@ -601,42 +601,26 @@ fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
 /// `vtkmodules` is here (Debian `python3-vtk9`): every grain with its arrays, every facet
 /// of the intruder with its stress. Without one it says so and checks nothing more.
 fn vtk_reads(d: &Path) {
-    const READ: &str = r#"
-import json, sys
-from vtkmodules.vtkIOLegacy import vtkGenericDataObjectReader
-def read(p):
-    r = vtkGenericDataObjectReader(); r.SetFileName(p); r.Update(); return r.GetOutput()
-g = read(sys.argv[1]); m = read(sys.argv[2])
-print(json.dumps({"points": g.GetNumberOfPoints(),
-    "arrays": sorted(g.GetPointData().GetArrayName(i) for i in range(g.GetPointData().GetNumberOfArrays())),
-    "facets": m.GetNumberOfCells(),
-    "facet_arrays": sorted(m.GetCellData().GetArrayName(i) for i in range(m.GetCellData().GetNumberOfArrays()))}))
-"#;
-    let py = std::env::var("GRANVAL_PYTHON").unwrap_or_else(|_| "/usr/bin/python3".into());
-    let o = Command::new(&py)
-        .args(["-c", READ])
-        .arg(d.join("viz-grains-0.vtk"))
-        .arg(d.join("viz-intruder-0.vtk"))
-        .output();
-    let Some(o) = o.ok().filter(|o| o.status.success()) else {
-        eprintln!("viz files not read through VTK: no Python with vtkmodules at {py}");
+    let Some(py) = common::vtk_python() else {
+        eprintln!("viz files not read through VTK: no Python with vtkmodules");
         return;
     };
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!(v["points"], 300, "{v}");
+    let g = common::vtk_legacy_summary(&py, &d.join("viz-grains-0.vtk"));
+    let m = common::vtk_legacy_summary(&py, &d.join("viz-intruder-0.vtk"));
+    assert_eq!(g["points"], 300, "{g}");
     for a in ["f", "id", "omega", "radius", "type", "v"] {
         assert!(
-            v["arrays"].as_array().unwrap().iter().any(|x| x == a),
-            "{a}: {v}"
+            g["point_arrays"].as_array().unwrap().iter().any(|x| x == a),
+            "{a}: {g}"
         );
     }
-    assert!(v["facets"].as_u64().unwrap() > 0, "{v}");
+    assert!(m["cells"].as_u64().unwrap() > 0, "{m}");
     assert!(
-        v["facet_arrays"]
+        m["cell_arrays"]
             .as_array()
             .unwrap()
             .iter()
             .any(|x| x == "normal_stress_average"),
-        "{v}"
+        "{m}"
     );
 }

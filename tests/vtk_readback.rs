@@ -4,6 +4,8 @@
 //! the interpreter `GRANVAL_PYTHON` names); without one it prints a SKIP line and
 //! checks nothing (the Rust reader in `src/report/vtk.rs` still checks every array).
 
+mod common;
+
 use granval::analysis::coarse_grain::Grid3;
 use granval::report::vtk::{FILL, GridData, VALID_SUFFIX, write_structured_points};
 use std::path::Path;
@@ -29,20 +31,6 @@ for i in range(pd.GetNumberOfArrays()):
 print(json.dumps(out))
 "#;
 
-/// A Python that imports VTK, if there is one.
-fn python() -> Option<String> {
-    let candidates = std::env::var("GRANVAL_PYTHON")
-        .ok()
-        .into_iter()
-        .chain(["/usr/bin/python3".to_string(), "python3".to_string()]);
-    candidates.into_iter().find(|p| {
-        Command::new(p)
-            .args(["-c", "import vtkmodules.vtkIOLegacy"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
-}
-
 fn read(py: &str, path: &Path) -> serde_json::Value {
     let o = Command::new(py)
         .args(["-c", READ])
@@ -60,7 +48,7 @@ fn read(py: &str, path: &Path) -> serde_json::Value {
 /// before it.
 #[test]
 fn stress_field_vtk_loads_completely_in_vtk() {
-    let Some(py) = python() else {
+    let Some(py) = common::vtk_python() else {
         eprintln!("[stress_field_vtk_loads_completely_in_vtk] SKIPPED: no Python with vtk");
         return;
     };

@@ -445,10 +445,17 @@ pub(crate) fn finished_by_hand(dir: &Path, deck_file: &str) -> Result<(String, V
 /// the log ends with `Total wall time` under LAMMPS 22 Jul 2025, and the dump holds
 /// every frame of every particle ([`micro`] checks the same after its own runs).
 pub(crate) fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
-    for (name, text) in micro_inputs(case)? {
+    use crate::engines::viz_dump::{self, VizEngine};
+    let mut viz = None;
+    for (name, mut text) in micro_inputs(case)? {
+        if name == DECK_FILE {
+            (text, viz) =
+                viz_dump::expected_deck(dir, name, &text, VizEngine::Lammps3d, case.n_steps)?;
+        }
         deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
     }
-    let (version, notes) = finished_by_hand(dir, DECK_FILE)?;
+    let (version, mut notes) = finished_by_hand(dir, DECK_FILE)?;
+    notes.extend(viz.map(|n| viz_dump::note(n, VizEngine::Lammps3d)));
     check_dump(case, &dir.join(DUMP_FILE))?;
     Ok(Provenance {
         engine: EngineKind::Lammps,

@@ -11,3 +11,4 @@ pub mod lammps3d_penetration;
 pub mod liggghts;
 pub mod native;
 pub mod process;
+pub(crate) mod viz_dump;

@@ -290,8 +290,8 @@ impl Experiment for Impact2d {
         Ok(run)
     }
 
-    fn write_deck(&self, u: &Unit, dir: &Path, _opts: &Options) -> Result<()> {
-        lammps::write_inputs(&u.scene.sys, &self.outputs(u), dir)
+    fn write_deck(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<()> {
+        lammps::write_inputs(&u.scene.sys, &self.outputs(u), dir, opts.viz_every)
     }
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<ImpactRun> {
@@ -918,7 +918,7 @@ impl Impact2d {
         procs: usize,
     ) -> ImpactRun {
         let mut notes = vec![format!("scene sha256 {}", scene_hash(&u.scene))];
-        notes.extend(fin.warnings.iter().cloned());
+        notes.extend(fin.notes.iter().cloned());
         ImpactRun {
             samples,
             energy,

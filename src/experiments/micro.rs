@@ -308,9 +308,18 @@ impl Experiment for Micro {
         })
     }
 
-    fn write_deck(&self, _unit: &(), dir: &Path, _opts: &Options) -> Result<()> {
+    fn write_deck(&self, _unit: &(), dir: &Path, opts: &Options) -> Result<()> {
+        use crate::engines::viz_dump::{self, VizEngine};
         std::fs::create_dir_all(dir)?;
-        for (name, text) in self.engine_input(&())? {
+        let (deck_file, engine) = if self.case.lammps().is_some() {
+            (lammps3d::DECK_FILE, VizEngine::Lammps3d)
+        } else {
+            (liggghts::DECK_FILE, VizEngine::Liggghts)
+        };
+        for (name, mut text) in self.engine_input(&())? {
+            if let (Some(n), true) = (opts.viz_every, name == deck_file) {
+                text = viz_dump::add(&text, engine, n, self.case.n_steps)?;
+            }
             std::fs::write(dir.join(name), text)?;
         }
         Ok(())

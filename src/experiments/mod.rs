@@ -99,6 +99,9 @@ pub struct Options {
     /// negative control's runs are judged, so its figures are titled and drawn as a
     /// control (`report::plot::Caption::control`), never as an engine comparison.
     pub control: Option<String>,
+    /// `granval deck --viz N`: the deck also writes a visualisation dump every N steps
+    /// (micro, impact2d: `engines::viz_dump`; penetration decks take it directly).
+    pub viz_every: Option<u64>,
 }
 
 impl Default for Options {
@@ -123,6 +126,7 @@ impl Default for Options {
             recorded_inputs: None,
             engine_timeout: None,
             engine_stall: None,
+            viz_every: None,
             control: None,
         }
     }

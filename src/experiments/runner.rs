@@ -982,8 +982,11 @@ pub fn deck<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> Result<Vec<Pa
         .with_context(|| format!("copying {} into {}", exp.source().display(), out.display()))?;
     let names: Vec<String> = units.iter().map(|u| exp.unit_name(u)).collect();
     let readme = out.join(README_FILE);
-    std::fs::write(&readme, deck_readme(exp, &names, opts.mpi_procs.max(2)))
-        .with_context(|| format!("cannot write {}", readme.display()))?;
+    std::fs::write(
+        &readme,
+        deck_readme(exp, &names, opts.mpi_procs.max(2), opts.viz_every),
+    )
+    .with_context(|| format!("cannot write {}", readme.display()))?;
     Ok(dirs)
 }
 
@@ -992,7 +995,7 @@ pub(crate) const README_FILE: &str = "README.txt";
 
 /// What a deck directory holds, how to run it on one core and under mpirun, what a
 /// complete run leaves behind and how to bring it back (`granval analyze`).
-fn deck_readme<E: Experiment>(exp: &E, units: &[String], np: usize) -> String {
+fn deck_readme<E: Experiment>(exp: &E, units: &[String], np: usize, viz: Option<u64>) -> String {
     let f = exp.deck_files();
     let engine = exp.reference_engine();
     let dirs: Vec<String> = units
@@ -1046,6 +1049,18 @@ fn deck_readme<E: Experiment>(exp: &E, units: &[String], np: usize) -> String {
     s += "\nExpected outputs (in each run directory)\n";
     for (name, what) in f.outputs {
         s += &format!("  {name:<16} {what}\n");
+    }
+    if let Some(n) = viz {
+        let e = match engine {
+            crate::rundata::provenance::EngineKind::Liggghts => {
+                crate::engines::viz_dump::VizEngine::Liggghts
+            }
+            _ => crate::engines::viz_dump::VizEngine::Lammps3d,
+        };
+        s += &format!(
+            "\nVisualisation\n  {}\n",
+            crate::engines::viz_dump::readme_line(e, n)
+        );
     }
     s += "\nBring it back\n  Copy the whole directory back (inputs and outputs) and run\n\n    \
          granval analyze DIR --report OUT\n\n  It checks that every run completed and that \

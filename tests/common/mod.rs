@@ -275,3 +275,43 @@ pub fn expect(o: &std::process::Output, code: i32, needles: &[&str]) {
         assert!(t.contains(n), "missing {n:?} in:\n{t}");
     }
 }
+
+/// A Python that imports VTK (the library inside ParaView), if there is one:
+/// `GRANVAL_PYTHON`, /usr/bin/python3 (Debian `python3-vtk9`), then `python3`.
+pub fn vtk_python() -> Option<String> {
+    let candidates = std::env::var("GRANVAL_PYTHON")
+        .ok()
+        .into_iter()
+        .chain(["/usr/bin/python3".to_string(), "python3".to_string()]);
+    candidates.into_iter().find(|p| {
+        Command::new(p)
+            .args(["-c", "import vtkmodules.vtkIOLegacy"])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
+}
+
+/// A legacy VTK file as ParaView's reader loads it (`vtkGenericDataObjectReader`):
+/// `{"points", "point_arrays", "cells", "cell_arrays"}`, the array names sorted.
+pub fn vtk_legacy_summary(py: &str, path: &std::path::Path) -> serde_json::Value {
+    const READ: &str = r#"
+import json, sys
+from vtkmodules.vtkIOLegacy import vtkGenericDataObjectReader
+r = vtkGenericDataObjectReader(); r.SetFileName(sys.argv[1]); r.Update(); d = r.GetOutput()
+names = lambda a: sorted(a.GetArrayName(i) for i in range(a.GetNumberOfArrays()))
+print(json.dumps({"points": d.GetNumberOfPoints(), "point_arrays": names(d.GetPointData()),
+    "cells": d.GetNumberOfCells(), "cell_arrays": names(d.GetCellData())}))
+"#;
+    let o = Command::new(py)
+        .args(["-c", READ])
+        .arg(path)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{}: {}",
+        path.display(),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}

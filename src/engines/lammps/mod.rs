@@ -11,6 +11,7 @@ pub mod impact;
 pub mod parse;
 
 use crate::engines::process::{self, Transcript, TranscriptFiles};
+use crate::engines::viz_dump::{self, VizEngine};
 use crate::physics::dem2d::System;
 use crate::rundata::provenance::Sha256;
 use anyhow::{Context, Result};
@@ -67,7 +68,8 @@ pub struct Finished {
     /// sha256 of deck + data.
     pub input_hash: Sha256,
     pub wall_time_s: f64,
-    pub warnings: Vec<String>,
+    /// For the provenance: LAMMPS' warnings, and a visualisation dump the deck declared.
+    pub notes: Vec<String>,
 }
 
 /// The version probe of `binary` ([`process::probe`]): its banner when it runs and
@@ -88,12 +90,17 @@ pub fn installed_version(binary: &str) -> Option<String> {
 
 /// Writes the deck and data file for `sys` into `dir` (what `granval deck` leaves and
 /// what [`Lammps::run`] runs); returns their texts.
-pub fn write_inputs(sys: &System, out: &Outputs, dir: &Path) -> Result<()> {
-    inputs(sys, out, dir).map(|_| ())
+/// `viz`: also a visualisation dump every that many steps (`granval deck --viz N`,
+/// [`crate::engines::viz_dump`]).
+pub fn write_inputs(sys: &System, out: &Outputs, dir: &Path, viz: Option<u64>) -> Result<()> {
+    inputs(sys, out, dir, viz).map(|_| ())
 }
 
-fn inputs(sys: &System, out: &Outputs, dir: &Path) -> Result<(String, String)> {
-    let deck = deck::write_deck(sys, out)?;
+fn inputs(sys: &System, out: &Outputs, dir: &Path, viz: Option<u64>) -> Result<(String, String)> {
+    let mut deck = deck::write_deck(sys, out)?;
+    if let Some(n) = viz {
+        deck = viz_dump::add(&deck, VizEngine::Lammps2d, n, out.n_steps)?;
+    }
     let data = deck::write_data(sys);
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create run directory {}", dir.display()))?;
@@ -142,7 +149,7 @@ impl Lammps {
                 deck::CONTACTS_FILE,
             ],
         )?;
-        let (deck, data) = inputs(sys, out, dir)?;
+        let (deck, data) = inputs(sys, out, dir, None)?;
         let argv = self.argv();
         let command = process::command_line(&argv);
         let fin = process::run(
@@ -171,7 +178,7 @@ impl Lammps {
             command,
             input_hash: crate::engines::deck_text::fingerprint(&[&deck, &data]),
             wall_time_s: fin.wall_time_s,
-            warnings: tr.warnings(),
+            notes: tr.warnings(),
         })
     }
 }
@@ -206,7 +213,11 @@ fn missing_output(sys: &System, out: &Outputs, dir: &Path) -> Option<String> {
 pub(crate) fn finished(sys: &System, out: &Outputs, dir: &Path) -> Result<Finished> {
     use crate::engines::deck_text::check_same_input;
     let (deck, data) = (deck::write_deck(sys, out)?, deck::write_data(sys));
-    check_same_input(dir, DECK_FILE, &deck, false)?;
+    // The fingerprint stays the deck's without a visualisation dump: the dump changes
+    // what is written, not what is computed.
+    let (with_viz, viz) =
+        viz_dump::expected_deck(dir, DECK_FILE, &deck, VizEngine::Lammps2d, out.n_steps)?;
+    check_same_input(dir, DECK_FILE, &with_viz, false)?;
     check_same_input(dir, DATA_FILE, &data, true)?;
     let tr = Transcript::read(TRANSCRIPT, dir);
     if tr.log.is_empty() {
@@ -247,6 +258,10 @@ pub(crate) fn finished(sys: &System, out: &Outputs, dir: &Path) -> Result<Finish
         command: command.into(),
         input_hash: crate::engines::deck_text::fingerprint(&[&deck, &data]),
         wall_time_s,
-        warnings: tr.warnings(),
+        notes: tr
+            .warnings()
+            .into_iter()
+            .chain(viz.map(|n| viz_dump::note(n, VizEngine::Lammps2d)))
+            .collect(),
     })
 }

@@ -213,7 +213,13 @@ pub fn micro(lig: &Liggghts, case: &Case, dir: &Path) -> Result<Provenance> {
 /// them, neither log nor screen output has an `ERROR`, and the dump holds every frame of
 /// every particle ([`micro`] checks the same after its own runs).
 pub(crate) fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
-    for (name, text) in micro_inputs(case)? {
+    use crate::engines::viz_dump::{self, VizEngine};
+    let mut viz = None;
+    for (name, mut text) in micro_inputs(case)? {
+        if name == DECK_FILE {
+            (text, viz) =
+                viz_dump::expected_deck(dir, name, &text, VizEngine::Liggghts, case.n_steps)?;
+        }
         crate::engines::deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
     }
     let tr = Transcript::read(TRANSCRIPT, dir);
@@ -236,6 +242,7 @@ pub(crate) fn micro_finished(case: &Case, dir: &Path) -> Result<Provenance> {
     }
     check_dump(case, &dump_path)?;
     let mut notes = vec![format!("run directory: {} (run by hand)", dir.display())];
+    notes.extend(viz.map(|n| viz_dump::note(n, VizEngine::Liggghts)));
     notes.extend(hardness_note(&case.materials));
     notes.extend(tr.warnings());
     Ok(Provenance {
