@@ -1410,11 +1410,6 @@ fn deck(a: DeckArgs) -> Result<ExitCode> {
         (&c, engine),
         (AnyCase::Penetration(_), Some(EngineName::Lammps))
     );
-    if lammps_penetration && viz.is_some() {
-        bail!(
-            "--engine lammps --viz: the LAMMPS penetration deck has no visualisation dump yet (the LIGGGHTS deck has)"
-        );
-    }
     if lammps_penetration && bed != granval::experiments::penetration::deck_dir::BedBy::Native {
         bail!(
             "--engine lammps --bed liggghts: the LAMMPS penetration deck reads beds granval prepared natively (--bed native)"
@@ -1441,7 +1436,7 @@ fn deck(a: DeckArgs) -> Result<ExitCode> {
     let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
     let dirs = match c {
         AnyCase::Penetration(c) if lammps_penetration => {
-            granval::experiments::penetration::deck_dir::write_lammps(&c, &out, true)?
+            granval::experiments::penetration::deck_dir::write_lammps(&c, &out, true, viz)?
         }
         AnyCase::Penetration(c) => {
             granval::experiments::penetration::deck_dir::write(&c, &out, bed, true, viz)?

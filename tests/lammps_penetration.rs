@@ -348,8 +348,10 @@ fn analyze_reads_a_lammps_deck_directory_run_by_hand() {
     )
     .unwrap();
     let deck = tmp.path().join("deck");
+    // Written with a visualisation dump, which the decks declare: analyze still takes
+    // them as granval's own (the dump changes what is written, not what is computed).
     let o = common::granval()
-        .args(["deck", "--engine", "lammps"])
+        .args(["deck", "--engine", "lammps", "--viz", "100"])
         .arg(&path)
         .arg("-o")
         .arg(&deck)
@@ -358,7 +360,9 @@ fn analyze_reads_a_lammps_deck_directory_run_by_hand() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let readme = std::fs::read_to_string(deck.join("README.md")).unwrap();
     assert!(
-        readme.contains("granval analyze DIR") && readme.contains(FORCE_FILE),
+        readme.contains("granval analyze DIR")
+            && readme.contains(FORCE_FILE)
+            && readme.contains("## Visualisation"),
         "{readme}"
     );
     for k in 0..2 {
@@ -377,6 +381,8 @@ fn analyze_reads_a_lammps_deck_directory_run_by_hand() {
             .status()
             .unwrap();
         assert!(st.success(), "[{test}] LAMMPS in {}", dir.display());
+        let head = std::fs::read_to_string(dir.join("viz-0.lammpstrj")).unwrap();
+        assert!(head.contains("ITEM: ATOMS id type radius x y z"), "{head}");
     }
     let analyzed = tmp.path().join("analyzed");
     let o = common::granval()

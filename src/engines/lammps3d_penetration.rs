@@ -610,10 +610,17 @@ pub(crate) fn read_finished(
     dir: &Path,
     case_file: &Path,
 ) -> Result<(Vec<ForceLine>, Provenance)> {
-    for (name, text) in inputs(d)? {
+    use crate::engines::viz_dump::{self, VizEngine};
+    let mut viz = None;
+    for (name, mut text) in inputs(d)? {
+        if name == DECK_FILE {
+            (text, viz) =
+                viz_dump::expected_deck(dir, name, &text, VizEngine::Lammps3d, d.n_steps)?;
+        }
         deck_text::check_same_input(dir, name, &text, name == DATA_FILE)?;
     }
-    let (version, notes) = l3::finished_by_hand(dir, DECK_FILE)?;
+    let (version, mut notes) = l3::finished_by_hand(dir, DECK_FILE)?;
+    notes.extend(viz.map(|n| viz_dump::note(n, VizEngine::Lammps3d)));
     let lines = parse_force_file(&dir.join(FORCE_FILE))?;
     let expected = expected_samples(d);
     if lines.len() != expected {

@@ -115,8 +115,16 @@ pub fn write(
 /// (`granval deck --engine lammps`; [`crate::engines::lammps3d_penetration`]): per bed
 /// `bed-K/in.penetration.lammps` and `bed-K/data.bed.lammps`, the bed exactly as the
 /// LIGGGHTS deck would read it.
-pub fn write_lammps(case: &PenetrationCase, out: &Path, progress: bool) -> Result<Vec<PathBuf>> {
+/// `viz_every`: each deck also writes a visualisation dump every that many steps
+/// (`granval deck --engine lammps --viz N`, [`crate::engines::viz_dump`]).
+pub fn write_lammps(
+    case: &PenetrationCase,
+    out: &Path,
+    progress: bool,
+    viz_every: Option<u64>,
+) -> Result<Vec<PathBuf>> {
     use crate::engines::lammps3d_penetration as lmp;
+    use crate::engines::viz_dump::{self, VizEngine};
     start_deck_dir(case, out)?;
     let mut dirs = Vec::new();
     let mut lines = Vec::new();
@@ -127,6 +135,16 @@ pub fn write_lammps(case: &PenetrationCase, out: &Path, progress: bool) -> Resul
         let deck = lammps_deck(&ck, &bed)?;
         lmp::write_inputs(&deck, &dir)
             .with_context(|| format!("{}: no LAMMPS penetration deck", case.source.display()))?;
+        if let Some(n) = viz_every {
+            let p = dir.join(lmp::DECK_FILE);
+            let text = std::fs::read_to_string(&p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            std::fs::write(
+                &p,
+                viz_dump::add(&text, VizEngine::Lammps3d, n, deck.n_steps)?,
+            )
+            .with_context(|| format!("cannot write {}", p.display()))?;
+        }
         InputManifest::of_dir(&dir, case, k, ck.seed, Some(bed_hash(&bed)))?.write(&dir)?;
         lines.push(format!(
             "| {} | {} | {} | {:.4} | {} |",
@@ -138,7 +156,14 @@ pub fn write_lammps(case: &PenetrationCase, out: &Path, progress: bool) -> Resul
         ));
         dirs.push(dir);
     }
-    std::fs::write(out.join("README.md"), lammps_readme(case, &lines))
+    let mut readme = lammps_readme(case, &lines);
+    if let Some(n) = viz_every {
+        readme += &format!(
+            "\n## Visualisation\n\n{}\n",
+            viz_dump::readme_line(VizEngine::Lammps3d, n)
+        );
+    }
+    std::fs::write(out.join("README.md"), readme)
         .with_context(|| format!("cannot write {}", out.join("README.md").display()))?;
     Ok(dirs)
 }
