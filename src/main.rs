@@ -102,6 +102,14 @@ enum EngineName {
 }
 
 impl EngineName {
+    /// The reference engine a case is compared against (`AnyCase::reference_engine`).
+    fn reference_of(c: &AnyCase) -> EngineName {
+        match c.reference_engine() {
+            granval::rundata::provenance::EngineKind::Lammps => EngineName::Lammps,
+            _ => EngineName::Liggghts,
+        }
+    }
+
     fn name(self) -> &'static str {
         match self {
             EngineName::Native => "native",
@@ -674,10 +682,7 @@ fn lammps_reference(case: &Path, engine: Option<EngineName>, opts: &mut Options)
     let Some(engine) = engine else {
         return Ok(false);
     };
-    let own = match &c {
-        AnyCase::Impact2d(_) => EngineName::Lammps,
-        _ => EngineName::Liggghts,
-    };
+    let own = EngineName::reference_of(&c);
     if engine == own {
         return Ok(false);
     }
@@ -1228,16 +1233,16 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     } = a;
     let opts = options(&common);
     let c = load(&case)?;
-    let wrong = match (&c, engine) {
-        (AnyCase::Impact2d(_), EngineName::Liggghts) => Some("2D: use native or lammps"),
-        (
-            AnyCase::Micro(_) | AnyCase::Penetration(_) | AnyCase::Triaxial(_),
-            EngineName::Lammps,
-        ) => Some("3D: use native or liggghts"),
-        _ => None,
-    };
-    if let Some(w) = wrong {
-        bail!("{}: --engine does not fit this case ({w})", case.display());
+    let own = EngineName::reference_of(&c);
+    if engine != EngineName::Native && engine != own {
+        bail!(
+            "{}: --engine {}: a {} case runs in the native engine or its reference engine, {} (use native or {})",
+            case.display(),
+            engine.name(),
+            c.kind(),
+            own.name(),
+            own.name()
+        );
     }
     let _out = claim(
         &out,
@@ -1400,12 +1405,7 @@ fn deck(a: DeckArgs) -> Result<ExitCode> {
     }
     let case = case.context("give a case file or --suite NAME")?;
     let c = load(&case)?;
-    let (kind, wanted) = match &c {
-        AnyCase::Micro(_) => ("micro", EngineName::Liggghts),
-        AnyCase::Penetration(_) => ("penetration", EngineName::Liggghts),
-        AnyCase::Impact2d(_) => ("impact2d", EngineName::Lammps),
-        AnyCase::Triaxial(_) => ("triaxial", EngineName::Liggghts),
-    };
+    let (kind, wanted) = (c.kind(), EngineName::reference_of(&c));
     let lammps_penetration = matches!(
         (&c, engine),
         (AnyCase::Penetration(_), Some(EngineName::Lammps))
@@ -1663,10 +1663,7 @@ fn chaos(a: ChaosArgs) -> Result<ExitCode> {
         other => bail!(
             "{}: `granval chaos` takes a penetration or impact2d case, not a {} case: the chaos baseline (docs/statistics.md) is a spread over the beds of a granular flow, which such a case has not",
             case.display(),
-            match other {
-                AnyCase::Micro(_) => "micro",
-                _ => "triaxial",
-            }
+            other.kind()
         ),
     };
     let _out = claim(
@@ -1700,11 +1697,11 @@ fn chaos(a: ChaosArgs) -> Result<ExitCode> {
 fn validate(a: ValidateArgs) -> Result<ExitCode> {
     let ValidateArgs { case, allow_large } = a;
     let c = load(&case)?;
-    let (kind, engine) = match &c {
-        AnyCase::Micro(_) => ("micro", "LIGGGHTS"),
-        AnyCase::Penetration(_) => ("penetration", "LIGGGHTS"),
-        AnyCase::Impact2d(_) => ("impact2d", "LAMMPS"),
-        AnyCase::Triaxial(_) => ("triaxial", "LIGGGHTS"),
+    let kind = c.kind();
+    let engine = match c.reference_engine() {
+        granval::rundata::provenance::EngineKind::Lammps if kind == "micro" => "LAMMPS 22 Jul 2025",
+        granval::rundata::provenance::EngineKind::Lammps => "LAMMPS",
+        _ => "LIGGGHTS",
     };
     // Exactly what `compare` refuses before it runs (the reference engine's
     // limits, the start state, the resource limits): a case that validates runs.

@@ -10,6 +10,7 @@ mod common;
 use granval::compare::Status;
 use granval::experiments::micro::Micro;
 use granval::experiments::runner;
+use std::path::Path;
 
 fn cases() -> Vec<granval::case::Case> {
     common::micro_suite_cases("micro-lammps")
@@ -158,5 +159,49 @@ fn a_bad_family_is_refused_plainly() {
             .unwrap_err()
             .to_string();
         assert!(e.contains(field) && e.contains("head-on-e09.toml"), "{e}");
+    }
+}
+
+/// A LAMMPS-family micro case is LAMMPS 2025's everywhere, not only in `compare`:
+/// `validate` names it, `deck --engine lammps` writes its deck, and asking for LIGGGHTS
+/// (which would run or write LAMMPS' deck under LIGGGHTS' name) is refused with exit 2,
+/// naming the engine; a LIGGGHTS-family case refuses LAMMPS the same way. No engine runs.
+#[test]
+fn every_command_takes_the_cases_own_reference_engine() {
+    let lmp_case = "cases/micro-lammps/head-on-e09.toml";
+    let lig_case = "cases/micro/head-on-e05.toml";
+    let run = |args: &[&str]| common::granval().args(args).output().unwrap();
+    common::expect(
+        &run(&["validate", lmp_case]),
+        0,
+        &["(reference engine LAMMPS 22 Jul 2025)"],
+    );
+    common::expect(
+        &run(&["validate", lig_case]),
+        0,
+        &["(reference engine LIGGGHTS)"],
+    );
+    let tmp = tempfile::tempdir().unwrap();
+    let d = |n: &str| tmp.path().join(n).display().to_string();
+    common::expect(
+        &run(&["deck", lmp_case, "-o", &d("deck"), "--engine", "lammps"]),
+        0,
+        &["deck directory written"],
+    );
+    assert!(tmp.path().join("deck/in.lammps3d").is_file());
+    for (case, engine, own) in [
+        (lmp_case, "liggghts", "lammps"),
+        (lig_case, "lammps", "liggghts"),
+    ] {
+        for cmd in ["run", "deck"] {
+            let out = d(&format!("{cmd}-{engine}"));
+            let flag = if cmd == "run" { "--out" } else { "-o" };
+            common::expect(
+                &run(&[cmd, case, flag, &out, "--engine", engine]),
+                2,
+                &[&format!("--engine {engine}"), own],
+            );
+            assert!(!Path::new(&out).exists(), "{cmd} {case}: {out} was made");
+        }
     }
 }

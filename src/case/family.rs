@@ -11,6 +11,7 @@
 use super::error::{CaseError, Ctx};
 use super::fields::finite;
 use super::{Case, Particle, Wall, schema};
+use crate::rundata::provenance::EngineKind;
 
 /// The contact-law family of a case.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -45,6 +46,16 @@ impl Case {
         match &self.family {
             ContactFamily::Lammps(m) => Some(m),
             ContactFamily::Liggghts => None,
+        }
+    }
+
+    /// The engine the case is compared against: LAMMPS 22 Jul 2025 for LAMMPS' laws,
+    /// LIGGGHTS 3.8 for LIGGGHTS'.
+    pub(crate) fn reference_engine(&self) -> EngineKind {
+        if self.lammps().is_some() {
+            EngineKind::Lammps
+        } else {
+            EngineKind::Liggghts
         }
     }
 }

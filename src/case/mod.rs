@@ -20,6 +20,7 @@ mod control;
 
 pub use control::{Gate, NegativeControl, Perturbation};
 
+use crate::rundata::provenance::EngineKind;
 use std::path::{Path, PathBuf};
 
 /// What the runner needs of every validated case kind: its name and file (for reports
@@ -133,6 +134,29 @@ impl AnyCase {
             AnyCase::Penetration(c) => &c.name,
             AnyCase::Impact2d(c) => &c.name,
             AnyCase::Triaxial(c) => &c.name,
+        }
+    }
+
+    /// The case's `kind` as its file writes it.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            AnyCase::Micro(_) => "micro",
+            AnyCase::Penetration(_) => "penetration",
+            AnyCase::Impact2d(_) => "impact2d",
+            AnyCase::Triaxial(_) => "triaxial",
+        }
+    }
+
+    /// The reference engine the case is compared against unless a command says
+    /// otherwise (a penetration case also takes LAMMPS 2025 with `--engine lammps`):
+    /// the one table every command reads, so `validate`, `run`, `deck` and `compare`
+    /// cannot disagree about it. LAMMPS for the 2D impact (Debian's 29 Sep 2021) and for
+    /// micro cases of LAMMPS' law family (22 Jul 2025), LIGGGHTS 3.8 otherwise.
+    pub fn reference_engine(&self) -> EngineKind {
+        match self {
+            AnyCase::Micro(c) => c.reference_engine(),
+            AnyCase::Impact2d(_) => EngineKind::Lammps,
+            AnyCase::Penetration(_) | AnyCase::Triaxial(_) => EngineKind::Liggghts,
         }
     }
 }

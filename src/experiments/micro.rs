@@ -174,11 +174,7 @@ impl Experiment for Micro {
         "micro"
     }
     fn reference_engine(&self) -> EngineKind {
-        if self.case.lammps().is_some() {
-            EngineKind::Lammps
-        } else {
-            EngineKind::Liggghts
-        }
+        self.case.reference_engine()
     }
 
     fn estimate(&self) -> Estimate {

@@ -189,12 +189,7 @@ fn write_case(
     np: usize,
     opts: &Options,
 ) -> Result<(CaseRecord, Vec<UnitRow>)> {
-    let kind = match &case {
-        AnyCase::Micro(_) => "micro",
-        AnyCase::Penetration(_) => "penetration",
-        AnyCase::Impact2d(_) => "impact2d",
-        AnyCase::Triaxial(_) => "triaxial",
-    };
+    let kind = case.kind();
     let name = case.name().to_string();
     let (dirs, files, engine, estimate, hash) = match case {
         AnyCase::Penetration(c) => {

@@ -24,7 +24,12 @@ pub struct RzMap<'a> {
 
 /// The colour bar of `scale` in `area` (its label above it); with `with_empty`, under
 /// it the swatch of cells without data, so the reader never takes them for a value.
-pub fn colour_bar(area: &Area<'_>, label: &str, scale: Scale, with_empty: bool) -> Result<()> {
+pub(crate) fn colour_bar(
+    area: &Area<'_>,
+    label: &str,
+    scale: Scale,
+    with_empty: bool,
+) -> Result<()> {
     let (lo, hi) = scale.range();
     let (bar, foot) = area.split_vertically(area.dim_in_pixel().1.saturating_sub(70));
     let mut cb = ChartBuilder::on(&bar)
@@ -76,7 +81,7 @@ pub fn colour_bar(area: &Area<'_>, label: &str, scale: Scale, with_empty: bool) 
 /// grey with a black outline and has its own legend entry: a reader can tell it from
 /// empty cells and from the scale's lowest values.
 #[allow(clippy::too_many_arguments)]
-pub fn rz_map(
+pub(crate) fn rz_map(
     path: &Path,
     caption: &Caption,
     value_label: &str,
@@ -250,7 +255,7 @@ pub struct PhiBand<'a> {
 /// with error bars (Fig. 7) and vertical bands of independently measured angles. Each
 /// point and band is its source's colour (published values black); points of one
 /// group (case or estimator) share a marker shape; a reported point is hollow.
-pub fn k_phi_plane(
+pub(crate) fn k_phi_plane(
     path: &Path,
     caption: &Caption,
     curve: &[(f64, f64)],

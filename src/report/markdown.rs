@@ -8,7 +8,7 @@ use crate::compare::Status;
 use std::fmt::Write as _;
 
 /// The verdict column of a check: `pass`, or the label in bold.
-pub fn verdict_cell(status: Status) -> String {
+pub(crate) fn verdict_cell(status: Status) -> String {
     match status {
         Status::Pass => "pass".to_string(),
         st => format!("**{}**", st.label()),
@@ -66,7 +66,7 @@ impl Report {
 
     /// "N checks: a pass, b FAIL, ... (exit c).", with "; k EXPLORATORY, not gated" before
     /// the exit code when there are any.
-    pub fn tally(&self) -> String {
+    pub(crate) fn tally(&self) -> String {
         let exploratory = match self.exploratory() {
             0 => String::new(),
             k => format!("; {k} of them EXPLORATORY, not gated"),

@@ -136,7 +136,7 @@ fn bounds<'a>(pts: impl Iterator<Item = &'a (f64, f64)>) -> Option<(f64, f64, f6
 
 /// The overlay of `lines` and `fits` with the difference panel under it (when some
 /// variant has a native and a reference-engine line), written to `path`.
-pub fn overlay(
+pub(crate) fn overlay(
     path: &Path,
     caption: &Caption,
     axes: &Axes<'_>,

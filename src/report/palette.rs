@@ -79,7 +79,7 @@ impl Source {
 
     /// In a sweep, engines are told apart by line style: the engine under test solid,
     /// the reference engines (and anything else) dashed.
-    pub fn dashed(self) -> bool {
+    pub(crate) fn dashed(self) -> bool {
         self != Source::Native
     }
 
@@ -113,7 +113,7 @@ const VIRIDIS: [(u8, u8, u8); 9] = [
 ];
 
 /// viridis at `t` in [0, 1] (clamped), linearly between its 9 tabulated points.
-pub fn viridis(t: f64) -> RGBColor {
+pub(crate) fn viridis(t: f64) -> RGBColor {
     interpolate(&VIRIDIS, t)
 }
 
@@ -138,7 +138,7 @@ pub(crate) fn interpolate(table: &[(u8, u8, u8)], t: f64) -> RGBColor {
 
 /// The colour of sweep value `i` of `n`: viridis from its dark end to 0.85 (its last
 /// yellows are too pale for a line on white).
-pub fn sweep_colour(i: usize, n: usize) -> RGBColor {
+pub(crate) fn sweep_colour(i: usize, n: usize) -> RGBColor {
     if n <= 1 {
         return viridis(0.0);
     }
@@ -206,7 +206,7 @@ impl Scale {
     }
 
     /// What the colour bar says about the scale.
-    pub fn describe(&self) -> &'static str {
+    pub(crate) fn describe(&self) -> &'static str {
         match self {
             Scale::Sequential { .. } => "viridis (sequential)",
             Scale::Diverging { .. } => "RdBu, white = 0",

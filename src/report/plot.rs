@@ -7,7 +7,7 @@
 //! fixed-width rule and emits plain `<text>` elements with a generic font family,
 //! which every SVG viewer renders; no font files are needed.
 
-use super::palette::{CONTROL, EMPTY, EMPTY_HATCH, INTRUDER, INTRUDER_EDGE, Source};
+use super::palette::{CONTROL, EMPTY, EMPTY_HATCH, INTRUDER, INTRUDER_EDGE};
 use anyhow::anyhow;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -47,19 +47,19 @@ impl Caption {
         self
     }
 
-    pub fn illustration(mut self) -> Caption {
+    pub(crate) fn illustration(mut self) -> Caption {
         self.illustration = true;
         self
     }
 
-    pub fn heading(&self) -> String {
+    pub(crate) fn heading(&self) -> String {
         match &self.control {
             Some(p) => format!("negative control: {p}, {}", self.title),
             None => self.title.clone(),
         }
     }
 
-    pub fn subtitles(&self) -> Vec<String> {
+    pub(crate) fn subtitles(&self) -> Vec<String> {
         let mut s = Vec::new();
         if self.control.is_some() {
             s.push(
@@ -156,7 +156,7 @@ fn legend_width(entries: &[Entry]) -> u32 {
 /// The canvas of a figure: the whole drawing, the area for the data (right of it the
 /// legend panel, above it the caption) and the legend panel, with the legend and the
 /// caption already drawn. `data` is the size of the data area (axes included).
-pub fn canvas<'a>(
+pub(crate) fn canvas<'a>(
     path: &'a Path,
     data: (u32, u32),
     caption: &Caption,
@@ -232,7 +232,7 @@ pub fn canvas<'a>(
 }
 
 /// Draws `key` with its left end at (x, y) (the row's middle), 30 px wide.
-pub fn draw_key(area: &Area<'_>, key: Key, x: i32, y: i32) -> anyhow::Result<()> {
+pub(crate) fn draw_key(area: &Area<'_>, key: Key, x: i32, y: i32) -> anyhow::Result<()> {
     match key {
         Key::Line {
             colour,
@@ -295,7 +295,7 @@ pub fn draw_key(area: &Area<'_>, key: Key, x: i32, y: i32) -> anyhow::Result<()>
 }
 
 /// A marker of `shape` centred at pixel `c` on any drawing area.
-pub fn draw_marker(
+pub(crate) fn draw_marker(
     area: &Area<'_>,
     c: (i32, i32),
     r: i32,
@@ -332,7 +332,7 @@ pub fn draw_marker(
 }
 
 /// The legend: one row per entry in the legend panel (never over the data area).
-pub fn draw_legend(area: &Area<'_>, entries: &[Entry]) -> anyhow::Result<()> {
+pub(crate) fn draw_legend(area: &Area<'_>, entries: &[Entry]) -> anyhow::Result<()> {
     for (i, e) in entries.iter().enumerate() {
         let y = 24 + LEGEND_ROW * i as i32;
         let (tx, font) = if e.key == Key::Heading {
@@ -349,14 +349,4 @@ pub fn draw_legend(area: &Area<'_>, entries: &[Entry]) -> anyhow::Result<()> {
         .map_err(err("legend"))?;
     }
     Ok(())
-}
-
-/// The line key of a series of `s`: its source's colour, dashed for a reference engine
-/// when `dashed_refs`.
-pub fn engine_key(s: Source, width: u32, dashed_refs: bool) -> Key {
-    Key::Line {
-        colour: s.colour(),
-        dashed: dashed_refs && s.dashed(),
-        width,
-    }
 }

@@ -2,7 +2,7 @@
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-pub fn bar(show: bool, len: u64, label: &str) -> ProgressBar {
+pub(crate) fn bar(show: bool, len: u64, label: &str) -> ProgressBar {
     if !show {
         return ProgressBar::hidden();
     }

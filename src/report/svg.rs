@@ -64,7 +64,7 @@ impl<'a> FdrSeries<'a> {
 /// Overlay of FDRs, each fit a dashed line in its engine's colour over the fit's own h
 /// range (`h_lo..h_hi`), labelled with the fitted law and its values. Axis labels
 /// follow eq 5; the difference panel is p_reference - p_native.
-pub fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], caption: &Caption) -> Result<()> {
+pub(crate) fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], caption: &Caption) -> Result<()> {
     ensure!(!series.is_empty(), "fdr_overlay: no series to plot");
     for s in series {
         ensure!(
@@ -132,7 +132,7 @@ pub struct SweepSeries<'a> {
 /// +- 1 SE bars and its single beds, and the paper's published values where it gives
 /// them (`paper`, NaN where it does not). Series are offset slightly along x so their
 /// bars do not hide each other.
-pub fn k_phi_sweep(
+pub(crate) fn k_phi_sweep(
     path: &Path,
     caption: &Caption,
     x_label: &str,
@@ -147,7 +147,7 @@ pub fn k_phi_sweep(
 /// and its single beds, and published values where given (`paper`, NaN where none).
 /// Series are offset slightly along x so their bars do not hide each other. The sweep
 /// is the x axis, so each series is its engine's colour (published values black).
-pub fn sweep_with_error_bars(
+pub(crate) fn sweep_with_error_bars(
     path: &Path,
     caption: &Caption,
     x_label: &str,

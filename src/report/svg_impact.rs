@@ -14,7 +14,11 @@ use std::path::Path;
 pub type DepthSeries<'a> = Line<'a>;
 
 /// D / d against t / tau_c, one line per engine and variant.
-pub fn depth_overlay(path: &Path, series: &[DepthSeries<'_>], caption: &Caption) -> Result<()> {
+pub(crate) fn depth_overlay(
+    path: &Path,
+    series: &[DepthSeries<'_>],
+    caption: &Caption,
+) -> Result<()> {
     overlay(
         path,
         caption,
@@ -58,7 +62,7 @@ pub fn curves(
 
 /// Every grain as a dot at (x, y) (in d) coloured by `value` on `scale` (K Figs 24-27's
 /// maps), with its colour bar labelled `value_label`.
-pub fn grain_map(
+pub(crate) fn grain_map(
     path: &Path,
     points: &[(f64, f64, f64)],
     scale: Scale,

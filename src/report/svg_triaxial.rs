@@ -10,7 +10,11 @@ use std::path::Path;
 /// A line of (eps_a, phi_mob in degrees).
 pub type PhiSeries<'a> = Line<'a>;
 
-pub fn phi_mob_overlay(path: &Path, series: &[PhiSeries<'_>], caption: &Caption) -> Result<()> {
+pub(crate) fn phi_mob_overlay(
+    path: &Path,
+    series: &[PhiSeries<'_>],
+    caption: &Caption,
+) -> Result<()> {
     overlay(
         path,
         caption,

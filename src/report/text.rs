@@ -11,7 +11,7 @@ use crate::compare::{Check, Status};
 /// unescaped `|`, even inside code spans, so `max |dx| / r_min` would shift every cell
 /// after it: pipes, and the characters that would start emphasis, code, links or HTML,
 /// are backslash-escaped (CommonMark 0.31 section 2.4; GFM section 4.10 for `\|`).
-pub fn md_cell(s: &str) -> String {
+pub(crate) fn md_cell(s: &str) -> String {
     let s = visible(s);
     let chars: Vec<char> = s.chars().collect();
     let mut out = String::with_capacity(s.len() + 8);
@@ -41,7 +41,7 @@ pub fn md_cell(s: &str) -> String {
 /// Control characters (other than tab and line breaks) as `\xNN`: an engine's output
 /// copied into a detail may hold ANSI escapes or NUL bytes, which XML 1.0 forbids and a
 /// terminal would interpret.
-pub fn visible(s: &str) -> String {
+pub(crate) fn visible(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for ch in s.chars() {
         match ch {
