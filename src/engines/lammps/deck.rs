@@ -231,7 +231,7 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     paragraphs.push(format!(
         "Run it in this directory: `lmp -in {DECK_FILE} -log log.lammps`, or with N MPI \
          processes `mpirun -np N lmp -in {DECK_FILE} -log log.lammps`; then `granval analyze \
-         DIR` (README.txt)."
+         DIR --report OUT` (README.txt)."
     ));
     write_header(
         &mut s,

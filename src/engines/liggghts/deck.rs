@@ -452,7 +452,7 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
                 format!(
                     "Run it in this directory: `liggghts -in {} -log log.liggghts`, or with N MPI \
                      processes `mpirun -np N liggghts -in {} -log log.liggghts`; then \
-                     `granval analyze DIR` (README.txt).",
+                     `granval analyze DIR --report OUT` (README.txt).",
                     super::DECK_FILE,
                     super::DECK_FILE
                 ),

@@ -464,7 +464,7 @@ pub(crate) fn deck_text_with_snapshots(
     paragraphs.push(format!(
         "Run it in this directory: `liggghts -in {DECK_FILE} -log {LOG_FILE}`, or with N MPI \
          processes `mpirun -np N liggghts -in {DECK_FILE} -log {LOG_FILE}`; then `granval \
-         analyze DIR` (README.md)."
+         analyze DIR --report OUT` (README.md)."
     ));
     deck_text::write_header(
         &mut s,
@@ -907,8 +907,10 @@ fn readme_text(d: &PenetrationDeck, segments: usize) -> String {
            intruder's bottom face ({len_unit}) and the force of the grains on the intruder ({force_unit}; fz > 0 = the bed \
            pushes the intruder up), printed with 17+ significant digits.\n\
          - `{LOG_FILE}` (output): LIGGGHTS log, thermo line every {thermo} steps (~1 % of the run).\n\n\
-         ## Analysis\n\n    granval analyze DIR\n\n\
-         reads `{FORCE_FILE}` (converted to SI) from this directory DIR.\n",
+         ## Analysis\n\n    granval analyze DIR --report OUT\n\n\
+         with DIR the deck directory that holds this run directory and `case.toml` (a run \
+         directory of `granval compare` is read the same way): reads `{FORCE_FILE}` (converted \
+         to SI) from here and writes the report to OUT.\n",
         r = d.intruder_radius,
         len = d.intruder_length,
         speed = d.speed,

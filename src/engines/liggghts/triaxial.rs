@@ -186,7 +186,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
     paragraphs.push(format!(
         "Run it in this directory: `liggghts -in {DECK_FILE} -log {LOG_FILE}`, or with N MPI \
          processes `mpirun -np N liggghts -in {DECK_FILE} -log {LOG_FILE}`; then `granval \
-         analyze DIR`."
+         analyze DIR --report OUT`."
     ));
     deck_text::write_header(
         &mut s,
