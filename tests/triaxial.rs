@@ -172,3 +172,63 @@ fn the_liggghts_deck_runs_and_agrees_with_the_native_run_at_first() {
     );
     assert!(worst.0 < 1e-9, "{worst:?}");
 }
+
+/// `granval analyze` of a triaxial deck directory takes a run only from the inputs
+/// granval writes: an edited deck, data file or wall mesh is refused naming the file,
+/// before any output is read (it used to be taken with a note). The unedited directory
+/// passes the input check and fails only on the missing LIGGGHTS outputs. No engine runs.
+#[test]
+fn a_triaxial_run_by_hand_from_edited_inputs_is_refused() {
+    use granval::experiments::Experiment;
+    let c = tiny_case();
+    let s = tiny_sample().clone();
+    let u = Unit {
+        seed: 1,
+        sigma_c: 1000.0,
+        sample_hash: sample_hash(&s),
+        sample: s,
+    };
+    let exp = granval::experiments::triaxial::Triaxial { case: c.clone() };
+    let tmp = tempfile::tempdir().unwrap();
+    lt::write_deck_dir(&liggghts_deck(&c, &u), tmp.path()).unwrap();
+    let err = |dir: &std::path::Path| match exp.read_run_dir(&u, dir) {
+        Ok(_) => panic!("a deck directory without outputs was read"),
+        Err(e) => format!("{e:#}"),
+    };
+    let unedited = err(tmp.path());
+    assert!(
+        !unedited.contains("not the input granval writes"),
+        "{unedited}"
+    );
+    for (file, from, to) in [
+        (lt::DECK_FILE, "\ntimestep ", "\ntimestep 1e-12 # was "),
+        (lt::DATA_FILE, " atoms\n", " atoms\n\n"),
+        (lt::STL_FILES[0], "vertex ", "vertex 1e-9 "),
+    ] {
+        let p = tmp.path().join(file);
+        let text = std::fs::read_to_string(&p).unwrap();
+        let edited = if file == lt::DATA_FILE {
+            // One grain's diameter changed by a part in 1e12.
+            let k = text.find("\nAtoms\n\n").unwrap() + 8;
+            let line_end = k + text[k..].find('\n').unwrap();
+            let mut w: Vec<String> = text[k..line_end]
+                .split_whitespace()
+                .map(String::from)
+                .collect();
+            let d: f64 = w[2].parse().unwrap();
+            w[2] = format!("{:e}", d * (1.0 + 1e-12));
+            format!("{}{}{}", &text[..k], w.join(" "), &text[line_end..])
+        } else {
+            assert!(text.contains(from), "{file}");
+            text.replacen(from, to, 1)
+        };
+        assert_ne!(edited, text);
+        std::fs::write(&p, &edited).unwrap();
+        let e = err(tmp.path());
+        assert!(
+            e.contains(file) && e.contains("not the input granval writes"),
+            "{file}: {e}"
+        );
+        std::fs::write(&p, &text).unwrap();
+    }
+}

@@ -393,7 +393,13 @@ impl Experiment for Triaxial {
         Ok(run)
     }
 
+    /// A run by hand is taken only from the inputs `granval deck` writes for this case
+    /// and sample (deck, data file, the six wall meshes; comments and number notation
+    /// aside), as every other kind's: an edited input is refused, naming the file.
     fn read_run_dir(&self, u: &Unit, dir: &Path) -> Result<TriaxialRun> {
+        for (name, text) in lt::inputs(&liggghts_deck(&self.case, u))? {
+            crate::engines::deck_text::check_same_input(dir, name, &text, name == lt::DATA_FILE)?;
+        }
         self.read_liggghts(u, dir)
     }
 
