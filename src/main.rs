@@ -1427,12 +1427,6 @@ fn deck(a: DeckArgs) -> Result<ExitCode> {
             e.name()
         );
     }
-    if viz.is_some() && kind == "triaxial" {
-        bail!(
-            "{}: --viz: the triaxial deck has no visualisation dump (penetration, micro and impact2d decks have)",
-            case.display()
-        );
-    }
     let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
     let dirs = match c {
         AnyCase::Penetration(c) if lammps_penetration => {

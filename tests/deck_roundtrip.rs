@@ -413,8 +413,7 @@ fn validate_prints_the_derived_quantities_and_runs_nothing() {
 
 /// `--viz` without an engine: the LAMMPS 2025 micro deck gets the LAMMPS text dump, the
 /// LIGGGHTS one the VTK dump, each before the run and once; an interval outside the run
-/// and a triaxial deck (which has no visualisation dump) are refused with exit 2, naming
-/// the option, and nothing is written.
+/// is refused with exit 2, naming the option, and no README is written.
 #[test]
 fn deck_viz_writes_the_engines_dump_and_refuses_what_it_cannot() {
     let tmp = tempfile::tempdir().unwrap();
@@ -441,7 +440,6 @@ fn deck_viz_writes_the_engines_dump_and_refuses_what_it_cannot() {
     for (k, (case, viz)) in [
         ("cases/micro/head-on-e05.toml", "0"),
         ("cases/micro/head-on-e05.toml", "1000000"),
-        ("cases/release/triaxial-table2.toml", "10"),
     ]
     .into_iter()
     .enumerate()

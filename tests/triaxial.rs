@@ -232,3 +232,42 @@ fn a_triaxial_run_by_hand_from_edited_inputs_is_refused() {
         std::fs::write(&p, &text).unwrap();
     }
 }
+
+/// `--viz N` on a triaxial deck: the deck declares its VTK dump before the shear's `run`,
+/// and a run by hand from it passes the input check (it fails only on the missing
+/// outputs); the dump edited (one more column) is another deck, refused. No engine runs.
+#[test]
+fn a_triaxial_deck_with_a_visualisation_dump_is_still_granvals() {
+    use granval::experiments::Experiment;
+    let c = tiny_case();
+    let s = tiny_sample().clone();
+    let u = Unit {
+        seed: 1,
+        sigma_c: 1000.0,
+        sample_hash: sample_hash(&s),
+        sample: s,
+    };
+    let exp = granval::experiments::triaxial::Triaxial { case: c.clone() };
+    let tmp = tempfile::tempdir().unwrap();
+    let opts = granval::experiments::Options {
+        viz_every: Some(50),
+        ..common::options()
+    };
+    exp.write_deck(&u, tmp.path(), &opts).unwrap();
+    let p = tmp.path().join(lt::DECK_FILE);
+    let deck = std::fs::read_to_string(&p).unwrap();
+    let line = "dump viz all custom/vtk 50 viz-*.vtk id type radius";
+    assert!(
+        deck.find(line).unwrap() < deck.rfind("\nrun ").unwrap(),
+        "{deck}"
+    );
+    let err = || match exp.read_run_dir(&u, tmp.path()) {
+        Ok(_) => panic!("a deck directory without outputs was read"),
+        Err(e) => format!("{e:#}"),
+    };
+    let e = err();
+    assert!(!e.contains("not the input granval writes"), "{e}");
+    std::fs::write(&p, deck.replace("omegaz", "omegaz density")).unwrap();
+    let e = err();
+    assert!(e.contains("not the input granval writes"), "{e}");
+}

@@ -1,8 +1,9 @@
-//! The visualisation dump of `granval deck --viz N` for the decks that carry no manifest
-//! of their own (micro in LIGGGHTS or LAMMPS 2025, the 2D impact in LAMMPS 2021): one
-//! extra `dump viz` block before the deck's final `run`, written beside the measurement
-//! and never read by granval. (The penetration decks record `--viz` in their
-//! `inputs.json`, `engines::liggghts::penetration`.)
+//! The visualisation dump of `granval deck --viz N` for the decks that carry no `--viz`
+//! in a manifest of their own (micro in LIGGGHTS or LAMMPS 2025, the 2D impact in LAMMPS
+//! 2021, the triaxial shear, penetration in LAMMPS 2025): one extra `dump viz` block
+//! before the deck's final `run`, written beside the measurement and never read by
+//! granval. (The LIGGGHTS penetration decks record `--viz` in their `inputs.json` and
+//! dump the intruder mesh too, `engines::liggghts::penetration`.)
 //!
 //! A deck brought back to `granval analyze` declares its dump itself: the interval is
 //! read from its `dump viz` command ([`declared`]) and the deck is then checked against

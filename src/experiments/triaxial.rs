@@ -150,11 +150,18 @@ impl Triaxial {
         }
     }
 
-    fn read_liggghts(&self, u: &Unit, dir: &Path) -> Result<TriaxialRun> {
+    /// The outputs of a LIGGGHTS run in `dir`. `inputs_checked`: the caller proved the
+    /// inputs are granval's (a run by hand); otherwise (a record, whose seal proves its
+    /// fingerprint) a deck that reads differently from today's is noted.
+    fn read_liggghts(&self, u: &Unit, dir: &Path, inputs_checked: bool) -> Result<TriaxialRun> {
         let d = liggghts_deck(&self.case, u);
         let (records, mut provenance) = lt::read_outputs(&d, dir)
             .with_context(|| format!("LIGGGHTS run in {}", dir.display()))?;
-        if let Ok(on_disk) = crate::rundata::fsio::read_to_string(
+        if inputs_checked {
+            // The fingerprint of what granval writes, without a declared visualisation
+            // dump (which changes what is written, not what is computed).
+            provenance.input_hash = lt::input_hash_of(&d)?;
+        } else if let Ok(on_disk) = crate::rundata::fsio::read_to_string(
             &dir.join(lt::DECK_FILE),
             crate::rundata::fsio::max_engine_output(),
             "a LIGGGHTS deck",
@@ -333,8 +340,18 @@ impl Experiment for Triaxial {
         })
     }
 
-    fn write_deck(&self, u: &Unit, dir: &Path, _opts: &Options) -> Result<()> {
-        lt::write_deck_dir(&liggghts_deck(&self.case, u), dir)
+    fn write_deck(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<()> {
+        use crate::engines::viz_dump::{self, VizEngine};
+        let d = liggghts_deck(&self.case, u);
+        lt::write_deck_dir(&d, dir)?;
+        if let Some(n) = opts.viz_every {
+            let p = dir.join(lt::DECK_FILE);
+            let text = std::fs::read_to_string(&p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            std::fs::write(&p, viz_dump::add(&text, VizEngine::Liggghts, n, d.n_steps)?)
+                .with_context(|| format!("cannot write {}", p.display()))?;
+        }
+        Ok(())
     }
 
     fn run_reference(&self, u: &Unit, dir: &Path, opts: &Options) -> Result<TriaxialRun> {
@@ -388,7 +405,7 @@ impl Experiment for Triaxial {
             recorded.engine
         );
         let dir = seal.unit_files(name)?;
-        let mut run = self.read_liggghts(u, &dir)?;
+        let mut run = self.read_liggghts(u, &dir, false)?;
         run.provenance = recorded;
         Ok(run)
     }
@@ -396,11 +413,23 @@ impl Experiment for Triaxial {
     /// A run by hand is taken only from the inputs `granval deck` writes for this case
     /// and sample (deck, data file, the six wall meshes; comments and number notation
     /// aside), as every other kind's: an edited input is refused, naming the file.
+    /// A deck written with `--viz N` declares its dump, and is checked as written with it.
     fn read_run_dir(&self, u: &Unit, dir: &Path) -> Result<TriaxialRun> {
-        for (name, text) in lt::inputs(&liggghts_deck(&self.case, u))? {
+        use crate::engines::viz_dump::{self, VizEngine};
+        let d = liggghts_deck(&self.case, u);
+        let mut viz = None;
+        for (name, mut text) in lt::inputs(&d)? {
+            if name == lt::DECK_FILE {
+                (text, viz) =
+                    viz_dump::expected_deck(dir, name, &text, VizEngine::Liggghts, d.n_steps)?;
+            }
             crate::engines::deck_text::check_same_input(dir, name, &text, name == lt::DATA_FILE)?;
         }
-        self.read_liggghts(u, dir)
+        let mut run = self.read_liggghts(u, dir, true)?;
+        run.provenance
+            .notes
+            .extend(viz.map(|n| viz_dump::note(n, VizEngine::Liggghts)));
+        Ok(run)
     }
 
     fn deck_files(&self) -> DeckFiles {
