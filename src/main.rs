@@ -1236,10 +1236,15 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     let own = EngineName::reference_of(&c);
     if engine != EngineName::Native && engine != own {
         bail!(
-            "{}: --engine {}: a {} case runs in the native engine or its reference engine, {} (use native or {})",
+            "{}: --engine {}: a {} case ({}) runs in the native engine or its reference engine, {} (use native or {})",
             case.display(),
             engine.name(),
             c.kind(),
+            if matches!(c, AnyCase::Impact2d(_)) {
+                "2D"
+            } else {
+                "3D"
+            },
             own.name(),
             own.name()
         );
