@@ -24,6 +24,17 @@ fn tiny_case() -> TriaxialCase {
     c
 }
 
+/// The unit of the tiny sample (seed 1, 1 kPa).
+fn tiny_unit() -> Unit {
+    let s = tiny_sample().clone();
+    Unit {
+        seed: 1,
+        sigma_c: 1000.0,
+        sample_hash: sample_hash(&s),
+        sample: s,
+    }
+}
+
 /// The tiny sample, compacted once for every test of this file.
 fn tiny_sample() -> &'static Sample {
     static S: OnceLock<Sample> = OnceLock::new();
@@ -111,13 +122,7 @@ fn the_liggghts_deck_runs_and_agrees_with_the_native_run_at_first() {
         return;
     }
     let c = tiny_case();
-    let s = tiny_sample().clone();
-    let u = Unit {
-        seed: 1,
-        sigma_c: 1000.0,
-        sample_hash: sample_hash(&s),
-        sample: s,
-    };
+    let u = tiny_unit();
     let steps = 1000;
     let mut d = liggghts_deck(&c, &u);
     d.n_steps = steps;
@@ -181,13 +186,7 @@ fn the_liggghts_deck_runs_and_agrees_with_the_native_run_at_first() {
 fn a_triaxial_run_by_hand_from_edited_inputs_is_refused() {
     use granval::experiments::Experiment;
     let c = tiny_case();
-    let s = tiny_sample().clone();
-    let u = Unit {
-        seed: 1,
-        sigma_c: 1000.0,
-        sample_hash: sample_hash(&s),
-        sample: s,
-    };
+    let u = tiny_unit();
     let exp = granval::experiments::triaxial::Triaxial { case: c.clone() };
     let tmp = tempfile::tempdir().unwrap();
     lt::write_deck_dir(&liggghts_deck(&c, &u), tmp.path()).unwrap();
@@ -240,13 +239,7 @@ fn a_triaxial_run_by_hand_from_edited_inputs_is_refused() {
 fn a_triaxial_deck_with_a_visualisation_dump_is_still_granvals() {
     use granval::experiments::Experiment;
     let c = tiny_case();
-    let s = tiny_sample().clone();
-    let u = Unit {
-        seed: 1,
-        sigma_c: 1000.0,
-        sample_hash: sample_hash(&s),
-        sample: s,
-    };
+    let u = tiny_unit();
     let exp = granval::experiments::triaxial::Triaxial { case: c.clone() };
     let tmp = tempfile::tempdir().unwrap();
     let opts = granval::experiments::Options {
