@@ -851,37 +851,77 @@ impl Impact2dCase {
     /// What the runs depend on (scales, bed, intruder, protocol, every variant), not the
     /// name, description, analysis window, claim, tolerances or controls. A recorded
     /// reference is sealed to its sha256.
+    ///
+    /// The struct is destructured exhaustively: a new field does not compile until it is
+    /// placed in the view or named below as not physics.
     pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
+        let Impact2dCase {
+            scales,
+            dt,
+            n_steps,
+            output_every,
+            energy_every,
+            skin,
+            base_packing,
+            count,
+            length,
+            polydispersity,
+            seed,
+            seeds,
+            initial_speed,
+            settle_ke,
+            max_settle_time,
+            wall_d,
+            top_gap,
+            shape,
+            intruder_mass,
+            release_height,
+            walls_as_grains,
+            fields,
+            track_interface,
+            base,
+            variants,
+            // Not physics: labels, the analysis window and claims, how the runs are
+            // judged, and the name of the swept parameter (its values are in `variants`).
+            name: _,
+            description: _,
+            source: _,
+            final_window: _,
+            sweep_parameter: _,
+            claims: _,
+            tolerances: _,
+            negative_controls: _,
+        } = self;
         let mut view = serde_json::json!({
             "kind": "impact2d",
-            "scales": self.scales,
-            "dt": self.dt,
-            "n_steps": self.n_steps,
-            "output_every": self.output_every,
-            "energy_every": self.energy_every,
-            "skin": self.skin,
-            "bed": [self.count as f64, self.length, self.polydispersity, self.seed as f64, self.initial_speed, self.settle_ke, self.max_settle_time, self.wall_d, self.top_gap],
-            "base_packing": self.base_packing,
-            "shape": self.shape,
-            "intruder": [self.intruder_mass, self.release_height],
-            "base": self.base,
-            "variants": self.variants,
+            "scales": scales,
+            "dt": dt,
+            "n_steps": n_steps,
+            "output_every": output_every,
+            "energy_every": energy_every,
+            "skin": skin,
+            "bed": [*count as f64, length, polydispersity, *seed as f64, initial_speed, settle_ke, max_settle_time, wall_d, top_gap],
+            "base_packing": base_packing,
+            "shape": shape,
+            "intruder": [intruder_mass, release_height],
+            "base": base,
+            "variants": variants,
         });
         // Added with the bed fields (K Sec. IV); absent from the view when unused, so the
         // hashes of cases written before them, and their seals, stay as they were.
-        if self.walls_as_grains {
+        if *walls_as_grains {
             view["walls_as_grains"] = serde_json::json!(true);
         }
-        if let Some(f) = &self.fields {
+        if let Some(f) = fields {
             view["fields"] = serde_json::json!(f);
         }
         // Added with seed ensembles; absent for one bed, so the hashes (and seals) of
         // the cases written before stay as they were.
         if self.is_ensemble() {
-            view["seeds"] = serde_json::json!(self.seeds);
+            view["seeds"] = serde_json::json!(seeds);
         }
         // Added with the interface tracers (K Fig 12), the same way.
-        if self.track_interface {
+        if *track_interface {
             view["interface_tracers"] =
                 serde_json::json!([TRACER_DEPTH, TRACER_MIN_DISTANCE, MIN_TRACERS]);
         }

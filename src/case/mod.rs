@@ -349,28 +349,59 @@ impl Case {
     /// description, file location, tolerances or controls. A recorded reference is
     /// sealed to its sha256, so a reformatted case file keeps its record while a changed
     /// friction coefficient (or another case's record) is refused.
+    ///
+    /// The struct is destructured exhaustively: a field added to [`Case`] does not compile
+    /// until it is either placed in the view or named below as not physics, so nothing a
+    /// run depends on can be left out of the seal by oversight.
     pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
+        let Case {
+            dt,
+            n_steps,
+            output_every,
+            gravity,
+            neighbor_skin,
+            rolling,
+            family,
+            domain_lo,
+            domain_hi,
+            materials,
+            pairs,
+            particles,
+            walls,
+            clumps,
+            // Not physics: labels, where the file is, how the runs are judged, and a
+            // quantity derived from the sealed materials and particles.
+            name: _,
+            kind: _,
+            description: _,
+            source: _,
+            tolerances: _,
+            rayleigh_time: _,
+            negative_controls: _,
+            expect: _,
+            warnings: _,
+        } = self;
         let mut view = serde_json::json!({
             "kind": "micro",
-            "dt": self.dt,
-            "n_steps": self.n_steps,
-            "output_every": self.output_every,
-            "gravity": self.gravity,
-            "neighbor_skin": self.neighbor_skin,
-            "rolling": self.rolling,
-            "domain": [self.domain_lo, self.domain_hi],
-            "materials": self.materials,
-            "pairs": self.pairs,
-            "particles": self.particles,
-            "walls": self.walls,
+            "dt": dt,
+            "n_steps": n_steps,
+            "output_every": output_every,
+            "gravity": gravity,
+            "neighbor_skin": neighbor_skin,
+            "rolling": rolling,
+            "domain": [domain_lo, domain_hi],
+            "materials": materials,
+            "pairs": pairs,
+            "particles": particles,
+            "walls": walls,
         });
         // Only LAMMPS-family cases carry the key, so every LIGGGHTS seal stays valid.
-        if let ContactFamily::Lammps(m) = &self.family {
+        if let ContactFamily::Lammps(m) = family {
             view["lammps"] = serde_json::json!(m);
         }
         // Only clump cases carry the key, so every sphere-only seal stays valid.
-        if !self.clumps.is_empty() {
-            view["clumps"] = serde_json::json!(self.clumps);
+        if !clumps.is_empty() {
+            view["clumps"] = serde_json::json!(clumps);
         }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }

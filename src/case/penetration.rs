@@ -476,29 +476,84 @@ impl PenetrationCase {
     /// What the runs of this case depend on, in a fixed form: the physics, bed and
     /// intruder protocol, not the name, description, analysis ranges, tolerances,
     /// published values or controls. A recorded reference is sealed to its sha256.
+    ///
+    /// The struct is destructured exhaustively: a new field does not compile until it is
+    /// placed in the view or named below as not physics.
     pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
+        let PenetrationCase {
+            dt,
+            gravity,
+            neighbor_skin,
+            rolling,
+            family,
+            materials,
+            pairs,
+            settle_pairs,
+            container_radius,
+            container_height,
+            wall_type,
+            grain_type,
+            intruder_type,
+            density,
+            diameter,
+            count,
+            clump,
+            seed,
+            settle_ke_ratio,
+            max_settle_time,
+            intruder_radius,
+            intruder_length,
+            speed,
+            start_gap,
+            final_depth,
+            force_every,
+            stl_rim_error,
+            ensemble_beds,
+            // Not physics: labels; the fit and binning of the force-depth relation; the
+            // contact snapshots' depths and windows (what is written, not what is
+            // computed); the quasi-static rerun's speed (a control of its own, judged
+            // by its own gate); tolerances, published values and controls; the
+            // estimator choices; and a time derived from the sealed materials.
+            name: _,
+            description: _,
+            source: _,
+            fit_h_min: _,
+            h_bin: _,
+            snapshot_h: _,
+            snapshot_window: _,
+            snapshot_window_h: _,
+            tolerances: _,
+            quasi_static_speed: _,
+            published: _,
+            published_phi: _,
+            rayleigh_time: _,
+            negative_controls: _,
+            k_phi_range: _,
+            phi_estimator: _,
+            warnings: _,
+        } = self;
         let mut view = serde_json::json!({
             "kind": "penetration",
-            "dt": self.dt,
-            "gravity": self.gravity,
-            "neighbor_skin": self.neighbor_skin,
-            "rolling": self.rolling,
-            "materials": self.materials,
-            "pairs": self.pairs,
-            "container": [self.container_radius, self.container_height, self.wall_type],
-            "grains": [self.grain_type, self.density, serde_json::to_value(self.diameter).unwrap_or_default(), self.count, self.seed],
-            "preparation": [self.settle_ke_ratio, self.max_settle_time],
-            "intruder": [self.intruder_type, self.intruder_radius, self.intruder_length, self.speed, self.start_gap, self.final_depth, self.force_every as f64, self.stl_rim_error],
-            "beds": self.ensemble_beds,
+            "dt": dt,
+            "gravity": gravity,
+            "neighbor_skin": neighbor_skin,
+            "rolling": rolling,
+            "materials": materials,
+            "pairs": pairs,
+            "container": [container_radius, container_height, wall_type],
+            "grains": [grain_type, density, serde_json::to_value(diameter).unwrap_or_default(), count, seed],
+            "preparation": [settle_ke_ratio, max_settle_time],
+            "intruder": [intruder_type, intruder_radius, intruder_length, speed, start_gap, final_depth, *force_every as f64, stl_rim_error],
+            "beds": ensemble_beds,
         });
         // Only when present, so the hashes (and seals) of cases without it are unchanged.
-        if let (ContactFamily::Lammps(m), Some(o)) = (&self.family, view.as_object_mut()) {
+        if let (ContactFamily::Lammps(m), Some(o)) = (family, view.as_object_mut()) {
             o.insert("lammps".into(), serde_json::json!(m));
         }
-        if let (Some(p), Some(o)) = (&self.settle_pairs, view.as_object_mut()) {
+        if let (Some(p), Some(o)) = (settle_pairs, view.as_object_mut()) {
             o.insert("settle_pairs".into(), serde_json::json!(p));
         }
-        if let (Some(t), Some(o)) = (&self.clump, view.as_object_mut()) {
+        if let (Some(t), Some(o)) = (clump, view.as_object_mut()) {
             o.insert("clump".into(), serde_json::json!(t));
         }
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())

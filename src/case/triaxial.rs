@@ -176,20 +176,58 @@ impl TriaxialCase {
 
     /// What the runs depend on: physics, sample, servo, compaction and shear protocol;
     /// not the name, description, analysis windows, tolerances or controls.
+    ///
+    /// The struct is destructured exhaustively: a new field does not compile until it is
+    /// placed in the view or named below as not physics.
     pub fn canonical_hash(&self) -> crate::rundata::provenance::Sha256 {
+        let TriaxialCase {
+            dt,
+            neighbor_skin,
+            rolling,
+            materials,
+            pairs,
+            grain_type,
+            wall_type,
+            grains,
+            diameter,
+            density,
+            solid_fraction,
+            seeds,
+            servo,
+            stress_tolerance,
+            ke_factor,
+            max_compaction_time,
+            check_every,
+            confining_pressures,
+            strain_rate,
+            final_strain,
+            output_every,
+            // Not physics: labels, the analysis windows (peak, critical state, blocks),
+            // how the runs are judged, and a time derived from the sealed materials.
+            name: _,
+            description: _,
+            source: _,
+            peak_window: _,
+            critical_state: _,
+            block: _,
+            tolerances: _,
+            rayleigh_time: _,
+            negative_controls: _,
+            warnings: _,
+        } = self;
         let view = serde_json::json!({
             "kind": "triaxial",
-            "dt": self.dt,
-            "neighbor_skin": self.neighbor_skin,
-            "rolling": self.rolling,
-            "materials": self.materials,
-            "pairs": self.pairs,
-            "sample": [self.grain_type as f64, self.wall_type as f64, self.grains as f64, self.diameter, self.density, self.solid_fraction],
-            "seeds": self.seeds,
-            "servo": self.servo,
-            "compaction": [self.stress_tolerance, self.ke_factor, self.max_compaction_time, self.check_every as f64],
-            "shear": [self.strain_rate, self.final_strain, self.output_every as f64],
-            "pressures": self.confining_pressures,
+            "dt": dt,
+            "neighbor_skin": neighbor_skin,
+            "rolling": rolling,
+            "materials": materials,
+            "pairs": pairs,
+            "sample": [*grain_type as f64, *wall_type as f64, *grains as f64, diameter, density, solid_fraction],
+            "seeds": seeds,
+            "servo": servo,
+            "compaction": [stress_tolerance, ke_factor, max_compaction_time, *check_every as f64],
+            "shear": [strain_rate, final_strain, *output_every as f64],
+            "pressures": confining_pressures,
         });
         crate::rundata::provenance::Sha256::of(view.to_string().as_bytes())
     }
