@@ -152,19 +152,108 @@ fn references(p: &Path, modules: &BTreeSet<Vec<String>>) -> BTreeSet<Vec<String>
     out
 }
 
-#[test]
-fn imports_only_point_down_and_modules_form_no_cycle() {
+/// Every source file of src/ (lib.rs and main.rs excepted) with the modules it refers to.
+fn import_graph() -> Vec<(PathBuf, Vec<String>, BTreeSet<Vec<String>>)> {
     let mut all = Vec::new();
     files(&src(), &mut all);
     let modules: BTreeSet<Vec<String>> = all.iter().map(|p| module_of(p)).collect();
+    all.iter()
+        .filter(|p| !module_of(p).is_empty())
+        .map(|p| (p.clone(), module_of(p), references(p, &modules)))
+        .collect()
+}
+
+/// The top-level modules each layer may import (docs/architecture.md, "knows nothing
+/// of"): a layer below it is not enough. Analysis computes observables from run data
+/// and knows no engine and no physics; comparisons judge observables and know neither;
+/// reports render checks and know no engine, physics or experiment.
+const ALLOWED: &[(&str, &[&str])] = &[
+    ("numerics", &[]),
+    ("rundata", &["numerics"]),
+    ("case", &["numerics", "rundata"]),
+    ("physics", &["numerics", "rundata", "case"]),
+    ("engines", &["numerics", "rundata", "case", "physics"]),
+    ("analysis", &["numerics", "rundata", "case"]),
+    ("compare", &["numerics", "rundata", "case", "analysis"]),
+    (
+        "report",
+        &["numerics", "rundata", "case", "analysis", "compare"],
+    ),
+    (
+        "experiments",
+        &[
+            "numerics", "rundata", "case", "physics", "engines", "analysis", "compare", "report",
+            "bench",
+        ],
+    ),
+    (
+        "bench",
+        &[
+            "numerics",
+            "rundata",
+            "case",
+            "physics",
+            "engines",
+            "experiments",
+        ],
+    ),
+];
+
+/// The edges of `graph` (module -> the modules it refers to) between top-level modules
+/// that [`ALLOWED`] does not list, one line each.
+fn forbidden_edges<'a>(
+    graph: impl IntoIterator<Item = (&'a [String], &'a BTreeSet<Vec<String>>)>,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    for (me, refs) in graph {
+        let allowed = ALLOWED
+            .iter()
+            .find(|(m, _)| *m == me[0])
+            .unwrap_or_else(|| panic!("top-level module {} is not in ALLOWED", me[0]))
+            .1;
+        for r in refs {
+            if r[0] != me[0] && !allowed.contains(&r[0].as_str()) {
+                out.push(format!("{} -> {}", me.join("::"), r.join("::")));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn every_layer_imports_only_what_it_may_know() {
+    let graph = import_graph();
+    let bad = forbidden_edges(graph.iter().map(|(_, m, r)| (m.as_slice(), r)));
+    assert!(
+        bad.is_empty(),
+        "imports of a layer it must know nothing of:\n{}",
+        bad.join("\n")
+    );
+}
+
+/// Negative control: an analysis module that imports the physics, and a comparison
+/// that imports an engine, are caught; a comparison importing the analysis is not.
+#[test]
+fn a_forbidden_edge_is_caught() {
+    let v = |s: &str| s.split("::").map(str::to_string).collect::<Vec<String>>();
+    let (a, c) = (v("analysis::stress_fields"), v("compare::trajectory"));
+    let ra: BTreeSet<Vec<String>> = [v("physics::dem::packing"), v("rundata::snapshot")].into();
+    let rc: BTreeSet<Vec<String>> = [v("engines::liggghts"), v("analysis::stress")].into();
+    assert_eq!(
+        forbidden_edges([(a.as_slice(), &ra), (c.as_slice(), &rc)]),
+        [
+            "analysis::stress_fields -> physics::dem::packing",
+            "compare::trajectory -> engines::liggghts"
+        ]
+    );
+}
+
+#[test]
+fn imports_only_point_down_and_modules_form_no_cycle() {
     let mut graph: BTreeMap<Vec<String>, BTreeSet<Vec<String>>> = BTreeMap::new();
     let mut upward = Vec::new();
-    for p in &all {
-        let me = module_of(p);
-        if me.is_empty() {
-            continue; // lib.rs / main.rs
-        }
-        let refs = references(p, &modules);
+    for (p, me, refs) in import_graph() {
+        let p = &p;
         let my_rank = rank(&me[0]).unwrap_or_else(|| {
             panic!(
                 "{}: top-level module {} is in no layer of docs/architecture.md",

@@ -113,8 +113,13 @@ fn native(case: &PenetrationCase, bed: &Bed) -> Vec<Snapshot> {
         &STEPS,
         |sim| {
             let zb = sim.intruder().unwrap().body.bottom_z();
-            let meta =
-                granval::analysis::stress_fields::snapshot_meta(case, bed, "native", sim.step, zb);
+            let meta = granval::analysis::stress_fields::snapshot_meta(
+                case,
+                &granval::experiments::penetration::bed_run(case, bed),
+                "native",
+                sim.step,
+                zb,
+            );
             out.push(sim.snapshot(meta));
             Ok(())
         },

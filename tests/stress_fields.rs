@@ -343,7 +343,10 @@ fn native_snapshots_give_finite_phi_and_the_negative_control_fails() {
     let dir = tempfile::tempdir().unwrap();
     // The experiment's own native run of the bed with the stress option: snapshots in
     // dir/snapshots, the force series in dir/force.csv.
-    let plan = stress_fields::snapshot_plan(&case, &bed);
+    let plan = stress_fields::snapshot_plan(
+        &case,
+        &granval::experiments::penetration::bed_run(&case, &bed),
+    );
     let unit = Unit {
         k: 0,
         bed_from_record: false,

@@ -29,7 +29,6 @@ use crate::analysis::coarse_grain::{
 };
 use crate::analysis::stress::{self, FieldAnalysis, Mask};
 use crate::case::penetration::PenetrationCase;
-use crate::physics::dem::packing::Bed;
 use crate::rundata::snapshot::{self, Snapshot, SnapshotMeta};
 use anyhow::{Context, Result, bail, ensure};
 use serde::{Deserialize, Serialize};
@@ -118,12 +117,26 @@ impl SnapshotPlan {
     }
 }
 
+/// What the snapshot plans and metadata need of a settled bed and of the penetration run
+/// from it. The experiment layer fills it from the bed and the engine's run
+/// (`experiments::penetration::bed_run`): the analysis knows no engine.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BedRun {
+    /// Height of the settled surface (m).
+    pub surface_z: f64,
+    /// The bed's solid fraction.
+    pub psi: f64,
+    /// Height of the intruder's bottom at step 0 (m).
+    pub start_z: f64,
+    /// Steps of the penetration to the final depth.
+    pub n_steps: u64,
+}
+
 /// The snapshot steps of `case` run from `bed`: per window of
 /// [`PenetrationCase::snapshot_windows`] the steps nearest to its depths; the last
 /// depth of the last window (the final depth) is the run's last step.
-pub fn snapshot_plan(case: &PenetrationCase, bed: &Bed) -> SnapshotPlan {
-    let n = crate::physics::dem::penetration::n_steps(case, bed);
-    let z0 = crate::physics::dem::penetration::start_z(case, bed);
+pub fn snapshot_plan(case: &PenetrationCase, bed: &BedRun) -> SnapshotPlan {
+    let (n, z0) = (bed.n_steps, bed.start_z);
     let per_step = case.speed * case.dt;
     let windows = case.snapshot_windows();
     let last = windows.len().saturating_sub(1);
@@ -188,9 +201,8 @@ pub(crate) fn convergence_label(n: usize) -> String {
 ///   spaced in depth over the last [`CONVERGENCE_SPAN_R`] R of travel, the last one at
 ///   the run's last step (n = 1: the last step alone), each at the step nearest to its
 ///   depth as in [`snapshot_plan`].
-pub fn study_plan(case: &PenetrationCase, bed: &Bed) -> SnapshotPlan {
-    let n = crate::physics::dem::penetration::n_steps(case, bed);
-    let z0 = crate::physics::dem::penetration::start_z(case, bed);
+pub fn study_plan(case: &PenetrationCase, bed: &BedRun) -> SnapshotPlan {
+    let (n, z0) = (bed.n_steps, bed.start_z);
     let per_step = case.speed * case.dt;
     let half = (case.start_gap / 2.0 / per_step).round();
     let mut null: Vec<u64> = (0..NULL_WINDOW_SNAPSHOTS)
@@ -235,7 +247,7 @@ pub fn study_plan(case: &PenetrationCase, bed: &Bed) -> SnapshotPlan {
 /// `z_bottom`.
 pub fn snapshot_meta(
     case: &PenetrationCase,
-    bed: &Bed,
+    bed: &BedRun,
     engine: &str,
     step: u64,
     z_bottom: f64,

@@ -15,8 +15,8 @@
 use super::coverage::MicroCoverage;
 use super::{Check, Gate};
 use crate::case::Case;
+use crate::numerics::quat::rotation_angle;
 use crate::numerics::vec3::{norm, sub};
-use crate::physics::dem::rigid::rotation_angle;
 use crate::rundata::frames::Frame;
 
 #[derive(Debug, Clone, Copy, Default)]

@@ -12,7 +12,7 @@ const SIZE: (u32, u32) = (720, 700);
 
 /// A cell field on the (r, z) plane, r fastest, cell size `spacing`, in units the caller
 /// chooses for the axes (we use intruder radii).
-pub struct RzMap<'a> {
+pub(crate) struct RzMap<'a> {
     pub nr: usize,
     pub nz: usize,
     pub r0: f64,
@@ -226,7 +226,7 @@ pub(crate) fn rz_map(
 
 /// A (phi, K_phi) point with its spreads (one standard deviation; 0 = none). Its style
 /// is data set by the code that measures it; `label` is the legend's text only.
-pub struct KPhiPoint<'a> {
+pub(crate) struct KPhiPoint<'a> {
     pub label: &'a str,
     /// Who produced the point: its colour.
     pub source: Source,
@@ -243,7 +243,7 @@ pub struct KPhiPoint<'a> {
 
 /// An angle measured independently of K_phi (rule 5's triaxial test): a vertical band
 /// `phi_deg +- half_width_deg` across the whole K axis.
-pub struct PhiBand<'a> {
+pub(crate) struct PhiBand<'a> {
     pub label: &'a str,
     /// Who measured the angle: the band's colour.
     pub source: Source,

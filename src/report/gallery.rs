@@ -22,7 +22,7 @@ use plotters::style::RGBColor;
 use std::path::{Path, PathBuf};
 
 /// The gallery's files, in the order docs/figures.md shows them.
-pub const FILES: [&str; 9] = [
+pub(crate) const FILES: [&str; 9] = [
     "fdr.svg",
     "depth.svg",
     "depth-sweep.svg",

@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 
 /// JUnit's `classname` of the checks that belong to no case (a suite's claims across
 /// cases).
-pub const CLAIMS_CLASS: &str = "claims across cases";
+pub(crate) const CLAIMS_CLASS: &str = "claims across cases";
 
 impl Report {
     pub fn junit(&self, title: &str) -> String {

@@ -26,9 +26,9 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// The report files of a report directory.
-pub const JSON_FILE: &str = "report.json";
-pub const MARKDOWN_FILE: &str = "report.md";
-pub const JUNIT_FILE: &str = "report.junit.xml";
+pub(crate) const JSON_FILE: &str = "report.json";
+pub(crate) const MARKDOWN_FILE: &str = "report.md";
+pub(crate) const JUNIT_FILE: &str = "report.junit.xml";
 
 /// How one case was run: which engines, and whether the reference was live or recorded.
 #[derive(Debug, Clone, Serialize, Deserialize)]

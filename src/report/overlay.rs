@@ -50,14 +50,14 @@ impl<'a> Line<'a> {
 /// A fitted law drawn as a dashed line in its engine's colour with its legend entry
 /// (the law and its fitted values).
 #[derive(Debug, Clone)]
-pub struct FitLine {
+pub(crate) struct FitLine {
     pub label: String,
     pub source: Source,
     pub points: Vec<(f64, f64)>,
 }
 
 /// Axis text of an overlay; `unit` is the unit of y in the difference panel.
-pub struct Axes<'a> {
+pub(crate) struct Axes<'a> {
     pub x: &'a str,
     pub y: &'a str,
     pub unit: &'a str,

@@ -16,23 +16,23 @@ pub const NATIVE: RGBColor = RGBColor(0x00, 0x72, 0xB2);
 pub const LIGGGHTS: RGBColor = RGBColor(0xD5, 0x5E, 0x00);
 pub const LAMMPS: RGBColor = RGBColor(0x00, 0x9E, 0x73);
 /// Published values (a paper's table or figure).
-pub const PAPER: RGBColor = RGBColor(0, 0, 0);
+pub(crate) const PAPER: RGBColor = RGBColor(0, 0, 0);
 /// Series that belong to no engine (an independently measured angle's band shares its
 /// engine's colour; this is for anything else): Okabe-Ito reddish purple.
-pub const OTHER: RGBColor = RGBColor(0xCC, 0x79, 0xA7);
+pub(crate) const OTHER: RGBColor = RGBColor(0xCC, 0x79, 0xA7);
 /// Field-map cells without a value (masked, empty, undefined): a grey no scale below
 /// contains, hatched with [`EMPTY_HATCH`].
-pub const EMPTY: RGBColor = RGBColor(0xC8, 0xC8, 0xC8);
-pub const EMPTY_HATCH: RGBColor = RGBColor(0x90, 0x90, 0x90);
+pub(crate) const EMPTY: RGBColor = RGBColor(0xC8, 0xC8, 0xC8);
+pub(crate) const EMPTY_HATCH: RGBColor = RGBColor(0x90, 0x90, 0x90);
 /// The intruder's section on a field map: a solid body, not a cell without data, so it
 /// is filled opaque in a dark neutral grey (no colour of either scale, and darker than
 /// [`EMPTY`], which is also hatched) and outlined in [`INTRUDER_EDGE`].
 pub(crate) const INTRUDER: RGBColor = RGBColor(0x60, 0x60, 0x60);
 pub(crate) const INTRUDER_EDGE: RGBColor = RGBColor(0, 0, 0);
 /// Zero lines and other guides.
-pub const GUIDE: RGBColor = RGBColor(0x80, 0x80, 0x80);
+pub(crate) const GUIDE: RGBColor = RGBColor(0x80, 0x80, 0x80);
 /// The frame and stamp of a negative-control figure (Okabe-Ito orange).
-pub const CONTROL: RGBColor = RGBColor(0xE6, 0x9F, 0x00);
+pub(crate) const CONTROL: RGBColor = RGBColor(0xE6, 0x9F, 0x00);
 
 /// Who produced a series. Every series carries its source as data, set where the
 /// series is built (from the run's [`EngineKind`], or by the code that reads a paper's
@@ -162,7 +162,7 @@ const RDBU: [(u8, u8, u8); 11] = [
 
 /// A colour scale of a field map.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Scale {
+pub(crate) enum Scale {
     /// viridis from `lo` (dark) to `hi` (yellow): a non-negative quantity (gamma, |v|,
     /// pressure, log10 of a magnitude).
     Sequential { lo: f64, hi: f64 },

@@ -13,7 +13,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
-pub const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 
 /// plotters' drawing errors carry a backend type parameter; flatten them.
 pub fn err<E: std::fmt::Debug>(what: &'static str) -> impl FnOnce(E) -> anyhow::Error {
@@ -82,7 +82,7 @@ impl From<&str> for Caption {
 
 /// How a legend entry's key is drawn.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Key {
+pub(crate) enum Key {
     Line {
         colour: RGBColor,
         dashed: bool,
@@ -123,7 +123,7 @@ impl Shape {
 }
 
 #[derive(Debug, Clone, PartialEq)]
-pub struct Entry {
+pub(crate) struct Entry {
     pub label: String,
     pub key: Key,
 }
@@ -137,7 +137,7 @@ impl Entry {
     }
 }
 
-pub type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
+pub(crate) type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
 
 const LEGEND_FONT: u32 = 13;
 const LEGEND_ROW: i32 = 19;

@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 /// One line of JSON on stdout (`--format json`): enough for a CI step to decide and
 /// point at the report without parsing it.
 #[derive(Debug, Serialize)]
-pub struct MachineSummary<'a> {
+pub(crate) struct MachineSummary<'a> {
     pub title: &'a str,
     pub verdict: &'static str,
     pub exit_code: i32,
@@ -34,7 +34,7 @@ pub struct MachineSummary<'a> {
 }
 
 #[derive(Debug, Serialize)]
-pub struct NotPassed<'a> {
+pub(crate) struct NotPassed<'a> {
     pub name: &'a str,
     pub case: &'a str,
     pub status: Status,

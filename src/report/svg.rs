@@ -32,7 +32,7 @@ fn range<'a>(vals: impl Iterator<Item = &'a f64>, what: &str) -> Result<(f64, f6
 /// One FDR series: its legend text, who produced it and its variant (see
 /// [`Line`]), h, p and the optional steady-state fit.
 #[derive(Debug, Clone, Copy)]
-pub struct FdrSeries<'a> {
+pub(crate) struct FdrSeries<'a> {
     pub label: &'a str,
     pub source: Source,
     pub variant: &'a str,
@@ -119,7 +119,7 @@ pub(crate) fn fdr_overlay(path: &Path, series: &[FdrSeries<'_>], caption: &Capti
 /// One engine's quantity along a sweep (K_phi of Feng et al., a seed ensemble's final
 /// depth of Kondic et al.): per point the value, its standard error and the single
 /// beds' values (drawn small, so the scatter a claim must beat is visible).
-pub struct SweepSeries<'a> {
+pub(crate) struct SweepSeries<'a> {
     pub label: &'a str,
     /// Who produced the values: the series' colour.
     pub source: Source,

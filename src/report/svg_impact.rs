@@ -34,7 +34,7 @@ pub(crate) fn depth_overlay(
 }
 
 /// A line of a line plot.
-pub type Curve<'a> = Line<'a>;
+pub(crate) type Curve<'a> = Line<'a>;
 
 /// Lines on ordinary axes (K Figs 21-23: F(t), B0 against the force threshold); `unit`
 /// is y's unit in the difference panel.

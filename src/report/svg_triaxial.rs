@@ -8,7 +8,7 @@ use anyhow::Result;
 use std::path::Path;
 
 /// A line of (eps_a, phi_mob in degrees).
-pub type PhiSeries<'a> = Line<'a>;
+pub(crate) type PhiSeries<'a> = Line<'a>;
 
 pub(crate) fn phi_mob_overlay(
     path: &Path,

@@ -50,7 +50,7 @@ pub(crate) const DEVIATION_HEADER: [&str; 9] = [
 pub type Scales = (f64, f64, f64);
 
 /// Writes both tables as the frame pairs of a comparison arrive.
-pub struct PairedWriter {
+pub(crate) struct PairedWriter {
     dir: PathBuf,
     labels: [String; 2],
     traj: csv::Writer<File>,

@@ -301,9 +301,7 @@ impl StartDifference {
                 bail!("body ids differ: {} and {}", p.id, q.id);
             }
             m.x = m.x.max(d(p.x, q.x));
-            m.angle = m
-                .angle
-                .max(crate::physics::dem::rigid::rotation_angle(p.q, q.q));
+            m.angle = m.angle.max(crate::numerics::quat::rotation_angle(p.q, q.q));
             m.v = m.v.max(d(p.v, q.v));
             m.omega = m.omega.max(d(p.omega, q.omega));
             m.f = m.f.max(d(p.f, q.f));

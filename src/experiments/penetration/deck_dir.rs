@@ -460,7 +460,7 @@ pub(crate) fn check_case_inputs(
             && std::fs::read_to_string(dir.join(name))
                 .is_ok_and(|t| t.contains(crate::engines::liggghts::snapshot::PAIR_PREFIX))
         {
-            let plan = crate::analysis::stress_fields::snapshot_plan(ck, bed);
+            let plan = crate::analysis::stress_fields::snapshot_plan(ck, &super::bed_run(ck, bed));
             text = lp::deck_text_with_snapshots(&deck, &plan.steps)?;
         }
         let data = name != lp::DECK_FILE && name != lp::STL_FILE;

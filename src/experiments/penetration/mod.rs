@@ -24,7 +24,7 @@ pub mod stress;
 
 use super::reference::Verified;
 use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
-use crate::analysis::stress_fields::SnapshotPlan;
+use crate::analysis::stress_fields::{BedRun, SnapshotPlan};
 use crate::case::penetration::PenetrationCase;
 use crate::compare::{Check, penetration as cp};
 use crate::engines::liggghts::penetration as lp;
@@ -36,6 +36,17 @@ use crate::rundata::provenance::{
 use anyhow::{Context, Result, ensure};
 use bed::{EngineRun, binner, liggghts_deck, prepare_bed};
 use std::path::{Path, PathBuf};
+
+/// What the stress analysis needs of `bed` and of the native run of `case` from it
+/// (the analysis layer knows no engine, so the run's start height and steps are given).
+pub fn bed_run(case: &PenetrationCase, bed: &Bed) -> BedRun {
+    BedRun {
+        surface_z: bed.surface_z,
+        psi: bed.psi,
+        start_z: crate::physics::dem::penetration::start_z(case, bed),
+        n_steps: crate::physics::dem::penetration::n_steps(case, bed),
+    }
+}
 
 pub const PROVENANCE_FILE: &str = "provenance.json";
 pub const FORCE_CSV: &str = "force.csv";
@@ -654,11 +665,11 @@ impl Experiment for Penetration {
                     None => prepare_bed(&ck, opts.progress)
                         .with_context(|| format!("preparing bed {k} (seed {})", ck.seed))?,
                 };
-                let plan = self
-                    .stress
-                    .then(|| crate::analysis::stress_fields::snapshot_plan(&ck, &bed));
+                let plan = self.stress.then(|| {
+                    crate::analysis::stress_fields::snapshot_plan(&ck, &bed_run(&ck, &bed))
+                });
                 let study_plan = (self.stress && opts.study)
-                    .then(|| crate::analysis::stress_fields::study_plan(&ck, &bed));
+                    .then(|| crate::analysis::stress_fields::study_plan(&ck, &bed_run(&ck, &bed)));
                 Ok(Unit {
                     k,
                     bed_from_record,

@@ -48,7 +48,13 @@ pub(crate) fn write_native_snapshot(
         .context("penetration run without intruder")?
         .body
         .bottom_z();
-    let snap = sim.snapshot(snapshot_meta(case, bed, "native", sim.step, zb));
+    let snap = sim.snapshot(snapshot_meta(
+        case,
+        &super::bed_run(case, bed),
+        "native",
+        sim.step,
+        zb,
+    ));
     snapshot::write(snap_dir, k, &snap)
 }
 
@@ -67,7 +73,8 @@ pub(crate) fn convert_liggghts_snapshots(
         std::fs::remove_dir_all(&snap_dir)
             .with_context(|| format!("cannot clear {}", snap_dir.display()))?;
     }
-    let z0 = crate::physics::dem::penetration::start_z(case, bed);
+    let run = super::bed_run(case, bed);
+    let z0 = run.start_z;
     for (k, &step) in plan.steps.iter().enumerate() {
         let (grains, contacts, dropped) =
             crate::engines::liggghts::snapshot::read_snapshot(run_dir, step, deck.units)?;
@@ -78,7 +85,7 @@ pub(crate) fn convert_liggghts_snapshots(
         }
         let zb = z0 - case.speed * case.dt * step as f64;
         let snap = Snapshot {
-            meta: snapshot_meta(case, bed, "liggghts", step, zb),
+            meta: snapshot_meta(case, &run, "liggghts", step, zb),
             grains,
             contacts,
         };

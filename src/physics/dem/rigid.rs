@@ -15,9 +15,8 @@
 //! (/work/research/clumps/tools/replay.py) showed exactly that for 100,000 body steps.
 //! No `mul_add` anywhere: the Debian build is SSE2 without FMA contraction.
 
+pub(crate) use crate::numerics::quat::{Quat, quatquat};
 use crate::numerics::vec3::V3;
-
-pub(crate) type Quat = [f64; 4];
 
 /// math_extra.cpp:456-469: columns of the rotation matrix of q.
 pub(crate) fn q_to_exyz(q: Quat) -> (V3, V3, V3) {
@@ -74,16 +73,6 @@ pub(crate) fn exyz_to_q(ex: V3, ey: V3, ez: V3) -> Quat {
         q[2] = (ez[1] + ey[2]) / (4.0 * q[3]);
     }
     qnormalize(q)
-}
-
-/// math_extra.h:596-602, Hamilton product a b.
-pub(crate) fn quatquat(a: Quat, b: Quat) -> Quat {
-    [
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + b[0] * a[1] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] + b[0] * a[2] + a[3] * b[1] - a[1] * b[3],
-        a[0] * b[3] + b[0] * a[3] + a[1] * b[2] - a[2] * b[1],
-    ]
 }
 
 /// math_extra.h:572-578: (0, a) b.
@@ -360,17 +349,10 @@ pub(crate) fn member_positions(x: V3, q: Quat, offsets: &[V3]) -> Vec<V3> {
         .collect()
 }
 
-/// Rotation angle (rad) between two orientations, 2 atan2(|vec(a* b)|, |scalar(a* b)|):
-/// well conditioned near 0, unlike acos, and q ~ -q.
-pub(crate) fn rotation_angle(a: Quat, b: Quat) -> f64 {
-    let d = quatquat([a[0], -a[1], -a[2], -a[3]], b);
-    let s = (d[1] * d[1] + d[2] * d[2] + d[3] * d[3]).sqrt();
-    2.0 * s.atan2(d[0].abs())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::numerics::quat::rotation_angle;
 
     /// Torque-free symmetric top spinning about its symmetry axis: L constant, q turns at
     /// omega, and the quaternion stays normalised.
