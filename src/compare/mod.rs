@@ -136,7 +136,12 @@ impl Comparison {
             e.value,
             e.n,
             e.sd,
-            e.df,
+            // Welch-Satterthwaite's are fractional: one decimal says all they mean.
+            if e.df.fract() == 0.0 {
+                format!("{}", e.df)
+            } else {
+                format!("{:.1}", e.df)
+            },
             match d {
                 Decision::Pass => "PASS",
                 Decision::Fail => "FAIL",
