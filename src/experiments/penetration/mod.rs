@@ -665,11 +665,14 @@ impl Experiment for Penetration {
                     None => prepare_bed(&ck, opts.progress)
                         .with_context(|| format!("preparing bed {k} (seed {})", ck.seed))?,
                 };
-                let plan = self.stress.then(|| {
-                    crate::analysis::stress_fields::snapshot_plan(&ck, &bed_run(&ck, &bed))
-                });
-                let study_plan = (self.stress && opts.study)
-                    .then(|| crate::analysis::stress_fields::study_plan(&ck, &bed_run(&ck, &bed)));
+                let run = self.stress.then(|| bed_run(&ck, &bed));
+                let plan = run
+                    .as_ref()
+                    .map(|r| crate::analysis::stress_fields::snapshot_plan(&ck, r));
+                let study_plan = run
+                    .as_ref()
+                    .filter(|_| opts.study)
+                    .map(|r| crate::analysis::stress_fields::study_plan(&ck, r));
                 Ok(Unit {
                     k,
                     bed_from_record,
