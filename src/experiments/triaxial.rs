@@ -83,7 +83,7 @@ pub fn prepare(case: &TriaxialCase, seed: u64, sigma_c: f64, progress: bool) -> 
     if let Some(s) = super::bed_cache::load_cached::<Sample>(cache.as_deref(), &key, count)? {
         return Ok(s);
     }
-    let bar = crate::report::progress::bar(progress, 1, "compaction");
+    let bar = crate::report::progress::status(progress, "compaction");
     let s = pt::compact(case, seed, sigma_c, |t, r, ke| {
         bar.set_message(format!(
             "t = {t:.3} s, stresses / sigma_c {:.3} {:.3} {:.3}, KE / (sigma_c V) {ke:.1e}",

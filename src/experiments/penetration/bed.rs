@@ -99,7 +99,7 @@ pub fn prepare_bed(case: &PenetrationCase, progress: bool) -> Result<Bed> {
     if let Some(b) = cached {
         return Ok(b);
     }
-    let bar = crate::report::progress::bar(progress, 1, "settle");
+    let bar = crate::report::progress::status(progress, "settle");
     let bed = packing::prepare(case, |t, ratio| {
         bar.set_message(format!("t = {t:.3} s, KE ratio {ratio:.1e}"))
     })?;
