@@ -9,6 +9,7 @@ use granval::experiments::output_dir::{self, OutputDir, Protected};
 use granval::experiments::runner::{self, CaseOutcome};
 use granval::experiments::{Experiment, Options, RefMode, suite};
 use granval::report::Report;
+use granval::rundata::provenance::EngineKind;
 use granval::{out, outln, with_experiment};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -102,11 +103,20 @@ enum EngineName {
 }
 
 impl EngineName {
-    /// The reference engine a case is compared against (`AnyCase::reference_engine`).
-    fn reference_of(c: &AnyCase) -> EngineName {
-        match c.reference_engine() {
-            granval::rundata::provenance::EngineKind::Lammps => EngineName::Lammps,
-            _ => EngineName::Liggghts,
+    /// The engine as the command line names it.
+    fn of(kind: EngineKind) -> EngineName {
+        match kind {
+            EngineKind::Lammps => EngineName::Lammps,
+            EngineKind::Liggghts => EngineName::Liggghts,
+            EngineKind::Native => EngineName::Native,
+        }
+    }
+
+    fn kind(self) -> EngineKind {
+        match self {
+            EngineName::Native => EngineKind::Native,
+            EngineName::Liggghts => EngineKind::Liggghts,
+            EngineName::Lammps => EngineKind::Lammps,
         }
     }
 
@@ -309,7 +319,7 @@ struct DeckArgs {
     /// Penetration: who prepares the beds: `native` (exact `data.bed`, needed to
     /// compare engines) or `liggghts` (the deck pours and settles them; full size).
     #[arg(long, value_enum, default_value = "native")]
-    bed: granval::experiments::penetration::deck_dir::BedBy,
+    bed: granval::experiments::BedBy,
     /// Penetration: add a visualisation dump every N steps (the grains and the
     /// intruder mesh as VTK that ParaView opens; `analyze` accepts the deck).
     #[arg(long, value_name = "N")]
@@ -662,63 +672,71 @@ fn warnings(c: &AnyCase, path: &Path) -> Vec<String> {
         .collect()
 }
 
-/// `compare --engine E`: whether the reference is LAMMPS 2025 in place of LIGGGHTS (a
-/// penetration case only). An engine that is not the case kind's reference is refused
-/// (exit 2) before anything runs, and so is a recorded LAMMPS reference: there is none,
-/// so LAMMPS must run live (`--reference-mode auto` becomes `live`).
-fn lammps_reference(case: &Path, engine: Option<EngineName>, opts: &mut Options) -> Result<bool> {
+/// The reference engine `--engine` names for a case (`None`: the case's own), refused
+/// (exit 2) before anything runs when it is not one of the case's
+/// ([`AnyCase::references`]) or is the native engine, which is what is compared. A
+/// reference other than the case's own has no sealed record, so it runs live:
+/// `--reference-mode recorded` is refused and `auto` becomes `live`.
+fn reference_for(
+    case: &Path,
+    engine: Option<EngineName>,
+    opts: &mut Options,
+) -> Result<Option<EngineKind>> {
     let c = load(case)?;
-    // A LAMMPS-family penetration case has LAMMPS' laws, which LIGGGHTS' deck cannot
-    // write: refused here, before anything runs, not by the deck writer mid-run.
-    if let AnyCase::Penetration(p) = &c
-        && matches!(p.family, granval::case::family::ContactFamily::Lammps(_))
-        && engine != Some(EngineName::Lammps)
-    {
+    let refs = c.references();
+    let Some(engine) = engine else {
+        return Ok(None);
+    };
+    if engine == EngineName::Native {
         bail!(
-            "{}: models.family = \"lammps\": LAMMPS' pair_style granular laws run only against LAMMPS 2025; compare it with --engine lammps (LIGGGHTS' deck writes LIGGGHTS' laws)",
-            case.display()
+            "{}: --engine native: the native engine is what is compared; --engine names the reference ({})",
+            case.display(),
+            engine_list(refs.engines)
         );
     }
-    let Some(engine) = engine else {
-        return Ok(false);
-    };
-    let own = EngineName::reference_of(&c);
-    if engine == own {
-        return Ok(false);
-    }
-    let AnyCase::Penetration(_) = &c else {
+    if !refs.engines.contains(&engine.kind()) {
         bail!(
-            "{}: --engine {}: this case's reference engine is {} (only a penetration case also takes lammps)",
+            "{}: --engine {}: {} (use --engine {})",
             case.display(),
             engine.name(),
-            own.name()
+            refs.why,
+            engine_list(refs.engines)
         );
-    };
-    if engine != EngineName::Lammps {
-        bail!(
-            "{}: --engine {}: the native engine is what is compared; --engine names the reference (liggghts or lammps)",
-            case.display(),
-            engine.name()
-        );
+    }
+    if engine.kind() == refs.engines[0] {
+        return Ok(None);
     }
     match opts.ref_mode {
         RefMode::Recorded => bail!(
-            "{}: --engine lammps --reference-mode recorded: there are no recorded LAMMPS penetration runs; LAMMPS 2025 runs live",
-            case.display()
+            "{}: --engine {} --reference-mode recorded: the records of a {} case are of {} only; {} runs live",
+            case.display(),
+            engine.name(),
+            c.kind(),
+            refs.label,
+            engine.name()
         ),
         RefMode::Auto => opts.ref_mode = RefMode::Live,
         RefMode::Live => {}
     }
-    Ok(true)
+    Ok(Some(engine.kind()))
 }
 
-/// `compare` of one case file into `out/<case name>/`; `lammps3d`: a penetration case
-/// against LAMMPS 2025 instead of LIGGGHTS ([`lammps_reference`] checked it may).
+/// Engines as the command line names them: `liggghts or lammps`.
+fn engine_list(engines: &[EngineKind]) -> String {
+    engines
+        .iter()
+        .map(|e| EngineName::of(*e).name())
+        .collect::<Vec<_>>()
+        .join(" or ")
+}
+
+/// `compare` of one case file into `out/<case name>/`; `reference`: another of the
+/// case's reference engines than its own ([`reference_for`] checked it may).
 fn compare_one(
     path: &Path,
     stress: bool,
     quasi_static: bool,
-    lammps3d: bool,
+    reference: Option<EngineKind>,
     opts: &Options,
     out: &Path,
 ) -> CaseOutcome {
@@ -740,26 +758,16 @@ fn compare_one(
             let name = case.name().to_string();
             let dir = out.join(&name);
             let mut case = case;
-            if let AnyCase::Penetration(c) = &mut case
-                && !quasi_static
-                && let Some(v2) = c.quasi_static_speed.take()
-            {
+            if !quasi_static && let Some(v2) = case.drop_quasi_static() {
                 warned.push(format!(
                     "{}: the quasi-static test at {v2} m/s ([quasi_static]) is not run in this suite (its entry says quasi_static = false)",
                     path.display()
                 ));
             }
-            let mut o = match case {
-                AnyCase::Penetration(case) if lammps3d => {
-                    let exp = granval::experiments::penetration::Penetration {
-                        case,
-                        stress,
-                        reference: granval::rundata::provenance::EngineKind::Lammps,
-                    };
-                    runner::compare(&exp, opts, &dir)
-                }
-                case => with_experiment!(case, stress, |exp| runner::compare(&exp, opts, &dir)),
-            };
+            let reference = reference.unwrap_or(case.reference_engine());
+            let mut o = with_experiment!(case, stress, reference, |exp| runner::compare(
+                &exp, opts, &dir
+            ));
             o.notes.splice(0..0, warned);
             // The case's figures are under its own directory of the report.
             for s in &mut o.sections {
@@ -1051,20 +1059,8 @@ fn analyze_case(dir: &Path, out: &Path, no_native: bool, opts: &Options) -> Case
     let run = || -> Result<CaseOutcome> {
         let c = load(&case_file)?;
         let name = c.name().to_string();
-        let mut o = match c {
-            AnyCase::Penetration(_) => {
-                granval::experiments::penetration::deck_dir::analyze(dir, !no_native, opts, out)?
-            }
-            c => {
-                if no_native {
-                    bail!(
-                        "--no-native: only for penetration cases; {} is another kind",
-                        case_file.display()
-                    );
-                }
-                with_experiment!(c, false, |exp| runner::analyze(&exp, opts, dir, out))
-            }
-        };
+        let mut o = with_experiment!(c, false, |exp| exp
+            .analyze_decks(dir, !no_native, opts, out))?;
         for s in &mut o.sections {
             for f in &mut s.figures {
                 *f = format!("{name}/{f}");
@@ -1233,22 +1229,22 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     } = a;
     let opts = options(&common);
     let c = load(&case)?;
-    let own = EngineName::reference_of(&c);
-    if engine != EngineName::Native && engine != own {
+    let refs = c.references();
+    if engine != EngineName::Native && !refs.engines.contains(&engine.kind()) {
         bail!(
-            "{}: --engine {}: a {} case ({}) runs in the native engine or its reference engine, {} (use native or {})",
+            "{}: --engine {}: a {} case runs in the native engine or a reference engine of its own: {} (use native or {})",
             case.display(),
             engine.name(),
             c.kind(),
-            if matches!(c, AnyCase::Impact2d(_)) {
-                "2D"
-            } else {
-                "3D"
-            },
-            own.name(),
-            own.name()
+            refs.why,
+            engine_list(refs.engines)
         );
     }
+    // The reference engine named (the native run takes the case's own).
+    let reference = match engine {
+        EngineName::Native => c.reference_engine(),
+        e => e.kind(),
+    };
     let _out = claim(
         &out,
         "--out",
@@ -1256,7 +1252,9 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         &protected(&common).input(&case),
     )?;
     let native = engine == EngineName::Native;
-    let lines = with_experiment!(c, false, |exp| runner::run_one(&exp, native, &opts, &out))?;
+    let lines = with_experiment!(c, false, reference, |exp| runner::run_one(
+        &exp, native, &opts, &out
+    ))?;
     for l in lines {
         show!("{l}");
     }
@@ -1272,14 +1270,14 @@ fn compare(a: CompareArgs) -> Result<ExitCode> {
         common,
     } = a;
     let mut opts = options(&common);
-    let lammps3d = lammps_reference(&case, engine, &mut opts)?;
+    let reference = reference_for(&case, engine, &mut opts)?;
     let _out = claim(
         &report,
         "--report",
         common.force,
         &protected(&common).input(&case),
     )?;
-    let o = compare_one(&case, false, true, lammps3d, &opts, &report);
+    let o = compare_one(&case, false, true, reference, &opts, &report);
     finish(
         &report_of(vec![o]),
         &report,
@@ -1347,7 +1345,7 @@ fn check(a: CheckArgs) -> Result<ExitCode> {
             &e.path,
             e.stress,
             e.quasi_static,
-            false,
+            None,
             &o,
             &report,
         ));
@@ -1396,7 +1394,7 @@ fn deck(a: DeckArgs) -> Result<ExitCode> {
                 "--viz: not with --suite (a cluster suite's decks stay lean); write one case's deck with --viz"
             );
         }
-        if engine.is_some() || bed != granval::experiments::penetration::deck_dir::BedBy::Native {
+        if engine.is_some() || bed != granval::experiments::BedBy::Native {
             bail!(
                 "--suite: each case's deck is for its reference engine with natively prepared beds; drop --engine and --bed"
             );
@@ -1410,44 +1408,25 @@ fn deck(a: DeckArgs) -> Result<ExitCode> {
     }
     let case = case.context("give a case file or --suite NAME")?;
     let c = load(&case)?;
-    let (kind, wanted) = (c.kind(), EngineName::reference_of(&c));
-    let lammps_penetration = matches!(
-        (&c, engine),
-        (AnyCase::Penetration(_), Some(EngineName::Lammps))
-    );
-    if lammps_penetration && bed != granval::experiments::penetration::deck_dir::BedBy::Native {
-        bail!(
-            "--engine lammps --bed liggghts: the LAMMPS penetration deck reads beds granval prepared natively (--bed native)"
-        );
-    }
-    if let Some(e) = engine
-        && e != wanted
-        && !lammps_penetration
-    {
-        bail!(
-            "{}: --engine {}: a {kind} case is compared against {} (its reference engine); granval writes no {} deck for it",
+    let refs = c.references();
+    let reference = match engine {
+        None => c.reference_engine(),
+        Some(e) if e != EngineName::Native && refs.engines.contains(&e.kind()) => e.kind(),
+        Some(e) => bail!(
+            "{}: --engine {}: {}; granval writes decks for {} only",
             case.display(),
             e.name(),
-            wanted.name(),
-            e.name()
-        );
-    }
-    let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
-    let dirs = match c {
-        AnyCase::Penetration(c) if lammps_penetration => {
-            granval::experiments::penetration::deck_dir::write_lammps(&c, &out, true, viz)?
-        }
-        AnyCase::Penetration(c) => {
-            granval::experiments::penetration::deck_dir::write(&c, &out, bed, true, viz)?
-        }
-        c => {
-            let opts = Options {
-                viz_every: viz,
-                ..opts
-            };
-            with_experiment!(c, false, |exp| runner::deck(&exp, &opts, &out))?
-        }
+            refs.why,
+            engine_list(refs.engines)
+        ),
     };
+    let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
+    let opts = Options {
+        viz_every: viz,
+        progress: true,
+        ..opts
+    };
+    let dirs = with_experiment!(c, false, reference, |exp| exp.write_decks(bed, &opts, &out))?;
     for d in &dirs {
         show!("{}", d.display());
     }
@@ -1487,28 +1466,9 @@ fn analyze(a: AnalyzeArgs) -> Result<ExitCode> {
         )
     })?;
     let warned = warnings(&c, &case_file);
-    let mut o = match c {
-        AnyCase::Penetration(_) => granval::experiments::penetration::deck_dir::analyze(
-            &dir,
-            !no_native,
-            &options(&common),
-            &report,
-        )?,
-        c => {
-            if no_native {
-                bail!(
-                    "--no-native: only for penetration deck directories; {} is another kind",
-                    case_file.display()
-                );
-            }
-            with_experiment!(c, false, |exp| runner::analyze(
-                &exp,
-                &options(&common),
-                &dir,
-                &report
-            ))
-        }
-    };
+    let opts = options(&common);
+    let mut o = with_experiment!(c, false, |exp| exp
+        .analyze_decks(&dir, !no_native, &opts, &report))?;
     o.notes.splice(0..0, warned);
     let r = report_of(vec![o]);
     let code = finish(&r, &report, &format!("granval analyze {}", dir.display()))?;
@@ -1591,25 +1551,27 @@ fn stress(a: StressArgs) -> Result<ExitCode> {
     }
     opts.kernel_width = kernel_width;
     let c = load(&case)?;
-    let AnyCase::Penetration(pc) = c else {
-        bail!(
-            "{}: `granval stress` takes a penetration case",
-            case.display()
-        );
-    };
-    let keep = protected(&common).input(&case);
-    let _out = if reuse {
-        output_dir::reuse(&out, "--out", &keep, &command_line())?
-    } else {
-        claim(&out, "--out", common.force, &keep)?
-    };
-    let exp = granval::experiments::penetration::Penetration::against_liggghts(pc, true);
-    let o = runner::compare(&exp, &opts, &out);
-    finish(
-        &report_of(vec![o]),
-        &out,
-        &format!("{}: stress fields and MALT", exp.name()),
-    )
+    with_experiment!(c, true, |exp| {
+        if !exp.has_stress_fields() {
+            bail!(
+                "{}: `granval stress` takes a penetration case, not a {} case",
+                case.display(),
+                exp.kind()
+            );
+        }
+        let keep = protected(&common).input(&case);
+        let _out = if reuse {
+            output_dir::reuse(&out, "--out", &keep, &command_line())?
+        } else {
+            claim(&out, "--out", common.force, &keep)?
+        };
+        let o = runner::compare(&exp, &opts, &out);
+        finish(
+            &report_of(vec![o]),
+            &out,
+            &format!("{}: stress fields and MALT", exp.name()),
+        )
+    })
 }
 
 /// `granval agreement`: the pairwise agreement of several codes on the same beds.
@@ -1647,34 +1609,25 @@ fn chaos(a: ChaosArgs) -> Result<ExitCode> {
         common,
     } = a;
     use granval::experiments::chaos;
-    /// The experiments `granval chaos` replicates.
-    enum Chaotic {
-        Penetration(granval::experiments::penetration::Penetration),
-        Impact2d(granval::experiments::impact2d::Impact2d),
-    }
-    let exp = match load(&case)? {
-        AnyCase::Penetration(pc) => Chaotic::Penetration(
-            granval::experiments::penetration::Penetration::against_liggghts(pc, false),
-        ),
-        AnyCase::Impact2d(ic) => {
-            Chaotic::Impact2d(granval::experiments::impact2d::Impact2d { case: ic })
+    let c = load(&case)?;
+    // The claimed directory (its lock) is held until the record is written.
+    let (r, _out) = with_experiment!(c, false, |exp| {
+        // Refused before the output directory is claimed.
+        if !exp.has_chaos_baseline() {
+            bail!(
+                "{}: `granval chaos` takes a penetration or impact2d case, not a {} case: the chaos baseline (docs/statistics.md) is a spread over the beds of a granular flow, which such a case has not",
+                case.display(),
+                exp.kind()
+            );
         }
-        other => bail!(
-            "{}: `granval chaos` takes a penetration or impact2d case, not a {} case: the chaos baseline (docs/statistics.md) is a spread over the beds of a granular flow, which such a case has not",
-            case.display(),
-            other.kind()
-        ),
-    };
-    let _out = claim(
-        &out,
-        "--out",
-        common.force,
-        &protected(&common).input(&case),
-    )?;
-    let r = match &exp {
-        Chaotic::Penetration(e) => chaos::penetration(e, &family, &options(&common), &out)?,
-        Chaotic::Impact2d(e) => chaos::impact2d(e, &family, &options(&common), &out)?,
-    };
+        let held = claim(
+            &out,
+            "--out",
+            common.force,
+            &protected(&common).input(&case),
+        )?;
+        anyhow::Ok((exp.chaos(&family, &options(&common), &out)?, held))
+    })?;
     r.write(&out)?;
     let (s, n) = r.spread();
     show!(
@@ -1697,11 +1650,7 @@ fn validate(a: ValidateArgs) -> Result<ExitCode> {
     let ValidateArgs { case, allow_large } = a;
     let c = load(&case)?;
     let kind = c.kind();
-    let engine = match c.reference_engine() {
-        granval::rundata::provenance::EngineKind::Lammps if kind == "micro" => "LAMMPS 22 Jul 2025",
-        granval::rundata::provenance::EngineKind::Lammps => "LAMMPS",
-        _ => "LIGGGHTS",
-    };
+    let engine = c.references().label;
     // Exactly what `compare` refuses before it runs (the reference engine's
     // limits, the start state, the resource limits): a case that validates runs.
     let (name, lines, refused) = with_experiment!(c, false, |exp| {

@@ -9,6 +9,7 @@ mod common;
 use common::{expect, text};
 use granval::case::Perturbation;
 use granval::case::impact2d::Impact2dCase;
+use granval::experiments::Experiment;
 use granval::experiments::chaos::{self, ChaosRecord, IMPACT2D};
 use granval::experiments::impact2d::Impact2d;
 
@@ -27,8 +28,14 @@ fn a_replica_without_the_nudge_is_the_run_and_one_ulp_gives_a_finite_difference(
     let exp = two_speeds();
     let opts = common::options();
     let same = tempfile::tempdir().unwrap();
-    let r = chaos::impact2d_replicas(&exp, "ci", &Perturbation::default(), &opts, same.path())
-        .unwrap_or_else(|e| panic!("{e:#}"));
+    let r = granval::experiments::impact2d::chaos_replicas(
+        &exp,
+        "ci",
+        &Perturbation::default(),
+        &opts,
+        same.path(),
+    )
+    .unwrap_or_else(|e| panic!("{e:#}"));
     assert_eq!(r.kind, IMPACT2D);
     assert_eq!(r.variants.len(), 2);
     assert_eq!(r.bed_hashes.len(), 2);
@@ -39,7 +46,9 @@ fn a_replica_without_the_nudge_is_the_run_and_one_ulp_gives_a_finite_difference(
         "{r:?}"
     );
     let nudged = tempfile::tempdir().unwrap();
-    let n = chaos::impact2d(&exp, "ci", &opts, nudged.path()).unwrap_or_else(|e| panic!("{e:#}"));
+    let n = exp
+        .chaos("ci", &opts, nudged.path())
+        .unwrap_or_else(|e| panic!("{e:#}"));
     // The originals are the same runs in both records.
     assert_eq!(n.final_depth, r.final_depth);
     assert_eq!(n.bed_hashes, r.bed_hashes);
@@ -65,7 +74,9 @@ fn a_case_of_one_variant_is_refused() {
         .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(case.variants.len(), 1);
     let out = tempfile::tempdir().unwrap();
-    let e = chaos::impact2d(&Impact2d { case }, "ci", &common::options(), out.path()).unwrap_err();
+    let e = Impact2d { case }
+        .chaos("ci", &common::options(), out.path())
+        .unwrap_err();
     let e = format!("{e:#}");
     assert!(
         e.contains("ci.toml") && e.contains("at least two variants") && e.contains("has 1"),

@@ -168,7 +168,11 @@ fn compare_engine_lammps_refuses_what_it_cannot_do() {
             vec!["--engine", "lammps", "--reference-mode", "recorded"],
             "--reference-mode recorded",
         ),
-        (micro, vec!["--engine", "lammps"], "only a penetration case"),
+        (
+            micro,
+            vec!["--engine", "lammps"],
+            "compared against LIGGGHTS 3.8",
+        ),
         (
             case.source.clone(),
             vec!["--engine", "native"],

@@ -179,7 +179,7 @@ fn every_command_takes_the_cases_own_reference_engine() {
     common::expect(
         &run(&["validate", lig_case]),
         0,
-        &["(reference engine LIGGGHTS)"],
+        &["(reference engine LIGGGHTS 3.8)"],
     );
     let tmp = tempfile::tempdir().unwrap();
     let d = |n: &str| tmp.path().join(n).display().to_string();

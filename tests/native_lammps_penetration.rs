@@ -310,30 +310,48 @@ fn compare_engine_lammps_runs_the_native_engine_with_lammps_laws() {
     assert!(d < 0.02, "[{test}] FDR distance {d}");
 }
 
-/// A LAMMPS-family case compared against LIGGGHTS (the default reference, or
-/// `--engine liggghts`) is refused before anything runs: exit 2, the file and the field
-/// named, no report directory made. No engine is needed for the refusal.
+/// A LAMMPS-family case compared against LIGGGHTS (`--engine liggghts`) is refused
+/// before anything runs: exit 2, the file and the field named, no report directory made.
+/// Its own reference engine is LAMMPS 2025, which `validate` names (and `compare`
+/// without `--engine` takes). No engine is needed for either.
 #[test]
 fn compare_refuses_a_lammps_family_case_against_liggghts() {
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("tiny.toml");
     std::fs::write(&path, lammps_family_toml("0.907", "none", "")).unwrap();
-    for engine in [None, Some("liggghts")] {
+    for command in ["compare", "deck", "run"] {
         let report = tmp.path().join("report");
-        let mut cmd = common::granval();
-        cmd.arg("compare").arg(&path);
-        if let Some(e) = engine {
-            cmd.args(["--engine", e]);
-        }
-        let o = cmd.arg("--report").arg(&report).output().unwrap();
+        let o = common::granval()
+            .arg(command)
+            .arg(&path)
+            .args(["--engine", "liggghts"])
+            .arg(if command == "compare" {
+                "--report"
+            } else if command == "deck" {
+                "-o"
+            } else {
+                "--out"
+            })
+            .arg(&report)
+            .output()
+            .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{engine:?}: {err}");
+        assert_eq!(o.status.code(), Some(2), "{command}: {err}");
         assert!(
-            err.contains("tiny.toml")
-                && err.contains("models.family")
-                && err.contains("--engine lammps"),
-            "{engine:?}: {err}"
+            err.contains("tiny.toml") && err.contains("models.family") && err.contains("lammps"),
+            "{command}: {err}"
         );
-        assert!(!report.exists(), "{engine:?}: a report directory was made");
+        assert!(!report.exists(), "{command}: an output directory was made");
     }
+    let o = common::granval()
+        .arg("validate")
+        .arg(&path)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("reference engine LAMMPS 22 Jul 2025"),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }

@@ -147,18 +147,71 @@ impl AnyCase {
         }
     }
 
-    /// The reference engine the case is compared against unless a command says
-    /// otherwise (a penetration case also takes LAMMPS 2025 with `--engine lammps`):
-    /// the one table every command reads, so `validate`, `run`, `deck` and `compare`
-    /// cannot disagree about it. LAMMPS for the 2D impact (Debian's 29 Sep 2021) and for
-    /// micro cases of LAMMPS' law family (22 Jul 2025), LIGGGHTS 3.8 otherwise.
-    pub fn reference_engine(&self) -> EngineKind {
+    /// Leaves out the case's quasi-static rerun (a penetration case's `[quasi_static]`),
+    /// for a suite entry that says `quasi_static = false`; its speed (m/s) if it had one.
+    pub fn drop_quasi_static(&mut self) -> Option<f64> {
         match self {
-            AnyCase::Micro(c) => c.reference_engine(),
-            AnyCase::Impact2d(_) => EngineKind::Lammps,
-            AnyCase::Penetration(_) | AnyCase::Triaxial(_) => EngineKind::Liggghts,
+            AnyCase::Penetration(c) => c.quasi_static_speed.take(),
+            AnyCase::Micro(_) | AnyCase::Impact2d(_) | AnyCase::Triaxial(_) => None,
         }
     }
+
+    /// The reference engine the case is compared against unless a command says
+    /// otherwise: the first of [`AnyCase::references`], the one table every command
+    /// reads, so `validate`, `run`, `deck` and `compare` cannot disagree about it.
+    pub fn reference_engine(&self) -> EngineKind {
+        self.references().engines[0]
+    }
+
+    /// The reference engines the case can be compared against, its own first (the only
+    /// one a sealed record exists for), and why these: LAMMPS 29 Sep 2021 for the 2D
+    /// impact, LAMMPS 22 Jul 2025 for cases of LAMMPS' law family, LIGGGHTS 3.8
+    /// otherwise; a LIGGGHTS-family penetration case also runs in LAMMPS 2025 on the same
+    /// natively prepared beds (docs/lammps-laws.md, "Penetration in LAMMPS 2025").
+    pub fn references(&self) -> References {
+        const LIGGGHTS: References = References {
+            engines: &[EngineKind::Liggghts],
+            label: "LIGGGHTS 3.8",
+            why: "a 3D case of LIGGGHTS' contact laws is compared against LIGGGHTS 3.8",
+        };
+        const LAMMPS_LAWS: References = References {
+            engines: &[EngineKind::Lammps],
+            label: "LAMMPS 22 Jul 2025",
+            why: "models.family = \"lammps\": LAMMPS' pair_style granular laws run only against LAMMPS 2025, which LIGGGHTS' deck cannot write",
+        };
+        let lammps_laws = match self {
+            AnyCase::Micro(c) => c.lammps().is_some(),
+            AnyCase::Penetration(c) => matches!(c.family, family::ContactFamily::Lammps(_)),
+            AnyCase::Impact2d(_) => {
+                return References {
+                    engines: &[EngineKind::Lammps],
+                    label: "LAMMPS 29 Sep 2021",
+                    why: "a 2D case is compared against LAMMPS (Debian's 29 Sep 2021)",
+                };
+            }
+            AnyCase::Triaxial(_) => false,
+        };
+        match self {
+            _ if lammps_laws => LAMMPS_LAWS,
+            AnyCase::Penetration(_) => References {
+                engines: &[EngineKind::Liggghts, EngineKind::Lammps],
+                label: "LIGGGHTS 3.8",
+                why: "a penetration case is compared against LIGGGHTS 3.8 (its records), or live against LAMMPS 2025 on the same natively prepared beds",
+            },
+            _ => LIGGGHTS,
+        }
+    }
+}
+
+/// The reference engines of a case ([`AnyCase::references`]).
+#[derive(Debug, Clone, Copy)]
+pub struct References {
+    /// The engines, the case's own first.
+    pub engines: &'static [EngineKind],
+    /// The first engine as people name it, with its version.
+    pub label: &'static str,
+    /// Why these, for a refusal of another.
+    pub why: &'static str,
 }
 
 /// Which contact models a case uses; names follow LIGGGHTS' `pair_style gran` keywords.

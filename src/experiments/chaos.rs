@@ -11,12 +11,9 @@
 //! `granval chaos CASE --out DIR` writes `DIR/chaos.json` ([`ChaosRecord`]); the release
 //! report's "Engine agreement against chaos" section reads such records.
 
-use super::impact2d::{Impact2d, label_dir, observe};
-use super::penetration::{Penetration, fit_range_of};
-use super::{Experiment, Options, Role};
+use super::{Experiment, Options};
 use crate::case::Perturbation;
-use crate::compare::penetration as cp;
-use anyhow::{Context, Result, ensure};
+use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -119,7 +116,7 @@ impl ChaosRecord {
 /// The units of `exp`'s case, their beds read from the case's record where it holds
 /// them (the ones its reference runs started from), not settled again; their hashes go
 /// into the chaos record either way.
-fn units_from_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<E::Unit>> {
+pub(crate) fn units_from_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<E::Unit>> {
     let root = super::reference::record_root(&opts.reference_root, exp.kind(), exp.name());
     exp.units(&Options {
         recorded_inputs: root.is_dir().then_some(root),
@@ -127,176 +124,13 @@ fn units_from_record<E: Experiment>(exp: &E, opts: &Options) -> Result<Vec<E::Un
     })
 }
 
-/// Runs the replicas of every bed of `exp`'s case into `out/prepared/bed-K` and
-/// `out/nudged/bed-K` and reduces them.
-pub fn penetration(
-    exp: &Penetration,
-    family: &str,
-    opts: &Options,
-    out: &Path,
-) -> Result<ChaosRecord> {
-    let case = &exp.case;
-    let units = units_from_record(exp, opts)?;
-    ensure!(
-        units.len() >= 2,
-        "{}: a chaos spread needs at least two beds ([ensemble] beds = {})",
-        case.source.display(),
-        units.len()
-    );
-    let same = Perturbation::default();
-    let nudge = one_ulp();
-    let mut prepared = Vec::new();
-    let mut nudged = Vec::new();
-    for u in &units {
-        let t = std::time::Instant::now();
-        let a = exp.run_native(
-            u,
-            Role::Control(&same),
-            &out.join("prepared").join(format!("bed-{}", u.k)),
-            opts,
-        )?;
-        let b = exp.run_native(
-            u,
-            Role::Control(&nudge),
-            &out.join("nudged").join(format!("bed-{}", u.k)),
-            opts,
-        )?;
-        eprintln!(
-            "   bed {}: both replicas in {:.0} s",
-            u.k,
-            t.elapsed().as_secs_f64()
-        );
-        prepared.push(a.run);
-        nudged.push(b.run);
-    }
-    let pa: Vec<_> = prepared.iter().collect();
-    let pb: Vec<_> = nudged.iter().collect();
-    // The nudged runs sit where the reference engine's would: labelled as before.
-    let range = fit_range_of(
-        case,
-        &units,
-        &pa,
-        &pb,
-        crate::rundata::provenance::EngineKind::Liggghts,
-    );
-    let h_max = super::penetration::k_phi_fit_end(case, &range);
-    ensure!(
-        range.not_compared.is_none() || h_max.is_infinite(),
-        "{}: no common fit range: {}",
-        case.source.display(),
-        range.not_compared.clone().unwrap_or_default()
-    );
-    let fit = |runs: &[&super::penetration::bed::EngineRun]| {
-        cp::ensemble_in(
-            case,
-            &runs.iter().map(|r| &r.fdr).collect::<Vec<_>>(),
-            h_max,
-        )
-    };
-    let (oa, ob) = (fit(&pa)?, fit(&pb)?);
-    let k_phi: Vec<f64> = oa.members.iter().map(|m| m.0).collect();
-    let k_phi_nudged: Vec<f64> = ob.members.iter().map(|m| m.0).collect();
-    let log_ratio = k_phi
-        .iter()
-        .zip(&k_phi_nudged)
-        .map(|(a, b)| (a / b).ln())
-        .collect();
-    Ok(ChaosRecord {
-        case: case.name.clone(),
-        canonical_hash: case.canonical_hash().to_string(),
-        family: family.to_string(),
-        bed_hashes: units.iter().map(|u| u.bed_hash.to_string()).collect(),
-        kind: PENETRATION.to_string(),
-        variants: Vec::new(),
-        fit_h: Some((range.h_start, h_max.min(range.h_final))),
-        k_phi,
-        k_phi_nudged,
-        log_ratio,
-        final_depth: Vec::new(),
-        final_depth_nudged: Vec::new(),
-        depth_difference: Vec::new(),
-        granval: env!("CARGO_PKG_VERSION").to_string(),
-    })
-}
-
 /// The one-ulp replica of docs/statistics.md: every grain (every bed disk in 2D) moved
 /// by one ulp in x.
-pub fn one_ulp() -> Perturbation {
+pub(crate) fn one_ulp() -> Perturbation {
     Perturbation {
         nudge_one_ulp: true,
         ..Perturbation::default()
     }
-}
-
-/// Runs the replicas of every variant of a Kondic (2D) case into `out/prepared/LABEL`
-/// and `out/nudged/LABEL`: each scene as built and with [`one_ulp`].
-pub fn impact2d(exp: &Impact2d, family: &str, opts: &Options, out: &Path) -> Result<ChaosRecord> {
-    impact2d_replicas(exp, family, &one_ulp(), opts, out)
-}
-
-/// [`impact2d`] with `replica` as the second run's perturbation. With no perturbation
-/// the replica is the original run again and every c_k must be exactly 0 (the engine is
-/// deterministic, so any chaos the one-ulp replica shows is the nudge's).
-pub fn impact2d_replicas(
-    exp: &Impact2d,
-    family: &str,
-    replica: &Perturbation,
-    opts: &Options,
-    out: &Path,
-) -> Result<ChaosRecord> {
-    let case = &exp.case;
-    let units = units_from_record(exp, opts)?;
-    ensure!(
-        units.len() >= 2,
-        "{}: a chaos spread needs at least two variants (a sweep or seed ensemble); the case has {}",
-        case.source.display(),
-        units.len()
-    );
-    let same = Perturbation::default();
-    let (mut depth, mut depth_nudged) = (Vec::new(), Vec::new());
-    for u in &units {
-        let t = std::time::Instant::now();
-        let name = label_dir(&u.variant);
-        let final_depth = |role: Role, dir: &str| -> Result<f64> {
-            let run = exp.run_native(u, role, &out.join(dir).join(&name), opts)?;
-            let (o, _) = observe(case, &u.variant, &u.scene, &run)
-                .with_context(|| format!("{}: variant {}", case.name, u.variant.label))?;
-            Ok(o.final_depth)
-        };
-        let a = final_depth(Role::Control(&same), "prepared")?;
-        let b = final_depth(Role::Control(replica), "nudged")?;
-        eprintln!(
-            "   {}: both replicas in {:.0} s",
-            u.variant.label,
-            t.elapsed().as_secs_f64()
-        );
-        depth.push(a);
-        depth_nudged.push(b);
-    }
-    let depth_difference = depth
-        .iter()
-        .zip(&depth_nudged)
-        .map(|(a, b)| a - b)
-        .collect();
-    Ok(ChaosRecord {
-        case: case.name.clone(),
-        canonical_hash: case.canonical_hash().to_string(),
-        family: family.to_string(),
-        kind: IMPACT2D.to_string(),
-        bed_hashes: units
-            .iter()
-            .map(|u| super::impact2d::scene_hash(&u.scene).to_string())
-            .collect(),
-        variants: units.iter().map(|u| u.variant.label.clone()).collect(),
-        fit_h: None,
-        k_phi: Vec::new(),
-        k_phi_nudged: Vec::new(),
-        log_ratio: Vec::new(),
-        final_depth: depth,
-        final_depth_nudged: depth_nudged,
-        depth_difference,
-        granval: env!("CARGO_PKG_VERSION").to_string(),
-    })
 }
 
 #[cfg(test)]

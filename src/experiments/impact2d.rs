@@ -3,9 +3,11 @@
 //! intruder with its speed), each run natively and in LAMMPS from the same scene; final
 //! depth and D(t) per variant, the paper's claim over the sweep in each engine.
 
+use super::chaos;
 use super::reference::Verified;
 use super::{DeckFiles, Derived, Estimate, Experiment, Options, Role, Run, Verdict};
 use crate::analysis::impact as obs;
+use crate::case::Perturbation;
 use crate::case::impact2d::IntruderShape;
 use crate::case::impact2d::{BedKey, Impact2dCase, Packing, Variant};
 use crate::compare::Check;
@@ -418,6 +420,14 @@ impl Experiment for Impact2d {
             "final intruder height {:+.2e} d",
             (last(now) - last(previous)) / self.case.scales.d
         )
+    }
+
+    fn has_chaos_baseline(&self) -> bool {
+        true
+    }
+
+    fn chaos(&self, family: &str, opts: &Options, out: &Path) -> Result<super::chaos::ChaosRecord> {
+        chaos_replicas(self, family, &chaos::one_ulp(), opts, out)
     }
 
     fn checks(
@@ -1206,7 +1216,7 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
         let b = match cached {
             Some(b) => b,
             None => {
-                let bar = crate::report::progress::bar(progress, 1, "settle");
+                let bar = crate::report::progress::status(progress, "settle");
                 let scale = case.scales.m * case.scales.g0 * case.scales.d;
                 let tau = case.scales.tau_c;
                 let b = bed::prepare(&spec, |t, ke| {
@@ -1474,6 +1484,74 @@ fn label_dir_str(label: &str) -> String {
             }
         })
         .collect()
+}
+
+/// The chaos replicas of a Kondic (2D) case (docs/statistics.md, "The chaos baseline"):
+/// every variant run natively into `out/prepared/LABEL` and again, with `replica` as its
+/// perturbation (`granval chaos`: [`chaos::one_ulp`], every bed disk moved by one ulp in
+/// x), into `out/nudged/LABEL`, reduced to the final depths and their differences. With no perturbation
+/// the replica is the original run again and every c_k must be exactly 0 (the engine is
+/// deterministic, so any chaos the one-ulp replica shows is the nudge's).
+pub fn chaos_replicas(
+    exp: &Impact2d,
+    family: &str,
+    replica: &Perturbation,
+    opts: &Options,
+    out: &Path,
+) -> Result<chaos::ChaosRecord> {
+    let case = &exp.case;
+    let units = chaos::units_from_record(exp, opts)?;
+    anyhow::ensure!(
+        units.len() >= 2,
+        "{}: a chaos spread needs at least two variants (a sweep or seed ensemble); the case has {}",
+        case.source.display(),
+        units.len()
+    );
+    let same = Perturbation::default();
+    let (mut depth, mut depth_nudged) = (Vec::new(), Vec::new());
+    for u in &units {
+        let t = std::time::Instant::now();
+        let name = label_dir(&u.variant);
+        let final_depth = |role: Role, dir: &str| -> Result<f64> {
+            let run = exp.run_native(u, role, &out.join(dir).join(&name), opts)?;
+            let (o, _) = observe(case, &u.variant, &u.scene, &run)
+                .with_context(|| format!("{}: variant {}", case.name, u.variant.label))?;
+            Ok(o.final_depth)
+        };
+        let a = final_depth(Role::Control(&same), "prepared")?;
+        let b = final_depth(Role::Control(replica), "nudged")?;
+        eprintln!(
+            "   {}: both replicas in {:.0} s",
+            u.variant.label,
+            t.elapsed().as_secs_f64()
+        );
+        depth.push(a);
+        depth_nudged.push(b);
+    }
+    let depth_difference = depth
+        .iter()
+        .zip(&depth_nudged)
+        .map(|(a, b)| a - b)
+        .collect();
+    Ok(chaos::ChaosRecord {
+        case: case.name.clone(),
+        canonical_hash: case.canonical_hash().to_string(),
+        family: family.to_string(),
+        kind: chaos::IMPACT2D.to_string(),
+        bed_hashes: units
+            .iter()
+            .map(|u| scene_hash(&u.scene).to_string())
+            .collect(),
+        variants: units.iter().map(|u| u.variant.label.clone()).collect(),
+        fit_h: None,
+        k_phi: Vec::new(),
+        k_phi_nudged: Vec::new(),
+        log_ratio: Vec::new(),
+        final_depth: depth,
+        final_depth_nudged: depth_nudged,
+        depth_difference,
+        granval: env!("CARGO_PKG_VERSION").to_string(),
+    })
 }
 
 #[cfg(test)]

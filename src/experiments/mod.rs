@@ -33,19 +33,30 @@ use std::path::{Path, PathBuf};
 pub use reference::RefMode;
 
 /// Runs `$body` with `$exp` bound to the experiment of an [`crate::case::AnyCase`]
-/// (`$stress`: the penetration stress option): the one place a case kind chooses its
-/// experiment.
+/// (`$stress`: the penetration stress option; `$reference`, when given: the reference
+/// engine, one of [`crate::case::AnyCase::references`], else the case's own): the one
+/// place a case kind chooses its experiment, so the commands hold no per-kind match.
+/// A new kind is one arm here and one in `AnyCase` (docs/architecture.md, "Adding a
+/// kind").
 #[macro_export]
 macro_rules! with_experiment {
-    ($case:expr, $stress:expr, |$exp:ident| $body:expr) => {
+    ($case:expr, $stress:expr, |$exp:ident| $body:expr) => {{
+        let case = $case;
+        let reference = case.reference_engine();
+        $crate::with_experiment!(case, $stress, reference, |$exp| $body)
+    }};
+    ($case:expr, $stress:expr, $reference:expr, |$exp:ident| $body:expr) => {
         match $case {
             $crate::case::AnyCase::Micro(case) => {
                 let $exp = $crate::experiments::micro::Micro { case };
                 $body
             }
             $crate::case::AnyCase::Penetration(case) => {
-                let $exp =
-                    $crate::experiments::penetration::Penetration::against_liggghts(case, $stress);
+                let $exp = $crate::experiments::penetration::Penetration {
+                    case,
+                    stress: $stress,
+                    reference: $reference,
+                };
                 $body
             }
             $crate::case::AnyCase::Impact2d(case) => {
@@ -58,6 +69,18 @@ macro_rules! with_experiment {
             }
         }
     };
+}
+
+/// Who prepares the beds of a deck directory (`granval deck --bed`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BedBy {
+    /// granval's native pour; the deck's data file holds the exact settled bed, so the
+    /// native engine can run the very same grains (the engine comparison).
+    Native,
+    /// The reference engine pours and settles the same loose lattice with the same
+    /// criterion (a penetration case in LIGGGHTS: `data.lattice` in, `bed.dump` out):
+    /// for full-size beds a native pour would take hours for.
+    Liggghts,
 }
 
 /// How a comparison runs; built once from the command line.
@@ -409,6 +432,74 @@ pub trait Experiment {
         out: &Path,
         opts: &Options,
     ) -> Verdict;
+
+    /// `granval deck`: the reference engine's input of every unit under `out`, one
+    /// directory each, with the case file and a README. Only a kind whose reference
+    /// engine can pour its beds (penetration in LIGGGHTS) takes [`BedBy::Liggghts`].
+    fn write_decks(&self, bed_by: BedBy, opts: &Options, out: &Path) -> Result<Vec<PathBuf>>
+    where
+        Self: Sized,
+    {
+        if bed_by != BedBy::Native {
+            anyhow::bail!(
+                "{}: --bed liggghts: a {} case's units are prepared natively (only a penetration case's beds can be poured by LIGGGHTS)",
+                self.source().display(),
+                self.kind()
+            );
+        }
+        runner::deck(self, opts, out)
+    }
+
+    /// `granval analyze` of a deck directory `dir` its reference engine ran in: checked
+    /// against the inputs granval writes, reduced as `compare` reduces a live run.
+    /// `native = false` (`--no-native`: the reference engine's observables alone) only
+    /// where the kind supports it (penetration).
+    fn analyze_decks(
+        &self,
+        dir: &Path,
+        native: bool,
+        opts: &Options,
+        out: &Path,
+    ) -> Result<runner::CaseOutcome>
+    where
+        Self: Sized,
+    {
+        if !native {
+            anyhow::bail!(
+                "--no-native: only for penetration deck directories; {} is a {} case",
+                dir.join("case.toml").display(),
+                self.kind()
+            );
+        }
+        Ok(runner::analyze(self, opts, dir, out))
+    }
+
+    /// Whether `granval stress` applies: the kind takes contact snapshots and reduces
+    /// them to coarse-grained stress fields and phi (penetration, docs/stress.md).
+    fn has_stress_fields(&self) -> bool {
+        false
+    }
+
+    /// Whether `granval chaos` applies: the kind's units are granular flows on beds
+    /// (penetration, impact2d), whose spread over replicas moved by one ulp is the chaos
+    /// baseline of docs/statistics.md.
+    fn has_chaos_baseline(&self) -> bool {
+        false
+    }
+
+    /// `granval chaos`: the chaos baseline (every unit twice, the second moved by one
+    /// ulp; docs/statistics.md), where [`Experiment::has_chaos_baseline`].
+    fn chaos(&self, family: &str, opts: &Options, out: &Path) -> Result<chaos::ChaosRecord>
+    where
+        Self: Sized,
+    {
+        let _ = (family, opts, out);
+        anyhow::bail!(
+            "{}: `granval chaos` takes a penetration or impact2d case, not a {} case: the chaos baseline (docs/statistics.md) is a spread over the beds of a granular flow, which such a case has not",
+            self.source().display(),
+            self.kind()
+        )
+    }
 }
 
 /// Resource limits checked before a run ([`Options::allow_large`] lifts them).

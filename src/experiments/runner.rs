@@ -969,7 +969,7 @@ fn first_line(s: &str) -> &str {
 }
 
 /// `granval deck`: the reference engine's input for every unit, without running it.
-pub fn deck<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> Result<Vec<PathBuf>> {
+pub(crate) fn deck<E: Experiment>(exp: &E, opts: &Options, out: &Path) -> Result<Vec<PathBuf>> {
     exp.preflight()?;
     let units = exp.units(opts)?;
     let mut dirs = Vec::new();

@@ -191,35 +191,16 @@ fn write_case(
 ) -> Result<(CaseRecord, Vec<UnitRow>)> {
     let kind = case.kind();
     let name = case.name().to_string();
-    let (dirs, files, engine, estimate, hash) = match case {
-        AnyCase::Penetration(c) => {
-            let exp = super::penetration::Penetration::against_liggghts(c.clone(), false);
-            let dirs = super::penetration::deck_dir::write(
-                &c,
-                dir,
-                super::penetration::deck_dir::BedBy::Native,
-                opts.progress,
-                None,
-            )?;
-            (
-                dirs,
-                exp.deck_files(),
-                exp.reference_engine(),
-                exp.estimate(),
-                exp.canonical_hash(),
-            )
-        }
-        c => crate::with_experiment!(c, false, |exp| {
-            let dirs = super::runner::deck(&exp, opts, dir)?;
-            (
-                dirs,
-                exp.deck_files(),
-                exp.reference_engine(),
-                exp.estimate(),
-                exp.canonical_hash(),
-            )
-        }),
-    };
+    let (dirs, files, engine, estimate, hash) = crate::with_experiment!(case, false, |exp| {
+        let dirs = exp.write_decks(super::BedBy::Native, opts, dir)?;
+        (
+            dirs,
+            exp.deck_files(),
+            exp.reference_engine(),
+            exp.estimate(),
+            exp.canonical_hash(),
+        )
+    });
     // LIGGGHTS penetration runs use at least two processes in `compare` (and so in
     // `check`); the same count here reproduces them.
     let np = if kind == "penetration" { np.max(2) } else { np };

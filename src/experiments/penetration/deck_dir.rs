@@ -25,17 +25,7 @@ use std::path::{Path, PathBuf};
 
 pub(crate) const CASE_FILE: &str = "case.toml";
 
-/// Who prepares the beds of a deck directory.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum BedBy {
-    /// granval's native pour; `data.bed` holds the exact settled bed, so the native
-    /// engine can penetrate the very same grains (the engine comparison).
-    Native,
-    /// LIGGGHTS pours and settles the same loose lattice with the same criterion
-    /// (`data.lattice` in, `bed.dump` out): for full-size beds a native pour would take
-    /// hours for.
-    Liggghts,
-}
+pub use crate::experiments::BedBy;
 
 /// Whether a bed directory settles its own bed in LIGGGHTS.
 pub(crate) fn settles_in_liggghts(dir: &Path) -> bool {
@@ -117,7 +107,7 @@ pub fn write(
 /// LIGGGHTS deck would read it.
 /// `viz_every`: each deck also writes a visualisation dump every that many steps
 /// (`granval deck --engine lammps --viz N`, [`crate::engines::viz_dump`]).
-pub fn write_lammps(
+pub(crate) fn write_lammps(
     case: &PenetrationCase,
     out: &Path,
     progress: bool,

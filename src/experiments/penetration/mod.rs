@@ -17,6 +17,7 @@
 
 pub mod agreement;
 pub mod bed;
+mod chaos;
 pub mod deck_dir;
 pub(crate) mod inputs;
 pub(crate) mod run_seal;
@@ -910,6 +911,45 @@ impl Experiment for Penetration {
                 b.err().map(|e| e.to_string())
             ),
         }
+    }
+
+    fn write_decks(
+        &self,
+        bed_by: super::BedBy,
+        opts: &Options,
+        out: &Path,
+    ) -> Result<Vec<std::path::PathBuf>> {
+        match self.reference {
+            EngineKind::Lammps if bed_by != super::BedBy::Native => anyhow::bail!(
+                "--engine lammps --bed liggghts: the LAMMPS penetration deck reads beds granval prepared natively (--bed native)"
+            ),
+            EngineKind::Lammps => {
+                deck_dir::write_lammps(&self.case, out, opts.progress, opts.viz_every)
+            }
+            _ => deck_dir::write(&self.case, out, bed_by, opts.progress, opts.viz_every),
+        }
+    }
+
+    fn analyze_decks(
+        &self,
+        dir: &Path,
+        native: bool,
+        opts: &Options,
+        out: &Path,
+    ) -> Result<super::runner::CaseOutcome> {
+        deck_dir::analyze(dir, native, opts, out)
+    }
+
+    fn has_chaos_baseline(&self) -> bool {
+        true
+    }
+
+    fn has_stress_fields(&self) -> bool {
+        true
+    }
+
+    fn chaos(&self, family: &str, opts: &Options, out: &Path) -> Result<super::chaos::ChaosRecord> {
+        chaos::replicas(self, family, opts, out)
     }
 
     fn checks(
