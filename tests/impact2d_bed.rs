@@ -164,6 +164,28 @@ fn bed_preparation_is_reproducible_for_a_seed_and_differs_across_seeds() {
     assert_ne!(key(&a), key(&c));
 }
 
+/// A bed that does not settle in the time allowed is an error that says how the energy
+/// went (in K's m g d), so a user can tell a bed that needs more time (still falling)
+/// from one that keeps moving. Here the pour is stopped in mid-fall, its energy rising.
+#[test]
+fn a_bed_that_does_not_settle_says_how_its_energy_went() {
+    let s = BedSpec {
+        max_settle_time: 0.05,
+        ..spec(Packing::Random)
+    };
+    let e = format!("{:#}", bed::prepare(&s, |_, _| {}).unwrap_err());
+    for needle in [
+        "bed did not settle",
+        "m g d = 3.924e-6 J",
+        "total KE ",
+        "m g d at t = ",
+        "lowest ",
+    ] {
+        assert!(e.contains(needle), "{needle:?} not in: {e}");
+    }
+    assert!(e.contains("rising over the last half"), "{e}");
+}
+
 /// K Fig 11's `bed` sweep: one bed per (count, length, seed), each poured and settled
 /// by the same protocol, each variant's scene on its own bed; and the claim control's
 /// perturbation slows the intruder only in the variants of another size than the first.

@@ -4,3 +4,4 @@
 
 pub mod dem;
 pub mod dem2d;
+pub(crate) mod settle_trace;

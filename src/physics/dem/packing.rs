@@ -9,6 +9,7 @@ use super::{Simulation, rigid};
 use crate::case::clumps::{Clump, Clumps};
 use crate::case::penetration::{Diameter, PenetrationCase};
 use crate::case::{Axis, Case, Material, PairTable, Particle, RollingModel, Tolerances, Wall};
+use crate::physics::settle_trace::SettleTrace;
 use anyhow::{Result, bail};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -272,8 +273,19 @@ pub fn pour_case(case: &PenetrationCase) -> Result<Case> {
 pub fn settle(
     sim: &mut Simulation,
     case: &PenetrationCase,
-    mut progress: impl FnMut(f64, f64),
+    progress: impl FnMut(f64, f64),
 ) -> Result<(f64, f64)> {
+    settle_traced(sim, case, progress).map(|(r, k, _)| (r, k))
+}
+
+/// [`settle`], with the trace of the ratio after pouring (for the error when the bed
+/// does not settle).
+fn settle_traced(
+    sim: &mut Simulation,
+    case: &PenetrationCase,
+    mut progress: impl FnMut(f64, f64),
+) -> Result<(f64, f64, SettleTrace)> {
+    let mut trace = SettleTrace::default();
     let n = sim.n_grains() as f64;
     let check_every = 50u64;
     let max_steps = (case.max_settle_time / case.dt).ceil() as u64;
@@ -294,12 +306,13 @@ pub fn settle(
         } else {
             ratio = ke / ke_peak;
             progress(sim.step as f64 * case.dt, ratio);
+            trace.push(sim.step as f64 * case.dt, ratio);
             if ratio < case.settle_ke_ratio {
                 break;
             }
         }
     }
-    Ok((ratio, ke_peak))
+    Ok((ratio, ke_peak, trace))
 }
 
 /// Pours and settles the bed with the native engine.
@@ -307,13 +320,14 @@ pub fn prepare(case: &PenetrationCase, progress: impl FnMut(f64, f64)) -> Result
     let sim_case = pour_case(case)?;
     let mut sim = Simulation::from_case(&sim_case);
     sim.setup()?;
-    let (ratio, ke_peak) = settle(&mut sim, case, progress)?;
+    let (ratio, ke_peak, trace) = settle_traced(&mut sim, case, progress)?;
     if ratio >= case.settle_ke_ratio {
         bail!(
-            "{}: bed not settled after max_settle_time = {} s (mean KE / KE at end of pouring = {ratio:.2e}, target {:.1e})",
+            "{}: bed not settled after max_settle_time = {} s (mean KE / KE at end of pouring = {ratio:.2e}, target {:.1e}); {}",
             case.source.display(),
             case.max_settle_time,
-            case.settle_ke_ratio
+            case.settle_ke_ratio,
+            trace.describe("the ratio", 1.0, "")
         );
     }
     let frame = sim.frame();

@@ -212,6 +212,7 @@ fn settle(
     let check_every = 50u64;
     let max_steps = (spec.max_settle_time / spec.dt).ceil() as u64;
     let mut ke = sys.kinetic_energy();
+    let mut trace = crate::physics::settle_trace::SettleTrace::default();
     while sys.step < max_steps {
         for _ in 0..check_every {
             sys.step();
@@ -224,16 +225,20 @@ fn settle(
             );
         }
         progress(sys.time(), ke);
+        trace.push(sys.time(), ke);
         if ke < spec.settle_ke && sys.step >= 2 * check_every {
             let t = sys.time();
             let grains = sys.disks.into_iter().take(n).collect();
             return Ok((grains, t, ke));
         }
     }
+    // K's criterion is in m g d: the weight of a grain of diameter d lifted by d.
+    let mgd = spec.areal_density * std::f64::consts::FRAC_PI_4 * spec.d.powi(3) * spec.gravity;
     bail!(
-        "bed did not settle: total kinetic energy {ke:.3e} J still above {:.3e} J after {:.4e} s (raise bed.max_settle_time)",
+        "bed did not settle: total kinetic energy {ke:.3e} J still above {:.3e} J after {:.4e} s (bed.max_settle_time); m g d = {mgd:.3e} J, {}",
         spec.settle_ke,
-        spec.max_settle_time
+        spec.max_settle_time,
+        trace.describe("total KE", mgd, " m g d")
     )
 }
 
