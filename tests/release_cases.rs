@@ -516,7 +516,8 @@ fn kondic_fig11_case_sweeps_two_sizes_of_three_seeds_from_the_fig2_bed() {
 }
 
 /// Kondic et al. Fig 12 at the paper's system as registered (before any W = 200 bed
-/// existed): the Fig 11 case's physics and rule at L = 100, W = 200 (20 000 disks), v =
+/// existed; its settling time raised before any run of the claim): the Fig 11 case's
+/// physics and rule at L = 100, W = 200 (20 000 disks), v =
 /// 0.7, on seeds 1-3, with a 500 tau_c final window in a 1600 tau_c run; only the
 /// interface claim (no size claim: one size); the friction-swap and two frozen-floor
 /// controls; not in the release suite until it is recorded.
@@ -540,13 +541,25 @@ fn kondic_fig12_case_is_the_fig11_recipe_at_w200_and_v07() {
         beds,
         vec![(20000, 100.0, 1), (20000, 100.0, 2), (20000, 100.0, 3)]
     );
-    // Apart from the count, every bed is poured and settled as the Fig 11 (Fig 2) beds.
+    // Apart from the count and the time allowed to settle, every bed is poured and
+    // settled as the Fig 11 (Fig 2) beds, to the same criterion (K's 1e-10 m g d). The
+    // time allowed is 200 000 tau_c, raised from 30 000 after the seed-1 bed's kinetic
+    // energy was traced (a decaying oscillation of the column, still falling at 30 000
+    // tau_c; the case file and docs/release.md give the numbers); a bed that settles
+    // earlier is the same bed whatever the cap.
     let spec = |c: &granval::case::impact2d::Impact2dCase, k: usize| {
         let mut b = c.bed_of(&c.variants[k]);
         b.count = 0;
-        serde_json::to_string(&bed_spec(c, &b)).unwrap()
+        let mut spec = bed_spec(c, &b);
+        spec.max_settle_time = 0.0;
+        serde_json::to_string(&spec).unwrap()
     };
     assert_eq!(spec(&c, 0), spec(&fig11, 0));
+    let cap = |c: &granval::case::impact2d::Impact2dCase| {
+        bed_spec(c, &c.bed_of(&c.variants[0])).max_settle_time / c.scales.tau_c
+    };
+    assert!((cap(&fig11) - 30000.0).abs() < 1e-6, "{}", cap(&fig11));
+    assert!((cap(&c) - 200000.0).abs() < 1e-6, "{}", cap(&c));
     assert!(
         c.variants
             .iter()
