@@ -1,8 +1,9 @@
 //! What a bed's settling did, for the error when it does not settle: whether the kinetic
 //! energy was still falling when the time allowed ran out (raise the time) or had
 //! stopped falling (something keeps the bed moving: a creeping avalanche, an oscillating
-//! column, a rattler; more time will not help). A bed of 20 000 disks that does not
-//! settle in an hour of CPU is only diagnosable from this.
+//! column, a rattler; more time alone may not help, though a creeping 2D bed can still
+//! settle after an avalanche). A bed of 20 000 disks that does not settle in an hour of
+//! CPU is only diagnosable from this.
 
 /// Every checked (time, energy) of one settling phase.
 #[derive(Debug, Default, Clone)]
