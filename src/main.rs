@@ -1423,7 +1423,6 @@ fn deck(a: DeckArgs) -> Result<ExitCode> {
     let _out = claim(&out, "-o", common.force, &protected(&common).input(&case))?;
     let opts = Options {
         viz_every: viz,
-        progress: true,
         ..opts
     };
     let dirs = with_experiment!(c, false, reference, |exp| exp.write_decks(bed, &opts, &out))?;

@@ -7,7 +7,7 @@ mod common;
 use granval::analysis::fdr::{self, FdrBinner, Scales};
 use granval::case::penetration::PenetrationCase;
 use granval::experiments::penetration::{Penetration, bed as pen, deck_dir};
-use granval::experiments::{Options, RefMode, runner};
+use granval::experiments::{BedBy, Options, RefMode, runner};
 use granval::rundata::provenance::EngineKind;
 use std::path::Path;
 use std::process::Command;
@@ -132,7 +132,7 @@ fn deck_directory_holds_the_exact_bed_and_a_readme() {
     let tmp = tempfile::tempdir().unwrap();
     let case = tiny_case(tmp.path());
     let out = tmp.path().join("deck");
-    let dirs = deck_dir::write(&case, &out, deck_dir::BedBy::Native, false, None).unwrap();
+    let dirs = deck_dir::write(&case, &out, BedBy::Native, false, None).unwrap();
     assert_eq!(dirs.len(), 2);
     for (k, d) in dirs.iter().enumerate() {
         let ck = case.realisation(k);
@@ -228,7 +228,7 @@ fn analyze_of_a_deck_run_reproduces_compare() {
     );
 
     let deck = tmp.path().join("deck");
-    let dirs = deck_dir::write(&case, &deck, deck_dir::BedBy::Native, false, None).unwrap();
+    let dirs = deck_dir::write(&case, &deck, BedBy::Native, false, None).unwrap();
     for (k, d) in dirs.iter().enumerate() {
         // `granval deck` writes exactly the inputs `compare` ran (in OUT/bed-K/liggghts/);
         // the deck's header carries the date it was written, so the deck is compared as
@@ -290,7 +290,7 @@ fn full_size_d2mm_deck_starts_under_mpirun() {
     let case = PenetrationCase::load(&root().join("cases/penetration/feng-table2-d2mm.toml"))
         .unwrap_or_else(|e| panic!("{e}"));
     let tmp = tempfile::tempdir().unwrap();
-    let dirs = deck_dir::write(&case, tmp.path(), deck_dir::BedBy::Liggghts, false, None).unwrap();
+    let dirs = deck_dir::write(&case, tmp.path(), BedBy::Liggghts, false, None).unwrap();
     let d = &dirs[0];
     // 100 settling steps, then every later command (bed dump, intruder placement, mesh,
     // move, force output) with 100 penetration steps.
@@ -468,14 +468,14 @@ fn viz_deck_dumps_vtk_and_analyze_accepts_it_as_written() {
     let too_long = deck_dir::write(
         &case,
         &tmp.path().join("bad"),
-        deck_dir::BedBy::Native,
+        BedBy::Native,
         false,
         Some(n_steps + 1),
     )
     .unwrap_err();
     assert!(format!("{too_long:#}").contains("--viz"), "{too_long:#}");
     let deck = tmp.path().join("deck");
-    let dirs = deck_dir::write(&case, &deck, deck_dir::BedBy::Native, false, Some(every)).unwrap();
+    let dirs = deck_dir::write(&case, &deck, BedBy::Native, false, Some(every)).unwrap();
     let text = std::fs::read_to_string(dirs[0].join("in.penetration")).unwrap();
     assert!(
         text.contains(&format!(
@@ -496,14 +496,8 @@ fn viz_deck_dumps_vtk_and_analyze_accepts_it_as_written() {
             .contains("## Look at it")
     );
     // A deck written without --viz has no dump and no viz_every.
-    let plain = deck_dir::write(
-        &case,
-        &tmp.path().join("plain"),
-        deck_dir::BedBy::Native,
-        false,
-        None,
-    )
-    .unwrap();
+    let plain =
+        deck_dir::write(&case, &tmp.path().join("plain"), BedBy::Native, false, None).unwrap();
     assert!(
         !std::fs::read_to_string(plain[0].join("in.penetration"))
             .unwrap()

@@ -1489,9 +1489,10 @@ fn label_dir_str(label: &str) -> String {
 /// The chaos replicas of a Kondic (2D) case (docs/statistics.md, "The chaos baseline"):
 /// every variant run natively into `out/prepared/LABEL` and again, with `replica` as its
 /// perturbation (`granval chaos`: [`chaos::one_ulp`], every bed disk moved by one ulp in
-/// x), into `out/nudged/LABEL`, reduced to the final depths and their differences. With no perturbation
-/// the replica is the original run again and every c_k must be exactly 0 (the engine is
-/// deterministic, so any chaos the one-ulp replica shows is the nudge's).
+/// x), into `out/nudged/LABEL`, reduced to the final depths and their differences.
+/// With no perturbation the replica is the original run again and every c_k must be
+/// exactly 0 (the engine is deterministic, so any chaos the one-ulp replica shows is the
+/// nudge's).
 pub fn chaos_replicas(
     exp: &Impact2d,
     family: &str,

@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 
 pub(crate) const CASE_FILE: &str = "case.toml";
 
-pub use crate::experiments::BedBy;
+use crate::experiments::BedBy;
 
 /// Whether a bed directory settles its own bed in LIGGGHTS.
 pub(crate) fn settles_in_liggghts(dir: &Path) -> bool {
