@@ -27,7 +27,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 /// The public items at the end of the last narrowing step (see docs/architecture.md).
-const CEILING: usize = 792;
+const CEILING: usize = 791;
 
 /// Source text with comments, string literals and char literals blanked to spaces
 /// (newlines kept, so line numbers survive). Lifetimes (`'a`) are kept.
