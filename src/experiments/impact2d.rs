@@ -1219,7 +1219,15 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
                 let bar = crate::report::progress::status(progress, "settle");
                 let scale = case.scales.m * case.scales.g0 * case.scales.d;
                 let tau = case.scales.tau_c;
-                let b = bed::prepare(&spec, |t, ke| {
+                // A long settling keeps checkpoints beside the cache and continues from
+                // them (`settle_checkpoint`); without a cache it starts from the pour.
+                let mut file = super::settle_checkpoint::CheckpointFile::for_spec(&spec, progress);
+                let mut none = bed::NoCheckpoints;
+                let ckpt: &mut dyn bed::Checkpoints = match file.as_mut() {
+                    Some(f) => f,
+                    None => &mut none,
+                };
+                let b = bed::prepare_resumable(&spec, ckpt, |t, ke| {
                     bar.set_message(format!(
                         "t = {:.0} tau_c, KE = {:.1e} m g d",
                         t / tau,
@@ -1238,6 +1246,11 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
                 })?;
                 bar.finish_and_clear();
                 super::bed_cache::store(cache.as_deref(), &spec, &b);
+                if let (Some(f), Some(c)) = (file, cache.as_deref())
+                    && c.exists()
+                {
+                    f.finished();
+                }
                 b
             }
         };

@@ -19,6 +19,7 @@ pub mod reference;
 pub mod registration;
 pub mod release_status;
 pub mod runner;
+pub(crate) mod settle_checkpoint;
 pub mod suite;
 pub mod suite_deck;
 pub mod triaxial;

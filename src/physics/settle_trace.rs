@@ -5,8 +5,9 @@
 //! settle after an avalanche). A bed of 20 000 disks that does not settle in an hour of
 //! CPU is only diagnosable from this.
 
-/// Every checked (time, energy) of one settling phase.
-#[derive(Debug, Default, Clone)]
+/// Every checked (time, energy) of one settling phase (kept in a settling checkpoint,
+/// so a settling continued from one describes the whole phase).
+#[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct SettleTrace {
     samples: Vec<(f64, f64)>,
 }

@@ -197,22 +197,129 @@ fn system(spec: &BedSpec, grains: Vec<Disk>, wall: &[Disk], top: f64) -> System 
     )
 }
 
+/// Which settling a checkpoint was taken in: the pour's, or the one after the rough
+/// top was cut away (which needs the first's duration and how many grains went).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) enum Phase {
+    First,
+    Second { first_time: f64, removed: usize },
+}
+
+/// A settling stopped part way, to be continued later: a bed of 20 000 disks takes
+/// hours to settle to K's criterion, longer than a cluster job's wall time or a
+/// working session may allow. Continuing from it gives the bed an uninterrupted run
+/// gives, bit for bit ([`super::Resume`]).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct SettleCheckpoint {
+    /// [`identity`] of the specification it was taken under.
+    pub(crate) identity: String,
+    pub(crate) phase: Phase,
+    /// Mobile grains in the system (the wall disks follow them).
+    pub(crate) grains: usize,
+    /// Top of the settling box (from the grains the phase started with).
+    pub(crate) top: f64,
+    pub(crate) state: super::Resume,
+    pub(crate) trace: crate::physics::settle_trace::SettleTrace,
+}
+
+impl SettleCheckpoint {
+    /// The settling it was taken in.
+    pub(crate) fn phase(&self) -> Phase {
+        self.phase
+    }
+}
+
+/// The specification a checkpoint belongs to, as JSON with the time cap left out: a
+/// bed stopped by `max_settle_time` continues when the cap is raised, and the cap
+/// changes nothing else of the settling.
+pub(crate) fn identity(spec: &BedSpec) -> String {
+    let mut s = spec.clone();
+    s.max_settle_time = 0.0;
+    serde_json::to_string(&s).unwrap_or_default()
+}
+
+/// Where a settling keeps its checkpoints. The default keeps none.
+pub(crate) trait Checkpoints {
+    /// A checkpoint to continue from, if one was kept.
+    fn resume(&mut self) -> Result<Option<SettleCheckpoint>> {
+        Ok(None)
+    }
+    /// Asked at every energy check: whether to save now.
+    fn due(&mut self) -> bool {
+        false
+    }
+    fn save(&mut self, _checkpoint: &SettleCheckpoint) -> Result<()> {
+        Ok(())
+    }
+    /// Where the state is kept, for the message of a bed that did not settle.
+    fn kept_at(&self) -> Option<String> {
+        None
+    }
+}
+
+/// No checkpoints: a settling that stops starts again from the pour.
+pub(crate) struct NoCheckpoints;
+impl Checkpoints for NoCheckpoints {}
+
+/// How one settling phase starts.
+enum Start {
+    Pour(Vec<Disk>),
+    Resume(Box<SettleCheckpoint>),
+}
+
 /// Runs until the total kinetic energy is below the threshold; returns the settled
-/// grains and the time it took.
+/// grains and the time it took. Saves a checkpoint when `ckpt` says it is due and
+/// when the time allowed runs out (so a raised cap continues from there).
 fn settle(
     spec: &BedSpec,
-    grains: Vec<Disk>,
+    start: Start,
     wall: &[Disk],
+    phase: Phase,
+    ckpt: &mut dyn Checkpoints,
     mut progress: impl FnMut(f64, f64),
 ) -> Result<(Vec<Disk>, f64, f64)> {
-    let n = grains.len();
-    let top = grains.iter().map(|g| g.x[1] + g.radius).fold(0.0, f64::max) + spec.d;
-    let mut sys = system(spec, grains, wall, top);
-    sys.setup();
+    let (mut sys, n, top, mut trace) = match start {
+        Start::Pour(grains) => {
+            let n = grains.len();
+            let top = grains.iter().map(|g| g.x[1] + g.radius).fold(0.0, f64::max) + spec.d;
+            let mut sys = system(spec, grains, wall, top);
+            sys.setup();
+            (
+                sys,
+                n,
+                top,
+                crate::physics::settle_trace::SettleTrace::default(),
+            )
+        }
+        Start::Resume(c) => {
+            let c = *c;
+            let saved = c.state.disks();
+            if c.grains > saved.len() || saved[c.grains..].len() != wall.len() {
+                bail!(
+                    "the checkpoint holds {} disks for {} grains, not the {} wall disks of this bed",
+                    saved.len(),
+                    c.grains,
+                    wall.len()
+                );
+            }
+            let grains = saved[..c.grains].to_vec();
+            let mut sys = system(spec, grains, wall, c.top);
+            sys.restore(c.state)?;
+            (sys, c.grains, c.top, c.trace)
+        }
+    };
     let check_every = 50u64;
     let max_steps = (spec.max_settle_time / spec.dt).ceil() as u64;
     let mut ke = sys.kinetic_energy();
-    let mut trace = crate::physics::settle_trace::SettleTrace::default();
+    let checkpoint =
+        |sys: &System, trace: &crate::physics::settle_trace::SettleTrace| SettleCheckpoint {
+            identity: identity(spec),
+            phase,
+            grains: n,
+            top,
+            state: sys.resume_state(),
+            trace: trace.clone(),
+        };
     while sys.step < max_steps {
         for _ in 0..check_every {
             sys.step();
@@ -231,11 +338,20 @@ fn settle(
             let grains = sys.disks.into_iter().take(n).collect();
             return Ok((grains, t, ke));
         }
+        if ckpt.due() {
+            ckpt.save(&checkpoint(&sys, &trace))?;
+        }
     }
+    let kept = match ckpt.save(&checkpoint(&sys, &trace)) {
+        Ok(()) => ckpt.kept_at().map_or(String::new(), |at| {
+            format!("; its state is kept in {at}: raise bed.max_settle_time and run again to continue from there")
+        }),
+        Err(e) => format!("; its state could not be kept: {e:#}"),
+    };
     // K's criterion is in m g d: the weight of a grain of diameter d lifted by d.
     let mgd = spec.areal_density * std::f64::consts::FRAC_PI_4 * spec.d.powi(3) * spec.gravity;
     bail!(
-        "bed did not settle: total kinetic energy {ke:.3e} J still above {:.3e} J after {:.4e} s (bed.max_settle_time); m g d = {mgd:.3e} J, {}",
+        "bed did not settle: total kinetic energy {ke:.3e} J still above {:.3e} J after {:.4e} s (bed.max_settle_time); m g d = {mgd:.3e} J, {}{kept}",
         spec.settle_ke,
         spec.max_settle_time,
         trace.describe("total KE", mgd, " m g d")
@@ -243,29 +359,75 @@ fn settle(
 }
 
 /// Prepares the bed; `progress(t, ke)` is called during settling.
-pub fn prepare(spec: &BedSpec, mut progress: impl FnMut(f64, f64)) -> Result<Bed> {
+pub fn prepare(spec: &BedSpec, progress: impl FnMut(f64, f64)) -> Result<Bed> {
+    prepare_resumable(spec, &mut NoCheckpoints, progress)
+}
+
+/// [`prepare`], continuing from the checkpoint `ckpt` holds (if any) and saving new
+/// ones as it asks. A checkpoint of another specification is an error, never a bed
+/// of this one.
+pub(crate) fn prepare_resumable(
+    spec: &BedSpec,
+    ckpt: &mut dyn Checkpoints,
+    mut progress: impl FnMut(f64, f64),
+) -> Result<Bed> {
     let wall_y = 0.5 * spec.wall_d;
     let wall = wall_row(spec.length, spec.wall_d, wall_y, spec.count as u64 + 1);
     let floor = spec.wall_d;
-    let grains = initial_grains(spec, floor)?;
-    let (grains, t1, ke1) = settle(spec, grains, &wall, &mut progress)?;
-    let (grains, removed, t2, ke) = match spec.packing {
-        Packing::Hexagonal => (grains, 0, 0.0, ke1),
-        Packing::Random => {
-            let width = 2.0 * spec.d;
-            let ncol = ((spec.length / width).floor() as usize).max(1);
-            let mut col_top = vec![f64::NEG_INFINITY; ncol];
-            for g in &grains {
-                let c = ((g.x[0] / spec.length * ncol as f64) as usize).min(ncol - 1);
-                col_top[c] = col_top[c].max(g.x[1] + g.radius);
+    let resume = ckpt.resume()?;
+    if let Some(c) = &resume
+        && c.identity != identity(spec)
+    {
+        bail!(
+            "the settling checkpoint{} was taken for another bed specification ({}), not this one ({})",
+            ckpt.kept_at().map_or(String::new(), |at| format!(" {at}")),
+            c.identity,
+            identity(spec)
+        );
+    }
+
+    let (first, second) = match resume {
+        None => (Some(Start::Pour(initial_grains(spec, floor)?)), None),
+        Some(c) if c.phase == Phase::First => (Some(Start::Resume(Box::new(c))), None),
+        Some(c) => (None, Some(c)),
+    };
+    let (grains, removed, t1, t2, ke) = match (first, second) {
+        (Some(start), _) => {
+            let (grains, t1, ke1) = settle(spec, start, &wall, Phase::First, ckpt, &mut progress)?;
+            match spec.packing {
+                Packing::Hexagonal => (grains, 0, t1, 0.0, ke1),
+                Packing::Random => {
+                    let (kept, removed) = smooth(spec, grains);
+                    let phase = Phase::Second {
+                        first_time: t1,
+                        removed,
+                    };
+                    let (kept, t2, ke2) =
+                        settle(spec, Start::Pour(kept), &wall, phase, ckpt, &mut progress)?;
+                    (kept, removed, t1, t2, ke2)
+                }
             }
-            let cut = col_top.iter().copied().fold(f64::INFINITY, f64::min);
-            let before = grains.len();
-            let kept: Vec<Disk> = grains.into_iter().filter(|g| g.x[1] <= cut).collect();
-            let removed = before - kept.len();
-            let (kept, t2, ke2) = settle(spec, kept, &wall, &mut progress)?;
-            (kept, removed, t2, ke2)
         }
+        (None, Some(c)) => {
+            let Phase::Second {
+                first_time,
+                removed,
+            } = c.phase
+            else {
+                unreachable!("only a second-phase checkpoint reaches here")
+            };
+            let phase = c.phase;
+            let (kept, t2, ke2) = settle(
+                spec,
+                Start::Resume(Box::new(c)),
+                &wall,
+                phase,
+                ckpt,
+                &mut progress,
+            )?;
+            (kept, removed, first_time, t2, ke2)
+        }
+        (None, None) => unreachable!("a settling starts from the pour or a checkpoint"),
     };
     let mut bed = Bed {
         grains,
@@ -278,6 +440,24 @@ pub fn prepare(spec: &BedSpec, mut progress: impl FnMut(f64, f64)) -> Result<Bed
     };
     bed.packing_fraction = packing_fraction(&bed, spec);
     Ok(bed)
+}
+
+/// K's smoothing of the rough top: columns 2 d wide, the lowest of their highest grain
+/// tops is the cut, every grain whose centre is above it goes. Returns the kept grains
+/// and how many went.
+fn smooth(spec: &BedSpec, grains: Vec<Disk>) -> (Vec<Disk>, usize) {
+    let width = 2.0 * spec.d;
+    let ncol = ((spec.length / width).floor() as usize).max(1);
+    let mut col_top = vec![f64::NEG_INFINITY; ncol];
+    for g in &grains {
+        let c = ((g.x[0] / spec.length * ncol as f64) as usize).min(ncol - 1);
+        col_top[c] = col_top[c].max(g.x[1] + g.radius);
+    }
+    let cut = col_top.iter().copied().fold(f64::INFINITY, f64::min);
+    let before = grains.len();
+    let kept: Vec<Disk> = grains.into_iter().filter(|g| g.x[1] <= cut).collect();
+    let removed = before - kept.len();
+    (kept, removed)
 }
 
 fn packing_fraction(bed: &Bed, spec: &BedSpec) -> f64 {
@@ -293,4 +473,170 @@ fn packing_fraction(bed: &Bed, spec: &BedSpec) -> f64 {
         .map(|g| std::f64::consts::PI * g.radius * g.radius)
         .sum();
     area / (spec.length * (hi - lo))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The random bed of `tests/impact2d_bed.rs`: 160 disks on 16 d, soft springs.
+    fn spec() -> BedSpec {
+        let d = 0.004;
+        let c = Coeffs {
+            kn: 400.0,
+            kt: 0.0,
+            gamma_n: 1500.0,
+            gamma_t: 750.0,
+            mu: 0.5,
+        };
+        let w = Coeffs {
+            kn: 400.0,
+            kt: 0.0,
+            gamma_n: 4000.0,
+            gamma_t: 2000.0,
+            mu: 0.9,
+        };
+        BedSpec {
+            packing: Packing::Random,
+            count: 160,
+            length: 16.0 * d,
+            d,
+            polydispersity: 0.2,
+            areal_density: 1e-4 / (std::f64::consts::PI * 0.25 * d * d),
+            wall_d: d,
+            seed: 11,
+            initial_speed: 0.05,
+            settle_ke: 1e-8 * 1e-4 * 9.81 * d,
+            max_settle_time: 30.0,
+            dt: 2e-5,
+            skin: 0.3 * d,
+            gravity: 9.81,
+            coeffs: [c, w, w, w],
+        }
+    }
+
+    /// Keeps every checkpoint a settling saves (as the JSON a checkpoint file holds) and
+    /// hands one back to continue from.
+    #[derive(Default)]
+    struct Kept {
+        every: usize,
+        checks: usize,
+        saved: Vec<String>,
+        resume_from: Option<String>,
+    }
+
+    impl Checkpoints for Kept {
+        fn resume(&mut self) -> anyhow::Result<Option<SettleCheckpoint>> {
+            Ok(match &self.resume_from {
+                Some(j) => Some(serde_json::from_str(j)?),
+                None => None,
+            })
+        }
+        fn due(&mut self) -> bool {
+            self.checks += 1;
+            self.every > 0 && self.checks.is_multiple_of(self.every)
+        }
+        fn save(&mut self, c: &SettleCheckpoint) -> anyhow::Result<()> {
+            self.saved.push(serde_json::to_string(c)?);
+            Ok(())
+        }
+        fn kept_at(&self) -> Option<String> {
+            Some("memory".into())
+        }
+    }
+
+    fn phase_of(json: &str) -> Phase {
+        serde_json::from_str::<SettleCheckpoint>(json)
+            .unwrap()
+            .phase()
+    }
+
+    /// A settling continued from a checkpoint, in the pour's settling or in the one after
+    /// smoothing, prepares the very bed an uninterrupted settling prepares (every float,
+    /// through JSON as a checkpoint file keeps it); and a bed stopped by its time cap keeps
+    /// its state, and continues to that same bed when the cap is raised. A bed of 20 000
+    /// disks needs hours to settle (K Fig 12), more than one job may run.
+    #[test]
+    fn a_settling_continued_from_a_checkpoint_is_the_uninterrupted_one() {
+        // Static friction (k_t > 0), so the shear history is part of the state.
+        let mut s = spec();
+        for c in &mut s.coeffs {
+            c.kt = 0.5 * c.kn;
+        }
+        let whole = prepare(&s, |_, _| {}).unwrap();
+        let whole_json = serde_json::to_string(&whole).unwrap();
+        let mut rec = Kept {
+            every: 40,
+            ..Kept::default()
+        };
+        let recorded = prepare_resumable(&s, &mut rec, |_, _| {}).unwrap();
+        assert_eq!(
+            serde_json::to_string(&recorded).unwrap(),
+            whole_json,
+            "saving checkpoints changed the bed"
+        );
+        let first: Vec<&String> = rec
+            .saved
+            .iter()
+            .filter(|j| phase_of(j) == Phase::First)
+            .collect();
+        let second: Vec<&String> = rec
+            .saved
+            .iter()
+            .filter(|j| phase_of(j) != Phase::First)
+            .collect();
+        assert!(
+            first.len() >= 2 && second.len() >= 2,
+            "{} + {} checkpoints: the test needs some in each phase",
+            first.len(),
+            second.len()
+        );
+        for from in [first[first.len() / 2], second[second.len() / 2]] {
+            let mut again = Kept {
+                resume_from: Some(from.clone()),
+                ..Kept::default()
+            };
+            let b = prepare_resumable(&s, &mut again, |_, _| {}).unwrap();
+            assert_eq!(
+                serde_json::to_string(&b).unwrap(),
+                whole_json,
+                "continued from a {:?} checkpoint",
+                phase_of(from)
+            );
+        }
+        // Stopped by the cap in the pour's settling, then continued with the cap raised.
+        let capped = BedSpec {
+            max_settle_time: 0.25 * whole.settle_time,
+            ..s.clone()
+        };
+        let mut stop = Kept::default();
+        let e = format!(
+            "{:#}",
+            prepare_resumable(&capped, &mut stop, |_, _| {}).unwrap_err()
+        );
+        assert!(
+            e.contains("its state is kept in memory: raise bed.max_settle_time"),
+            "{e}"
+        );
+        let mut go_on = Kept {
+            resume_from: stop.saved.last().cloned(),
+            ..Kept::default()
+        };
+        let b = prepare_resumable(&s, &mut go_on, |_, _| {}).unwrap();
+        assert_eq!(serde_json::to_string(&b).unwrap(), whole_json);
+        // A checkpoint of another bed is refused, not continued.
+        let other = BedSpec {
+            seed: 12,
+            ..s.clone()
+        };
+        let mut wrong = Kept {
+            resume_from: stop.saved.last().cloned(),
+            ..Kept::default()
+        };
+        let e = format!(
+            "{:#}",
+            prepare_resumable(&other, &mut wrong, |_, _| {}).unwrap_err()
+        );
+        assert!(e.contains("taken for another bed specification"), "{e}");
+    }
 }

@@ -181,6 +181,27 @@ impl PairView<'_> {
     }
 }
 
+/// The state a step reads beyond the fixed inputs (contact table, box, gravity, dt,
+/// skin): the disks, the forces and torques of the last step (the next half kick uses
+/// them), the neighbour list with its shear history and its build positions, and the
+/// step count. A system restored from it continues exactly as the one it was taken
+/// from (every float round-trips through JSON), so a settling run stopped at a
+/// checkpoint and continued later prepares the very bed an uninterrupted run does.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct Resume {
+    disks: Vec<Disk>,
+    f: Vec<[f64; 2]>,
+    torque: Vec<f64>,
+    list: PairList,
+    step: u64,
+}
+
+impl Resume {
+    pub(crate) fn disks(&self) -> &[Disk] {
+        &self.disks
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct System {
     pub disks: Vec<Disk>,
@@ -250,6 +271,59 @@ impl System {
 
     pub fn time(&self) -> f64 {
         self.step as f64 * self.dt
+    }
+
+    /// The state to continue from later ([`Resume`]); the system must have been set up
+    /// (a step or [`System::setup`]) and hold no rigid cluster (a settling bed has none).
+    pub(crate) fn resume_state(&self) -> Resume {
+        debug_assert!(self.setup_done && self.cluster.is_none());
+        Resume {
+            disks: self.disks.clone(),
+            f: self.f.clone(),
+            torque: self.torque.clone(),
+            list: self.list.clone(),
+            step: self.step,
+        }
+    }
+
+    /// Continues from `r`, taken from a system built from the same inputs: the disks'
+    /// count, radii and roles must be this system's, the force arrays and the shear
+    /// history must match them, or the state belongs to another system.
+    pub(crate) fn restore(&mut self, r: Resume) -> anyhow::Result<()> {
+        let n = self.disks.len();
+        let same_disks = r.disks.len() == n
+            && r.disks
+                .iter()
+                .zip(&self.disks)
+                .all(|(a, b)| a.id == b.id && a.radius == b.radius && a.role == b.role);
+        if !same_disks {
+            anyhow::bail!(
+                "the saved state holds {} disks that are not this system's {n} (ids, radii or roles differ)",
+                r.disks.len()
+            );
+        }
+        if self.cluster.is_some() {
+            anyhow::bail!("a system with a rigid cluster cannot be continued from a saved state");
+        }
+        let list_ok = r.list.shear.len() == r.list.pairs.len()
+            && r.list.pairs.iter().all(|&(i, j)| i < j && (j as usize) < n);
+        if r.f.len() != n || r.torque.len() != n || !list_ok {
+            anyhow::bail!(
+                "the saved state is inconsistent: {} forces, {} torques, {} pairs with {} shears for {n} disks",
+                r.f.len(),
+                r.torque.len(),
+                r.list.pairs.len(),
+                r.list.shear.len()
+            );
+        }
+        self.disks = r.disks;
+        self.f = r.f;
+        self.torque = r.torque;
+        self.list = r.list;
+        self.step = r.step;
+        self.last.clear();
+        self.setup_done = true;
+        Ok(())
     }
 
     fn neighbours(&mut self, force: bool) {

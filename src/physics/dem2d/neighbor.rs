@@ -7,7 +7,7 @@
 //! 10 d; they are paired with every disk by brute force instead (O(N) per large disk).
 
 /// The box in the plane; x is periodic with period `hi[0] - lo[0]` when `periodic_x`.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct Box2 {
     pub lo: [f64; 2],
     pub hi: [f64; 2],
@@ -48,7 +48,10 @@ impl Box2 {
     }
 }
 
-#[derive(Debug, Default, Clone)]
+/// Serialisable so that a settling run can stop and continue bit for bit
+/// ([`super::Resume`]): the next rebuild reads `x_at_build`, and the shear of every
+/// listed pair is contact history.
+#[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize)]
 pub struct PairList {
     pub pairs: Vec<(u32, u32)>,
     pub shear: Vec<[f64; 2]>,
