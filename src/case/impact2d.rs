@@ -933,845 +933,88 @@ impl Impact2dCase {
         Self::from_toml_str(&text, path)
     }
 
+    /// Reads a case file's text and validates it one section at a time, in the order of
+    /// the calls below; the first error found is the one reported.
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Impact2dCase, CaseError> {
         let (raw, ctx) = super::validate::parse_kind(text, path, "impact2d", |r: &File| &r.case)?;
-        let d = positive(&ctx, "units.d", raw.units.d)?;
-        let m = positive(&ctx, "units.mass", raw.units.mass)?;
-        let g0 = positive(&ctx, "units.g", raw.units.g)?;
-        let grains = material(&ctx, "grains", &raw.grains)?;
-        let scales = Scales {
-            d,
-            m,
-            g0,
-            k_unit: m * g0 / d,
-            tau_c: std::f64::consts::PI * (d / (2.0 * g0 * grains.k_n)).sqrt(),
-        };
-        let tau = scales.tau_c;
-
-        let w = &raw.walls;
-        let walls = Material2d {
-            k_n: match w.k_n {
-                Some(k) => positive(&ctx, "walls.k_n", k)?,
-                None => grains.k_n,
-            },
-            e_n: unit_interval(&ctx, "walls.e_n", w.e_n)?,
-            mu: non_negative(&ctx, "walls.mu", w.mu)?,
-            friction: w.friction.unwrap_or(grains.friction),
-        };
-        let wall_d = positive(&ctx, "walls.diameter", w.diameter)? * d;
-        let top_gap = positive(&ctx, "walls.top_gap", w.top_gap)? * d;
-
-        let s = &raw.simulation;
-        let dt_tau = positive(&ctx, "simulation.dt", s.dt)?;
-        // Stiffest pair sets the limit: tau_c scales as k_n^-1/2.
-        let k_max = [
-            grains.k_n,
-            walls.k_n,
-            raw.intruder.k_n.unwrap_or(grains.k_n),
-        ]
-        .into_iter()
-        .fold(0.0, f64::max);
-        let tau_min = scales.tau_of(k_max) / tau;
-        if dt_tau > 0.1 * tau_min {
-            return Err(ctx.bad(
-                "simulation.dt",
-                dt_tau,
-                format!("exceeds tau_c/10 of the stiffest contact ({:.4} tau_c); a linear spring needs >= 10 steps per collision (use ~1/50)", 0.1 * tau_min),
-            ));
-        }
-        let dt = dt_tau * tau;
-        let duration = positive(&ctx, "simulation.duration", s.duration)? * tau;
-        let n_steps = (duration / dt).round() as u64;
-        if s.output_every == 0 {
-            return Err(ctx.bad("simulation.output_every", 0, "must be >= 1"));
-        }
-        if s.energy_every == 0 || !s.energy_every.is_multiple_of(s.output_every) {
-            return Err(ctx.bad(
-                "simulation.energy_every",
-                s.energy_every,
-                "must be a positive multiple of simulation.output_every",
-            ));
-        }
-        let gravity = positive(&ctx, "simulation.gravity", s.gravity)? * g0;
-        let skin = positive(&ctx, "simulation.skin", s.skin)? * d;
-
-        let b = &raw.bed;
-        if b.count == 0 {
-            return Err(ctx.bad("bed.count", 0, "must be >= 1"));
-        }
-        let length = period_length(&ctx, "bed.length", b.length, d)?;
-        let poly = finite(&ctx, "bed.polydispersity", b.polydispersity)?;
-        if !(0.0..0.5).contains(&poly) {
-            return Err(ctx.bad(
-                "bed.polydispersity",
-                poly,
-                "must lie in [0, 0.5) (K uses 0 to 0.4)",
-            ));
-        }
-        let initial_speed =
-            non_negative(&ctx, "bed.initial_speed", b.initial_speed)? * scales.velocity();
-        let settle_ke = positive(&ctx, "bed.settle_ke", b.settle_ke)? * m * g0 * d;
-        let max_settle_time = positive(&ctx, "bed.max_settle_time", b.max_settle_time)? * tau;
-        let (seed, seeds) = bed_seeds(&ctx, b, raw.sweep.as_ref().map(|w| w.parameter.as_str()))?;
-
-        let i = &raw.intruder;
-        let areal = m / (std::f64::consts::PI * 0.25 * d * d);
-        let density_ratio = positive(&ctx, "intruder.density_ratio", i.density_ratio)?;
-        let (shape, intruder_mass, width) = match i.shape {
-            Shape::Disk => {
-                let dia = positive(
-                    &ctx,
-                    "intruder.diameter",
-                    i.diameter.ok_or_else(|| {
-                        ctx.bad(
-                            "intruder.diameter",
-                            "missing",
-                            "a disk intruder needs its diameter (in d)",
-                        )
-                    })?,
-                )?;
-                if i.a.is_some() || i.b.is_some() {
-                    return Err(ctx.bad(
-                        "intruder.a",
-                        i.a,
-                        "a and b belong to shape = \"ellipse\"",
-                    ));
-                }
-                let r = 0.5 * dia * d;
-                (
-                    IntruderShape::Disk { radius: r },
-                    density_ratio * areal * std::f64::consts::PI * r * r,
-                    2.0 * r,
-                )
-            }
-            Shape::Ellipse => {
-                let a = positive(
-                    &ctx,
-                    "intruder.a",
-                    i.a.ok_or_else(|| {
-                        ctx.bad(
-                            "intruder.a",
-                            "missing",
-                            "an ellipse needs semi-axes a and b (in d)",
-                        )
-                    })?,
-                )?;
-                let bb = positive(
-                    &ctx,
-                    "intruder.b",
-                    i.b.ok_or_else(|| {
-                        ctx.bad(
-                            "intruder.b",
-                            "missing",
-                            "an ellipse needs semi-axes a and b (in d)",
-                        )
-                    })?,
-                )?;
-                if i.diameter.is_some() {
-                    return Err(ctx.bad(
-                        "intruder.diameter",
-                        i.diameter,
-                        "diameter belongs to shape = \"disk\"",
-                    ));
-                }
-                if a < 1.0 || bb < 1.0 {
-                    return Err(ctx.bad(
-                        "intruder.a",
-                        (a, bb),
-                        "semi-axes must be >= 1 d (the outline disks are d wide)",
-                    ));
-                }
-                if i.cluster_count < 8 {
-                    return Err(ctx.bad("intruder.cluster_count", i.cluster_count, "must be >= 8"));
-                }
-                let (a, bb) = (a * d, bb * d);
-                (
-                    IntruderShape::Ellipse {
-                        a,
-                        b: bb,
-                        count: i.cluster_count,
-                    },
-                    density_ratio * areal * std::f64::consts::PI * a * a,
-                    2.0 * a,
-                )
-            }
-        };
-        if !fits_period(width, length) {
-            return Err(ctx.bad("intruder", width / d, NARROWER));
-        }
-        let speed = non_negative(&ctx, "intruder.speed", i.speed)? * scales.velocity();
-        let release_height = positive(&ctx, "intruder.release_height", i.release_height)? * d;
-        let intruder_of = |g: &Material2d| -> Result<Material2d, CaseError> {
-            Ok(Material2d {
-                k_n: match i.k_n {
-                    Some(k) => positive(&ctx, "intruder.k_n", k)?,
-                    None => g.k_n,
-                },
-                e_n: match i.e_n {
-                    Some(e) => unit_interval(&ctx, "intruder.e_n", e)?,
-                    None => g.e_n,
-                },
-                mu: match i.mu {
-                    Some(v) => non_negative(&ctx, "intruder.mu", v)?,
-                    None => g.mu,
-                },
-                friction: i.friction.unwrap_or(g.friction),
-            })
-        };
-        let final_window =
-            positive(&ctx, "analysis.final_window", raw.analysis.final_window)? * tau;
-        if final_window >= duration {
-            return Err(ctx.bad(
-                "analysis.final_window",
-                raw.analysis.final_window,
-                "must be shorter than simulation.duration",
-            ));
-        }
+        let (scales, grains) = units_and_grains(&ctx, &raw.units, &raw.grains)?;
+        let walls = wall_params(&ctx, &raw.walls, &grains, scales.d)?;
+        let time = timing(
+            &ctx,
+            &raw.simulation,
+            &scales,
+            &grains,
+            &walls.material,
+            raw.intruder.k_n,
+        )?;
+        let swept = raw.sweep.as_ref().map(|w| w.parameter.as_str());
+        let bed = bed_params(&ctx, &raw.bed, swept, &scales)?;
+        let intruder = intruder_params(&ctx, &raw.intruder, &scales, bed.length)?;
+        let final_window = final_window(&ctx, &raw.analysis, scales.tau_c, time.duration)?;
 
         let base = Variant {
             label: "base".into(),
             x: 0.0,
-            packing: b.packing,
+            packing: raw.bed.packing,
             bed: None,
             ensemble_value: None,
             grains,
-            walls,
-            intruder: intruder_of(&grains)?,
-            gravity,
-            speed,
+            walls: walls.material,
+            intruder: intruder_material(&ctx, &raw.intruder, &grains)?,
+            gravity: time.gravity,
+            speed: intruder.speed,
         };
-        let mut variants = Vec::new();
         let sweep_parameter = raw.sweep.as_ref().map(|s| s.parameter.clone());
-        if let Some(sw) = &raw.sweep {
-            if sw.values.len() < 2 {
-                return Err(ctx.bad(
-                    "sweep.values",
-                    sw.values.len(),
-                    "a sweep needs at least two values",
-                ));
-            }
-            for (k, v) in sw.values.iter().enumerate() {
-                let field = format!("sweep.values[{k}]");
-                let num = || -> Result<f64, CaseError> {
-                    v.as_float()
-                        .or_else(|| v.as_integer().map(|n| n as f64))
-                        .ok_or_else(|| {
-                            ctx.bad(
-                                &field,
-                                v.to_string(),
-                                format!("sweep over `{}` takes numbers", sw.parameter),
-                            )
-                        })
-                };
-                let text = || -> Result<String, CaseError> {
-                    v.as_str().map(str::to_string).ok_or_else(|| {
-                        ctx.bad(
-                            &field,
-                            v.to_string(),
-                            format!("sweep over `{}` takes strings", sw.parameter),
-                        )
-                    })
-                };
-                let mut var = base.clone();
-                let label;
-                match sw.parameter.as_str() {
-                    "speed" => {
-                        let x = non_negative(&ctx, &field, num()?)?;
-                        var.speed = x * scales.velocity();
-                        var.x = x;
-                        label = format!("speed={x}");
-                    }
-                    "gravity" => {
-                        let x = positive(&ctx, &field, num()?)?;
-                        var.gravity = x * g0;
-                        var.x = x;
-                        label = format!("gravity={x}");
-                    }
-                    "e_n" => {
-                        let x = unit_interval(&ctx, &field, num()?)?;
-                        var.grains.e_n = x;
-                        var.intruder = intruder_of(&var.grains)?;
-                        var.x = x;
-                        label = format!("e_n={x}");
-                    }
-                    "mu" => {
-                        let x = non_negative(&ctx, &field, num()?)?;
-                        var.grains.mu = x;
-                        var.intruder = intruder_of(&var.grains)?;
-                        var.x = x;
-                        label = format!("mu={x}");
-                    }
-                    "friction" => {
-                        let t = text()?;
-                        var.grains.friction = match t.as_str() {
-                            "static" => Friction::Static,
-                            "kinetic" => Friction::Kinetic,
-                            _ => {
-                                return Err(ctx.bad(
-                                    &field,
-                                    t,
-                                    "friction is \"static\" or \"kinetic\"",
-                                ));
-                            }
-                        };
-                        if w.friction.is_none() {
-                            var.walls.friction = var.grains.friction;
-                        }
-                        var.intruder = intruder_of(&var.grains)?;
-                        var.x = k as f64;
-                        label = format!("friction={t}");
-                    }
-                    "friction_mu" => {
-                        // K Figs 6, 21: mu and the friction model together.
-                        let bad = || {
-                            ctx.bad(
-                                &field,
-                                v.to_string(),
-                                "friction_mu takes tables { mu = NUMBER, friction = \"static\" | \"kinetic\" }",
-                            )
-                        };
-                        let t = v.as_table().ok_or_else(bad)?;
-                        if t.len() != 2 {
-                            return Err(bad());
-                        }
-                        let mu = t
-                            .get("mu")
-                            .and_then(|m| m.as_float().or_else(|| m.as_integer().map(|n| n as f64)))
-                            .ok_or_else(bad)?;
-                        let fr = t.get("friction").and_then(|f| f.as_str()).ok_or_else(bad)?;
-                        var.grains.mu = non_negative(&ctx, &format!("{field}.mu"), mu)?;
-                        var.grains.friction = match fr {
-                            "static" => Friction::Static,
-                            "kinetic" => Friction::Kinetic,
-                            _ => return Err(bad()),
-                        };
-                        if w.friction.is_none() {
-                            var.walls.friction = var.grains.friction;
-                        }
-                        var.intruder = intruder_of(&var.grains)?;
-                        var.x = k as f64;
-                        label = format!("mu={mu},{fr}");
-                    }
-                    "packing" => {
-                        let t = text()?;
-                        var.packing = match t.as_str() {
-                            "random" => Packing::Random,
-                            "hexagonal" => Packing::Hexagonal,
-                            _ => {
-                                return Err(ctx.bad(
-                                    &field,
-                                    t,
-                                    "packing is \"random\" or \"hexagonal\"",
-                                ));
-                            }
-                        };
-                        var.x = k as f64;
-                        label = format!("packing={t}");
-                    }
-                    "bed" => {
-                        // K Fig 11: a bed of another size and/or seed per variant.
-                        let (bed, l) = bed_value(&ctx, &field, v, d, width)?;
-                        label = format!("count={},length={l},seed={}", bed.count, bed.seed);
-                        var.bed = Some(bed);
-                        var.x = k as f64;
-                    }
-                    other => {
-                        return Err(ctx.bad(
-                            "sweep.parameter",
-                            other,
-                            "one of speed, gravity, e_n, mu, friction, friction_mu, packing, bed",
-                        ));
-                    }
-                }
-                var.label = label;
-                if variants.iter().any(|o: &Variant| o.label == var.label) {
-                    return Err(ctx.bad(&field, v.to_string(), "repeated sweep value"));
-                }
-                variants.push(var);
-            }
-        } else {
-            variants.push(base.clone());
-        }
-        if !seeds.is_empty() {
-            // A seed ensemble: every value once per seed, on that seed's bed (the bed
-            // machinery of the `bed` sweep: one bed per BedKey), value-major.
-            let values = std::mem::take(&mut variants);
-            for v in values {
-                for &s in &seeds {
-                    let mut r = v.clone();
-                    r.label = if raw.sweep.is_some() {
-                        format!("{},seed={s}", v.label)
-                    } else {
-                        format!("seed={s}")
-                    };
-                    r.bed = Some(BedSize {
-                        count: b.count,
-                        length,
-                        seed: s,
-                    });
-                    r.ensemble_value = Some(v.label.clone());
-                    variants.push(r);
-                }
-            }
-        }
-        let claims = parse_claims(&ctx, raw.claim.as_ref())?;
-        if !claims.is_empty() && raw.sweep.is_none() {
-            return Err(ctx.bad(
-                "claim",
-                "given",
-                "a claim compares the variants of a [sweep]; add one",
-            ));
-        }
-        for (k, claim) in claims.iter().enumerate() {
-            let at = |f: &str| {
-                if claims.len() == 1 {
-                    format!("claim.{f}")
-                } else {
-                    format!("claim[{k}].{f}")
-                }
-            };
-            if seeds.is_empty() {
-                let over_beds = match claim {
-                    Claim::VelocityExponentPerDepth { .. } => Some("velocity_exponent_per_depth"),
-                    Claim::Trend { .. } => Some("trend"),
-                    _ => None,
-                };
-                if let Some(kind) = over_beds {
-                    return Err(ctx.bad(
-                        at("kind"),
-                        kind,
-                        "judged over beds: needs a seed ensemble ([bed] seeds)",
-                    ));
-                }
-            }
-            if !seeds.is_empty()
-                && !matches!(
-                    claim,
-                    Claim::Increasing { .. }
-                        | Claim::Trend { .. }
-                        | Claim::Linear { .. }
-                        | Claim::VelocityExponentPerDepth { .. }
-                )
-            {
-                let kind = serde_json::to_value(claim)
-                    .ok()
-                    .and_then(|v| v["kind"].as_str().map(str::to_string))
-                    .unwrap_or_default();
-                return Err(ctx.bad(
-                    at("kind"),
-                    kind,
-                    "not defined on a seed ensemble ([bed] seeds): only `increasing`, `trend`, `linear` and `velocity_exponent_per_depth` have a registered ensemble rule (docs/impact2d.md)",
-                ));
-            }
-            match claim {
-                Claim::Trend {
-                    min_slope,
-                    of,
-                    at: t,
-                    log_x,
-                    ..
-                } => {
-                    non_negative(&ctx, &at("min_slope"), *min_slope)?;
-                    read_time(&ctx, &at("at"), *of, *t, raw.simulation.duration)?;
-                    let param = raw
-                        .sweep
-                        .as_ref()
-                        .map(|w| w.parameter.as_str())
-                        .unwrap_or("");
-                    if !["speed", "gravity", "e_n", "mu"].contains(&param) {
-                        return Err(ctx.bad(
-                            at("kind"),
-                            "trend",
-                            format!(
-                                "a slope needs a numeric sweep (speed, gravity, e_n or mu), not `{param}`"
-                            ),
-                        ));
-                    }
-                    let groups = variants.iter().filter(|v| v.ensemble_value.is_some());
-                    let mut xs: Vec<f64> = groups.map(|v| v.x).collect();
-                    xs.sort_by(f64::total_cmp);
-                    xs.dedup();
-                    if xs.len() < 3 {
-                        return Err(ctx.bad(
-                            "sweep.values",
-                            xs.len(),
-                            "a trend is fitted over at least 3 values (2 are one step: use `increasing`)",
-                        ));
-                    }
-                    if *log_x && xs.iter().any(|x| *x <= 0.0) {
-                        return Err(ctx.bad(
-                            at("log_x"),
-                            "true",
-                            "ln x needs every swept value > 0",
-                        ));
-                    }
-                }
-                Claim::Increasing {
-                    min_step,
-                    of,
-                    at: t,
-                } => {
-                    non_negative(&ctx, &at("min_step"), *min_step)?;
-                    read_time(&ctx, &at("at"), *of, *t, raw.simulation.duration)?;
-                }
-                Claim::EnergyNonIncreasing { max_rise } => {
-                    non_negative(&ctx, &at("max_rise"), *max_rise)?;
-                }
-                Claim::VelocityExponent {
-                    depths,
-                    half_width,
-                    min,
-                    max,
-                    engine_tol,
-                } => {
-                    positive(&ctx, &at("half_width"), *half_width)?;
-                    positive(&ctx, &at("engine_tol"), *engine_tol)?;
-                    if depths.is_empty() {
-                        return Err(ctx.bad(at("depths"), "[]", "at least one depth bin"));
-                    }
-                    for (j, y) in depths.iter().enumerate() {
-                        if !(y.is_finite() && *y > *half_width) {
-                            return Err(ctx.bad(
-                                format!("{}[{j}]", at("depths")),
-                                y,
-                                "a bin must lie inside the bed: centre > half_width",
-                            ));
-                        }
-                    }
-                    if !(min.is_finite() && max.is_finite() && min < max) {
-                        return Err(ctx.bad(at("max"), max, format!("must exceed min = {min}")));
-                    }
-                    let param = raw.sweep.as_ref().map(|w| w.parameter.as_str());
-                    if param != Some("speed") || variants.len() < 3 {
-                        return Err(ctx.bad(
-                            at("kind"),
-                            "velocity_exponent",
-                            "a(u) needs a [sweep] of the speed with at least 3 values",
-                        ));
-                    }
-                }
-                Claim::VelocityExponentPerDepth {
-                    depths,
-                    half_width,
-                    min,
-                    max,
-                    min_passages,
-                    min_seeds,
-                    engine_tol,
-                } => {
-                    positive(&ctx, &at("half_width"), *half_width)?;
-                    positive(&ctx, &at("engine_tol"), *engine_tol)?;
-                    if depths.is_empty() {
-                        return Err(ctx.bad(at("depths"), "[]", "at least one depth bin"));
-                    }
-                    for (j, y) in depths.iter().enumerate() {
-                        if !(y.is_finite() && *y > *half_width) {
-                            return Err(ctx.bad(
-                                format!("{}[{j}]", at("depths")),
-                                y,
-                                "a bin must lie inside the bed: centre > half_width",
-                            ));
-                        }
-                    }
-                    if !(min.is_finite() && max.is_finite() && min < max) {
-                        return Err(ctx.bad(at("max"), max, format!("must exceed min = {min}")));
-                    }
-                    if *min_passages < 3 {
-                        return Err(ctx.bad(
-                            at("min_passages"),
-                            min_passages,
-                            "a slope with an error needs at least 3 passages",
-                        ));
-                    }
-                    if *min_seeds < 2 || *min_seeds > seeds.len() {
-                        return Err(ctx.bad(
-                            at("min_seeds"),
-                            min_seeds,
-                            format!(
-                                "an interval over beds needs at least 2, and the ensemble has {} seeds",
-                                seeds.len()
-                            ),
-                        ));
-                    }
-                    let param = raw.sweep.as_ref().map(|w| w.parameter.as_str());
-                    let values = raw.sweep.as_ref().map_or(0, |w| w.values.len());
-                    if param != Some("speed") || values < *min_passages {
-                        return Err(ctx.bad(
-                            at("kind"),
-                            "velocity_exponent_per_depth",
-                            format!(
-                                "a(u) needs a [sweep] of the speed with at least min_passages = {min_passages} values"
-                            ),
-                        ));
-                    }
-                }
-                Claim::ForceImpulsive {
-                    bin,
-                    peak_within,
-                    half_within,
-                } => {
-                    positive(&ctx, &at("bin"), *bin)?;
-                    positive(&ctx, &at("peak_within"), *peak_within)?;
-                    positive(&ctx, &at("half_within"), *half_within)?;
-                    if *bin < 2.0 * dt_tau * s.output_every as f64 {
-                        return Err(ctx.bad(
-                            at("bin"),
-                            bin,
-                            "a bin must hold at least 2 intruder samples (output_every * dt)",
-                        ));
-                    }
-                }
-                Claim::ForceSimilar {
-                    window,
-                    max_spread_ratio,
-                    min_depth_spread,
-                } => {
-                    positive(&ctx, &at("window"), *window)?;
-                    positive(&ctx, &at("max_spread_ratio"), *max_spread_ratio)?;
-                    non_negative(&ctx, &at("min_depth_spread"), *min_depth_spread)?;
-                    if variants.len() < 2 {
-                        return Err(ctx.bad(
-                            at("kind"),
-                            "force_similar",
-                            "needs at least 2 variants",
-                        ));
-                    }
-                }
-                Claim::FieldOrder {
-                    quantity,
-                    larger,
-                    smaller,
-                    min_ratio,
-                    max_ratio,
-                } => {
-                    positive(&ctx, &at("min_ratio"), *min_ratio)?;
-                    if let Some(m) = max_ratio
-                        && !(m.is_finite() && m > min_ratio)
-                    {
-                        return Err(ctx.bad(
-                            at("max_ratio"),
-                            m,
-                            format!("must exceed min_ratio = {min_ratio}"),
-                        ));
-                    }
-                    for (f, l) in [("larger", larger), ("smaller", smaller)] {
-                        if !variants.iter().any(|v| &v.label == l) {
-                            return Err(ctx.bad(
-                                at(f),
-                                l,
-                                format!(
-                                    "no such variant; the variants: {}",
-                                    variants
-                                        .iter()
-                                        .map(|v| v.label.as_str())
-                                        .collect::<Vec<_>>()
-                                        .join(", ")
-                                ),
-                            ));
-                        }
-                    }
-                    if larger == smaller {
-                        return Err(ctx.bad(at("smaller"), smaller, "must differ from `larger`"));
-                    }
-                    let f = raw.fields.as_ref();
-                    let has = if quantity.is_network() {
-                        f.is_some_and(|f| !f.network_times.is_empty())
-                    } else {
-                        f.is_some_and(|f| f.affine_time.is_some())
-                    };
-                    if !has {
-                        return Err(ctx.bad(
-                            at("quantity"),
-                            format!("{quantity:?}"),
-                            if quantity.is_network() {
-                                "a B0 claim needs [fields] network_times"
-                            } else {
-                                "an affine or D2_min claim needs [fields] affine_time"
-                            },
-                        ));
-                    }
-                }
-                Claim::SizeInsensitive { max_spread } => {
-                    positive(&ctx, &at("max_spread"), *max_spread)?;
-                    let param = raw.sweep.as_ref().map(|w| w.parameter.as_str());
-                    if param != Some("bed") {
-                        return Err(ctx.bad(
-                            at("kind"),
-                            "size_insensitive",
-                            "compares beds of different sizes: needs a [sweep] of `bed`",
-                        ));
-                    }
-                    let groups = size_groups(&variants, b.count, length);
-                    if groups.len() < 2 {
-                        return Err(ctx.bad(
-                            at("kind"),
-                            "size_insensitive",
-                            "needs at least 2 sizes (count, length) among the sweep's beds",
-                        ));
-                    }
-                    if let Some(((n, l), g)) = groups.iter().find(|g| g.1.len() < 2) {
-                        return Err(ctx.bad(
-                            at("kind"),
-                            "size_insensitive",
-                            format!(
-                                "the size count = {n}, length = {} has {} realization(s); every size needs at least 2 (seeds)",
-                                l / d,
-                                g.len()
-                            ),
-                        ));
-                    }
-                }
-                Claim::InterfaceSteadies {
-                    max_ratio,
-                    min_amplitude,
-                } => {
-                    positive(&ctx, &at("max_ratio"), *max_ratio)?;
-                    positive(&ctx, &at("min_amplitude"), *min_amplitude)?;
-                    if *max_ratio >= 1.0 {
-                        return Err(ctx.bad(
-                            at("max_ratio"),
-                            max_ratio,
-                            "must be < 1: the depth below the interface would be allowed to oscillate as much as D",
-                        ));
-                    }
-                }
-                Claim::Linear { from, r2_min } => {
-                    finite(&ctx, &at("from"), *from)?;
-                    if !(0.0..=1.0).contains(r2_min) {
-                        return Err(ctx.bad(at("r2_min"), r2_min, "must lie in [0, 1]"));
-                    }
-                    // Distinct values (a seed ensemble has one variant per seed of each).
-                    let mut xs: Vec<f64> = variants
-                        .iter()
-                        .filter(|v| v.x >= *from)
-                        .map(|v| v.x)
-                        .collect();
-                    xs.dedup();
-                    let n = xs.len();
-                    if n < 3 {
-                        return Err(ctx.bad(at("from"), from, format!("only {n} sweep values are >= it; a line through fewer than 3 points always fits")));
-                    }
-                }
-            }
-        }
-        for (k, v) in variants.iter().enumerate() {
-            if v.packing != Packing::Hexagonal {
-                continue;
-            }
-            let (field, l) = match v.bed {
-                Some(bed) if v.ensemble_value.is_none() => {
-                    (format!("sweep.values[{k}].length"), bed.length / d)
-                }
-                _ => ("bed.length".to_string(), b.length),
-            };
-            if (l - l.round()).abs() > 1e-9 {
-                return Err(ctx.bad(
-                    field,
-                    l,
-                    "a hexagonal bed needs L to be a whole number of d",
-                ));
-            }
-        }
-        let tolerances = raw.compare.unwrap_or_default();
-        positive(&ctx, "compare.interface_rms", tolerances.interface_rms)?;
+        let variants = sweep_variants(&ctx, &raw, &base, &scales, intruder.width)?;
+        let variants = seed_ensemble(variants, &raw, &bed);
+        let claims = validated_claims(&ClaimScope {
+            ctx: &ctx,
+            raw: &raw,
+            variants: &variants,
+            seeds: &bed.seeds,
+            dt_tau: time.dt_tau,
+            length: bed.length,
+            d: scales.d,
+        })?;
+        hexagonal_lengths(&ctx, &variants, raw.bed.length, scales.d)?;
+        let tolerances = tolerances(&ctx, raw.compare.as_ref())?;
         let track_interface = raw.analysis.track_interface
             || claims
                 .iter()
                 .any(|c| matches!(c, Claim::InterfaceSteadies { .. }));
-        positive(&ctx, "compare.final_depth_abs", tolerances.final_depth_abs)?;
-        positive(&ctx, "compare.depth_rms", tolerances.depth_rms)?;
-        positive(&ctx, "compare.force_rel", tolerances.force_rel)?;
-        positive(&ctx, "compare.force_window", tolerances.force_window)?;
-        positive(&ctx, "compare.b0_distance", tolerances.b0_distance)?;
-        positive(&ctx, "compare.field_rel", tolerances.field_rel)?;
         let fields = match &raw.fields {
             None => None,
-            Some(f) => Some(fields(&ctx, f, dt_tau, n_steps, d)?),
+            Some(f) => Some(fields(&ctx, f, time.dt_tau, time.n_steps, scales.d)?),
         };
-
-        // Wall disks are type 2, the intruder type 3 (a pair_friction control names them).
         let negative_controls =
-            super::control::controls(&ctx, &raw.negative_control, 3, IMPACT2D_GATES)?;
-        super::control::check_applicable(
-            &ctx,
-            &negative_controls,
-            &super::control::Targets {
-                spheres: None,
-                clumps: false,
-            },
-        )?;
-        if raw.sweep.is_none()
-            && let Some(k) = negative_controls
-                .iter()
-                .position(|c| c.perturbation.sweep_ignored)
-        {
-            return Err(ctx.bad(
-                format!("negative_control[{k}].perturbation.sweep_ignored"),
-                true,
-                "ignores a [sweep] the case does not have",
-            ));
-        }
-        let bed_sweep = raw.sweep.as_ref().is_some_and(|w| w.parameter == "bed");
-        for (k, c) in negative_controls.iter().enumerate() {
-            let p = &c.perturbation;
-            if p.sweep_ignored && bed_sweep {
-                return Err(ctx.bad(
-                    format!("negative_control[{k}].perturbation.sweep_ignored"),
-                    true,
-                    "a bed sweep changes the beds themselves: each variant keeps its own bed, so ignoring the sweep would rerun it unchanged (use other_size_speed_factor)",
-                ));
-            }
-            if p.packing_ignored && raw.sweep.as_ref().is_none_or(|w| w.parameter != "packing") {
-                return Err(ctx.bad(
-                    format!("negative_control[{k}].perturbation.packing_ignored"),
-                    true,
-                    "runs every variant on the first variant's bed: needs a [sweep] of `packing`",
-                ));
-            }
-            if p.interface_frozen_floor && !track_interface {
-                return Err(ctx.bad(
-                    format!("negative_control[{k}].perturbation.interface_frozen_floor"),
-                    true,
-                    "replaces the interface tracers, which this case does not track (an interface_steadies claim or [analysis] track_interface = true)",
-                ));
-            }
-            if p.other_size_speed_factor != 1.0
-                && (!bed_sweep || size_groups(&variants, b.count, length).len() < 2)
-            {
-                return Err(ctx.bad(
-                    format!("negative_control[{k}].perturbation.other_size_speed_factor"),
-                    p.other_size_speed_factor,
-                    "slows the variants of other sizes than the first: needs a [sweep] of `bed` with at least 2 sizes",
-                ));
-            }
-        }
+            negative_controls(&ctx, &raw, &variants, track_interface, bed.length)?;
         Ok(Impact2dCase {
             negative_controls,
             name: raw.case.name,
             description: raw.case.description,
             source: path.to_path_buf(),
             scales,
-            dt,
-            n_steps,
-            output_every: s.output_every,
-            energy_every: s.energy_every,
-            skin,
-            base_packing: b.packing,
-            count: b.count,
-            length,
-            polydispersity: poly,
-            seed,
-            seeds,
-            initial_speed,
-            settle_ke,
-            max_settle_time,
-            wall_d,
-            top_gap,
-            shape,
-            intruder_mass,
-            release_height,
+            dt: time.dt,
+            n_steps: time.n_steps,
+            output_every: raw.simulation.output_every,
+            energy_every: raw.simulation.energy_every,
+            skin: time.skin,
+            base_packing: raw.bed.packing,
+            count: raw.bed.count,
+            length: bed.length,
+            polydispersity: bed.polydispersity,
+            seed: bed.seed,
+            seeds: bed.seeds,
+            initial_speed: bed.initial_speed,
+            settle_ke: bed.settle_ke,
+            max_settle_time: bed.max_settle_time,
+            wall_d: walls.wall_d,
+            top_gap: walls.top_gap,
+            shape: intruder.shape,
+            intruder_mass: intruder.mass,
+            release_height: intruder.release_height,
             final_window,
-            walls_as_grains: w.impact_as_grains,
+            walls_as_grains: raw.walls.impact_as_grains,
             fields,
             track_interface,
             sweep_parameter,
@@ -1781,6 +1024,1161 @@ impl Impact2dCase {
             tolerances,
         })
     }
+}
+
+/// `[units]` and `[grains]`: K's scales in SI. The grains' k_n sets tau_c, the time unit
+/// of every other section (K Sec. II).
+fn units_and_grains(
+    ctx: &Ctx,
+    u: &Units,
+    g: &MaterialIn,
+) -> Result<(Scales, Material2d), CaseError> {
+    let d = positive(ctx, "units.d", u.d)?;
+    let m = positive(ctx, "units.mass", u.mass)?;
+    let g0 = positive(ctx, "units.g", u.g)?;
+    let grains = material(ctx, "grains", g)?;
+    let scales = Scales {
+        d,
+        m,
+        g0,
+        k_unit: m * g0 / d,
+        tau_c: std::f64::consts::PI * (d / (2.0 * g0 * grains.k_n)).sqrt(),
+    };
+    Ok((scales, grains))
+}
+
+/// `[walls]`, validated: the wall disks' material and the geometry they set (SI).
+struct WallParams {
+    material: Material2d,
+    wall_d: f64,
+    top_gap: f64,
+}
+
+/// `[walls]`: the wall disks' material (k_n and friction default to the grains') and
+/// their diameter and top gap.
+fn wall_params(ctx: &Ctx, w: &Walls, grains: &Material2d, d: f64) -> Result<WallParams, CaseError> {
+    let material = Material2d {
+        k_n: match w.k_n {
+            Some(k) => positive(ctx, "walls.k_n", k)?,
+            None => grains.k_n,
+        },
+        e_n: unit_interval(ctx, "walls.e_n", w.e_n)?,
+        mu: non_negative(ctx, "walls.mu", w.mu)?,
+        friction: w.friction.unwrap_or(grains.friction),
+    };
+    let wall_d = positive(ctx, "walls.diameter", w.diameter)? * d;
+    let top_gap = positive(ctx, "walls.top_gap", w.top_gap)? * d;
+    Ok(WallParams {
+        material,
+        wall_d,
+        top_gap,
+    })
+}
+
+/// `[simulation]`, validated (SI; `dt_tau` is the step in tau_c, which `[fields]` and the
+/// claims count in).
+struct Timing {
+    dt_tau: f64,
+    dt: f64,
+    duration: f64,
+    n_steps: u64,
+    gravity: f64,
+    skin: f64,
+}
+
+/// `[simulation]`: the time step against the stiffest contact of grains, walls and
+/// intruder (`intruder_k_n`, not yet validated, defaults to the grains'), the duration
+/// and step count, the output intervals, gravity (in g0: K Sec. III B changes only the
+/// gravitational force) and the Verlet skin.
+fn timing(
+    ctx: &Ctx,
+    s: &Sim,
+    scales: &Scales,
+    grains: &Material2d,
+    walls: &Material2d,
+    intruder_k_n: Option<f64>,
+) -> Result<Timing, CaseError> {
+    let tau = scales.tau_c;
+    let dt_tau = positive(ctx, "simulation.dt", s.dt)?;
+    // Stiffest pair sets the limit: tau_c scales as k_n^-1/2.
+    let k_max = [grains.k_n, walls.k_n, intruder_k_n.unwrap_or(grains.k_n)]
+        .into_iter()
+        .fold(0.0, f64::max);
+    let tau_min = scales.tau_of(k_max) / tau;
+    if dt_tau > 0.1 * tau_min {
+        return Err(ctx.bad(
+            "simulation.dt",
+            dt_tau,
+            format!("exceeds tau_c/10 of the stiffest contact ({:.4} tau_c); a linear spring needs >= 10 steps per collision (use ~1/50)", 0.1 * tau_min),
+        ));
+    }
+    let dt = dt_tau * tau;
+    let duration = positive(ctx, "simulation.duration", s.duration)? * tau;
+    let n_steps = (duration / dt).round() as u64;
+    if s.output_every == 0 {
+        return Err(ctx.bad("simulation.output_every", 0, "must be >= 1"));
+    }
+    if s.energy_every == 0 || !s.energy_every.is_multiple_of(s.output_every) {
+        return Err(ctx.bad(
+            "simulation.energy_every",
+            s.energy_every,
+            "must be a positive multiple of simulation.output_every",
+        ));
+    }
+    let gravity = positive(ctx, "simulation.gravity", s.gravity)? * scales.g0;
+    let skin = positive(ctx, "simulation.skin", s.skin)? * scales.d;
+    Ok(Timing {
+        dt_tau,
+        dt,
+        duration,
+        n_steps,
+        gravity,
+        skin,
+    })
+}
+
+/// `[bed]`, validated (SI); packing and count are taken from `[bed]` as written.
+struct BedParams {
+    length: f64,
+    polydispersity: f64,
+    initial_speed: f64,
+    settle_ke: f64,
+    max_settle_time: f64,
+    seed: u64,
+    seeds: Vec<u64>,
+}
+
+/// `[bed]`: grain count, periodic length, polydispersity (K Sec. II), the settling
+/// protocol, and the seed or seed ensemble (`sweep` is the swept parameter, if any).
+fn bed_params(
+    ctx: &Ctx,
+    b: &BedIn,
+    sweep: Option<&str>,
+    scales: &Scales,
+) -> Result<BedParams, CaseError> {
+    let (d, m, g0) = (scales.d, scales.m, scales.g0);
+    if b.count == 0 {
+        return Err(ctx.bad("bed.count", 0, "must be >= 1"));
+    }
+    let length = period_length(ctx, "bed.length", b.length, d)?;
+    let poly = finite(ctx, "bed.polydispersity", b.polydispersity)?;
+    if !(0.0..0.5).contains(&poly) {
+        return Err(ctx.bad(
+            "bed.polydispersity",
+            poly,
+            "must lie in [0, 0.5) (K uses 0 to 0.4)",
+        ));
+    }
+    let initial_speed =
+        non_negative(ctx, "bed.initial_speed", b.initial_speed)? * scales.velocity();
+    let settle_ke = positive(ctx, "bed.settle_ke", b.settle_ke)? * m * g0 * d;
+    let max_settle_time = positive(ctx, "bed.max_settle_time", b.max_settle_time)? * scales.tau_c;
+    let (seed, seeds) = bed_seeds(ctx, b, sweep)?;
+    Ok(BedParams {
+        length,
+        polydispersity: poly,
+        initial_speed,
+        settle_ke,
+        max_settle_time,
+        seed,
+        seeds,
+    })
+}
+
+/// `[intruder]`, validated (SI); its material is [`intruder_material`]'s.
+struct IntruderParams {
+    shape: IntruderShape,
+    mass: f64,
+    /// Horizontal extent (m), for the fit in the period.
+    width: f64,
+    speed: f64,
+    release_height: f64,
+}
+
+/// `[intruder]` without its material: density, shape and size (a disk, or an ellipse of
+/// disks, K Sec. III A), which must fit in the period of length `length` (m), the impact
+/// speed and the release height.
+fn intruder_params(
+    ctx: &Ctx,
+    i: &IntruderIn,
+    scales: &Scales,
+    length: f64,
+) -> Result<IntruderParams, CaseError> {
+    let (d, m) = (scales.d, scales.m);
+    let areal = m / (std::f64::consts::PI * 0.25 * d * d);
+    let density_ratio = positive(ctx, "intruder.density_ratio", i.density_ratio)?;
+    let (shape, mass, width) = match i.shape {
+        Shape::Disk => disk_intruder(ctx, i, d, density_ratio, areal)?,
+        Shape::Ellipse => ellipse_intruder(ctx, i, d, density_ratio, areal)?,
+    };
+    if !fits_period(width, length) {
+        return Err(ctx.bad("intruder", width / d, NARROWER));
+    }
+    let speed = non_negative(ctx, "intruder.speed", i.speed)? * scales.velocity();
+    let release_height = positive(ctx, "intruder.release_height", i.release_height)? * d;
+    Ok(IntruderParams {
+        shape,
+        mass,
+        width,
+        speed,
+        release_height,
+    })
+}
+
+/// `shape = "disk"`: its diameter, and no semi-axes. Returns (shape, mass, width), SI;
+/// the mass is `density_ratio` times that of grain material of areal density `areal`.
+fn disk_intruder(
+    ctx: &Ctx,
+    i: &IntruderIn,
+    d: f64,
+    density_ratio: f64,
+    areal: f64,
+) -> Result<(IntruderShape, f64, f64), CaseError> {
+    let dia = positive(
+        ctx,
+        "intruder.diameter",
+        i.diameter.ok_or_else(|| {
+            ctx.bad(
+                "intruder.diameter",
+                "missing",
+                "a disk intruder needs its diameter (in d)",
+            )
+        })?,
+    )?;
+    if i.a.is_some() || i.b.is_some() {
+        return Err(ctx.bad("intruder.a", i.a, "a and b belong to shape = \"ellipse\""));
+    }
+    let r = 0.5 * dia * d;
+    Ok((
+        IntruderShape::Disk { radius: r },
+        density_ratio * areal * std::f64::consts::PI * r * r,
+        2.0 * r,
+    ))
+}
+
+/// `shape = "ellipse"`: semi-axes a, b of at least 1 d, no diameter, and at least 8
+/// outline disks. Returns (shape, mass, width), SI; the mass is that of a disk of
+/// diameter 2a (K Sec. III A) times `density_ratio`.
+fn ellipse_intruder(
+    ctx: &Ctx,
+    i: &IntruderIn,
+    d: f64,
+    density_ratio: f64,
+    areal: f64,
+) -> Result<(IntruderShape, f64, f64), CaseError> {
+    let a = positive(
+        ctx,
+        "intruder.a",
+        i.a.ok_or_else(|| {
+            ctx.bad(
+                "intruder.a",
+                "missing",
+                "an ellipse needs semi-axes a and b (in d)",
+            )
+        })?,
+    )?;
+    let bb = positive(
+        ctx,
+        "intruder.b",
+        i.b.ok_or_else(|| {
+            ctx.bad(
+                "intruder.b",
+                "missing",
+                "an ellipse needs semi-axes a and b (in d)",
+            )
+        })?,
+    )?;
+    if i.diameter.is_some() {
+        return Err(ctx.bad(
+            "intruder.diameter",
+            i.diameter,
+            "diameter belongs to shape = \"disk\"",
+        ));
+    }
+    if a < 1.0 || bb < 1.0 {
+        return Err(ctx.bad(
+            "intruder.a",
+            (a, bb),
+            "semi-axes must be >= 1 d (the outline disks are d wide)",
+        ));
+    }
+    if i.cluster_count < 8 {
+        return Err(ctx.bad("intruder.cluster_count", i.cluster_count, "must be >= 8"));
+    }
+    let (a, bb) = (a * d, bb * d);
+    Ok((
+        IntruderShape::Ellipse {
+            a,
+            b: bb,
+            count: i.cluster_count,
+        },
+        density_ratio * areal * std::f64::consts::PI * a * a,
+        2.0 * a,
+    ))
+}
+
+/// The intruder's material over grains `g`: each field of `[intruder]` given, or the
+/// grains' (K Fig 2: "the same as the grains"). Applied again to each variant's grains.
+fn intruder_material(ctx: &Ctx, i: &IntruderIn, g: &Material2d) -> Result<Material2d, CaseError> {
+    Ok(Material2d {
+        k_n: match i.k_n {
+            Some(k) => positive(ctx, "intruder.k_n", k)?,
+            None => g.k_n,
+        },
+        e_n: match i.e_n {
+            Some(e) => unit_interval(ctx, "intruder.e_n", e)?,
+            None => g.e_n,
+        },
+        mu: match i.mu {
+            Some(v) => non_negative(ctx, "intruder.mu", v)?,
+            None => g.mu,
+        },
+        friction: i.friction.unwrap_or(g.friction),
+    })
+}
+
+/// `[analysis] final_window` (s): positive and shorter than the run (`duration`, s).
+fn final_window(ctx: &Ctx, a: &AnalysisIn, tau: f64, duration: f64) -> Result<f64, CaseError> {
+    let final_window = positive(ctx, "analysis.final_window", a.final_window)? * tau;
+    if final_window >= duration {
+        return Err(ctx.bad(
+            "analysis.final_window",
+            a.final_window,
+            "must be shorter than simulation.duration",
+        ));
+    }
+    Ok(final_window)
+}
+
+/// What a sweep value is applied to: the base case and what its parameters are checked
+/// and converted with.
+struct SweepBase<'a> {
+    ctx: &'a Ctx,
+    parameter: &'a str,
+    base: &'a Variant,
+    scales: &'a Scales,
+    intruder: &'a IntruderIn,
+    /// `[walls] friction` as written: without it the walls follow the grains' model.
+    walls_friction: Option<Friction>,
+    /// The intruder's width (m), which a `bed` value's period must leave room for.
+    width: f64,
+}
+
+/// `[sweep]`: one variant per value, the base case with the swept parameter set (at
+/// least two values, no two alike); without a sweep the base case alone.
+fn sweep_variants(
+    ctx: &Ctx,
+    raw: &File,
+    base: &Variant,
+    scales: &Scales,
+    width: f64,
+) -> Result<Vec<Variant>, CaseError> {
+    let Some(sw) = &raw.sweep else {
+        return Ok(vec![base.clone()]);
+    };
+    if sw.values.len() < 2 {
+        return Err(ctx.bad(
+            "sweep.values",
+            sw.values.len(),
+            "a sweep needs at least two values",
+        ));
+    }
+    let sb = SweepBase {
+        ctx,
+        parameter: &sw.parameter,
+        base,
+        scales,
+        intruder: &raw.intruder,
+        walls_friction: raw.walls.friction,
+        width,
+    };
+    let mut variants: Vec<Variant> = Vec::new();
+    for (k, v) in sw.values.iter().enumerate() {
+        let field = format!("sweep.values[{k}]");
+        let var = sweep_value(&sb, &field, k, v)?;
+        if variants.iter().any(|o| o.label == var.label) {
+            return Err(ctx.bad(&field, v.to_string(), "repeated sweep value"));
+        }
+        variants.push(var);
+    }
+    Ok(variants)
+}
+
+/// A sweep value as a number (a float or an integer).
+fn sweep_number(sb: &SweepBase, field: &str, v: &toml::Value) -> Result<f64, CaseError> {
+    v.as_float()
+        .or_else(|| v.as_integer().map(|n| n as f64))
+        .ok_or_else(|| {
+            sb.ctx.bad(
+                field,
+                v.to_string(),
+                format!("sweep over `{}` takes numbers", sb.parameter),
+            )
+        })
+}
+
+/// A sweep value as a string.
+fn sweep_text(sb: &SweepBase, field: &str, v: &toml::Value) -> Result<String, CaseError> {
+    v.as_str().map(str::to_string).ok_or_else(|| {
+        sb.ctx.bad(
+            field,
+            v.to_string(),
+            format!("sweep over `{}` takes strings", sb.parameter),
+        )
+    })
+}
+
+/// Sweep value `k` (`v`, at `field`) applied to the base case: the variant it runs,
+/// labelled. A numeric value is in the units of the section it replaces and is the
+/// variant's x; text and table values count 0, 1, ... as x.
+fn sweep_value(
+    sb: &SweepBase,
+    field: &str,
+    k: usize,
+    v: &toml::Value,
+) -> Result<Variant, CaseError> {
+    let ctx = sb.ctx;
+    let mut var = sb.base.clone();
+    let label;
+    match sb.parameter {
+        "speed" => {
+            let x = non_negative(ctx, field, sweep_number(sb, field, v)?)?;
+            var.speed = x * sb.scales.velocity();
+            var.x = x;
+            label = format!("speed={x}");
+        }
+        "gravity" => {
+            let x = positive(ctx, field, sweep_number(sb, field, v)?)?;
+            var.gravity = x * sb.scales.g0;
+            var.x = x;
+            label = format!("gravity={x}");
+        }
+        "e_n" => {
+            let x = unit_interval(ctx, field, sweep_number(sb, field, v)?)?;
+            var.grains.e_n = x;
+            var.intruder = intruder_material(ctx, sb.intruder, &var.grains)?;
+            var.x = x;
+            label = format!("e_n={x}");
+        }
+        "mu" => {
+            let x = non_negative(ctx, field, sweep_number(sb, field, v)?)?;
+            var.grains.mu = x;
+            var.intruder = intruder_material(ctx, sb.intruder, &var.grains)?;
+            var.x = x;
+            label = format!("mu={x}");
+        }
+        "friction" => {
+            let t = sweep_text(sb, field, v)?;
+            var.grains.friction = match t.as_str() {
+                "static" => Friction::Static,
+                "kinetic" => Friction::Kinetic,
+                _ => {
+                    return Err(ctx.bad(field, t, "friction is \"static\" or \"kinetic\""));
+                }
+            };
+            if sb.walls_friction.is_none() {
+                var.walls.friction = var.grains.friction;
+            }
+            var.intruder = intruder_material(ctx, sb.intruder, &var.grains)?;
+            var.x = k as f64;
+            label = format!("friction={t}");
+        }
+        "friction_mu" => {
+            label = sweep_friction_mu(sb, field, v, &mut var)?;
+            var.x = k as f64;
+        }
+        "packing" => {
+            let t = sweep_text(sb, field, v)?;
+            var.packing = match t.as_str() {
+                "random" => Packing::Random,
+                "hexagonal" => Packing::Hexagonal,
+                _ => {
+                    return Err(ctx.bad(field, t, "packing is \"random\" or \"hexagonal\""));
+                }
+            };
+            var.x = k as f64;
+            label = format!("packing={t}");
+        }
+        "bed" => {
+            // K Fig 11: a bed of another size and/or seed per variant.
+            let (bed, l) = bed_value(ctx, field, v, sb.scales.d, sb.width)?;
+            label = format!("count={},length={l},seed={}", bed.count, bed.seed);
+            var.bed = Some(bed);
+            var.x = k as f64;
+        }
+        other => {
+            return Err(ctx.bad(
+                "sweep.parameter",
+                other,
+                "one of speed, gravity, e_n, mu, friction, friction_mu, packing, bed",
+            ));
+        }
+    }
+    var.label = label;
+    Ok(var)
+}
+
+/// A value of a `friction_mu` sweep set in `var`: mu and the friction model together
+/// (K Figs 6, 21); returns the label.
+fn sweep_friction_mu(
+    sb: &SweepBase,
+    field: &str,
+    v: &toml::Value,
+    var: &mut Variant,
+) -> Result<String, CaseError> {
+    let ctx = sb.ctx;
+    let bad = || {
+        ctx.bad(
+            field,
+            v.to_string(),
+            "friction_mu takes tables { mu = NUMBER, friction = \"static\" | \"kinetic\" }",
+        )
+    };
+    let t = v.as_table().ok_or_else(bad)?;
+    if t.len() != 2 {
+        return Err(bad());
+    }
+    let mu = t
+        .get("mu")
+        .and_then(|m| m.as_float().or_else(|| m.as_integer().map(|n| n as f64)))
+        .ok_or_else(bad)?;
+    let fr = t.get("friction").and_then(|f| f.as_str()).ok_or_else(bad)?;
+    var.grains.mu = non_negative(ctx, &format!("{field}.mu"), mu)?;
+    var.grains.friction = match fr {
+        "static" => Friction::Static,
+        "kinetic" => Friction::Kinetic,
+        _ => return Err(bad()),
+    };
+    if sb.walls_friction.is_none() {
+        var.walls.friction = var.grains.friction;
+    }
+    var.intruder = intruder_material(ctx, sb.intruder, &var.grains)?;
+    Ok(format!("mu={mu},{fr}"))
+}
+
+/// A seed ensemble (`[bed] seeds`): every value once per seed, on that seed's bed (the
+/// bed machinery of the `bed` sweep: one bed per BedKey), value-major. One bed: the
+/// variants as they are.
+fn seed_ensemble(variants: Vec<Variant>, raw: &File, bed: &BedParams) -> Vec<Variant> {
+    if bed.seeds.is_empty() {
+        return variants;
+    }
+    let mut out = Vec::new();
+    for v in variants {
+        for &s in &bed.seeds {
+            let mut r = v.clone();
+            r.label = if raw.sweep.is_some() {
+                format!("{},seed={s}", v.label)
+            } else {
+                format!("seed={s}")
+            };
+            r.bed = Some(BedSize {
+                count: raw.bed.count,
+                length: bed.length,
+                seed: s,
+            });
+            r.ensemble_value = Some(v.label.clone());
+            out.push(r);
+        }
+    }
+    out
+}
+
+/// What the claims are checked against: the case as validated so far.
+struct ClaimScope<'a> {
+    ctx: &'a Ctx,
+    raw: &'a File,
+    variants: &'a [Variant],
+    /// `[bed] seeds`; empty for one bed.
+    seeds: &'a [u64],
+    /// The time step in tau_c.
+    dt_tau: f64,
+    /// `[bed]`'s periodic length (m).
+    length: f64,
+    d: f64,
+}
+
+/// `[claim]` / `[[claim]]`: each claim read, then checked against the sweep it compares
+/// the variants of and, on a seed ensemble, against the rules registered for one.
+fn validated_claims(sc: &ClaimScope) -> Result<Vec<Claim>, CaseError> {
+    let ctx = sc.ctx;
+    let claims = parse_claims(ctx, sc.raw.claim.as_ref())?;
+    if !claims.is_empty() && sc.raw.sweep.is_none() {
+        return Err(ctx.bad(
+            "claim",
+            "given",
+            "a claim compares the variants of a [sweep]; add one",
+        ));
+    }
+    for (k, claim) in claims.iter().enumerate() {
+        let at = |f: &str| {
+            if claims.len() == 1 {
+                format!("claim.{f}")
+            } else {
+                format!("claim[{k}].{f}")
+            }
+        };
+        claim_on_beds(sc, &at, claim)?;
+        check_claim(sc, &at, claim)?;
+    }
+    Ok(claims)
+}
+
+/// Whether a claim is defined for one bed or a seed ensemble: `trend` and
+/// `velocity_exponent_per_depth` are judged over beds, and on an ensemble only the
+/// claims with a registered ensemble rule are (docs/impact2d.md). `at` names a field of
+/// the claim.
+fn claim_on_beds(
+    sc: &ClaimScope,
+    at: &impl Fn(&str) -> String,
+    claim: &Claim,
+) -> Result<(), CaseError> {
+    if sc.seeds.is_empty() {
+        let over_beds = match claim {
+            Claim::VelocityExponentPerDepth { .. } => Some("velocity_exponent_per_depth"),
+            Claim::Trend { .. } => Some("trend"),
+            _ => None,
+        };
+        if let Some(kind) = over_beds {
+            return Err(sc.ctx.bad(
+                at("kind"),
+                kind,
+                "judged over beds: needs a seed ensemble ([bed] seeds)",
+            ));
+        }
+    }
+    if !sc.seeds.is_empty()
+        && !matches!(
+            claim,
+            Claim::Increasing { .. }
+                | Claim::Trend { .. }
+                | Claim::Linear { .. }
+                | Claim::VelocityExponentPerDepth { .. }
+        )
+    {
+        let kind = serde_json::to_value(claim)
+            .ok()
+            .and_then(|v| v["kind"].as_str().map(str::to_string))
+            .unwrap_or_default();
+        return Err(sc.ctx.bad(
+            at("kind"),
+            kind,
+            "not defined on a seed ensemble ([bed] seeds): only `increasing`, `trend`, `linear` and `velocity_exponent_per_depth` have a registered ensemble rule (docs/impact2d.md)",
+        ));
+    }
+    Ok(())
+}
+
+/// One claim's own fields, and what it needs of the sweep, the run and `[fields]`.
+fn check_claim(
+    sc: &ClaimScope,
+    at: &impl Fn(&str) -> String,
+    claim: &Claim,
+) -> Result<(), CaseError> {
+    let ctx = sc.ctx;
+    match claim {
+        Claim::Trend {
+            min_slope,
+            of,
+            at: t,
+            log_x,
+            ..
+        } => check_trend(sc, at, *min_slope, *of, *t, *log_x),
+        Claim::Increasing {
+            min_step,
+            of,
+            at: t,
+        } => {
+            non_negative(ctx, &at("min_step"), *min_step)?;
+            read_time(ctx, &at("at"), *of, *t, sc.raw.simulation.duration)
+        }
+        Claim::EnergyNonIncreasing { max_rise } => {
+            non_negative(ctx, &at("max_rise"), *max_rise).map(|_| ())
+        }
+        Claim::VelocityExponent {
+            depths,
+            half_width,
+            min,
+            max,
+            engine_tol,
+        } => {
+            depth_bins(ctx, at, depths, *half_width, *min, *max, *engine_tol)?;
+            velocity_exponent_sweep(sc, at)
+        }
+        Claim::VelocityExponentPerDepth {
+            depths,
+            half_width,
+            min,
+            max,
+            min_passages,
+            min_seeds,
+            engine_tol,
+        } => {
+            depth_bins(ctx, at, depths, *half_width, *min, *max, *engine_tol)?;
+            per_depth_samples(sc, at, *min_passages, *min_seeds)
+        }
+        Claim::ForceImpulsive {
+            bin,
+            peak_within,
+            half_within,
+        } => check_force_impulsive(sc, at, *bin, *peak_within, *half_within),
+        Claim::ForceSimilar {
+            window,
+            max_spread_ratio,
+            min_depth_spread,
+        } => check_force_similar(sc, at, *window, *max_spread_ratio, *min_depth_spread),
+        Claim::FieldOrder {
+            quantity,
+            larger,
+            smaller,
+            min_ratio,
+            max_ratio,
+        } => check_field_order(sc, at, *quantity, larger, smaller, *min_ratio, *max_ratio),
+        Claim::SizeInsensitive { max_spread } => check_size_insensitive(sc, at, *max_spread),
+        Claim::InterfaceSteadies {
+            max_ratio,
+            min_amplitude,
+        } => check_interface_steadies(ctx, at, *max_ratio, *min_amplitude),
+        Claim::Linear { from, r2_min } => check_linear(sc, at, *from, *r2_min),
+    }
+}
+
+/// A `trend` claim: a slope over a numeric sweep of at least 3 values (docs/statistics.md,
+/// "Rises"), positive values for a fit against ln x.
+fn check_trend(
+    sc: &ClaimScope,
+    at: &impl Fn(&str) -> String,
+    min_slope: f64,
+    of: ClaimQuantity,
+    t: Option<f64>,
+    log_x: bool,
+) -> Result<(), CaseError> {
+    let ctx = sc.ctx;
+    non_negative(ctx, &at("min_slope"), min_slope)?;
+    read_time(ctx, &at("at"), of, t, sc.raw.simulation.duration)?;
+    let param = sc
+        .raw
+        .sweep
+        .as_ref()
+        .map(|w| w.parameter.as_str())
+        .unwrap_or("");
+    if !["speed", "gravity", "e_n", "mu"].contains(&param) {
+        return Err(ctx.bad(
+            at("kind"),
+            "trend",
+            format!("a slope needs a numeric sweep (speed, gravity, e_n or mu), not `{param}`"),
+        ));
+    }
+    let groups = sc.variants.iter().filter(|v| v.ensemble_value.is_some());
+    let mut xs: Vec<f64> = groups.map(|v| v.x).collect();
+    xs.sort_by(f64::total_cmp);
+    xs.dedup();
+    if xs.len() < 3 {
+        return Err(ctx.bad(
+            "sweep.values",
+            xs.len(),
+            "a trend is fitted over at least 3 values (2 are one step: use `increasing`)",
+        ));
+    }
+    if log_x && xs.iter().any(|x| *x <= 0.0) {
+        return Err(ctx.bad(at("log_x"), "true", "ln x needs every swept value > 0"));
+    }
+    Ok(())
+}
+
+/// The depth bins and exponent range of a Fig 29 claim (K Appendix): a positive half
+/// width and engine tolerance, at least one bin, each inside the bed, and min < max.
+fn depth_bins(
+    ctx: &Ctx,
+    at: &impl Fn(&str) -> String,
+    depths: &[f64],
+    half_width: f64,
+    min: f64,
+    max: f64,
+    engine_tol: f64,
+) -> Result<(), CaseError> {
+    positive(ctx, &at("half_width"), half_width)?;
+    positive(ctx, &at("engine_tol"), engine_tol)?;
+    if depths.is_empty() {
+        return Err(ctx.bad(at("depths"), "[]", "at least one depth bin"));
+    }
+    for (j, y) in depths.iter().enumerate() {
+        if !(y.is_finite() && *y > half_width) {
+            return Err(ctx.bad(
+                format!("{}[{j}]", at("depths")),
+                y,
+                "a bin must lie inside the bed: centre > half_width",
+            ));
+        }
+    }
+    if !(min.is_finite() && max.is_finite() && min < max) {
+        return Err(ctx.bad(at("max"), max, format!("must exceed min = {min}")));
+    }
+    Ok(())
+}
+
+/// A `velocity_exponent` claim's sweep (K Appendix, Fig 29): of the speed, with at
+/// least 3 values.
+fn velocity_exponent_sweep(sc: &ClaimScope, at: &impl Fn(&str) -> String) -> Result<(), CaseError> {
+    let param = sc.raw.sweep.as_ref().map(|w| w.parameter.as_str());
+    if param != Some("speed") || sc.variants.len() < 3 {
+        return Err(sc.ctx.bad(
+            at("kind"),
+            "velocity_exponent",
+            "a(u) needs a [sweep] of the speed with at least 3 values",
+        ));
+    }
+    Ok(())
+}
+
+/// What a `velocity_exponent_per_depth` claim (K Appendix, Fig 29 read per depth) needs
+/// beyond its bins: at least 3 passages for a slope with an error, between 2 and the
+/// ensemble's seeds for an interval over beds, and a speed sweep with at least
+/// `min_passages` values.
+fn per_depth_samples(
+    sc: &ClaimScope,
+    at: &impl Fn(&str) -> String,
+    min_passages: usize,
+    min_seeds: usize,
+) -> Result<(), CaseError> {
+    let ctx = sc.ctx;
+    if min_passages < 3 {
+        return Err(ctx.bad(
+            at("min_passages"),
+            min_passages,
+            "a slope with an error needs at least 3 passages",
+        ));
+    }
+    if min_seeds < 2 || min_seeds > sc.seeds.len() {
+        return Err(ctx.bad(
+            at("min_seeds"),
+            min_seeds,
+            format!(
+                "an interval over beds needs at least 2, and the ensemble has {} seeds",
+                sc.seeds.len()
+            ),
+        ));
+    }
+    let param = sc.raw.sweep.as_ref().map(|w| w.parameter.as_str());
+    let values = sc.raw.sweep.as_ref().map_or(0, |w| w.values.len());
+    if param != Some("speed") || values < min_passages {
+        return Err(ctx.bad(
+            at("kind"),
+            "velocity_exponent_per_depth",
+            format!(
+                "a(u) needs a [sweep] of the speed with at least min_passages = {min_passages} values"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A `force_impulsive` claim (K Fig 21): positive times, and bins that hold at least 2
+/// intruder samples.
+fn check_force_impulsive(
+    sc: &ClaimScope,
+    at: &impl Fn(&str) -> String,
+    bin: f64,
+    peak_within: f64,
+    half_within: f64,
+) -> Result<(), CaseError> {
+    let ctx = sc.ctx;
+    positive(ctx, &at("bin"), bin)?;
+    positive(ctx, &at("peak_within"), peak_within)?;
+    positive(ctx, &at("half_within"), half_within)?;
+    if bin < 2.0 * sc.dt_tau * sc.raw.simulation.output_every as f64 {
+        return Err(ctx.bad(
+            at("bin"),
+            bin,
+            "a bin must hold at least 2 intruder samples (output_every * dt)",
+        ));
+    }
+    Ok(())
+}
+
+/// A `force_similar` claim (K Fig 21): its window and margins, and at least 2 variants
+/// to compare.
+fn check_force_similar(
+    sc: &ClaimScope,
+    at: &impl Fn(&str) -> String,
+    window: f64,
+    max_spread_ratio: f64,
+    min_depth_spread: f64,
+) -> Result<(), CaseError> {
+    let ctx = sc.ctx;
+    positive(ctx, &at("window"), window)?;
+    positive(ctx, &at("max_spread_ratio"), max_spread_ratio)?;
+    non_negative(ctx, &at("min_depth_spread"), min_depth_spread)?;
+    if sc.variants.len() < 2 {
+        return Err(ctx.bad(at("kind"), "force_similar", "needs at least 2 variants"));
+    }
+    Ok(())
+}
+
+/// A `field_order` claim (K Figs 22-27): its ratios, two different variants by label,
+/// and the `[fields]` snapshot its quantity is read from.
+fn check_field_order(
+    sc: &ClaimScope,
+    at: &impl Fn(&str) -> String,
+    quantity: FieldQuantity,
+    larger: &str,
+    smaller: &str,
+    min_ratio: f64,
+    max_ratio: Option<f64>,
+) -> Result<(), CaseError> {
+    let ctx = sc.ctx;
+    positive(ctx, &at("min_ratio"), min_ratio)?;
+    if let Some(m) = max_ratio
+        && !(m.is_finite() && m > min_ratio)
+    {
+        return Err(ctx.bad(
+            at("max_ratio"),
+            m,
+            format!("must exceed min_ratio = {min_ratio}"),
+        ));
+    }
+    for (f, l) in [("larger", larger), ("smaller", smaller)] {
+        if !sc.variants.iter().any(|v| v.label == l) {
+            return Err(ctx.bad(
+                at(f),
+                l,
+                format!(
+                    "no such variant; the variants: {}",
+                    sc.variants
+                        .iter()
+                        .map(|v| v.label.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+    }
+    if larger == smaller {
+        return Err(ctx.bad(at("smaller"), smaller, "must differ from `larger`"));
+    }
+    let f = sc.raw.fields.as_ref();
+    let has = if quantity.is_network() {
+        f.is_some_and(|f| !f.network_times.is_empty())
+    } else {
+        f.is_some_and(|f| f.affine_time.is_some())
+    };
+    if !has {
+        return Err(ctx.bad(
+            at("quantity"),
+            format!("{quantity:?}"),
+            if quantity.is_network() {
+                "a B0 claim needs [fields] network_times"
+            } else {
+                "an affine or D2_min claim needs [fields] affine_time"
+            },
+        ));
+    }
+    Ok(())
+}
+
+/// A `size_insensitive` claim (K Sec. III, Fig 11): a `bed` sweep with at least 2 sizes
+/// (count, length), each with at least 2 realizations.
+fn check_size_insensitive(
+    sc: &ClaimScope,
+    at: &impl Fn(&str) -> String,
+    max_spread: f64,
+) -> Result<(), CaseError> {
+    let ctx = sc.ctx;
+    positive(ctx, &at("max_spread"), max_spread)?;
+    let param = sc.raw.sweep.as_ref().map(|w| w.parameter.as_str());
+    if param != Some("bed") {
+        return Err(ctx.bad(
+            at("kind"),
+            "size_insensitive",
+            "compares beds of different sizes: needs a [sweep] of `bed`",
+        ));
+    }
+    let groups = size_groups(sc.variants, sc.raw.bed.count, sc.length);
+    if groups.len() < 2 {
+        return Err(ctx.bad(
+            at("kind"),
+            "size_insensitive",
+            "needs at least 2 sizes (count, length) among the sweep's beds",
+        ));
+    }
+    if let Some(((n, l), g)) = groups.iter().find(|g| g.1.len() < 2) {
+        return Err(ctx.bad(
+            at("kind"),
+            "size_insensitive",
+            format!(
+                "the size count = {n}, length = {} has {} realization(s); every size needs at least 2 (seeds)",
+                l / sc.d,
+                g.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// An `interface_steadies` claim (K Sec. III, Fig 12): positive margins, the ratio
+/// below 1.
+fn check_interface_steadies(
+    ctx: &Ctx,
+    at: &impl Fn(&str) -> String,
+    max_ratio: f64,
+    min_amplitude: f64,
+) -> Result<(), CaseError> {
+    positive(ctx, &at("max_ratio"), max_ratio)?;
+    positive(ctx, &at("min_amplitude"), min_amplitude)?;
+    if max_ratio >= 1.0 {
+        return Err(ctx.bad(
+            at("max_ratio"),
+            max_ratio,
+            "must be < 1: the depth below the interface would be allowed to oscillate as much as D",
+        ));
+    }
+    Ok(())
+}
+
+/// A `linear` claim (K Fig 8b): r2_min in [0, 1], and at least 3 distinct sweep values
+/// from `from` on.
+fn check_linear(
+    sc: &ClaimScope,
+    at: &impl Fn(&str) -> String,
+    from: f64,
+    r2_min: f64,
+) -> Result<(), CaseError> {
+    let ctx = sc.ctx;
+    finite(ctx, &at("from"), from)?;
+    if !(0.0..=1.0).contains(&r2_min) {
+        return Err(ctx.bad(at("r2_min"), r2_min, "must lie in [0, 1]"));
+    }
+    // Distinct values (a seed ensemble has one variant per seed of each).
+    let mut xs: Vec<f64> = sc
+        .variants
+        .iter()
+        .filter(|v| v.x >= from)
+        .map(|v| v.x)
+        .collect();
+    xs.dedup();
+    let n = xs.len();
+    if n < 3 {
+        return Err(ctx.bad(
+            at("from"),
+            from,
+            format!(
+                "only {n} sweep values are >= it; a line through fewer than 3 points always fits"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Every hexagonal bed's period L is a whole number of d, which its rows of touching
+/// disks of diameter d fill: `[bed] length` (`bed_length`, in d), or a `bed` sweep
+/// value's own.
+fn hexagonal_lengths(
+    ctx: &Ctx,
+    variants: &[Variant],
+    bed_length: f64,
+    d: f64,
+) -> Result<(), CaseError> {
+    for (k, v) in variants.iter().enumerate() {
+        if v.packing != Packing::Hexagonal {
+            continue;
+        }
+        let (field, l) = match v.bed {
+            Some(bed) if v.ensemble_value.is_none() => {
+                (format!("sweep.values[{k}].length"), bed.length / d)
+            }
+            _ => ("bed.length".to_string(), bed_length),
+        };
+        if (l - l.round()).abs() > 1e-9 {
+            return Err(ctx.bad(
+                field,
+                l,
+                "a hexagonal bed needs L to be a whole number of d",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `[compare]`: the native vs LAMMPS tolerances (defaults where absent), each positive.
+fn tolerances(ctx: &Ctx, compare: Option<&Tolerances>) -> Result<Tolerances, CaseError> {
+    let tolerances = compare.cloned().unwrap_or_default();
+    positive(ctx, "compare.interface_rms", tolerances.interface_rms)?;
+    positive(ctx, "compare.final_depth_abs", tolerances.final_depth_abs)?;
+    positive(ctx, "compare.depth_rms", tolerances.depth_rms)?;
+    positive(ctx, "compare.force_rel", tolerances.force_rel)?;
+    positive(ctx, "compare.force_window", tolerances.force_window)?;
+    positive(ctx, "compare.b0_distance", tolerances.b0_distance)?;
+    positive(ctx, "compare.field_rel", tolerances.field_rel)?;
+    Ok(tolerances)
+}
+
+/// `[[negative_control]]`: the controls an impact2d comparison can run, and what each
+/// perturbation needs of the case (a sweep, a packing or `bed` sweep, the interface
+/// tracers). `length` is `[bed]`'s period (m).
+fn negative_controls(
+    ctx: &Ctx,
+    raw: &File,
+    variants: &[Variant],
+    track_interface: bool,
+    length: f64,
+) -> Result<Vec<super::NegativeControl>, CaseError> {
+    // Wall disks are type 2, the intruder type 3 (a pair_friction control names them).
+    let negative_controls =
+        super::control::controls(ctx, &raw.negative_control, 3, IMPACT2D_GATES)?;
+    super::control::check_applicable(
+        ctx,
+        &negative_controls,
+        &super::control::Targets {
+            spheres: None,
+            clumps: false,
+        },
+    )?;
+    if raw.sweep.is_none()
+        && let Some(k) = negative_controls
+            .iter()
+            .position(|c| c.perturbation.sweep_ignored)
+    {
+        return Err(ctx.bad(
+            format!("negative_control[{k}].perturbation.sweep_ignored"),
+            true,
+            "ignores a [sweep] the case does not have",
+        ));
+    }
+    let bed_sweep = raw.sweep.as_ref().is_some_and(|w| w.parameter == "bed");
+    for (k, c) in negative_controls.iter().enumerate() {
+        let p = &c.perturbation;
+        if p.sweep_ignored && bed_sweep {
+            return Err(ctx.bad(
+                format!("negative_control[{k}].perturbation.sweep_ignored"),
+                true,
+                "a bed sweep changes the beds themselves: each variant keeps its own bed, so ignoring the sweep would rerun it unchanged (use other_size_speed_factor)",
+            ));
+        }
+        if p.packing_ignored && raw.sweep.as_ref().is_none_or(|w| w.parameter != "packing") {
+            return Err(ctx.bad(
+                format!("negative_control[{k}].perturbation.packing_ignored"),
+                true,
+                "runs every variant on the first variant's bed: needs a [sweep] of `packing`",
+            ));
+        }
+        if p.interface_frozen_floor && !track_interface {
+            return Err(ctx.bad(
+                format!("negative_control[{k}].perturbation.interface_frozen_floor"),
+                true,
+                "replaces the interface tracers, which this case does not track (an interface_steadies claim or [analysis] track_interface = true)",
+            ));
+        }
+        if p.other_size_speed_factor != 1.0
+            && (!bed_sweep || size_groups(variants, raw.bed.count, length).len() < 2)
+        {
+            return Err(ctx.bad(
+                format!("negative_control[{k}].perturbation.other_size_speed_factor"),
+                p.other_size_speed_factor,
+                "slows the variants of other sizes than the first: needs a [sweep] of `bed` with at least 2 sizes",
+            ));
+        }
+    }
+    Ok(negative_controls)
 }
 
 /// Variant indices grouped by size (count, length in m), in order of first appearance;
