@@ -784,3 +784,95 @@ fn malformed_claims_name_the_claim_and_the_field() {
         &[("r2_min = 0.9\n", "", "claim[1]", "missing field `r2_min`")],
     );
 }
+
+/// `[bed] settled_with = "variant"` (K Figs 22-25 on five seeds, each friction model on
+/// beds settled with its own law): the static variants get beds settled with static
+/// friction (k_t = 0.8 k_n), the kinetic ones the Fig 2 beds the five-seed Fig 6 case
+/// uses (the same specification, so the same cache entries and record beds); the field
+/// changes the canonical hash only when set; and every misuse is refused with the
+/// field, the value and the reason.
+#[test]
+fn beds_settled_per_variant_follow_each_variants_grains() {
+    use granval::experiments::bed_cache;
+    use granval::physics::dem2d::impact::bed_spec;
+    let root = common::root().join("cases/release");
+    let own = Impact2dCase::load(&root.join("kondic-fig22-25-poly-fields-5seeds.toml")).unwrap();
+    let fig6 = Impact2dCase::load(&root.join("kondic-fig6-friction-5beds.toml")).unwrap();
+    assert!(own.beds_per_variant && !fig6.beds_per_variant);
+    let name = |c: &Impact2dCase, label: &str| {
+        let v = c.variants.iter().find(|v| v.label == label).unwrap();
+        let key = c.bed_of(v);
+        (
+            key,
+            bed_cache::name("impact2d", &bed_spec(c, &key)).unwrap(),
+            bed_spec(c, &key),
+        )
+    };
+    for seed in 1..=5 {
+        let (k_kin, n_kin, s_kin) = name(&own, &format!("friction=kinetic,seed={seed}"));
+        let (k_sta, n_sta, s_sta) = name(&own, &format!("friction=static,seed={seed}"));
+        let (_, n_fig6, _) = name(&fig6, &format!("friction=kinetic,seed={seed}"));
+        let (_, n_fig6_static, _) = name(&fig6, &format!("friction=static,seed={seed}"));
+        assert_ne!(k_sta, k_kin, "seed {seed}: one bed key per model");
+        assert_eq!((s_kin.coeffs[0].kt, s_kin.coeffs[1].kt), (0.0, 0.0));
+        assert_eq!(
+            n_kin, n_fig6,
+            "seed {seed}: the kinetic bed is the Fig 6 case's"
+        );
+        assert_eq!(n_fig6_static, n_fig6, "Fig 6 hits one bed with both models");
+        assert_ne!(n_sta, n_kin, "seed {seed}: the static bed is its own");
+        assert_eq!(s_sta.coeffs[0].kt, 0.8 * s_sta.coeffs[0].kn);
+        assert_eq!(
+            s_sta.coeffs[1].kt,
+            0.8 * s_sta.coeffs[1].kn,
+            "walls static too"
+        );
+    }
+    // The hash moves with the field, and not without it.
+    let text =
+        std::fs::read_to_string(root.join("kondic-fig22-25-poly-fields-5seeds.toml")).unwrap();
+    let base_text = text.replace("settled_with = \"variant\"", "settled_with = \"base\"");
+    let as_base = Impact2dCase::from_toml_str(&base_text, Path::new("b.toml")).unwrap();
+    let absent = Impact2dCase::from_toml_str(
+        &text.replace("settled_with = \"variant\"", ""),
+        Path::new("c.toml"),
+    )
+    .unwrap();
+    assert!(!as_base.beds_per_variant);
+    assert_eq!(as_base.canonical_hash(), absent.canonical_hash());
+    assert_ne!(as_base.canonical_hash(), own.canonical_hash());
+    assert_rejected(
+        &text,
+        &[(
+            "settled_with = \"variant\"\ninitial_speed",
+            "settled_with = \"each\"\ninitial_speed",
+            "bed.settled_with",
+            "must be \"base\"",
+        )],
+    );
+    // A sweep of the impact alone (here speed; its claims dropped) settles one set of
+    // grains: refused.
+    let claims = text.find("[[claim]]").unwrap()..text.find("[compare]").unwrap();
+    let mut no_claims = text.clone();
+    no_claims.replace_range(claims, "");
+    let speed = no_claims.replace(
+        "parameter = \"friction\"\nvalues = [\"kinetic\", \"static\"]",
+        "parameter = \"speed\"\nvalues = [0.7, 1.0]",
+    );
+    let e = err(&speed);
+    assert!(
+        e.contains("bed.settled_with") && e.contains("needs a sweep of a grain property"),
+        "{e}"
+    );
+    // With a sweep_ignored control, one value must keep the base's grains.
+    let mu_sweep = no_claims.replace(
+        "parameter = \"friction\"\nvalues = [\"kinetic\", \"static\"]",
+        "parameter = \"mu\"\nvalues = [0.3, 0.7]",
+    );
+    let e = err(&mu_sweep);
+    assert!(
+        e.contains("bed.settled_with")
+            && e.contains("one sweep value must keep the base case's grains"),
+        "{e}"
+    );
+}

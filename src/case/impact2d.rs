@@ -163,6 +163,11 @@ struct BedIn {
     settle_ke: f64,
     /// Give up after this much settling time, in tau_c.
     max_settle_time: f64,
+    /// Which grains settle a variant's bed: `"base"` (default: every variant of a sweep
+    /// hits the base case's beds) or `"variant"` (each variant's own grains, so a
+    /// friction sweep compares beds each settled with its own law; docs/impact2d.md).
+    #[serde(default)]
+    settled_with: Option<String>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
@@ -598,6 +603,18 @@ pub struct BedKey {
     /// Periodic length L (m).
     pub length: f64,
     pub seed: u64,
+    /// The grain and wall materials the bed settles with when they are not the base
+    /// case's (`[bed] settled_with = "variant"`: a friction sweep sets both); `None`: the
+    /// base's, as every bed before.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(crate) settled_with: Option<SettleMaterials>,
+}
+
+/// The materials a bed settles with (K Sec. II's pour and settling).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub(crate) struct SettleMaterials {
+    pub(crate) grains: Material2d,
+    pub(crate) walls: Material2d,
 }
 
 impl BedKey {
@@ -650,6 +667,9 @@ pub struct Variant {
 #[derive(Debug, Clone, serde::Serialize)]
 #[non_exhaustive]
 pub struct Impact2dCase {
+    /// `[bed] settled_with = "variant"`: a variant whose grains differ from the base's
+    /// runs on beds settled with its own grains ([`Impact2dCase::bed_of`]).
+    pub beds_per_variant: bool,
     pub name: String,
     pub description: String,
     pub source: PathBuf,
@@ -806,6 +826,12 @@ impl Impact2dCase {
             count: b.count,
             length: b.length,
             seed: b.seed,
+            settled_with: (self.beds_per_variant
+                && (v.grains, v.walls) != (self.base.grains, self.base.walls))
+                .then_some(SettleMaterials {
+                    grains: v.grains,
+                    walls: v.walls,
+                }),
         }
     }
 
@@ -877,6 +903,7 @@ impl Impact2dCase {
             intruder_mass,
             release_height,
             walls_as_grains,
+            beds_per_variant,
             fields,
             track_interface,
             base,
@@ -914,6 +941,10 @@ impl Impact2dCase {
         }
         if let Some(f) = fields {
             view["fields"] = serde_json::json!(f);
+        }
+        // Added with beds settled per variant; absent for the base's beds, as above.
+        if *beds_per_variant {
+            view["beds_settled_with"] = serde_json::json!("variant");
         }
         // Added with seed ensembles; absent for one bed, so the hashes (and seals) of
         // the cases written before stay as they were.
@@ -988,7 +1019,9 @@ impl Impact2dCase {
         };
         let negative_controls =
             negative_controls(&ctx, &raw, &variants, track_interface, bed.length)?;
+        let beds_per_variant = settled_with(&ctx, &raw, &base, &variants, &negative_controls)?;
         Ok(Impact2dCase {
+            beds_per_variant,
             negative_controls,
             name: raw.case.name,
             description: raw.case.description,
@@ -1024,6 +1057,56 @@ impl Impact2dCase {
             tolerances,
         })
     }
+}
+
+/// `[bed] settled_with`: true for `"variant"` (each variant's bed settled with its own
+/// grains), false for `"base"` or absent. Only a sweep of a grain property changes the
+/// grains; with a `sweep_ignored` control some value must keep the base's grains, whose
+/// beds that control runs every value on.
+fn settled_with(
+    ctx: &Ctx,
+    raw: &File,
+    base: &Variant,
+    variants: &[Variant],
+    controls: &[super::NegativeControl],
+) -> Result<bool, CaseError> {
+    let Some(v) = raw.bed.settled_with.as_deref() else {
+        return Ok(false);
+    };
+    match v {
+        "base" => return Ok(false),
+        "variant" => {}
+        _ => {
+            return Err(ctx.bad(
+                "bed.settled_with",
+                v,
+                "must be \"base\" (every variant on the base case's beds) or \"variant\" (each variant's bed settled with its own grains)",
+            ));
+        }
+    }
+    let swept = raw.sweep.as_ref().map(|w| w.parameter.as_str());
+    if !matches!(swept, Some("friction" | "mu" | "e_n")) {
+        return Err(ctx.bad(
+            "bed.settled_with",
+            v,
+            format!(
+                "needs a sweep of a grain property (friction, mu or e_n), not {}: otherwise every variant settles the same grains",
+                swept.map_or("no sweep".to_string(), |p| format!("a {p} sweep"))
+            ),
+        ));
+    }
+    if controls.iter().any(|c| c.perturbation.sweep_ignored)
+        && !variants
+            .iter()
+            .any(|x| (x.grains, x.walls) == (base.grains, base.walls))
+    {
+        return Err(ctx.bad(
+            "bed.settled_with",
+            v,
+            "a sweep_ignored control runs every value on the base grains' beds, so one sweep value must keep the base case's grains",
+        ));
+    }
+    Ok(true)
 }
 
 /// `[units]` and `[grains]`: K's scales in SI. The grains' k_n sets tau_c, the time unit
@@ -1654,6 +1737,7 @@ fn claim_on_beds(
                 | Claim::Trend { .. }
                 | Claim::Linear { .. }
                 | Claim::VelocityExponentPerDepth { .. }
+                | Claim::FieldOrder { .. }
         )
     {
         let kind = serde_json::to_value(claim)
@@ -1663,7 +1747,7 @@ fn claim_on_beds(
         return Err(sc.ctx.bad(
             at("kind"),
             kind,
-            "not defined on a seed ensemble ([bed] seeds): only `increasing`, `trend`, `linear` and `velocity_exponent_per_depth` have a registered ensemble rule (docs/impact2d.md)",
+            "not defined on a seed ensemble ([bed] seeds): only `increasing`, `trend`, `linear`, `velocity_exponent_per_depth` and `field_order` have a registered ensemble rule (docs/impact2d.md)",
         ));
     }
     Ok(())
@@ -1937,19 +2021,17 @@ fn check_field_order(
             format!("must exceed min_ratio = {min_ratio}"),
         ));
     }
+    // On a seed ensemble the claim names sweep values (the labels without the seed).
+    let name_of =
+        |v: &Variant| -> String { v.ensemble_value.clone().unwrap_or_else(|| v.label.clone()) };
     for (f, l) in [("larger", larger), ("smaller", smaller)] {
-        if !sc.variants.iter().any(|v| v.label == l) {
+        if !sc.variants.iter().any(|v| name_of(v) == l) {
+            let mut names: Vec<String> = sc.variants.iter().map(name_of).collect();
+            names.dedup();
             return Err(ctx.bad(
                 at(f),
                 l,
-                format!(
-                    "no such variant; the variants: {}",
-                    sc.variants
-                        .iter()
-                        .map(|v| v.label.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
+                format!("no such variant; the variants: {}", names.join(", ")),
             ));
         }
     }

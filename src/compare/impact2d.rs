@@ -340,6 +340,7 @@ pub fn claim_checks(case: &Impact2dCase, engine: &str, obs: &[VariantObs]) -> Ve
                 Claim::VelocityExponentPerDepth { .. } => {
                     per_depth_exponent_checks(case, c, engine, obs)
                 }
+                Claim::FieldOrder { .. } => vec![ensemble_field_order_check(case, c, engine, obs)],
                 _ => vec![ensemble_claim_check(case, c, engine, obs)],
             })
             .collect();
@@ -471,6 +472,154 @@ fn field_order_checks(
             }
         })
         .collect()
+}
+
+/// One seed's run of a sweep value: its seed, its variant and its field summaries
+/// ((time, value) per field time, or one).
+type SeedRun<'a> = (
+    u64,
+    &'a crate::case::impact2d::Variant,
+    Vec<(Option<f64>, f64)>,
+);
+
+/// A `field_order` claim over a seed ensemble (docs/statistics.md, "A ratio at least
+/// R"): for each field time (B0) or once (the affine summaries), the 90 % interval of
+/// ln(X_larger / X_smaller) over the seeds, paired by seed when the two variants of every
+/// seed ran on the same bed (the bed-to-bed offset cancels), else Welch's interval of
+/// the two groups' ln X (each friction model on beds settled with its own law). It must
+/// exceed ln(min_ratio), and with `max_ratio` also stay below ln(max_ratio). One check:
+/// PASS when every comparison passes (every time, both ends), FAIL when one fails at the
+/// Bonferroni level of all of them, else INCONCLUSIVE.
+fn ensemble_field_order_check(
+    case: &Impact2dCase,
+    claim: &Claim,
+    engine: &str,
+    obs: &[VariantObs],
+) -> Check {
+    let Claim::FieldOrder {
+        quantity,
+        larger,
+        smaller,
+        min_ratio,
+        max_ratio,
+    } = claim
+    else {
+        return Check::error_in(
+            format!("{}: claim ({engine})", case.name),
+            Gate::Claim,
+            "not a field_order claim",
+        );
+    };
+    let n = case.seeds.len();
+    let name = format!(
+        "{}: claim ({engine}): {} larger with {larger} than with {smaller} (over {n} seeds)",
+        case.name,
+        quantity.describe()
+    );
+    let groups = case.ensemble_groups();
+    let members = |label: &str| -> Result<Vec<SeedRun<'_>>, String> {
+        let g = groups
+            .iter()
+            .find(|g| g.value == label)
+            .ok_or_else(|| format!("no sweep value {label}"))?;
+        g.members
+            .iter()
+            .map(|&k| {
+                let v = &case.variants[k];
+                let o = obs
+                    .iter()
+                    .find(|o| o.label == v.label)
+                    .ok_or_else(|| format!("run {} has no result", v.label))?;
+                let x = field_value(o, *quantity);
+                if x.is_empty() {
+                    return Err(format!("run {}: no field summary", v.label));
+                }
+                Ok((case.bed_of(v).seed, v, x))
+            })
+            .collect()
+    };
+    let (big, small) = match (members(larger), members(smaller)) {
+        (Ok(a), Ok(b)) => (a, b),
+        (Err(e), _) | (_, Err(e)) => return Check::error_in(name, Gate::Claim, e),
+    };
+    let same_seeds = big.len() == small.len()
+        && big
+            .iter()
+            .zip(&small)
+            .all(|(a, b)| a.0 == b.0 && a.2.len() == b.2.len());
+    if !same_seeds || big.is_empty() {
+        return Check::error_in(
+            name,
+            Gate::Claim,
+            "the two variants do not hold the same seeds and field times",
+        );
+    }
+    // Paired only when every seed's two runs started from the very same bed.
+    let paired = big
+        .iter()
+        .zip(&small)
+        .all(|(a, b)| case.bed_of(a.1) == case.bed_of(b.1));
+    let times = big[0].2.len();
+    let ends = 1 + usize::from(max_ratio.is_some());
+    let m = times * ends;
+    let mut parts = Vec::with_capacity(m);
+    let mut listing = Vec::with_capacity(times);
+    for j in 0..times {
+        let t = big[0].2[j].0;
+        let la: Vec<f64> = big.iter().map(|s| s.2[j].1.ln()).collect();
+        let lb: Vec<f64> = small.iter().map(|s| s.2[j].1.ln()).collect();
+        let est = if paired {
+            Estimate::paired(&la, &lb)
+        } else {
+            Estimate::welch(&la, &lb)
+        };
+        let at = t.map_or(String::new(), |t| format!(" at t = {t} tau_c"));
+        parts.push(super::Comparison {
+            what: format!("ln({larger} / {smaller}){at}"),
+            estimate: est,
+            rule: super::Rule::Exceeds {
+                delta: min_ratio.ln(),
+            },
+            m,
+        });
+        if let Some(hi) = max_ratio {
+            parts.push(super::Comparison {
+                what: format!("ln {hi} - ln({larger} / {smaller}){at}"),
+                estimate: est.map(|e| Estimate {
+                    value: hi.ln() - e.value,
+                    ..e
+                }),
+                rule: super::Rule::Exceeds { delta: 0.0 },
+                m,
+            });
+        }
+        let per_seed = big
+            .iter()
+            .zip(&small)
+            .map(|(a, b)| format!("seed {}: {:.4}", a.0, a.2[j].1 / b.2[j].1))
+            .collect::<Vec<_>>()
+            .join(", ");
+        listing.push(format!("ratios{at}: {per_seed}"));
+    }
+    Check::decided(
+        name,
+        Gate::Claim,
+        format!(
+            "ln({larger} / {smaller}), must exceed ln {min_ratio}{}",
+            max_ratio.map_or(String::new(), |h| format!(" and stay below ln {h}"))
+        ),
+        &parts,
+        format!(
+            "{} over {n} seeds ({}); {}",
+            if paired { "paired" } else { "Welch" },
+            if paired {
+                "both variants of every seed on the same bed"
+            } else {
+                "each variant on its own beds"
+            },
+            listing.join("; ")
+        ),
+    )
 }
 
 fn claim_check(case: &Impact2dCase, claim: &Claim, engine: &str, obs: &[VariantObs]) -> Check {
@@ -2058,6 +2207,106 @@ mod tests {
         let k = one(&rises, &ensemble_obs(&rises, &depth(-2.0, &jitter))).unwrap();
         assert_eq!(k.status, Status::Fail, "{k:?}");
         assert!((k.value + 2.0).abs() < 1e-9, "{}", k.value);
+    }
+
+    /// The ensemble `field_order` rule (K Figs 22-25 on five seeds per friction model):
+    /// the per-seed ln ratios of the two values, paired when both values of a seed ran
+    /// on one bed and Welch's when each value settled its own beds. A clean 1.3-fold
+    /// ratio at both times passes; the same ratio with one time at 1.0 fails (every time
+    /// must pass); ratios scattered around 1.1 are INCONCLUSIVE; a band claim fails
+    /// above its maximum; identical runs (the sweep ignored: ratio exactly 1) fail.
+    #[test]
+    fn field_order_claim_on_a_seed_ensemble_is_a_ratio_over_the_beds() {
+        use crate::analysis::force_network::B0Curves;
+        let fields = "[fields]\nnetwork_times = [12.0, 24.0]\n";
+        let sweep = "[sweep]\nparameter = \"friction\"\nvalues = [\"kinetic\", \"static\"]";
+        let claim = "[[claim]]\nkind = \"field_order\"\nquantity = \"b0_normal\"\nlarger = \"friction=static\"\nsmaller = \"friction=kinetic\"\nmin_ratio = 1.1";
+        let shared = ensemble(claim, &format!("{fields}{sweep}"), "[1, 2, 3, 4, 5]");
+        let own = ensemble(
+            claim,
+            &format!("{fields}{sweep}"),
+            "[1, 2, 3, 4, 5]\nsettled_with = \"variant\"",
+        );
+        assert!(own.beds_per_variant && !shared.beds_per_variant);
+        let curve = |h: f64| B0Curves {
+            thresholds: vec![0.0, 1.0, 2.0],
+            normal: vec![0.0, h, 0.0],
+            tangential: vec![0.0, h, 0.0],
+            mean_normal: 1.0,
+            grains: 100,
+            grain_contacts: 200,
+        };
+        // h(value index, seed index, time index)
+        let runs = |c: &Impact2dCase, h: &dyn Fn(usize, usize, usize) -> f64| {
+            let mut out = Vec::new();
+            for (i, g) in c.ensemble_groups().iter().enumerate() {
+                for (j, &k) in g.members.iter().enumerate() {
+                    let v = &c.variants[k];
+                    let mut o = obs(&[v.x], &[1.0]).remove(0);
+                    o.label = v.label.clone();
+                    o.fields = Some(FieldObs {
+                        networks: vec![(12.0, curve(h(i, j, 0))), (24.0, curve(h(i, j, 1)))],
+                        ..Default::default()
+                    });
+                    out.push(o);
+                }
+            }
+            out
+        };
+        let bed = [1.0, 1.4, 0.75, 1.25, 0.85];
+        let jitter = [0.01, -0.02, 0.0, 0.02, -0.01];
+        let clean =
+            |i: usize, j: usize, _t: usize| bed[j] * if i == 1 { 1.3 + jitter[j] } else { 1.0 };
+        let k = one(&shared, &runs(&shared, &clean)).unwrap();
+        assert_eq!(k.status, Status::Pass, "{k:?}");
+        assert!(
+            k.detail.contains("paired over 5 seeds") && k.detail.contains("seed 3: 1.3000"),
+            "{}",
+            k.detail
+        );
+        // Each value on its own beds: Welch's interval carries the bed-to-bed scatter.
+        let k = one(&own, &runs(&own, &clean)).unwrap();
+        assert!(k.detail.contains("Welch over 5 seeds"), "{}", k.detail);
+        assert_eq!(k.status, Status::Inconclusive, "{k:?}");
+        let quiet = |i: usize, j: usize, _t: usize| {
+            if i == 1 {
+                1.3 + jitter[j]
+            } else {
+                1.0 + jitter[j]
+            }
+        };
+        assert_eq!(one(&own, &runs(&own, &quiet)).unwrap().status, Status::Pass);
+        let one_time = |i: usize, j: usize, t: usize| {
+            bed[j]
+                * if i == 1 && t == 0 {
+                    1.3 + jitter[j]
+                } else {
+                    1.0 + jitter[j]
+                }
+        };
+        assert_eq!(
+            one(&shared, &runs(&shared, &one_time)).unwrap().status,
+            Status::Fail
+        );
+        let loose = [0.3, -0.25, 0.2, -0.3, 0.1];
+        let scattered =
+            |i: usize, j: usize, _t: usize| bed[j] * if i == 1 { 1.1 + loose[j] } else { 1.0 };
+        assert_eq!(
+            one(&shared, &runs(&shared, &scattered)).unwrap().status,
+            Status::Inconclusive
+        );
+        let same = |_i: usize, j: usize, _t: usize| bed[j];
+        let k = one(&shared, &runs(&shared, &same)).unwrap();
+        assert_eq!(k.status, Status::Fail, "{k:?}");
+        let band = ensemble(
+            &format!("{claim}\nmax_ratio = 1.2"),
+            &format!("{fields}{sweep}"),
+            "[1, 2, 3, 4, 5]",
+        );
+        assert_eq!(
+            one(&band, &runs(&band, &clean)).unwrap().status,
+            Status::Fail
+        );
     }
 
     /// The ensemble `linear` rule (K Fig 8b) under statistics v1: the per-seed slope must

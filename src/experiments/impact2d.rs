@@ -220,16 +220,19 @@ impl Experiment for Impact2d {
                 Ok(Unit {
                     variant: v.clone(),
                     scene: scene_mod::build(&self.case, v, beds.get(&key))?,
-                    // On this variant's bed (a packing or bed sweep's base keeps its own bed).
+                    // On this variant's bed (a packing or bed sweep's base keeps its own
+                    // bed); with beds settled per variant, on the base grains' bed of the
+                    // same seed (the case refuses a sweep none of whose values has it).
                     base_scene: if wants_base {
+                        let base = Variant {
+                            packing: v.packing,
+                            bed: v.bed,
+                            ..self.case.base.clone()
+                        };
                         Some(scene_mod::build(
                             &self.case,
-                            &Variant {
-                                packing: v.packing,
-                                bed: v.bed,
-                                ..self.case.base.clone()
-                            },
-                            beds.get(&key),
+                            &base,
+                            beds.get(&self.case.bed_of(&base)),
                         )?)
                     } else {
                         None
@@ -1137,6 +1140,13 @@ pub fn bed_note(case: &Impact2dCase, k: &BedKey, b: &Bed) -> String {
         )
     } else {
         String::new()
+    };
+    let size = match &k.settled_with {
+        Some(m) => format!(
+            "{size}, settled with the variant's materials ({:?} friction, grains mu {} e_n {}, walls mu {} e_n {})",
+            m.grains.friction, m.grains.mu, m.grains.e_n, m.walls.mu, m.walls.e_n
+        ),
+        None => size,
     };
     format!(
         "{} bed ({:?}{size}): {} grains ({} removed by smoothing), settled in {:.0} tau_c to total KE {:.2e} m g d, packing fraction {:.3}, surface at {:.2} d above the floor",

@@ -32,14 +32,19 @@ pub struct Scene {
     pub tracers: Vec<usize>,
 }
 
-/// Bed preparation inputs for a bed key (packing, count, length, seed): always the
-/// case's base grain and wall materials, so every variant of a sweep (e_n, mu,
-/// friction, speed, gravity) hits the very same bed and only the impact differs; a
-/// `bed` sweep's variants differ only in count, length and seed.
+/// Bed preparation inputs for a bed key (packing, count, length, seed): the case's base
+/// grain and wall materials, so every variant of a sweep (e_n, mu, friction, speed,
+/// gravity) hits the very same bed and only the impact differs; a `bed` sweep's
+/// variants differ only in count, length and seed. With `[bed] settled_with =
+/// "variant"` the key carries the variant's own grain and wall materials, which then
+/// settle its bed (K's "as in Fig. 2" for a system with static friction: prepared with
+/// it).
 pub fn bed_spec(case: &Impact2dCase, key: &BedKey) -> BedSpec {
     let s = &case.scales;
-    let g = case.base.grains.coeffs(s);
-    let w = case.base.walls.coeffs(s);
+    let (g, w) = match &key.settled_with {
+        Some(m) => (m.grains.coeffs(s), m.walls.coeffs(s)),
+        None => (case.base.grains.coeffs(s), case.base.walls.coeffs(s)),
+    };
     let v = Variant {
         packing: key.packing,
         ..case.base.clone()
