@@ -618,8 +618,9 @@ fn control_check(
 /// `dirs`. A summary is read only through its run seal, which must verify for the case
 /// as it is now (its canonical hash) and reproduce the summary from the run's sealed
 /// force files; otherwise the claim is an error naming the file. The notes name the
-/// directory each summary came from and the run's own verdict. `partial`: a claim none of whose cases has a summary is left out
-/// (with a note) instead of NOT COMPARED, for runs of a subset (`check --only`).
+/// directory each summary came from and the run's own verdict. `partial`: a claim some
+/// or all of whose cases have no summary is left out (with a note naming them) instead
+/// of NOT COMPARED, for runs of a subset (`check --only`).
 pub fn evaluate_claims(
     suite: &Suite,
     dirs: &[PathBuf],
@@ -649,6 +650,13 @@ pub fn evaluate_claims(
             Ok((found, _, _)) if partial && found.is_empty() => notes.push(format!(
                 "claim {:?}: none of its cases ran here; not evaluated",
                 c.name
+            )),
+            // A subset that ran only some of a claim's cases has not judged it either: the
+            // release gate then counts it as not run, not as a verdict that changed.
+            Ok((_, missing, _)) if partial => notes.push(format!(
+                "claim {:?}: not evaluated: case(s) {} did not run here (pass their output with --runs)",
+                c.name,
+                missing.join(", ")
             )),
             Ok((_, missing, _)) => checks.push(Check::not_compared(
                 &c.name,
@@ -1321,8 +1329,8 @@ mod tests {
 
     /// Claims read the cases' sealed summaries: all present gives one check per engine;
     /// a summary of another version of the case (its run sealed for another canonical
-    /// hash) is an error; a missing one NOT COMPARED, or only a note when a subset ran
-    /// and none of the claim's cases was in it.
+    /// hash) is an error; a missing one NOT COMPARED, or only a note (naming what did
+    /// not run) when a subset ran.
     #[test]
     fn claims_are_evaluated_from_current_summaries_only() {
         use crate::case::AnyCase;
@@ -1358,7 +1366,16 @@ mod tests {
             "{checks:?} {notes:?}"
         );
         write(&claim.cases[0], 1.0);
-        let (checks, _) = evaluate_claims(&one, &dirs, true);
+        // A subset that ran one of the two cases has not judged the claim: a note names
+        // the case that did not run (the release gate counts the claim as not run).
+        let (checks, notes) = evaluate_claims(&one, &dirs, true);
+        assert!(checks.is_empty(), "{checks:?}");
+        assert!(
+            notes.len() == 1 && notes[0].contains("did not run here"),
+            "{notes:?}"
+        );
+        // The whole suite without it: NOT COMPARED, naming it.
+        let (checks, _) = evaluate_claims(&one, &dirs, false);
         assert_eq!(checks.len(), 1);
         assert_eq!(checks[0].status, Status::NotCompared);
         write(&claim.cases[1], 12.0);
