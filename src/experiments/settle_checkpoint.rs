@@ -127,33 +127,13 @@ mod tests {
     /// way out, never a settling from the pour reported as continued.
     #[test]
     fn a_bed_continues_from_its_file_and_a_damaged_file_is_refused() {
-        use crate::physics::dem2d::bed::{Packing, prepare, prepare_resumable};
-        use crate::physics::dem2d::contact::Coeffs;
-        let d = 0.004;
-        let c = Coeffs {
-            kn: 400.0,
-            kt: 200.0,
-            gamma_n: 1500.0,
-            gamma_t: 750.0,
-            mu: 0.5,
-        };
-        let spec = BedSpec {
-            packing: Packing::Random,
-            count: 40,
-            length: 8.0 * d,
-            d,
-            polydispersity: 0.2,
-            areal_density: 1e-4 / (std::f64::consts::PI * 0.25 * d * d),
-            wall_d: d,
-            seed: 3,
-            initial_speed: 0.05,
-            settle_ke: 1e-8 * 1e-4 * 9.81 * d,
-            max_settle_time: 30.0,
-            dt: 2e-5,
-            skin: 0.3 * d,
-            gravity: 9.81,
-            coeffs: [c; 4],
-        };
+        use crate::physics::dem2d::bed::{prepare, prepare_resumable};
+        // The unit tests' small bed, with static friction (k_t > 0: the shear history
+        // is part of what the file must keep).
+        let mut spec = crate::physics::dem2d::bed::tests::spec();
+        for c in &mut spec.coeffs {
+            c.kt = 0.5 * c.kn;
+        }
         let whole = prepare(&spec, |_, _| {}).unwrap();
         let dir = tempfile::tempdir().unwrap();
         let file = |every| CheckpointFile {

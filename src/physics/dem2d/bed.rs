@@ -476,11 +476,11 @@ fn packing_fraction(bed: &Bed, spec: &BedSpec) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// The random bed of `tests/impact2d_bed.rs`: 160 disks on 16 d, soft springs.
-    fn spec() -> BedSpec {
+    pub(crate) fn spec() -> BedSpec {
         let d = 0.004;
         let c = Coeffs {
             kn: 400.0,
