@@ -482,6 +482,68 @@ type SeedRun<'a> = (
     Vec<(Option<f64>, f64)>,
 );
 
+/// The runs of sweep value `label` of a seed ensemble, in seed order, with the field
+/// summaries of `quantity`; an error names a run without a result or a summary.
+fn seed_runs<'a>(
+    case: &'a Impact2dCase,
+    obs: &[VariantObs],
+    quantity: FieldQuantity,
+    label: &str,
+) -> Result<Vec<SeedRun<'a>>, String> {
+    let groups = case.ensemble_groups();
+    let g = groups
+        .iter()
+        .find(|g| g.value == label)
+        .ok_or_else(|| format!("no sweep value {label}"))?;
+    g.members
+        .iter()
+        .map(|&k| {
+            let v = &case.variants[k];
+            let o = obs
+                .iter()
+                .find(|o| o.label == v.label)
+                .ok_or_else(|| format!("run {} has no result", v.label))?;
+            let x = field_value(o, quantity);
+            if x.is_empty() {
+                return Err(format!("run {}: no field summary", v.label));
+            }
+            Ok((case.bed_of(v).seed, v, x))
+        })
+        .collect()
+}
+
+/// The comparisons of one log ratio `what` (estimated by `est`): above ln `min_ratio`,
+/// and with `max_ratio` below its log too (the same estimate, mirrored), each counted
+/// among the claim's `m` for the Bonferroni level of a failure.
+fn ratio_comparisons(
+    what: String,
+    est: Option<Estimate>,
+    min_ratio: f64,
+    max_ratio: Option<f64>,
+    m: usize,
+) -> Vec<super::Comparison> {
+    let mut out = vec![super::Comparison {
+        what: what.clone(),
+        estimate: est,
+        rule: super::Rule::Exceeds {
+            delta: min_ratio.ln(),
+        },
+        m,
+    }];
+    if let Some(hi) = max_ratio {
+        out.push(super::Comparison {
+            what: format!("ln {hi} - {what}"),
+            estimate: est.map(|e| Estimate {
+                value: hi.ln() - e.value,
+                ..e
+            }),
+            rule: super::Rule::Exceeds { delta: 0.0 },
+            m,
+        });
+    }
+    out
+}
+
 /// A `field_order` claim over a seed ensemble (docs/statistics.md, "A ratio at least
 /// R"): for each field time (B0) or once (the affine summaries), the 90 % interval of
 /// ln(X_larger / X_smaller) over the seeds, paired by seed when the two variants of every
@@ -516,28 +578,7 @@ fn ensemble_field_order_check(
         case.name,
         quantity.describe()
     );
-    let groups = case.ensemble_groups();
-    let members = |label: &str| -> Result<Vec<SeedRun<'_>>, String> {
-        let g = groups
-            .iter()
-            .find(|g| g.value == label)
-            .ok_or_else(|| format!("no sweep value {label}"))?;
-        g.members
-            .iter()
-            .map(|&k| {
-                let v = &case.variants[k];
-                let o = obs
-                    .iter()
-                    .find(|o| o.label == v.label)
-                    .ok_or_else(|| format!("run {} has no result", v.label))?;
-                let x = field_value(o, *quantity);
-                if x.is_empty() {
-                    return Err(format!("run {}: no field summary", v.label));
-                }
-                Ok((case.bed_of(v).seed, v, x))
-            })
-            .collect()
-    };
+    let members = |label: &str| seed_runs(case, obs, *quantity, label);
     let (big, small) = match (members(larger), members(smaller)) {
         (Ok(a), Ok(b)) => (a, b),
         (Err(e), _) | (_, Err(e)) => return Check::error_in(name, Gate::Claim, e),
@@ -574,25 +615,8 @@ fn ensemble_field_order_check(
             Estimate::welch(&la, &lb)
         };
         let at = t.map_or(String::new(), |t| format!(" at t = {t} tau_c"));
-        parts.push(super::Comparison {
-            what: format!("ln({larger} / {smaller}){at}"),
-            estimate: est,
-            rule: super::Rule::Exceeds {
-                delta: min_ratio.ln(),
-            },
-            m,
-        });
-        if let Some(hi) = max_ratio {
-            parts.push(super::Comparison {
-                what: format!("ln {hi} - ln({larger} / {smaller}){at}"),
-                estimate: est.map(|e| Estimate {
-                    value: hi.ln() - e.value,
-                    ..e
-                }),
-                rule: super::Rule::Exceeds { delta: 0.0 },
-                m,
-            });
-        }
+        let ratio = format!("ln({larger} / {smaller}){at}");
+        parts.extend(ratio_comparisons(ratio, est, *min_ratio, *max_ratio, m));
         let per_seed = big
             .iter()
             .zip(&small)
