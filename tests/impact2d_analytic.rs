@@ -127,6 +127,7 @@ fn results_do_not_depend_on_the_thread_count() {
         seed: 3,
         initial_speed: 0.1,
         settle_ke: 1e300,
+        settle_hold: 0.0,
         max_settle_time: 1.0,
         dt: 2e-5,
         skin: 0.0012,

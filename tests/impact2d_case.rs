@@ -787,8 +787,9 @@ fn malformed_claims_name_the_claim_and_the_field() {
 
 /// `[bed] settled_with = "variant"` (K Figs 22-25 on five seeds, each friction model on
 /// beds settled with its own law): the static variants get beds settled with static
-/// friction (k_t = 0.8 k_n), the kinetic ones the Fig 2 beds the five-seed Fig 6 case
-/// uses (the same specification, so the same cache entries and record beds); the field
+/// friction (k_t = 0.8 k_n), the kinetic ones the Fig 2 beds of the five-seed Fig 6
+/// case but for the time cap and the settling hold (both beds' criteria held 200
+/// tau_c, so settled anew); the field
 /// changes the canonical hash only when set; and every misuse is refused with the
 /// field, the value and the reason.
 #[test]
@@ -815,11 +816,13 @@ fn beds_settled_per_variant_follow_each_variants_grains() {
         let (_, n_fig6_static, _) = name(&fig6, &format!("friction=static,seed={seed}"));
         assert_ne!(k_sta, k_kin, "seed {seed}: one bed key per model");
         assert_eq!((s_kin.coeffs[0].kt, s_kin.coeffs[1].kt), (0.0, 0.0));
-        // The same settling as the Fig 6 bed, whose time cap is lower: a bed that settles
-        // before either cap is the same bed (the settling stops at the first check below
-        // the criterion), though its file name differs with the cap.
+        // The Fig 6 bed's specification but for the time cap and the hold (K's
+        // one-check criterion there, 200 tau_c below it here): settled anew.
+        assert_eq!(s_kin.settle_hold, 200.0 * own.scales.tau_c);
+        assert_eq!(s_sta.settle_hold, s_kin.settle_hold);
         let uncapped = |mut s: granval::physics::dem2d::bed::BedSpec| {
             s.max_settle_time = 0.0;
+            s.settle_hold = 0.0;
             serde_json::to_string(&s).unwrap()
         };
         let (_, _, s_fig6) = name(&fig6, &format!("friction=kinetic,seed={seed}"));
@@ -884,5 +887,47 @@ fn beds_settled_per_variant_follow_each_variants_grains() {
         e.contains("bed.settled_with")
             && e.contains("one sweep value must keep the base case's grains"),
         "{e}"
+    );
+}
+
+/// `[bed] settle_hold` (tau_c): converted to seconds, sealed (the hash moves with it
+/// and not without it: a case written before it keeps its hash), and refused when
+/// negative or not shorter than the time cap, naming the field, the value and why.
+#[test]
+fn the_settling_hold_is_sealed_and_checked() {
+    let root = common::root().join("cases/release");
+    let text =
+        std::fs::read_to_string(root.join("kondic-fig22-25-poly-fields-5seeds.toml")).unwrap();
+    let held = Impact2dCase::from_toml_str(&text, Path::new("a.toml")).unwrap();
+    assert_eq!(held.settle_hold, 200.0 * held.scales.tau_c);
+    let zero = Impact2dCase::from_toml_str(
+        &text.replace("settle_hold = 200.0", "settle_hold = 0.0"),
+        Path::new("b.toml"),
+    )
+    .unwrap();
+    let absent = Impact2dCase::from_toml_str(
+        &text.replace("settle_hold = 200.0", ""),
+        Path::new("c.toml"),
+    )
+    .unwrap();
+    assert_eq!(absent.settle_hold, 0.0);
+    assert_eq!(zero.canonical_hash(), absent.canonical_hash());
+    assert_ne!(held.canonical_hash(), absent.canonical_hash());
+    assert_rejected(
+        &text,
+        &[
+            (
+                "settle_hold = 200.0",
+                "settle_hold = -1.0",
+                "bed.settle_hold",
+                "-1",
+            ),
+            (
+                "settle_hold = 200.0",
+                "settle_hold = 200000.0",
+                "bed.settle_hold",
+                "must be shorter than bed.max_settle_time",
+            ),
+        ],
     );
 }

@@ -161,6 +161,10 @@ struct BedIn {
     initial_speed: f64,
     /// Settled when the total kinetic energy < this, in m g0 d (K: 1e-10).
     settle_ke: f64,
+    /// ... and has stayed below it at every check for this long, in tau_c (default 0:
+    /// one check, K's criterion as written; docs/impact2d.md).
+    #[serde(default)]
+    settle_hold: f64,
     /// Give up after this much settling time, in tau_c.
     max_settle_time: f64,
     /// Which grains settle a variant's bed: `"base"` (default: every variant of a sweep
@@ -689,6 +693,9 @@ pub struct Impact2dCase {
     pub seeds: Vec<u64>,
     pub initial_speed: f64,
     pub settle_ke: f64,
+    /// `[bed] settle_hold` (s): how long the kinetic energy must stay below
+    /// `settle_ke` (0: one check).
+    pub settle_hold: f64,
     pub max_settle_time: f64,
     pub wall_d: f64,
     pub top_gap: f64,
@@ -896,6 +903,7 @@ impl Impact2dCase {
             seeds,
             initial_speed,
             settle_ke,
+            settle_hold,
             max_settle_time,
             wall_d,
             top_gap,
@@ -945,6 +953,10 @@ impl Impact2dCase {
         // Added with beds settled per variant; absent for the base's beds, as above.
         if *beds_per_variant {
             view["beds_settled_with"] = serde_json::json!("variant");
+        }
+        // Added with the settling hold; absent when 0, as above.
+        if *settle_hold > 0.0 {
+            view["settle_hold"] = serde_json::json!(settle_hold);
         }
         // Added with seed ensembles; absent for one bed, so the hashes (and seals) of
         // the cases written before stay as they were.
@@ -1040,6 +1052,7 @@ impl Impact2dCase {
             seeds: bed.seeds,
             initial_speed: bed.initial_speed,
             settle_ke: bed.settle_ke,
+            settle_hold: bed.settle_hold,
             max_settle_time: bed.max_settle_time,
             wall_d: walls.wall_d,
             top_gap: walls.top_gap,
@@ -1226,6 +1239,7 @@ struct BedParams {
     polydispersity: f64,
     initial_speed: f64,
     settle_ke: f64,
+    settle_hold: f64,
     max_settle_time: f64,
     seed: u64,
     seeds: Vec<u64>,
@@ -1256,12 +1270,21 @@ fn bed_params(
         non_negative(ctx, "bed.initial_speed", b.initial_speed)? * scales.velocity();
     let settle_ke = positive(ctx, "bed.settle_ke", b.settle_ke)? * m * g0 * d;
     let max_settle_time = positive(ctx, "bed.max_settle_time", b.max_settle_time)? * scales.tau_c;
+    let settle_hold = non_negative(ctx, "bed.settle_hold", b.settle_hold)? * scales.tau_c;
+    if settle_hold >= max_settle_time {
+        return Err(ctx.bad(
+            "bed.settle_hold",
+            b.settle_hold,
+            "must be shorter than bed.max_settle_time: the bed could never be found settled",
+        ));
+    }
     let (seed, seeds) = bed_seeds(ctx, b, sweep)?;
     Ok(BedParams {
         length,
         polydispersity: poly,
         initial_speed,
         settle_ke,
+        settle_hold,
         max_settle_time,
         seed,
         seeds,

@@ -70,6 +70,7 @@ pub fn bed_spec(case: &Impact2dCase, key: &BedKey) -> BedSpec {
             super::bed::Packing::Hexagonal => 0.0,
         },
         settle_ke: case.settle_ke,
+        settle_hold: case.settle_hold,
         max_settle_time: case.max_settle_time,
         dt: case.dt,
         skin: case.skin,
