@@ -164,7 +164,7 @@ fn main() -> Result<()> {
         .with_context(|| format!("no variant {variant}"))?
         .clone();
     let key = case.bed_of(&v);
-    let beds = granval::experiments::impact2d::prepare_beds(&case, false, Some(&record))?;
+    let beds = granval::experiments::impact2d::prepare_beds(&case, false, Some(&record), None)?;
     if !beds.from_record(&key) {
         eprintln!(
             "note: bed not in {}; it was prepared here",

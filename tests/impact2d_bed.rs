@@ -212,7 +212,7 @@ fn bed_sweep_prepares_a_bed_per_key_and_the_control_slows_only_other_sizes() {
         start.elapsed().as_secs_f64()
     );
     // Prepared once per key: asking again takes them from this process's memo.
-    let beds = prepare_beds(&exp.case, false, None).unwrap();
+    let beds = prepare_beds(&exp.case, false, None, None).unwrap();
     assert_eq!(beds.beds.len(), 4);
     let layout = |b: &granval::physics::dem2d::bed::Bed| {
         b.grains.iter().map(|g| (g.radius, g.x)).collect::<Vec<_>>()
@@ -326,7 +326,7 @@ fn records_carry_their_beds_and_a_changed_bed_is_refused() {
         )
         .unwrap();
     }
-    let beds = prepare_beds(&exp.case, false, Some(&record)).unwrap();
+    let beds = prepare_beds(&exp.case, false, Some(&record), None).unwrap();
     assert_eq!(beds.recorded.len(), 2, "both beds come from the record");
     let from_record = exp
         .units(&Options {
@@ -467,7 +467,8 @@ fn a_sealed_bed_met_the_one_check_criterion_on_a_node_of_its_ringing() {
     let case =
         Impact2dCase::load(&root.join("cases/release/kondic-fig6-friction-5beds.toml")).unwrap();
     let record = root.join("reference/release/impact2d").join(&case.name);
-    let beds = granval::experiments::impact2d::prepare_beds(&case, false, Some(&record)).unwrap();
+    let beds =
+        granval::experiments::impact2d::prepare_beds(&case, false, Some(&record), None).unwrap();
     let v = case
         .variants
         .iter()

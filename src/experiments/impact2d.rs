@@ -181,7 +181,12 @@ impl Experiment for Impact2d {
     }
 
     fn units(&self, opts: &Options) -> Result<Vec<Unit>> {
-        let beds = prepare_beds(&self.case, opts.progress, opts.recorded_inputs.as_deref())?;
+        let beds = prepare_beds(
+            &self.case,
+            opts.progress,
+            opts.recorded_inputs.as_deref(),
+            Some(&opts.reference_root),
+        )?;
         let wants_base = self
             .case
             .negative_controls
@@ -238,12 +243,7 @@ impl Experiment for Impact2d {
                         None
                     },
                     first_scene: first_scene.clone(),
-                    bed_note: bed_note(&self.case, &key, beds.get(&key))
-                        + if beds.from_record(&key) {
-                            super::bed_cache::FROM_RECORD_NOTE
-                        } else {
-                            ""
-                        },
+                    bed_note: bed_note(&self.case, &key, beds.get(&key)) + &beds.origin_note(&key),
                     bed_record,
                 })
             })
@@ -1112,11 +1112,27 @@ pub struct Beds {
     pub beds: Vec<(BedKey, Bed)>,
     /// The keys of the beds read from a reference record rather than prepared.
     pub recorded: Vec<BedKey>,
+    /// Beds read from another case's sealed record (the same specification), with
+    /// that record's name; prepared, as far as this case's record goes.
+    pub(crate) from_other: Vec<(BedKey, String)>,
 }
 
 impl Beds {
     pub fn from_record(&self, k: &BedKey) -> bool {
         self.recorded.contains(k)
+    }
+
+    /// Where the bed came from when it was not settled here, for its note.
+    fn origin_note(&self, k: &BedKey) -> String {
+        if self.from_record(k) {
+            return super::bed_cache::FROM_RECORD_NOTE.to_string();
+        }
+        match self.from_other.iter().find(|(key, _)| key == k) {
+            Some((_, from)) => format!(
+                "; taken from the sealed reference record of {from}, made from this very bed specification (not settled again here)"
+            ),
+            None => String::new(),
+        }
     }
 
     pub fn get(&self, k: &BedKey) -> &Bed {
@@ -1190,12 +1206,19 @@ fn recorded_bed(case: &Impact2dCase, key: &BedKey, recorded: &Path) -> Option<Be
 /// The beds of a case: from the sealed record when the comparison will read one
 /// (`recorded`) and it holds them; else from this process's memo, the opt-in cache
 /// (`GRANVAL_BED_CACHE=DIR`, one JSON file per bed specification: sha256 of the spec
-/// and the crate version; tests never set it) or prepared (settling a 6000-disk bed
-/// to 1e-10 m g d takes minutes). Preparation is deterministic, so a hit is the bed
-/// that would be prepared.
-pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>) -> Result<Beds> {
+/// and the crate version; tests never set it), another case's sealed record under
+/// `reference_root` that holds a bed of the very same specification, or prepared
+/// (settling a 6000-disk bed to 1e-10 m g d takes minutes). Preparation is
+/// deterministic, so a hit is the bed that would be prepared.
+pub fn prepare_beds(
+    case: &Impact2dCase,
+    progress: bool,
+    recorded: Option<&Path>,
+    reference_root: Option<&Path>,
+) -> Result<Beds> {
     let mut beds: Vec<(BedKey, Bed)> = Vec::new();
     let mut from_record = Vec::new();
+    let mut from_other = Vec::new();
     for v in &case.variants {
         let key = case.bed_of(v);
         if beds.iter().any(|b| b.0 == key) {
@@ -1223,9 +1246,18 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
         // The seal names the whole bed specification (count, seed, packing): a 2D bed
         // loses grains to smoothing, so its size alone says nothing more.
         let cached = super::bed_cache::load_cached::<Bed>(cache.as_deref(), &spec, |_| Ok(()))?;
-        let b = match cached {
-            Some(b) => b,
-            None => {
+        let other = match (&cached, reference_root) {
+            (None, Some(root)) => other_record_bed(case, &key, root),
+            _ => None,
+        };
+        let b = match (cached, other) {
+            (Some(b), _) => b,
+            (None, Some((b, from))) => {
+                super::bed_cache::store(cache.as_deref(), &spec, &b);
+                from_other.push((key, from));
+                b
+            }
+            (None, None) => {
                 let bar = crate::report::progress::status(progress, "settle");
                 let scale = case.scales.m * case.scales.g0 * case.scales.d;
                 let tau = case.scales.tau_c;
@@ -1270,7 +1302,26 @@ pub fn prepare_beds(case: &Impact2dCase, progress: bool, recorded: Option<&Path>
     Ok(Beds {
         beds,
         recorded: from_record,
+        from_other,
     })
+}
+
+/// The bed of `key` from another case's sealed record under `reference_root` that
+/// holds it under the same file name, i.e. the same specification
+/// ([`super::reference::store::bed_in_other_records`]), with that record's name.
+fn other_record_bed(
+    case: &Impact2dCase,
+    key: &BedKey,
+    reference_root: &Path,
+) -> Option<(Bed, String)> {
+    let name = bed_file_name(case, key)?;
+    let (file, from) = super::reference::store::bed_in_other_records(
+        reference_root,
+        "impact2d",
+        &case.name,
+        &name,
+    )?;
+    Some((super::bed_cache::load::<Bed>(Some(&file))?, from))
 }
 
 /// Energies: walls frozen; wall-wall and (cluster) intruder-intruder pairs excluded.
@@ -1649,5 +1700,68 @@ mod tests {
             "{}",
             s.body
         );
+    }
+
+    /// Beds another case's sealed record holds under the same specification are taken
+    /// from there: the five-seed Fig 9 case (gravity) settles its beds as the five-seed
+    /// Fig 6 record's (which Fig 11's share in part), so none is settled again. A
+    /// record whose bytes for the bed do not hash to its seal is passed over.
+    #[test]
+    fn beds_of_the_same_specification_come_from_another_record() {
+        let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let case = Impact2dCase::load(&root.join("cases/release/kondic-fig9-gravity-5seeds.toml"))
+            .unwrap();
+        let reference = root.join("reference/release");
+        let keys: Vec<BedKey> = {
+            let mut k: Vec<BedKey> = case.variants.iter().map(|v| case.bed_of(v)).collect();
+            k.dedup();
+            k
+        };
+        for key in &keys {
+            let (b, from) = other_record_bed(&case, key, &reference).expect("in a record");
+            // The first record by name that seals it (Fig 11's W = 60 runs hold some).
+            let sealed =
+                std::fs::read_to_string(reference.join("impact2d").join(&from).join("seal.json"))
+                    .unwrap();
+            assert!(
+                sealed.contains(&bed_file_name(&case, key).unwrap()),
+                "{from}"
+            );
+            assert_ne!(from, case.name);
+            assert!(b.grains.len() > 5000);
+        }
+        // Tampered: a copy of the Fig 6 record whose first bed is one byte off.
+        let tmp = tempfile::tempdir().unwrap();
+        let fig6 = reference.join("impact2d/kondic-fig6-friction-5beds");
+        let copy = tmp.path().join("impact2d/kondic-fig6-friction-5beds");
+        let name = bed_file_name(&case, &keys[0]).unwrap();
+        let seal: crate::experiments::reference::Seal =
+            serde_json::from_str(&std::fs::read_to_string(fig6.join("seal.json")).unwrap())
+                .unwrap();
+        let unit = seal
+            .units
+            .iter()
+            .find(|(_, u)| u.files.contains_key(&name))
+            .map(|(n, _)| n.clone())
+            .unwrap();
+        std::fs::create_dir_all(copy.join(&unit)).unwrap();
+        std::fs::copy(fig6.join("seal.json"), copy.join("seal.json")).unwrap();
+        let good =
+            crate::experiments::reference::store::recorded_bed_file(&fig6, &unit, &name).unwrap();
+        let mut bytes = std::fs::read(&good).unwrap();
+        let at = bytes.len() / 2;
+        bytes[at] = if bytes[at] == b'1' { b'2' } else { b'1' };
+        std::fs::write(copy.join(&unit).join(&name), bytes).unwrap();
+        assert!(other_record_bed(&case, &keys[0], tmp.path()).is_none());
+        // The genuine bytes there: found again.
+        std::fs::copy(&good, copy.join(&unit).join(&name)).unwrap();
+        let (_, from) = other_record_bed(&case, &keys[0], tmp.path()).unwrap();
+        assert_eq!(from, "kondic-fig6-friction-5beds");
+        // The case's own record is never searched as "another".
+        let own = Impact2dCase {
+            name: "kondic-fig6-friction-5beds".into(),
+            ..case.clone()
+        };
+        assert!(other_record_bed(&own, &keys[0], tmp.path()).is_none());
     }
 }

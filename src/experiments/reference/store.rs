@@ -217,6 +217,53 @@ pub fn recorded_bed_file(record_root: &Path, unit: &str, name: &str) -> Option<P
     .flatten()
 }
 
+/// A bed another record of `kind` under `reference_root` sealed under this very file
+/// name (`<kind>-bed-<sha256 of its specification>.json`: the same specification, so
+/// the bed its preparation gives), as a file whose bytes hash to the sha256 that
+/// record's seal names, with the record it came from. Records are searched in name
+/// order, the case's own (`own`) left out; a record whose seal cannot be read, or
+/// whose bytes for the bed do not match its seal, is passed over (never trusted), so
+/// the worst case is a bed prepared again. Used for beds shared by cases (the Fig 2 beds
+/// of seeds 1-5: settling each takes 10-25 minutes of CPU).
+pub(crate) fn bed_in_other_records(
+    reference_root: &Path,
+    kind: &str,
+    own: &str,
+    name: &str,
+) -> Option<(PathBuf, String)> {
+    let dir = reference_root.join(kind);
+    let mut records: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .ok()?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.file_name().is_some_and(|n| n != own) && p.join(SEAL_FILE).is_file())
+        .collect();
+    records.sort();
+    for rec in records {
+        let Ok(text) = std::fs::read_to_string(rec.join(SEAL_FILE)) else {
+            continue;
+        };
+        let Ok(seal) = serde_json::from_str::<Seal>(&text) else {
+            continue;
+        };
+        for (unit, sealed) in &seal.units {
+            let Some(sha) = sealed.files.get(name) else {
+                continue;
+            };
+            let Ok(Some(file)) = locate(&rec, unit, name, sha) else {
+                continue;
+            };
+            if Sha256::of_file(&file).is_ok_and(|s| &s == sha) {
+                let from = rec
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                return Some((file, from));
+            }
+        }
+    }
+    None
+}
+
 /// The sha256 the seal of the record at `record_root` names for file `name` of `unit`,
 /// read without verifying the record (the caller checks what it reads against it).
 pub(crate) fn sealed_sha(record_root: &Path, unit: &str, name: &str) -> Option<Sha256> {
