@@ -225,8 +225,34 @@ pub fn write_deck(case: &Case) -> Result<String> {
         );
     }
     let mut s = String::new();
-    deck_text::write_header(
+    write_micro_header(&mut s, case);
+    write_box_and_contact_law(&mut s, case)?;
+    write_gravity_and_walls(&mut s, case)?;
+    deck_text::comment(&mut s, "Velocity Verlet for spheres (I = 0.4 m r^2).");
+    writeln!(s, "fix integr all nve/sphere")?;
+    writeln!(s, "thermo_style custom step atoms ke cpu")?;
+    writeln!(s, "thermo_modify lost error")?;
+    writeln!(s, "thermo {}", (case.n_steps / 20).max(1))?;
+    deck_text::comment(
         &mut s,
+        "The measured trajectory, sorted by id, 17 significant digits (every double reads \
+         back exactly).",
+    );
+    writeln!(
+        s,
+        "dump d all custom {} {DUMP_FILE} {}",
+        case.output_every,
+        DUMP_COLUMNS.join(" ")
+    )?;
+    writeln!(s, "dump_modify d sort id format float %.17g")?;
+    writeln!(s, "run {}", case.n_steps)?;
+    Ok(s)
+}
+
+/// The header: the case, what the run measures and the LAMMPS version to run it with.
+fn write_micro_header(s: &mut String, case: &Case) {
+    deck_text::write_header(
+        s,
         &deck_text::Header {
             title: format!(
                 "granval micro case `{}`: LAMMPS ({REQUIRED_VERSION}) input deck ({DECK_FILE})",
@@ -249,8 +275,14 @@ pub fn write_deck(case: &Case) -> Result<String> {
             ],
         },
     );
+}
+
+/// Units, atom style (data-file order kept, so LAMMPS' pair loop visits the atoms as
+/// the native engine does), the particles, neighbour lists, `pair_style granular` with
+/// one explicit [`law_keywords`] per type pair, and the time step.
+fn write_box_and_contact_law(s: &mut String, case: &Case) -> Result<()> {
     deck_text::block(
-        &mut s,
+        s,
         "Spheres with diameter, density and angular velocity in a closed box. Atoms keep \
          the data file's order (`sort 0 0.0`), so the pair loop visits them as granval's \
          native engine does. `newton off`: each pair once, on one process. `comm_modify vel \
@@ -267,7 +299,7 @@ pub fn write_deck(case: &Case) -> Result<String> {
     writeln!(s, "neigh_modify delay 0 every 1 check yes")?;
 
     deck_text::block(
-        &mut s,
+        s,
         "Contact law: pair_style granular, one explicit pair_coeff per type pair. Unequal \
          types get E and nu mixed by LAMMPS' own rule (mix_stiffnessE, geometric nu) and \
          the case's restitution and friction of that pair; tangential stiffness NULL = 8 G* \
@@ -287,11 +319,16 @@ pub fn write_deck(case: &Case) -> Result<String> {
         }
     }
     writeln!(s, "timestep {}", g(case.dt))?;
+    Ok(())
+}
 
+/// Gravity and the case's plane walls (the only walls of the LAMMPS family), each with
+/// the law of the particles' type against the wall's material.
+fn write_gravity_and_walls(s: &mut String, case: &Case) -> Result<()> {
     let gr = case.gravity;
     let gmag = (gr[0] * gr[0] + gr[1] * gr[1] + gr[2] * gr[2]).sqrt();
     if gmag > 0.0 {
-        deck_text::comment(&mut s, "Gravity (the case's simulation.gravity).");
+        deck_text::comment(s, "Gravity (the case's simulation.gravity).");
         writeln!(s, "fix gravi all gravity {} vector {}", g(gmag), join(gr))?;
     }
     let pt = wall_particle_type(case);
@@ -303,7 +340,7 @@ pub fn write_deck(case: &Case) -> Result<String> {
             );
         };
         deck_text::comment(
-            &mut s,
+            s,
             &format!(
                 "Wall {}: the plane {} = {} m (two-sided), with the wall's material (type {}) \
                  and the interaction of the particles' type with it.",
@@ -322,25 +359,7 @@ pub fn write_deck(case: &Case) -> Result<String> {
             g(*position)
         )?;
     }
-    deck_text::comment(&mut s, "Velocity Verlet for spheres (I = 0.4 m r^2).");
-    writeln!(s, "fix integr all nve/sphere")?;
-    writeln!(s, "thermo_style custom step atoms ke cpu")?;
-    writeln!(s, "thermo_modify lost error")?;
-    writeln!(s, "thermo {}", (case.n_steps / 20).max(1))?;
-    deck_text::comment(
-        &mut s,
-        "The measured trajectory, sorted by id, 17 significant digits (every double reads \
-         back exactly).",
-    );
-    writeln!(
-        s,
-        "dump d all custom {} {DUMP_FILE} {}",
-        case.output_every,
-        DUMP_COLUMNS.join(" ")
-    )?;
-    writeln!(s, "dump_modify d sort id format float %.17g")?;
-    writeln!(s, "run {}", case.n_steps)?;
-    Ok(s)
+    Ok(())
 }
 
 /// Runs a LAMMPS-family micro case in `dir` and checks the dump holds every frame of

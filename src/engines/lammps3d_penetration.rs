@@ -196,6 +196,18 @@ pub fn expected_samples(d: &PenetrationDeck) -> usize {
 pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
     check(d)?;
     let mut s = String::new();
+    write_deck_header(&mut s, d);
+    write_box_and_atoms(&mut s, d)?;
+    write_contact_law(&mut s, d)?;
+    write_container(&mut s, d)?;
+    write_intruder(&mut s, d)?;
+    write_output_and_run(&mut s, d)?;
+    Ok(s)
+}
+
+/// The header: the measurement (the same as the LIGGGHTS deck's, Feng et al. eq 5), the
+/// geometry in SI and the LAMMPS version to run it with.
+fn write_deck_header(s: &mut String, d: &PenetrationDeck) {
     let mut paragraphs = d.header.paragraphs.clone();
     paragraphs.push(format!(
         "What the run measures: the force of the grains on a flat-bottomed cylindrical \
@@ -226,15 +238,19 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
         crate::engines::lammps3d::PIP_PACKAGE
     ));
     deck_text::write_header(
-        &mut s,
+        s,
         &deck_text::Header {
             title: format!("granval penetration deck: LAMMPS 2025 input ({DECK_FILE})"),
             paragraphs,
         },
     );
+}
 
+/// Units, atom style, what LAMMPS' granular pair style needs, the bed granval settled
+/// (the very grains the other engines penetrate) and the neighbour lists.
+fn write_box_and_atoms(s: &mut String, d: &PenetrationDeck) -> Result<()> {
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Box, atoms ----\n\
              `atom_style sphere`: each atom a sphere with diameter, density and angular \
@@ -251,7 +267,7 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
     writeln!(s, "comm_modify vel yes")?;
     writeln!(s, "read_data {DATA_FILE}")?;
     deck_text::comment(
-        &mut s,
+        s,
         &format!(
             "Neighbour lists: skin {} m (the case's neighbor_skin); cost only, not physics.",
             g(d.neighbor_skin)
@@ -259,12 +275,17 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
     );
     writeln!(s, "neighbor {} bin", g(d.neighbor_skin))?;
     writeln!(s, "neigh_modify delay 0 every 1 check yes")?;
+    Ok(())
+}
 
+/// `pair_style granular` with one [`law`] per type pair, and the comment saying how it
+/// maps LIGGGHTS' laws (module doc) and that rolling resistance does not map.
+fn write_contact_law(s: &mut String, d: &PenetrationDeck) -> Result<()> {
     let n = d.materials.len();
     let rolling = d.rolling.liggghts_keyword();
     let has_rolling = rolling.is_some() && d.pairs.rolling_friction.iter().any(|&m| m > 0.0);
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Contact law ----\n\
              pair_style granular, one pair_coeff per type pair, from the case's materials and \
@@ -307,9 +328,14 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
             writeln!(s, "pair_coeff {} {} {}", a + 1, b + 1, law(d, a, b, false))?;
         }
     }
+    Ok(())
+}
 
+/// Time step, gravity, integration, and the container: the floor plane and the
+/// cylinder's mantle with the law of the grains' type against the wall's material.
+fn write_container(s: &mut String, d: &PenetrationDeck) -> Result<()> {
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Time integration, gravity, container ----\n\
              Time step {} s (the case's dt), gravity {} m/s^2 along -z, velocity Verlet for \
@@ -327,7 +353,7 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
     // The grains' type (one type per bed), for the wall laws.
     let gt = d.particles[0].type_;
     deck_text::comment(
-        &mut s,
+        s,
         &format!(
             "The container, of material type {} with the grains' contact law: the floor plane \
              z = {} m and the side wall, the inside of a cylinder of radius {} m about the z \
@@ -355,11 +381,17 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
         "fix side all wall/gran/region granular {} region container",
         law(d, gt, wt, true)
     )?;
+    Ok(())
+}
 
+/// The intruder: an exact moving `region cylinder` (LIGGGHTS has an STL mesh), whose
+/// per-grain contact forces the output sums.
+fn write_intruder(s: &mut String, d: &PenetrationDeck) -> Result<()> {
+    let gt = d.particles[0].type_;
     let it = d.intruder_type;
     let z0 = d.intruder_bottom_z0;
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- The intruder ----\n\
              An exact flat-bottomed cylinder (radius {} m, length {} m, material type {}) about \
@@ -388,9 +420,14 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
         "fix wint all wall/gran/region granular {} region intruder contacts",
         law(d, gt, it, true)
     )?;
+    Ok(())
+}
 
+/// The measurement ([`FORCE_FILE`] under [`FORCE_TITLE`], the force of the grains on
+/// the intruder at full precision), thermo, and the run.
+fn write_output_and_run(s: &mut String, d: &PenetrationDeck) -> Result<()> {
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Output ----\n\
              The measurement: every {} steps one line of {FORCE_FILE}, `step t z_bottom fx fy \
@@ -410,15 +447,15 @@ pub(crate) fn deck_text(d: &PenetrationDeck) -> Result<String> {
         d.force_every
     )?;
     deck_text::comment(
-        &mut s,
+        s,
         "Thermo line about every 1 % of the run; a grain leaving the closed box is an error.",
     );
     writeln!(s, "thermo_style custom step atoms ke cpu")?;
     writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", (d.n_steps / 100).max(1))?;
-    deck_text::comment(&mut s, &format!("{} steps of penetration.", d.n_steps));
+    deck_text::comment(s, &format!("{} steps of penetration.", d.n_steps));
     writeln!(s, "run {}", d.n_steps)?;
-    Ok(s)
+    Ok(())
 }
 
 /// The deck and data file, by file name.

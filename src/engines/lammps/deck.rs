@@ -160,42 +160,72 @@ fn type_names(sys: &System) -> Vec<String> {
         .collect()
 }
 
+/// The disks of each role, by atom id: what the deck's groups, exclusions and fixes are
+/// made of.
+struct Groups {
+    /// Wall disks: `fix freeze`, never integrated.
+    frozen: Vec<u64>,
+    /// Members of a rigid intruder cluster (`fix rigid single`).
+    cluster: Vec<u64>,
+    /// The intruder (a single disk or the cluster).
+    intr: Vec<u64>,
+    /// Disks integrated by `nve/sphere disc`.
+    free: Vec<u64>,
+}
+
+impl Groups {
+    fn of(sys: &System) -> Groups {
+        let with_role = |role: Role| -> Vec<u64> {
+            sys.disks
+                .iter()
+                .filter(|d| d.role == role)
+                .map(|d| d.id)
+                .collect()
+        };
+        Groups {
+            frozen: with_role(Role::Frozen),
+            cluster: with_role(Role::Cluster),
+            intr: sys.intruder.iter().map(|&k| sys.disks[k].id).collect(),
+            free: with_role(Role::Free),
+        }
+    }
+}
+
 /// The input deck, commented block by block. `System::dt`, gravity and skin are used
 /// as they are; the header carries the date (fingerprints ignore comments).
 pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
-    let n_types = sys.n_types;
-    let mut used = vec![false; n_types];
-    for d in &sys.disks {
-        used[d.type_] = true;
-    }
-    let frozen: Vec<u64> = sys
-        .disks
-        .iter()
-        .filter(|d| d.role == Role::Frozen)
-        .map(|d| d.id)
-        .collect();
-    let cluster: Vec<u64> = sys
-        .disks
-        .iter()
-        .filter(|d| d.role == Role::Cluster)
-        .map(|d| d.id)
-        .collect();
-    let intr: Vec<u64> = sys.intruder.iter().map(|&k| sys.disks[k].id).collect();
-    let free: Vec<u64> = sys
-        .disks
-        .iter()
-        .filter(|d| d.role == Role::Free)
-        .map(|d| d.id)
-        .collect();
-    if free.is_empty() && cluster.is_empty() {
+    let groups = Groups::of(sys);
+    if groups.free.is_empty() && groups.cluster.is_empty() {
         bail!("nothing moves in this system");
     }
     let names = type_names(sys);
     let mut s = String::new();
+    write_deck_header(&mut s, sys, out, &groups);
+    write_box_and_atoms(&mut s, sys, &groups, &names);
+    write_neighbour_lists(&mut s, sys, &groups);
+    write_contact_law(&mut s, sys, out, &names)?;
+    write_integration(&mut s, sys, &groups);
+    block(&mut s, "---- Output ----");
+    if out.intruder_every > 0 && !groups.intr.is_empty() {
+        write_intruder_output(&mut s, out);
+    }
+    if out.snapshot_every > 0 {
+        write_energy_snapshots(&mut s, out);
+    }
+    if !out.fields.position_steps.is_empty() {
+        write_field_dumps(&mut s, out);
+    }
+    write_run(&mut s, sys, out);
+    Ok(s)
+}
+
+/// The header: the caller's title and paragraphs, then what the run writes, its units
+/// and how to run it; the counts must be those of the groups below.
+fn write_deck_header(s: &mut String, sys: &System, out: &Outputs, g: &Groups) {
     let mut paragraphs = out.header.paragraphs.clone();
     paragraphs.push(format!(
         "What the run writes: {}{}. {} disks ({} free, {} frozen wall disks{}); {} steps of {} s.",
-        if out.intruder_every > 0 && !intr.is_empty() {
+        if out.intruder_every > 0 && !g.intr.is_empty() {
             format!(
                 "the intruder's centre of mass, velocity and total force every {} steps \
                  ({INTRUDER_FILE}), ",
@@ -213,12 +243,12 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             "no snapshots".to_string()
         },
         sys.disks.len(),
-        free.len(),
-        frozen.len(),
-        if cluster.is_empty() {
+        g.free.len(),
+        g.frozen.len(),
+        if g.cluster.is_empty() {
             String::new()
         } else {
-            format!(", {} in the rigid intruder cluster", cluster.len())
+            format!(", {} in the rigid intruder cluster", g.cluster.len())
         },
         out.n_steps,
         num(sys.dt),
@@ -234,7 +264,7 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
          DIR --report OUT` (README.txt)."
     ));
     write_header(
-        &mut s,
+        s,
         &Header {
             title: if out.header.title.is_empty() {
                 format!("granval 2D disk deck: LAMMPS input ({DECK_FILE})")
@@ -244,9 +274,13 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             paragraphs,
         },
     );
+}
 
+/// Units, dimension, atom style and boundaries, the data file and the groups: the disks
+/// exactly as the native engine holds them, so both engines start from the same state.
+fn write_box_and_atoms(s: &mut String, sys: &System, g: &Groups, names: &[String]) {
     block(
-        &mut s,
+        s,
         &format!(
             "---- Box and atoms ----\n\
              SI units, `dimension 2`. `atom_style sphere`: each disk has a diameter, a density \
@@ -274,7 +308,7 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     );
     let _ = writeln!(s, "comm_modify vel yes");
     comment(
-        &mut s,
+        s,
         &format!(
             "The disks, exactly as granval's native engine holds them (same bed, walls and \
              intruder, so both engines start from the same state): per disk its id, type, \
@@ -290,26 +324,31 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     );
     let _ = writeln!(s, "read_data {DATA_FILE}");
     comment(
-        &mut s,
+        s,
         "Groups: the integrated disks (free), the frozen wall disks (walls), the intruder \
          (intr).",
     );
-    let _ = writeln!(s, "group free id {}", id_ranges(free.clone()));
-    if !frozen.is_empty() {
-        let _ = writeln!(s, "group walls id {}", id_ranges(frozen.clone()));
+    let _ = writeln!(s, "group free id {}", id_ranges(g.free.clone()));
+    if !g.frozen.is_empty() {
+        let _ = writeln!(s, "group walls id {}", id_ranges(g.frozen.clone()));
     }
-    if !intr.is_empty() {
-        let _ = writeln!(s, "group intr id {}", id_ranges(intr.clone()));
+    if !g.intr.is_empty() {
+        let _ = writeln!(s, "group intr id {}", id_ranges(g.intr.clone()));
     }
+}
+
+/// Neighbour lists, with the pairs that never interact (walls among themselves, the
+/// rigid intruder's members) excluded, as the native engine leaves them out.
+fn write_neighbour_lists(s: &mut String, sys: &System, g: &Groups) {
     let mut why = Vec::new();
-    if !frozen.is_empty() {
+    if !g.frozen.is_empty() {
         why.push("wall-wall pairs (they never move)");
     }
-    if !cluster.is_empty() {
+    if !g.cluster.is_empty() {
         why.push("pairs inside the rigid intruder");
     }
     block(
-        &mut s,
+        s,
         &format!(
             "Neighbour lists: skin {} m, checked every step, rebuilt when a disk has moved \
              more than half the skin.{}",
@@ -323,14 +362,23 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     );
     let _ = writeln!(s, "neighbor {} bin", num(sys.skin));
     let mut nm = "neigh_modify delay 0 every 1 check yes".to_string();
-    if !frozen.is_empty() {
+    if !g.frozen.is_empty() {
         nm += " exclude group walls walls";
     }
-    if !cluster.is_empty() {
+    if !g.cluster.is_empty() {
         nm += " exclude group intr intr";
     }
     let _ = writeln!(s, "{nm}");
-    // One sub-style instance per interacting type pair (see module doc).
+}
+
+/// The type pairs (0-based, a <= b) whose disks exist: one sub-style instance each
+/// (see module doc).
+fn interacting_pairs(sys: &System) -> Vec<(usize, usize)> {
+    let n_types = sys.n_types;
+    let mut used = vec![false; n_types];
+    for d in &sys.disks {
+        used[d.type_] = true;
+    }
     let mut pairs = Vec::new();
     for a in 0..n_types {
         for b in a..n_types {
@@ -339,37 +387,81 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             }
         }
     }
-    let style = |a: usize, b: usize| {
-        let c = &sys.coeffs[a * n_types + b];
-        if c.history() {
-            "gran/hooke/history"
-        } else {
-            "gran/hooke"
-        }
-    };
-    let count = |name: &str| pairs.iter().filter(|&&(a, b)| style(a, b) == name).count();
-    // `compute pair/local` calls the pair style's single(); under `pair_style hybrid` the
-    // installed LAMMPS (29 Sep 2021) crashes in PairHybrid::copy_svector, so a deck that
-    // dumps contact forces uses one style, which needs one coefficient set.
+    pairs
+}
+
+/// The LAMMPS granular style of a type pair: K's model 1 (static friction, k_t > 0)
+/// needs the shear history, model 2 (k_t = 0) the plain style.
+fn pair_style_of(sys: &System, a: usize, b: usize) -> &'static str {
+    let c = &sys.coeffs[a * sys.n_types + b];
+    if c.history() {
+        "gran/hooke/history"
+    } else {
+        "gran/hooke"
+    }
+}
+
+/// `compute pair/local` calls the pair style's single(); under `pair_style hybrid` the
+/// installed LAMMPS (29 Sep 2021) crashes in PairHybrid::copy_svector, so a deck that
+/// dumps contact forces uses one style, which needs one coefficient set: refuses a
+/// system whose interacting pairs differ.
+fn check_single_style(sys: &System, pairs: &[(usize, usize)]) -> Result<()> {
+    let n_types = sys.n_types;
+    let first = &sys.coeffs[pairs[0].0 * n_types + pairs[0].1];
+    if let Some(&(a, b)) = pairs
+        .iter()
+        .find(|&&(a, b)| sys.coeffs[a * n_types + b] != *first)
+    {
+        bail!(
+            "contact forces are dumped with `compute pair/local`, which needs one pair style \
+             (it crashes under `pair_style hybrid` in LAMMPS 29Sep2021), but types {} and {} \
+             have other coefficients than types {} and {}: give the walls the grains' \
+             coefficients during the impact (`[walls] impact_as_grains = true`)",
+            ty(a),
+            ty(b),
+            ty(pairs[0].0),
+            ty(pairs[0].1)
+        );
+    }
+    Ok(())
+}
+
+/// The contact law (Kondic et al. Sec. II, eqs 1-2): its commented block, then one
+/// style (contact-force dumps) or one `hybrid` instance per interacting type pair.
+fn write_contact_law(s: &mut String, sys: &System, out: &Outputs, names: &[String]) -> Result<()> {
+    let pairs = interacting_pairs(sys);
     let single_style = !out.fields.contact_steps.is_empty();
     if single_style {
-        let first = &sys.coeffs[pairs[0].0 * n_types + pairs[0].1];
-        if let Some(&(a, b)) = pairs
-            .iter()
-            .find(|&&(a, b)| sys.coeffs[a * n_types + b] != *first)
-        {
-            bail!(
-                "contact forces are dumped with `compute pair/local`, which needs one pair style \
-                 (it crashes under `pair_style hybrid` in LAMMPS 29Sep2021), but types {} and {} \
-                 have other coefficients than types {} and {}: give the walls the grains' \
-                 coefficients during the impact (`[walls] impact_as_grains = true`)",
-                ty(a),
-                ty(b),
-                ty(pairs[0].0),
-                ty(pairs[0].1)
-            );
-        }
+        check_single_style(sys, &pairs)?;
     }
+    block(s, &contact_law_text(sys, &pairs, names, single_style));
+    if single_style {
+        let (a, b) = pairs[0];
+        let c = &sys.coeffs[a * sys.n_types + b];
+        let _ = writeln!(
+            s,
+            "pair_style {} {} {} {} {} {} 1\npair_coeff * *",
+            pair_style_of(sys, a, b),
+            num(c.kn),
+            num(c.kt),
+            num(c.gamma_n),
+            num(c.gamma_t),
+            num(c.mu)
+        );
+    } else {
+        write_hybrid_pairs(s, sys, &pairs);
+    }
+    Ok(())
+}
+
+/// The contact law's comment: the model with its paper equations, then the
+/// coefficients of every interacting type pair in the order of the instances.
+fn contact_law_text(
+    sys: &System,
+    pairs: &[(usize, usize)],
+    names: &[String],
+    single_style: bool,
+) -> String {
     let mut text = String::from(
         "---- Contact law (Kondic et al. Sec. II, eqs 1-2) ----\n\
          Linear spring-dashpot normal force F_n = k_n x - gamma_n m_eff v_n, with gamma_n = -2 \
@@ -383,7 +475,7 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
          (tangential damping on).",
     );
     for (k, &(a, b)) in pairs.iter().enumerate() {
-        let c = &sys.coeffs[a * n_types + b];
+        let c = &sys.coeffs[a * sys.n_types + b];
         text += &format!(
             "\n{}. Types {}-{} ({} / {}): {}, k_n {} N/m, k_t {} N/m, gamma_n {} 1/s, gamma_t \
              {} 1/s, mu {}.",
@@ -392,7 +484,7 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             ty(b),
             names[a],
             names[b],
-            style(a, b),
+            pair_style_of(sys, a, b),
             approx(c.kn),
             approx(c.kt),
             approx(c.gamma_n),
@@ -404,29 +496,21 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         text += "\nEvery interacting pair has the same coefficients here, so one style without \
                  `hybrid` (the contact-force dump below needs it).";
     }
-    block(&mut s, &text);
-    if single_style {
-        let (a, b) = pairs[0];
-        let c = &sys.coeffs[a * n_types + b];
-        let _ = writeln!(
-            s,
-            "pair_style {} {} {} {} {} {} 1\npair_coeff * *",
-            style(a, b),
-            num(c.kn),
-            num(c.kt),
-            num(c.gamma_n),
-            num(c.gamma_t),
-            num(c.mu)
-        );
-    }
+    text
+}
+
+/// `pair_style hybrid` with one instance per interacting type pair, then which instance
+/// acts on which type pair (LAMMPS numbers the instances of one style from 1).
+fn write_hybrid_pairs(s: &mut String, sys: &System, pairs: &[(usize, usize)]) {
+    let n_types = sys.n_types;
     let mut args = String::from("pair_style hybrid");
-    for &(a, b) in &pairs {
+    for &(a, b) in pairs {
         let c = &sys.coeffs[a * n_types + b];
         // dampflag 1: tangential damping on (gamma_t given explicitly).
         let _ = write!(
             args,
             " &\n  {} {} {} {} {} {} 1",
-            style(a, b),
+            pair_style_of(sys, a, b),
             num(c.kn),
             num(c.kt),
             num(c.gamma_n),
@@ -434,18 +518,22 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             num(c.mu)
         );
     }
-    if !single_style {
-        let _ = writeln!(s, "{args}");
-        comment(
-            &mut s,
-            "Which instance acts on which type pair (`none`: pairs that never meet).",
-        );
-    }
+    let _ = writeln!(s, "{args}");
+    comment(
+        s,
+        "Which instance acts on which type pair (`none`: pairs that never meet).",
+    );
+    let count = |name: &str| {
+        pairs
+            .iter()
+            .filter(|&&(a, b)| pair_style_of(sys, a, b) == name)
+            .count()
+    };
     let mut seen = std::collections::HashMap::<&str, usize>::new();
-    for a in (0..n_types).filter(|_| !single_style) {
+    for a in 0..n_types {
         for b in a..n_types {
             if pairs.contains(&(a, b)) {
-                let st = style(a, b);
+                let st = pair_style_of(sys, a, b);
                 let k = seen.entry(st).or_insert(0);
                 *k += 1;
                 let inst = if count(st) > 1 {
@@ -459,8 +547,14 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
             }
         }
     }
+}
+
+/// Time step, gravity and the fixes that move the disks: free disks and a single-disk
+/// intruder as disks, a cluster intruder rigid without rotation, wall disks frozen (as
+/// the native engine integrates them).
+fn write_integration(s: &mut String, sys: &System, g: &Groups) {
     block(
-        &mut s,
+        s,
         &format!(
             "---- Time integration ----\n\
              Time step {} s; gravity {} m/s^2 along -y. Free disks (and a single-disk \
@@ -468,13 +562,13 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
              / 2).{}{} `enforce2d` zeroes the out-of-plane components.",
             num(sys.dt),
             num(sys.gravity),
-            if cluster.is_empty() {
+            if g.cluster.is_empty() {
                 ""
             } else {
                 " The intruder cluster moves as one rigid body without rotation (`rigid single`, \
                  torque off: Kondic et al. Sec. III A)."
             },
-            if frozen.is_empty() {
+            if g.frozen.is_empty() {
                 ""
             } else {
                 " Wall disks never move (`freeze`; LAMMPS then takes the mobile disk's mass as \
@@ -485,122 +579,135 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
     let _ = writeln!(s, "timestep {}", num(sys.dt));
     let _ = writeln!(s, "fix grav all gravity {} vector 0 -1 0", num(sys.gravity));
     let _ = writeln!(s, "fix integ free nve/sphere disc");
-    if !cluster.is_empty() {
+    if !g.cluster.is_empty() {
         let _ = writeln!(s, "fix rig intr rigid single torque 1 off off off");
     }
-    if !frozen.is_empty() {
+    if !g.frozen.is_empty() {
         let _ = writeln!(s, "fix frz walls freeze");
     }
     let _ = writeln!(s, "fix e2d all enforce2d");
-    block(&mut s, "---- Output ----");
-    if out.intruder_every > 0 && !intr.is_empty() {
-        comment(
-            &mut s,
-            &format!(
-                "The measurement: every {} steps (from step 0) the intruder's centre of mass \
-                 (m), velocity (m/s) and total force (N, contacts and gravity) to \
-                 {INTRUDER_FILE}, %.17g (every double reads back exactly). granval turns it \
-                 into the penetration depth D(t) and the final depth (Kondic et al. Figs 2, 8).",
-                out.intruder_every
-            ),
-        );
-        for (v, f) in [
-            ("ix", "xcm(intr,x)"),
-            ("iy", "xcm(intr,y)"),
-            ("ivx", "vcm(intr,x)"),
-            ("ivy", "vcm(intr,y)"),
-            ("ifx", "fcm(intr,x)"),
-            ("ify", "fcm(intr,y)"),
-        ] {
-            let _ = writeln!(s, "variable {v} equal {f}");
-        }
-        let mut columns = "v_ix v_iy v_ivx v_ivy v_ifx v_ify".to_string();
-        if !out.tracers.is_empty() {
-            comment(
-                &mut s,
-                &format!(
-                    "Kondic et al. Fig 12: the interface height, the centre of mass in y (m, \
-                     mass-weighted) of the {} interface tracers (group iface: the grains whose \
-                     centre lay within 2 d of the surface at release, at least L/4 from the \
-                     impact point), as an eighth column at the same steps. granval turns it \
-                     into the depth below the moving interface.",
-                    out.tracers.len()
-                ),
-            );
-            let _ = writeln!(s, "group iface id {}", id_ranges(out.tracers.clone()));
-            let _ = writeln!(s, "variable sy equal xcm(iface,y)");
-            columns += " v_sy";
-        }
-        let n = out.intruder_every;
-        let _ = writeln!(
-            s,
-            "fix iout all ave/time {n} 1 {n} {columns} file {INTRUDER_FILE} format \" %.17g\""
-        );
-    }
-    if out.snapshot_every > 0 {
-        comment(
-            &mut s,
-            &format!(
-                "Every {} steps every disk (id type radius mass x y vx vy omegaz fx fy, %.17g, \
-                 sorted by id) to {SNAP_FILE}: granval computes the energies from it.",
-                out.snapshot_every
-            ),
-        );
-        let _ = writeln!(
-            s,
-            "dump snap all custom {} {SNAP_FILE} id type radius mass x y vx vy omegaz fx fy",
-            out.snapshot_every
-        );
-        let _ = writeln!(s, "dump_modify snap sort id format float %.17g");
-    }
-    let f = &out.fields;
-    if !f.position_steps.is_empty() {
-        comment(
-            &mut s,
-            &format!(
-                "Bed snapshots (Kondic et al. Sec. IV) at steps {:?}: the grains' positions \
-                 (id x y, %.17g, sorted by id) to {GRAINS_FILE}{}. `dump_modify every v_NAME` \
-                 writes when the step reaches the variable's value, the next listed step.",
-                f.position_steps,
-                if f.contact_steps.is_empty() {
-                    String::new()
-                } else {
-                    format!(
-                        "; at steps {:?} every touching pair (atom ids, centre distance, \
-                         normal force |F_n| = `force`, tangential force |F_t| = `p4` of the \
-                         pair style's single(), evaluated on the state at the end of the \
-                         step) to {CONTACTS_FILE}",
-                        f.contact_steps
-                    )
-                }
-            ),
-        );
-        let beyond = out.n_steps + 1;
-        let _ = writeln!(
-            s,
-            "group grains type 1\nvariable gnext equal \"{}\"",
-            next_step_formula(&f.position_steps, beyond)
-        );
-        let _ = writeln!(
-            s,
-            "dump grains grains custom 1 {GRAINS_FILE} id x y\ndump_modify grains every v_gnext sort id format float %.17g"
-        );
-        if !f.contact_steps.is_empty() {
-            let _ = writeln!(
-                s,
-                "variable cnext equal \"{}\"",
-                next_step_formula(&f.contact_steps, beyond)
-            );
-            let _ = writeln!(
-                s,
-                "compute cpl all pair/local dist force p4\ncompute cpp all property/local patom1 patom2\n\
-                 dump contacts all local 1 {CONTACTS_FILE} c_cpp[1] c_cpp[2] c_cpl[1] c_cpl[2] c_cpl[3]\n\
-                 dump_modify contacts every v_cnext format float %.17g"
-            );
-        }
-    }
+}
+
+/// The measurement: the intruder's centre of mass, velocity and force (and, with
+/// tracers, the interface height of Kondic et al. Fig 12) in the columns granval's
+/// reader of the intruder file expects.
+fn write_intruder_output(s: &mut String, out: &Outputs) {
     comment(
-        &mut s,
+        s,
+        &format!(
+            "The measurement: every {} steps (from step 0) the intruder's centre of mass \
+             (m), velocity (m/s) and total force (N, contacts and gravity) to \
+             {INTRUDER_FILE}, %.17g (every double reads back exactly). granval turns it \
+             into the penetration depth D(t) and the final depth (Kondic et al. Figs 2, 8).",
+            out.intruder_every
+        ),
+    );
+    for (v, f) in [
+        ("ix", "xcm(intr,x)"),
+        ("iy", "xcm(intr,y)"),
+        ("ivx", "vcm(intr,x)"),
+        ("ivy", "vcm(intr,y)"),
+        ("ifx", "fcm(intr,x)"),
+        ("ify", "fcm(intr,y)"),
+    ] {
+        let _ = writeln!(s, "variable {v} equal {f}");
+    }
+    let mut columns = "v_ix v_iy v_ivx v_ivy v_ifx v_ify".to_string();
+    if !out.tracers.is_empty() {
+        comment(
+            s,
+            &format!(
+                "Kondic et al. Fig 12: the interface height, the centre of mass in y (m, \
+                 mass-weighted) of the {} interface tracers (group iface: the grains whose \
+                 centre lay within 2 d of the surface at release, at least L/4 from the \
+                 impact point), as an eighth column at the same steps. granval turns it \
+                 into the depth below the moving interface.",
+                out.tracers.len()
+            ),
+        );
+        let _ = writeln!(s, "group iface id {}", id_ranges(out.tracers.clone()));
+        let _ = writeln!(s, "variable sy equal xcm(iface,y)");
+        columns += " v_sy";
+    }
+    let n = out.intruder_every;
+    let _ = writeln!(
+        s,
+        "fix iout all ave/time {n} 1 {n} {columns} file {INTRUDER_FILE} format \" %.17g\""
+    );
+}
+
+/// Every disk at full precision, sorted by id: what granval's energies are computed
+/// from.
+fn write_energy_snapshots(s: &mut String, out: &Outputs) {
+    comment(
+        s,
+        &format!(
+            "Every {} steps every disk (id type radius mass x y vx vy omegaz fx fy, %.17g, \
+             sorted by id) to {SNAP_FILE}: granval computes the energies from it.",
+            out.snapshot_every
+        ),
+    );
+    let _ = writeln!(
+        s,
+        "dump snap all custom {} {SNAP_FILE} id type radius mass x y vx vy omegaz fx fy",
+        out.snapshot_every
+    );
+    let _ = writeln!(s, "dump_modify snap sort id format float %.17g");
+}
+
+/// Bed snapshots (Kondic et al. Sec. IV): grain positions and contact forces exactly at
+/// the listed steps, through `dump_modify every v_NAME` ([`next_step_formula`]).
+fn write_field_dumps(s: &mut String, out: &Outputs) {
+    let f = &out.fields;
+    comment(
+        s,
+        &format!(
+            "Bed snapshots (Kondic et al. Sec. IV) at steps {:?}: the grains' positions \
+             (id x y, %.17g, sorted by id) to {GRAINS_FILE}{}. `dump_modify every v_NAME` \
+             writes when the step reaches the variable's value, the next listed step.",
+            f.position_steps,
+            if f.contact_steps.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; at steps {:?} every touching pair (atom ids, centre distance, \
+                     normal force |F_n| = `force`, tangential force |F_t| = `p4` of the \
+                     pair style's single(), evaluated on the state at the end of the \
+                     step) to {CONTACTS_FILE}",
+                    f.contact_steps
+                )
+            }
+        ),
+    );
+    let beyond = out.n_steps + 1;
+    let _ = writeln!(
+        s,
+        "group grains type 1\nvariable gnext equal \"{}\"",
+        next_step_formula(&f.position_steps, beyond)
+    );
+    let _ = writeln!(
+        s,
+        "dump grains grains custom 1 {GRAINS_FILE} id x y\ndump_modify grains every v_gnext sort id format float %.17g"
+    );
+    if !f.contact_steps.is_empty() {
+        let _ = writeln!(
+            s,
+            "variable cnext equal \"{}\"",
+            next_step_formula(&f.contact_steps, beyond)
+        );
+        let _ = writeln!(
+            s,
+            "compute cpl all pair/local dist force p4\ncompute cpp all property/local patom1 patom2\n\
+             dump contacts all local 1 {CONTACTS_FILE} c_cpp[1] c_cpp[2] c_cpl[1] c_cpl[2] c_cpl[3]\n\
+             dump_modify contacts every v_cnext format float %.17g"
+        );
+    }
+}
+
+/// Thermo output and the run of the case's step count.
+fn write_run(s: &mut String, sys: &System, out: &Outputs) {
+    comment(
+        s,
         &format!(
             "Thermo line every {} steps; then {} steps ({} s).",
             out.n_steps.clamp(1, 10_000),
@@ -614,7 +721,6 @@ pub fn write_deck(sys: &System, out: &Outputs) -> Result<String> {
         out.n_steps.clamp(1, 10_000)
     );
     let _ = writeln!(s, "run {}", out.n_steps);
-    Ok(s)
 }
 
 #[cfg(test)]
