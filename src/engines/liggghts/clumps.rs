@@ -108,13 +108,32 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
     super::deck::check_liggghts_limits(case)?;
     check(case)?;
     let cl = &case.clumps;
-    let n = case.n_types();
-    let models = model_keywords(case.rolling);
-    let every = case.output_every;
     let seeds = primes(2 * cl.templates.len() + cl.bodies.len());
     let mut s = String::new();
-    crate::engines::deck_text::write_header(
+    write_clump_header(&mut s, case, dump_file);
+    write_box_and_contact_law(&mut s, case)?;
+    write_walls(&mut s, case)?;
+    crate::engines::deck_text::block(
         &mut s,
+        "Clump templates (fix particletemplate/multisphere): member spheres in the body frame, \
+         with the mass and principal moments of the union of the spheres computed exactly by \
+         granval and given explicitly (`mass ... inertia_tensor ... use_density`), so LIGGGHTS \
+         uses these numbers instead of its Monte-Carlo estimate and both engines integrate the \
+         same doubles.",
+    );
+    write_templates(&mut s, &cl.templates, &seeds)?;
+    write_free_spheres(&mut s, case)?;
+    write_bodies(&mut s, case, &seeds)?;
+    write_output_and_run(&mut s, case, dump_file)?;
+    Ok(s)
+}
+
+/// The header: what the run measures and why LIGGGHTS' steps are one ahead of the
+/// native ones (insertion at step 1) and the run is on one process.
+fn write_clump_header(s: &mut String, case: &Case, dump_file: &str) {
+    let every = case.output_every;
+    crate::engines::deck_text::write_header(
+        s,
         &crate::engines::deck_text::Header {
             title: format!(
                 "granval micro case `{}` with rigid clumps: LIGGGHTS 3.8 input deck",
@@ -128,7 +147,7 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
                      velocity, angular velocity and force go to {BODY_DUMP_FILE} (dump local, 17 \
                      digits) and the free spheres to {dump_file}. granval runs the same case natively \
                      and compares body by body. Units: SI (m, kg, s, N, Pa).",
-                    cl.bodies.len(),
+                    case.clumps.bodies.len(),
                     case.particles.len()
                 ),
                 "Steps: LIGGGHTS inserts the bodies at step 1 (fix insert/pack), so its step k + 1 \
@@ -138,8 +157,14 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
             ],
         },
     );
+}
+
+/// Units, atom style and map (`fix multisphere` needs the map; no sorting keeps the
+/// member summation order), one process, the empty box the bodies are inserted into,
+/// neighbour lists, the contact law, time step and gravity.
+fn write_box_and_contact_law(s: &mut String, case: &Case) -> Result<()> {
     crate::engines::deck_text::block(
-        &mut s,
+        s,
         "Granular atoms in SI units in a closed box. fix multisphere needs the atom map; \
          `sort 0 0.0` keeps atoms in creation order, so member forces are summed in a fixed \
          order. newton off and ghost velocities as every granular LIGGGHTS run.",
@@ -153,7 +178,7 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
     writeln!(s, "communicate single vel yes")?;
     writeln!(s, "processors 1 1 1")?;
     let (soft, hard) = super::deck::hardness(&case.materials);
-    write_hardness(&mut s, &case.materials, soft, hard)?;
+    write_hardness(s, &case.materials, soft, hard)?;
     writeln!(
         s,
         "region domain block {} {} {} {} {} {} units box",
@@ -164,23 +189,23 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
         f(case.domain_lo[2]),
         f(case.domain_hi[2])
     )?;
-    writeln!(s, "create_box {n} domain")?;
+    writeln!(s, "create_box {} domain", case.n_types())?;
     writeln!(s, "neighbor {} bin", f(case.neighbor_skin))?;
     writeln!(s, "neigh_modify delay 0")?;
-    write_contact_model(
-        &mut s,
-        &case.materials,
-        &case.pairs,
-        case.rolling,
-        1.0,
-        "Pa",
-    )?;
+    write_contact_model(s, &case.materials, &case.pairs, case.rolling, 1.0, "Pa")?;
     writeln!(s, "timestep {}", f(case.dt))?;
     let g = case.gravity;
     let gmag = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
     if gmag > 0.0 {
         writeln!(s, "fix gravi all gravity {} vector {}", f(gmag), join(g))?;
     }
+    Ok(())
+}
+
+/// The case's [[walls]] as `wall/gran` primitives with the contact law of the pair
+/// style, as in the sphere deck.
+fn write_walls(s: &mut String, case: &Case) -> Result<()> {
+    let models = model_keywords(case.rolling);
     for (k, w) in case.walls.iter().enumerate() {
         let prim = match w {
             Wall::Plane { axis, position, .. } => format!("{}plane {}", axis.name(), f(*position)),
@@ -204,15 +229,12 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
             w.type_() + 1
         )?;
     }
-    crate::engines::deck_text::block(
-        &mut s,
-        "Clump templates (fix particletemplate/multisphere): member spheres in the body frame, \
-         with the mass and principal moments of the union of the spheres computed exactly by \
-         granval and given explicitly (`mass ... inertia_tensor ... use_density`), so LIGGGHTS \
-         uses these numbers instead of its Monte-Carlo estimate and both engines integrate the \
-         same doubles.",
-    );
-    write_templates(&mut s, &cl.templates, &seeds)?;
+    Ok(())
+}
+
+/// `fix multisphere`, then the case's free spheres (if any) as atoms of their own
+/// group, integrated as spheres and dumped apart from the bodies.
+fn write_free_spheres(s: &mut String, case: &Case) -> Result<()> {
     let free = !case.particles.is_empty();
     writeln!(
         s,
@@ -243,8 +265,15 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
         writeln!(s, "group free id {}", ids.join(" "))?;
         writeln!(s, "fix integr free nve/sphere")?;
     }
+    Ok(())
+}
+
+/// Every body inserted once, at exactly its centre of mass ([`exact_region`]), with its
+/// velocity, angular velocity and orientation; the seeds after the templates'.
+fn write_bodies(s: &mut String, case: &Case, seeds: &[u64]) -> Result<()> {
+    let cl = &case.clumps;
     crate::engines::deck_text::block(
-        &mut s,
+        s,
         "Bodies: each inserted once by fix insert/pack into a box one floating-point step wide \
          around its centre of mass (the random position LIGGGHTS draws inside it is then the \
          exact centre), with its velocity, angular velocity and orientation.",
@@ -282,8 +311,16 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
             k + 1
         )?;
     }
+    Ok(())
+}
+
+/// The body and free-sphere dumps at LIGGGHTS steps 1, 1 + N, ... (native steps 0, N,
+/// ...: [`clump_frames`] reads them back so), thermo, and the run one step longer for
+/// the insertion step.
+fn write_output_and_run(s: &mut String, case: &Case, dump_file: &str) -> Result<()> {
+    let every = case.output_every;
     crate::engines::deck_text::block(
-        &mut s,
+        s,
         "Output at LIGGGHTS steps 1, 1 + N, 1 + 2N, ... (native steps 0, N, 2N, ...), the body \
          state from compute multisphere at full precision.",
     );
@@ -293,13 +330,13 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
         "variable granval_next equal floor((step-1)/{every})*{every}+{every}+1"
     )?;
     write_body_dump(
-        &mut s,
+        s,
         "db",
         &every.to_string(),
         BODY_DUMP_FILE,
         " every v_granval_next",
     )?;
-    if free {
+    if !case.particles.is_empty() {
         let dc = super::DUMP_COLUMNS;
         writeln!(s, "dump d free custom {every} {dump_file} {}", dc.join(" "))?;
         let fmt = std::iter::once("%d")
@@ -315,7 +352,7 @@ pub(crate) fn write_clump_deck(case: &Case, dump_file: &str) -> Result<String> {
     writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", (case.n_steps / 20).max(1))?;
     writeln!(s, "run {}", case.n_steps + 1)?;
-    Ok(s)
+    Ok(())
 }
 
 /// A local dump `name` of every body's state at full precision (id, centre of mass,

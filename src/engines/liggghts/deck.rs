@@ -394,6 +394,33 @@ pub fn write_data_file(case: &Case) -> Result<String> {
 /// it.
 pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<String> {
     check_liggghts_limits(case)?;
+    check_file_names(dump_file, data_file)?;
+    let mut s = String::new();
+    write_micro_header(&mut s, case, dump_file);
+    write_box_and_atoms(&mut s, case, data_file)?;
+    write_contact_model(
+        &mut s,
+        &case.materials,
+        &case.pairs,
+        case.rolling,
+        1.0,
+        "Pa",
+    )?;
+    write_time_step_and_gravity(&mut s, case)?;
+    write_walls(&mut s, case)?;
+    deck_text::comment(
+        &mut s,
+        "Velocity Verlet for spheres (`nve/sphere`: half kick, drift, forces, half kick; \
+         moment of inertia 0.4 m r^2).",
+    );
+    writeln!(s, "fix integr all nve/sphere")?;
+    write_output_and_run(&mut s, case, dump_file)?;
+    Ok(s)
+}
+
+/// Refuses file names LIGGGHTS' input parser would split or expand (whitespace,
+/// variables, comments, continuation, quotes): they go into the deck verbatim.
+fn check_file_names(dump_file: &str, data_file: &str) -> Result<()> {
     for (what, name) in [("dump file", dump_file), ("data file", data_file)] {
         if name.is_empty()
             || name
@@ -405,19 +432,16 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
             );
         }
     }
-    let models = model_keywords(case.rolling);
-    let max_id = case.particles.iter().map(|p| p.id).max().unwrap_or(0);
-    let map = if max_id > MAP_ARRAY_MAX_ID {
-        "hash"
-    } else {
-        "array"
-    };
+    Ok(())
+}
+
+/// The header: the case, what the run measures and the tolerances granval compares it
+/// with, the units and time step (Feng et al. Sec. 2), and how to run it.
+fn write_micro_header(s: &mut String, case: &Case, dump_file: &str) {
     let duration = case.dt * case.n_steps as f64;
     let every_s = case.dt * case.output_every as f64;
-
-    let mut s = String::new();
     deck_text::write_header(
-        &mut s,
+        s,
         &deck_text::Header {
             title: format!(
                 "granval micro case `{}`: LIGGGHTS 3.8 input deck ({})",
@@ -459,9 +483,20 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
             ],
         },
     );
+}
 
+/// Units, atom style and map, the closed box, the parallel layout LIGGGHTS' granular
+/// pair style needs, the Young's modulus switches, the particles of the data file and
+/// the neighbour lists.
+fn write_box_and_atoms(s: &mut String, case: &Case, data_file: &str) -> std::fmt::Result {
+    let max_id = case.particles.iter().map(|p| p.id).max().unwrap_or(0);
+    let map = if max_id > MAP_ARRAY_MAX_ID {
+        "hash"
+    } else {
+        "array"
+    };
     deck_text::block(
-        &mut s,
+        s,
         "---- Box, atoms, parallel layout ----\n\
          SI units. `atom_style granular`: every atom is a sphere with a diameter, a density \
          (its mass follows) and an angular velocity. Atoms are looked up by ID in an array \
@@ -473,7 +508,7 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
     writeln!(s, "atom_modify map {map}")?;
     writeln!(s, "boundary f f f")?;
     deck_text::comment(
-        &mut s,
+        s,
         "`newton off`: LIGGGHTS' granular pair style with shear history requires it (a pair \
          split between two MPI processes is computed on both). `communicate single vel yes`: \
          ghost atoms carry velocities, which the damping and tangential forces need. \
@@ -484,9 +519,9 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
     writeln!(s, "communicate single vel yes")?;
     writeln!(s, "processors * * *")?;
     let (soft, hard) = hardness(&case.materials);
-    write_hardness(&mut s, &case.materials, soft, hard)?;
+    write_hardness(s, &case.materials, soft, hard)?;
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "The particles, exactly as the case's [[particles]] give them: {data_file} holds the \
              box (m), and per atom its ID, type, diameter (m), density (kg/m^3), position (m), \
@@ -495,7 +530,7 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
     );
     writeln!(s, "read_data {data_file}")?;
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "Neighbour lists: skin {} m (the case's neighbor_skin; default half the smallest \
              radius), rebuilt whenever a particle has moved more than half the skin since the \
@@ -504,19 +539,13 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
         ),
     );
     writeln!(s, "neighbor {} bin", f(case.neighbor_skin))?;
-    writeln!(s, "neigh_modify delay 0")?;
+    writeln!(s, "neigh_modify delay 0")
+}
 
-    write_contact_model(
-        &mut s,
-        &case.materials,
-        &case.pairs,
-        case.rolling,
-        1.0,
-        "Pa",
-    )?;
-
+/// The case's time step and gravity, exactly as the native engine integrates them.
+fn write_time_step_and_gravity(s: &mut String, case: &Case) -> std::fmt::Result {
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Time integration ----\n\
              Time step {} s (the case's dt).",
@@ -524,12 +553,11 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
         ),
     );
     writeln!(s, "timestep {}", f(case.dt))?;
-
     let g = case.gravity;
     let gmag = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
     if gmag > 0.0 {
         deck_text::comment(
-            &mut s,
+            s,
             &format!(
                 "Gravity: {} m/s^2 along ({}) (the case's simulation.gravity).",
                 f(gmag),
@@ -538,7 +566,13 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
         );
         writeln!(s, "fix gravi all gravity {} vector {}", f(gmag), join(g))?;
     }
+    Ok(())
+}
 
+/// The case's [[walls]] as `wall/gran` primitives with the particles' contact law
+/// ([`model_keywords`] must name the pair style's models).
+fn write_walls(s: &mut String, case: &Case) -> std::fmt::Result {
+    let models = model_keywords(case.rolling);
     for (k, w) in case.walls.iter().enumerate() {
         let (prim, what) = match w {
             Wall::Plane { axis, position, .. } => (
@@ -568,7 +602,7 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
             ),
         };
         deck_text::comment(
-            &mut s,
+            s,
             &format!(
                 "Wall {} ([[walls]] {}): {what}, material type {}, the same contact law as \
                  between particles.",
@@ -584,16 +618,16 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
             w.type_() + 1
         )?;
     }
+    Ok(())
+}
 
-    deck_text::comment(
-        &mut s,
-        "Velocity Verlet for spheres (`nve/sphere`: half kick, drift, forces, half kick; \
-         moment of inertia 0.4 m r^2).",
-    );
-    writeln!(s, "fix integr all nve/sphere")?;
-
+/// Thermo (with lost atoms an error, as in the native engine), the measured trajectory
+/// in the columns of [`DUMP_COLUMNS`] at full precision (what granval's dump parser
+/// reads), and the run.
+fn write_output_and_run(s: &mut String, case: &Case, dump_file: &str) -> std::fmt::Result {
+    let duration = case.dt * case.n_steps as f64;
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Output ----\n\
              Thermo line every {} steps (step, atoms, kinetic energy, CPU time). `thermo_modify \
@@ -608,7 +642,7 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
     writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", (case.n_steps / 20).max(1))?;
     deck_text::comment(
-        &mut s,
+        s,
         &format!(
             "The measured trajectory: every {} steps (from step 0) each particle's id, position \
              (m), velocity (m/s), angular velocity (rad/s) and force (N), sorted by id, with 17 \
@@ -629,13 +663,12 @@ pub fn write_deck(case: &Case, dump_file: &str, data_file: &str) -> Result<Strin
         .join(" ");
     writeln!(s, "dump_modify d sort id format \"{fmt}\"")?;
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "{} steps: {} s of simulated time.",
             case.n_steps,
             deck_text::approx(duration)
         ),
     );
-    writeln!(s, "run {}", case.n_steps)?;
-    Ok(s)
+    writeln!(s, "run {}", case.n_steps)
 }

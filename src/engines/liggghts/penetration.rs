@@ -405,15 +405,35 @@ pub(crate) fn deck_text_with_snapshots(
 ) -> Result<String> {
     validate(d)?;
     let snapshots = super::snapshot::deck_block(snapshot_steps, d.n_steps)?;
-    let u = d.units;
-    let (l, v) = (u.length(), u.velocity());
-    let (lu, vu) = (u.length_unit(), u.velocity_unit());
-    let models = model_keywords(d.rolling);
-    let max_id = d.particles.iter().map(|p| p.id).max().unwrap_or(0);
-    let map = if max_id > 10_000_000 { "hash" } else { "array" };
-    let travel = d.speed * d.dt * d.n_steps as f64;
-
     let mut s = String::new();
+    write_penetration_header(&mut s, d);
+    write_atom_style(&mut s, d)?;
+    write_grains(&mut s, d)?;
+    let u = d.units;
+    write_contact_model(
+        &mut s,
+        &d.materials,
+        &d.pairs,
+        d.rolling,
+        u.pressure(),
+        u.pressure_unit(),
+    )?;
+    write_gravity_and_container(&mut s, d)?;
+    if let Some(st) = &d.settle {
+        write_settle_block(&mut s, d, st)?;
+    }
+    write_intruder(&mut s, d)?;
+    write_output(&mut s, d, &snapshots)?;
+    write_run(&mut s, d)?;
+    Ok(s)
+}
+
+/// The header: the case's title and paragraphs, then what the run measures (Feng et
+/// al. eq 5), the geometry in SI, the deck's units and how to run it.
+fn write_penetration_header(s: &mut String, d: &PenetrationDeck) {
+    let u = d.units;
+    let (lu, vu) = (u.length_unit(), u.velocity_unit());
+    let travel = d.speed * d.dt * d.n_steps as f64;
     let mut paragraphs = d.header.paragraphs.clone();
     paragraphs.push(format!(
         "What the run measures: the force of the grains on a flat-bottomed cylindrical \
@@ -467,7 +487,7 @@ pub(crate) fn deck_text_with_snapshots(
          analyze DIR --report OUT` (README.md)."
     ));
     deck_text::write_header(
-        &mut s,
+        s,
         &deck_text::Header {
             title: if d.header.title.is_empty() {
                 format!("granval penetration deck: LIGGGHTS 3.8 input ({DECK_FILE})")
@@ -477,9 +497,16 @@ pub(crate) fn deck_text_with_snapshots(
             paragraphs,
         },
     );
+}
 
+/// Units, atom style, atom map, boundaries and the parallel layout LIGGGHTS' granular
+/// pair style needs, and the switches past its Young's modulus range check.
+fn write_atom_style(s: &mut String, d: &PenetrationDeck) -> Result<()> {
+    let u = d.units;
+    let max_id = d.particles.iter().map(|p| p.id).max().unwrap_or(0);
+    let map = if max_id > 10_000_000 { "hash" } else { "array" };
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Box, atoms, parallel layout ----\n\
              Units `{}`. `atom_style granular`: every atom is a sphere with a diameter, a density \
@@ -489,10 +516,9 @@ pub(crate) fn deck_text_with_snapshots(
             u.keyword()
         ),
     );
-    let clumps = !d.bodies.is_empty();
     writeln!(s, "units {}", u.keyword())?;
     writeln!(s, "atom_style granular")?;
-    if clumps {
+    if !d.bodies.is_empty() {
         // fix multisphere needs the map; no sorting keeps members in insertion order.
         writeln!(s, "atom_modify map array sort 0 0.0")?;
     } else {
@@ -500,7 +526,7 @@ pub(crate) fn deck_text_with_snapshots(
     }
     writeln!(s, "boundary f f f")?;
     deck_text::comment(
-        &mut s,
+        s,
         "`newton off`: LIGGGHTS' granular pair style with shear history requires it (a pair \
          split between two MPI processes is computed on both). `communicate single vel yes`: \
          ghost atoms carry velocities, which the damping and tangential forces need. \
@@ -511,15 +537,25 @@ pub(crate) fn deck_text_with_snapshots(
     writeln!(s, "newton off")?;
     writeln!(s, "communicate single vel yes")?;
     writeln!(s, "processors * * 1")?;
-    super::deck::write_hardness(&mut s, &d.materials, d.soft_particles, d.hard_particles)?;
+    super::deck::write_hardness(s, &d.materials, d.soft_particles, d.hard_particles)?;
+    Ok(())
+}
+
+/// The box and the grains: the data file of the bed (native or the lattice a settle
+/// deck pours), or for clumps an empty box the bodies are inserted into later; then
+/// the neighbour lists.
+fn write_grains(s: &mut String, d: &PenetrationDeck) -> Result<()> {
+    let u = d.units;
+    let l = u.length();
+    let (lu, vu) = (u.length_unit(), u.velocity_unit());
     let data = if d.settle.is_some() {
         LATTICE_FILE
     } else {
         DATA_FILE
     };
-    if clumps {
+    if !d.bodies.is_empty() {
         deck_text::block(
-            &mut s,
+            s,
             &format!(
                 "The box ({lu}); the grains are rigid clumps, inserted body by body below after                  the walls ({}: the bodies granval settled natively).",
                 super::clump_bed::BODIES_FILE
@@ -538,7 +574,7 @@ pub(crate) fn deck_text_with_snapshots(
         writeln!(s, "create_box {} domain", d.materials.len())?;
     } else {
         deck_text::block(
-            &mut s,
+            s,
             &format!(
                 "The grains: {data} holds the box ({lu}) and per grain its ID, type, diameter ({lu}), \
              density ({}), position ({lu}), velocity ({vu}) and angular velocity (rad/s){}.",
@@ -554,7 +590,7 @@ pub(crate) fn deck_text_with_snapshots(
         writeln!(s, "read_data {data}")?;
     }
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "Neighbour lists: skin {} {lu} (the case's neighbor_skin), rebuilt whenever a grain \
              has moved more than half the skin since the last build. It changes the cost, not \
@@ -564,16 +600,19 @@ pub(crate) fn deck_text_with_snapshots(
     );
     writeln!(s, "neighbor {} bin", f(d.neighbor_skin * l))?;
     writeln!(s, "neigh_modify delay 0")?;
-    write_contact_model(
-        &mut s,
-        &d.materials,
-        &d.pairs,
-        d.rolling,
-        u.pressure(),
-        u.pressure_unit(),
-    )?;
+    Ok(())
+}
+
+/// Time step, gravity, the container (floor and cylinder with the grains' contact law,
+/// as in the native engine) and the integration of the grains: spheres by
+/// `nve/sphere`, clumps by their insertion and `fix multisphere`.
+fn write_gravity_and_container(s: &mut String, d: &PenetrationDeck) -> Result<()> {
+    let u = d.units;
+    let (l, v) = (u.length(), u.velocity());
+    let (lu, vu) = (u.length_unit(), u.velocity_unit());
+    let models = model_keywords(d.rolling);
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Time integration, gravity, walls ----\n\
              Time step {} s (the case's dt; Feng et al. use about 20 % of the Rayleigh time, \
@@ -583,10 +622,7 @@ pub(crate) fn deck_text_with_snapshots(
     );
     writeln!(s, "timestep {}", f(d.dt))?;
     if d.gravity > 0.0 {
-        deck_text::comment(
-            &mut s,
-            &format!("Gravity {} {vu}/s along -z.", f(d.gravity * v)),
-        );
+        deck_text::comment(s, &format!("Gravity {} {vu}/s along -z.", f(d.gravity * v)));
         writeln!(
             s,
             "fix gravi all gravity {} vector 0 0 -1",
@@ -595,7 +631,7 @@ pub(crate) fn deck_text_with_snapshots(
     }
     let wt = d.wall_type + 1;
     deck_text::comment(
-        &mut s,
+        s,
         &format!(
             "The container: a floor at z = {} {lu} and a cylinder of radius {} {lu} about the z \
              axis, of material type {wt}, with the grains' contact law.",
@@ -613,21 +649,29 @@ pub(crate) fn deck_text_with_snapshots(
         "fix container all wall/gran {models} primitive type {wt} zcylinder {} 0 0",
         f(d.container_radius * l)
     )?;
-    if let (true, Some(t)) = (clumps, &d.clump) {
-        super::clump_bed::write_insertion(&mut s, t, &d.bodies, d.n_steps)?;
+    if let (true, Some(t)) = (!d.bodies.is_empty(), &d.clump) {
+        super::clump_bed::write_insertion(s, t, &d.bodies, d.n_steps)?;
     } else {
         deck_text::comment(
-            &mut s,
+            s,
             "Velocity Verlet for spheres (`nve/sphere`: half kick, drift, forces, half kick; \
              moment of inertia 0.4 m r^2).",
         );
         writeln!(s, "fix integr all nve/sphere")?;
     }
-    if let Some(st) = &d.settle {
-        write_settle_block(&mut s, d, st)?;
-    }
+    Ok(())
+}
+
+/// The intruder: the closed STL mesh whose `mesh/surface/stress` gives the measured
+/// force and bottom height (see the module doc), its contacts and its constant-speed
+/// drive (Feng et al.: quasi-static, constant speed).
+fn write_intruder(s: &mut String, d: &PenetrationDeck) -> Result<()> {
+    let u = d.units;
+    let (l, v) = (u.length(), u.velocity());
+    let (lu, vu) = (u.length_unit(), u.velocity_unit());
+    let models = model_keywords(d.rolling);
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- The intruder ----\n\
              {STL_FILE}: a closed triangle mesh of the flat-bottomed cylinder (radius {} {lu}, \
@@ -660,7 +704,7 @@ pub(crate) fn deck_text_with_snapshots(
         )?;
     }
     deck_text::comment(
-        &mut s,
+        s,
         &format!(
             "Grain-intruder contacts use the same contact law; the mesh moves down at constant \
              speed {} {vu}, whatever the force (Feng et al.: quasi-static, constant speed).",
@@ -676,8 +720,17 @@ pub(crate) fn deck_text_with_snapshots(
         "fix mv all move/mesh mesh cad linear 0 0 {}",
         f(-d.speed * v)
     )?;
+    Ok(())
+}
+
+/// The measurement ([`FORCE_FILE`], at full precision, the columns [`parse_force_file`]
+/// reads), the thermo line granval's progress bar follows, and the optional snapshot
+/// and visualisation dumps.
+fn write_output(s: &mut String, d: &PenetrationDeck, snapshots: &str) -> Result<()> {
+    let u = d.units;
+    let lu = u.length_unit();
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Output ----\n\
              The measurement: every {} steps one line of {FORCE_FILE}, `step t z_bottom fx fy fz` \
@@ -695,7 +748,7 @@ pub(crate) fn deck_text_with_snapshots(
         force_title(d)
     )?;
     deck_text::comment(
-        &mut s,
+        s,
         &format!(
             "Thermo line every {} steps (about 1 % of the run; granval's progress bar follows \
              it). `thermo_modify lost error`: LIGGGHTS 3.8 would silently drop a grain that \
@@ -709,13 +762,19 @@ pub(crate) fn deck_text_with_snapshots(
     writeln!(s, "thermo {}", thermo_every(d.n_steps))?;
     if !snapshots.is_empty() {
         s.push('\n');
-        s.push_str(&snapshots);
+        s.push_str(snapshots);
     }
     if let Some(n) = d.viz_every {
-        viz_block(&mut s, n, d)?;
+        viz_block(s, n, d)?;
     }
+    Ok(())
+}
+
+/// The penetration run; a settle deck takes its length from an `index` variable so
+/// that start-up tests can shorten it.
+fn write_run(s: &mut String, d: &PenetrationDeck) -> Result<()> {
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "{} steps of penetration ({} s).{}",
             d.n_steps,
@@ -733,7 +792,7 @@ pub(crate) fn deck_text_with_snapshots(
     } else {
         writeln!(s, "run {}", d.n_steps)?;
     }
-    Ok(s)
+    Ok(())
 }
 
 /// File name patterns of the visualisation dump (`*` is the step).
@@ -775,7 +834,6 @@ fn viz_block(s: &mut String, n: u64, d: &PenetrationDeck) -> Result<()> {
 /// The settling loop and intruder placement of a [`Settle`] deck. `settle_checks` is an
 /// `index` variable, so `-var settle_checks N` caps a smoke run at N * check_every steps.
 fn write_settle_block(s: &mut String, d: &PenetrationDeck, st: &Settle) -> Result<()> {
-    let l = d.units.length();
     let every = st.check_every;
     deck_text::block(
         s,
@@ -832,6 +890,14 @@ fn write_settle_block(s: &mut String, d: &PenetrationDeck, st: &Settle) -> Resul
         s,
         "print \"granval: bed settled at step $(step), KE ratio ${{ratio}}\""
     )?;
+    write_intruder_start(s, d, st)
+}
+
+/// After settling: the settled bed written for `granval analyze`, and the intruder's
+/// start height from the highest grain top under its footprint, where the native
+/// engine places it.
+fn write_intruder_start(s: &mut String, d: &PenetrationDeck, st: &Settle) -> Result<()> {
+    let l = d.units.length();
     deck_text::comment(
         s,
         &format!(

@@ -148,10 +148,27 @@ pub(crate) fn expected_records(d: &TriaxialDeck) -> usize {
 /// The deck text.
 pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
     validate(d)?;
-    let models = model_keywords(d.rolling);
-    let wt = d.wall_type + 1;
-    let c = d.mesh_centre;
     let mut s = String::new();
+    write_triaxial_header(&mut s, d);
+    write_box_and_sample(&mut s, d)?;
+    write_contact_model(&mut s, &d.materials, &d.pairs, d.rolling, 1.0, "Pa")?;
+    deck_text::block(
+        &mut s,
+        &format!(
+            "---- Time step ----\n{} s (the case's dt), no gravity.",
+            f(d.dt)
+        ),
+    );
+    writeln!(s, "timestep {}", f(d.dt))?;
+    write_wall_meshes(&mut s, d)?;
+    write_wall_contacts_and_drive(&mut s, d)?;
+    write_output_and_run(&mut s, d)?;
+    Ok(s)
+}
+
+/// The header: what the run measures (docs/stress.md, rule 5) and the geometry the
+/// native compaction left, with why each wall is one large triangle.
+fn write_triaxial_header(s: &mut String, d: &TriaxialDeck) {
     let mut paragraphs = d.header.paragraphs.clone();
     paragraphs.push(format!(
         "What the run measures: axisymmetric-stress compression of a compacted sample of {} \
@@ -189,14 +206,20 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
          analyze DIR --report OUT`."
     ));
     deck_text::write_header(
-        &mut s,
+        s,
         &deck_text::Header {
             title: d.header.title.clone(),
             paragraphs,
         },
     );
+}
+
+/// Units, atom style, the closed box and what LIGGGHTS' granular pair style needs, the
+/// Young's modulus switches, the compacted sample exactly as the native engine left it,
+/// and the neighbour lists.
+fn write_box_and_sample(s: &mut String, d: &TriaxialDeck) -> Result<()> {
     deck_text::block(
-        &mut s,
+        s,
         "---- Box, atoms ----\n\
          Units `si`. `atom_style granular`: spheres with diameter, density and angular \
          velocity. `boundary f f f`: a closed box; a grain that leaves it stops the run \
@@ -209,9 +232,9 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
     writeln!(s, "boundary f f f")?;
     writeln!(s, "newton off")?;
     writeln!(s, "communicate single vel yes")?;
-    super::deck::write_hardness(&mut s, &d.materials, d.soft_particles, d.hard_particles)?;
+    super::deck::write_hardness(s, &d.materials, d.soft_particles, d.hard_particles)?;
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "The sample: {DATA_FILE} holds the box (m) and per grain its ID, type, diameter (m), \
              density (kg/m^3), position (m), velocity (m/s) and angular velocity (rad/s), \
@@ -221,7 +244,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
     );
     writeln!(s, "read_data {DATA_FILE}")?;
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "Neighbour lists: skin {} m, rebuilt whenever a grain (or a mesh) has moved more \
              than half the skin since the last build. It changes the cost, not the physics.",
@@ -230,17 +253,17 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
     );
     writeln!(s, "neighbor {} bin", f(d.neighbor_skin))?;
     writeln!(s, "neigh_modify delay 0")?;
-    write_contact_model(&mut s, &d.materials, &d.pairs, d.rolling, 1.0, "Pa")?;
+    Ok(())
+}
+
+/// The six wall meshes ([`stl_texts`]): the fixed lo walls, the x_hi and y_hi stress
+/// servos and the driven z_hi wall, each a `mesh/surface/stress` whose force and
+/// reference point the output line reads.
+fn write_wall_meshes(s: &mut String, d: &TriaxialDeck) -> Result<()> {
+    let wt = d.wall_type + 1;
+    let c = d.mesh_centre;
     deck_text::block(
-        &mut s,
-        &format!(
-            "---- Time step ----\n{} s (the case's dt), no gravity.",
-            f(d.dt)
-        ),
-    );
-    writeln!(s, "timestep {}", f(d.dt))?;
-    deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- The walls ----\n\
              Six STL triangles of material type {wt} (frictionless against the grains: mu = \
@@ -263,7 +286,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
     }
     let g = d.servo;
     deck_text::comment(
-        &mut s,
+        s,
         &format!(
             "x_hi and y_hi: LIGGGHTS' stress servo (mesh module servo, PID on the force along \
              the axis, `ctrlPV force`): kp {}, ki {}, kd {}, at most {} m/s. Its centre `com` is \
@@ -292,7 +315,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
         )?;
     }
     deck_text::comment(
-        &mut s,
+        s,
         "z_hi: a stress mesh moved down at constant speed (below); its reference point follows \
          it, so f_zhi[9] is its position.",
     );
@@ -304,8 +327,15 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
         STL_FILES[5],
         deck_text::nums(p)
     )?;
+    Ok(())
+}
+
+/// The servo targets (sigma_c on the current face areas), the grain-wall contacts on
+/// all six meshes, the axial drive of z_hi and the integration of the grains.
+fn write_wall_contacts_and_drive(s: &mut String, d: &TriaxialDeck) -> Result<()> {
+    let models = model_keywords(d.rolling);
     deck_text::comment(
-        &mut s,
+        s,
         &format!(
             "The servo targets (N): -sigma_c x the face area from the other walls' current \
              positions (the lo walls are at 0), evaluated by the servo in final_integrate, \
@@ -316,7 +346,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
     writeln!(s, "variable tx equal -{}*f_yhi[8]*f_zhi[9]", f(d.sigma_c))?;
     writeln!(s, "variable ty equal -{}*f_xhi[7]*f_zhi[9]", f(d.sigma_c))?;
     deck_text::comment(
-        &mut s,
+        s,
         "Grain-wall contacts: the grains' contact law on all six meshes.",
     );
     writeln!(
@@ -325,7 +355,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
         FIX_IDS.join(" ")
     )?;
     deck_text::comment(
-        &mut s,
+        s,
         &format!(
             "The axial drive: z_hi down at eps_dot H0 = {} m/s from step 1.",
             f(d.z_speed)
@@ -337,12 +367,18 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
         f(-d.z_speed)
     )?;
     deck_text::comment(
-        &mut s,
+        s,
         "Velocity Verlet for spheres (`nve/sphere`: half kick, drift, forces, half kick).",
     );
     writeln!(s, "fix integr all nve/sphere")?;
+    Ok(())
+}
+
+/// The wall record ([`WALLS_FILE`], at full precision, the columns granval reads back
+/// into [`WallRecord`]s), thermo, and the shear run.
+fn write_output_and_run(s: &mut String, d: &TriaxialDeck) -> Result<()> {
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "---- Output ----\n\
              Every {} steps one line of {WALLS_FILE}: step, positions of x_hi, y_hi, z_hi (m), \
@@ -357,7 +393,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
         d.output_every
     )?;
     deck_text::comment(
-        &mut s,
+        s,
         "Thermo line about every 1 % of the run. `thermo_modify lost error`: a grain leaving \
          the box is an error, not a silent loss (it must follow thermo_style).",
     );
@@ -365,7 +401,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
     writeln!(s, "thermo_modify lost error")?;
     writeln!(s, "thermo {}", (d.n_steps / 100).max(1))?;
     deck_text::block(
-        &mut s,
+        s,
         &format!(
             "{} steps of shear ({} s).",
             d.n_steps,
@@ -373,7 +409,7 @@ pub fn deck_text(d: &TriaxialDeck) -> Result<String> {
         ),
     );
     writeln!(s, "run {}", d.n_steps)?;
-    Ok(s)
+    Ok(())
 }
 
 /// Every input file of the deck: name and text.
