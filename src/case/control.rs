@@ -191,13 +191,65 @@ pub(crate) fn controls(
 ) -> Result<Vec<NegativeControl>, CaseError> {
     let mut out = Vec::with_capacity(raw.len());
     for (k, c) in raw.iter().enumerate() {
-        let f = |n: &str| format!("negative_control[{k}].{n}");
+        let at = ControlAt { ctx, k, gates };
+        at.name_and_gates(c)?;
+        let pert = at.perturbation(&c.perturbation, n_types)?;
+        out.push(NegativeControl {
+            name: c.name.clone(),
+            perturbation: pert,
+            must_fail: c.must_fail.clone(),
+        });
+    }
+    Ok(out)
+}
+
+/// Control number `k` of a case whose kind produces `gates`: where its errors point.
+struct ControlAt<'a> {
+    ctx: &'a Ctx,
+    k: usize,
+    gates: &'a [Gate],
+}
+
+impl ControlAt<'_> {
+    /// The field `negative_control[k].<n>`.
+    fn field(&self, n: &str) -> String {
+        format!("negative_control[{}].{n}", self.k)
+    }
+
+    /// `perturbation.<n>`'s value `v`, if finite.
+    fn finite(&self, n: &str, v: f64) -> Result<f64, CaseError> {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.ctx.bad(
+                self.field(&format!("perturbation.{n}")),
+                v,
+                "must be a finite number",
+            ))
+        }
+    }
+
+    /// A switch set on a case kind without the gate `needs` it perturbs is refused.
+    fn switch(&self, name: &str, set: bool, needs: Gate, why: &str) -> Result<bool, CaseError> {
+        if set && !self.gates.contains(&needs) {
+            Err(self
+                .ctx
+                .bad(self.field(&format!("perturbation.{name}")), true, why))
+        } else {
+            Ok(set)
+        }
+    }
+
+    /// A control has a name and must fail at least one gate, each one this case kind
+    /// produces (a gate it never runs could not fail).
+    fn name_and_gates(&self, c: &RawControl) -> Result<(), CaseError> {
+        let (ctx, gates) = (self.ctx, self.gates);
         if c.name.trim().is_empty() {
-            return Err(ctx.bad(f("name"), &c.name, "must not be empty"));
+            return Err(ctx.bad(self.field("name"), &c.name, "must not be empty"));
         }
         if c.must_fail.is_empty() {
             return Err(ctx.bad(
-                f("must_fail"),
+                self.field("must_fail"),
                 "[]",
                 "name at least one gate the control must fail",
             ));
@@ -205,7 +257,7 @@ pub(crate) fn controls(
         for g in &c.must_fail {
             if !gates.contains(g) {
                 return Err(ctx.bad(
-                    f("must_fail"),
+                    self.field("must_fail"),
                     g.key(),
                     format!(
                         "this case kind has no such gate; its gates: {}",
@@ -214,45 +266,63 @@ pub(crate) fn controls(
                 ));
             }
         }
-        let p = &c.perturbation;
+        Ok(())
+    }
+
+    /// The perturbation: the coefficients' changes ([`Self::coefficients`]), then the
+    /// switches and factors of one case kind ([`Self::kind_specific`]); one that changes
+    /// nothing is refused.
+    fn perturbation(&self, p: &RawPerturbation, n_types: usize) -> Result<Perturbation, CaseError> {
         let mut pert = Perturbation::default();
-        let finite = |n: &str, v: f64| -> Result<f64, CaseError> {
-            if v.is_finite() {
-                Ok(v)
-            } else {
-                Err(ctx.bad(
-                    f(&format!("perturbation.{n}")),
-                    v,
-                    "must be a finite number",
-                ))
-            }
-        };
+        self.coefficients(p, n_types, &mut pert)?;
+        self.kind_specific(p, &mut pert)?;
+        if pert.is_none() {
+            return Err(self.ctx.bad(
+                self.field("perturbation"),
+                "{}",
+                "changes nothing: a control must perturb the physics",
+            ));
+        }
+        Ok(pert)
+    }
+
+    /// Friction and rolling friction factors (>= 0; 2D disks have no rolling friction),
+    /// restitution and Poisson shifts, and one pair's friction (types in 1..=`n_types`,
+    /// value >= 0), written into `pert`.
+    fn coefficients(
+        &self,
+        p: &RawPerturbation,
+        n_types: usize,
+        pert: &mut Perturbation,
+    ) -> Result<(), CaseError> {
+        let ctx = self.ctx;
+        let f = |n: &str| self.field(n);
         if let Some(v) = p.friction_factor {
-            let v = finite("friction_factor", v)?;
+            let v = self.finite("friction_factor", v)?;
             if v < 0.0 {
                 return Err(ctx.bad(f("perturbation.friction_factor"), v, "must be >= 0"));
             }
             pert.friction_factor = v;
         }
         if let Some(v) = p.rolling_friction_factor {
-            if gates.contains(&Gate::Claim) {
+            if self.gates.contains(&Gate::Claim) {
                 return Err(ctx.bad(
                     f("perturbation.rolling_friction_factor"),
                     v,
                     "2D disks have no rolling friction to change",
                 ));
             }
-            let v = finite("rolling_friction_factor", v)?;
+            let v = self.finite("rolling_friction_factor", v)?;
             if v < 0.0 {
                 return Err(ctx.bad(f("perturbation.rolling_friction_factor"), v, "must be >= 0"));
             }
             pert.rolling_friction_factor = v;
         }
         if let Some(v) = p.restitution_shift {
-            pert.restitution_shift = finite("restitution_shift", v)?;
+            pert.restitution_shift = self.finite("restitution_shift", v)?;
         }
         if let Some(v) = p.poisson_shift {
-            pert.poisson_shift = finite("poisson_shift", v)?;
+            pert.poisson_shift = self.finite("poisson_shift", v)?;
         }
         if let Some(pf) = &p.pair_friction {
             let [a, b] = pf.types;
@@ -263,42 +333,43 @@ pub(crate) fn controls(
                     format!("types must be in 1..={n_types}"),
                 ));
             }
-            let v = finite("pair_friction.value", pf.value)?;
+            let v = self.finite("pair_friction.value", pf.value)?;
             if v < 0.0 {
                 return Err(ctx.bad(f("perturbation.pair_friction.value"), v, "must be >= 0"));
             }
             pert.pair_friction = Some((a - 1, b - 1, v));
         }
+        Ok(())
+    }
+
+    /// The friction model swap, the impact2d switches (sweep, packing, interface) and
+    /// other-size speed factor (> 0, not 1), each only where its gate is produced, and
+    /// the clumps' inertia factor (> 0) and member-sphere mass, written into `pert`.
+    fn kind_specific(&self, p: &RawPerturbation, pert: &mut Perturbation) -> Result<(), CaseError> {
+        let ctx = self.ctx;
+        let f = |n: &str| self.field(n);
         pert.swap_friction_model = p.swap_friction_model;
-        // A switch set on a case kind without the gate it perturbs is refused.
-        let switch = |name: &str, set: bool, needs: Gate, why: &str| {
-            if set && !gates.contains(&needs) {
-                Err(ctx.bad(f(&format!("perturbation.{name}")), true, why))
-            } else {
-                Ok(set)
-            }
-        };
-        pert.sweep_ignored = switch(
+        pert.sweep_ignored = self.switch(
             "sweep_ignored",
             p.sweep_ignored,
             Gate::Claim,
             "only impact2d cases have a sweep to ignore",
         )?;
-        pert.packing_ignored = switch(
+        pert.packing_ignored = self.switch(
             "packing_ignored",
             p.packing_ignored,
             Gate::Claim,
             "only impact2d cases have a packing sweep to ignore",
         )?;
         if let Some(v) = p.other_size_speed_factor {
-            if !gates.contains(&Gate::Claim) {
+            if !self.gates.contains(&Gate::Claim) {
                 return Err(ctx.bad(
                     f("perturbation.other_size_speed_factor"),
                     v,
                     "only impact2d cases have an intruder speed and beds of several sizes",
                 ));
             }
-            let v = finite("other_size_speed_factor", v)?;
+            let v = self.finite("other_size_speed_factor", v)?;
             if v <= 0.0 || v == 1.0 {
                 return Err(ctx.bad(
                     f("perturbation.other_size_speed_factor"),
@@ -308,34 +379,22 @@ pub(crate) fn controls(
             }
             pert.other_size_speed_factor = v;
         }
-        pert.interface_frozen_floor = switch(
+        pert.interface_frozen_floor = self.switch(
             "interface_frozen_floor",
             p.interface_frozen_floor,
             Gate::InterfaceSeries,
             "only impact2d cases track an interface",
         )?;
         if let Some(v) = p.inertia_factor {
-            let v = finite("inertia_factor", v)?;
+            let v = self.finite("inertia_factor", v)?;
             if v <= 0.0 {
                 return Err(ctx.bad(f("perturbation.inertia_factor"), v, "must be > 0"));
             }
             pert.inertia_factor = v;
         }
         pert.member_sphere_mass = p.member_sphere_mass;
-        if pert.is_none() {
-            return Err(ctx.bad(
-                f("perturbation"),
-                "{}",
-                "changes nothing: a control must perturb the physics",
-            ));
-        }
-        out.push(NegativeControl {
-            name: c.name.clone(),
-            perturbation: pert,
-            must_fail: c.must_fail.clone(),
-        });
+        Ok(())
     }
-    Ok(out)
 }
 
 /// What a case gives a perturbation to act on, so a control that would change nothing
@@ -362,14 +421,44 @@ pub(crate) fn check_applicable(
 ) -> Result<(), CaseError> {
     for (k, c) in controls.iter().enumerate() {
         let p = &c.perturbation;
-        let f = |n: &str| format!("negative_control[{k}].perturbation.{n}");
-        let na = |field: &str, value: f64, why: String| {
-            ctx.bad(f(field), value, format!("not applicable: {why}"))
-        };
-        let two_d = "the 2D engine perturbs only friction (friction_factor, pair_friction, swap_friction_model) and the sweep, packing, size and interface switches";
+        let at = Applicable { ctx, k, t };
+        at.restitution_and_poisson(p)?;
+        at.friction(p)?;
+        at.model_and_clumps(p)?;
+    }
+    Ok(())
+}
+
+/// The perturbation of control number `k`, judged against what the case gives it to act
+/// on.
+struct Applicable<'a> {
+    ctx: &'a Ctx,
+    k: usize,
+    t: &'a Targets<'a>,
+}
+
+/// Why a 3D-only perturbation is refused on a 2D case.
+const TWO_D: &str = "the 2D engine perturbs only friction (friction_factor, pair_friction, swap_friction_model) and the sweep, packing, size and interface switches";
+
+impl Applicable<'_> {
+    /// The field `negative_control[k].perturbation.<n>`.
+    fn field(&self, n: &str) -> String {
+        format!("negative_control[{}].perturbation.{n}", self.k)
+    }
+
+    /// `field`'s `value` is not applicable to this case, because `why`.
+    fn na(&self, field: &str, value: f64, why: String) -> CaseError {
+        self.ctx
+            .bad(self.field(field), value, format!("not applicable: {why}"))
+    }
+
+    /// Restitution and Poisson shifts need the 3D engine; a shifted restitution must
+    /// change some pair (it is capped at 1) and stay in (0, 1], a shifted Poisson ratio
+    /// stay in (-1, 0.5).
+    fn restitution_and_poisson(&self, p: &Perturbation) -> Result<(), CaseError> {
         if p.restitution_shift != 0.0 {
-            let Some((pairs, _, _)) = t.spheres else {
-                return Err(na("restitution_shift", p.restitution_shift, two_d.into()));
+            let Some((pairs, _, _)) = self.t.spheres else {
+                return Err(self.na("restitution_shift", p.restitution_shift, TWO_D.into()));
             };
             let shifted: Vec<f64> = pairs
                 .restitution
@@ -377,7 +466,7 @@ pub(crate) fn check_applicable(
                 .map(|e| (e + p.restitution_shift).min(1.0))
                 .collect();
             if shifted.iter().zip(&pairs.restitution).all(|(s, e)| s == e) {
-                return Err(na(
+                return Err(self.na(
                     "restitution_shift",
                     p.restitution_shift,
                     format!(
@@ -387,7 +476,7 @@ pub(crate) fn check_applicable(
                 ));
             }
             if let Some(s) = shifted.iter().find(|s| **s <= 0.0) {
-                return Err(na(
+                return Err(self.na(
                     "restitution_shift",
                     p.restitution_shift,
                     format!("a shifted restitution coefficient would be {s}, not in (0, 1]"),
@@ -395,14 +484,14 @@ pub(crate) fn check_applicable(
             }
         }
         if p.poisson_shift != 0.0 {
-            let Some((_, materials, _)) = t.spheres else {
-                return Err(na("poisson_shift", p.poisson_shift, two_d.into()));
+            let Some((_, materials, _)) = self.t.spheres else {
+                return Err(self.na("poisson_shift", p.poisson_shift, TWO_D.into()));
             };
             if let Some(m) = materials.iter().find(|m| {
                 let nu = m.poisson_ratio + p.poisson_shift;
                 !(nu > -1.0 && nu < 0.5)
             }) {
-                return Err(na(
+                return Err(self.na(
                     "poisson_shift",
                     p.poisson_shift,
                     format!(
@@ -413,21 +502,28 @@ pub(crate) fn check_applicable(
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Sliding and rolling friction of the 3D engine: scaling needs a nonzero
+    /// coefficient (and a rolling model for rolling friction), a pair's new value must
+    /// differ from its own.
+    fn friction(&self, p: &Perturbation) -> Result<(), CaseError> {
         if p.friction_factor != 1.0
-            && let Some((pairs, _, _)) = t.spheres
+            && let Some((pairs, _, _)) = self.t.spheres
             && pairs.friction.iter().all(|m| *m == 0.0)
         {
-            return Err(na(
+            return Err(self.na(
                 "friction_factor",
                 p.friction_factor,
                 "every sliding friction coefficient of the case is 0, so scaling it changes nothing".into(),
             ));
         }
         if let Some((a, b, v)) = p.pair_friction
-            && let Some((pairs, _, _)) = t.spheres
+            && let Some((pairs, _, _)) = self.t.spheres
             && pairs.friction[pairs.idx(a, b)] == v
         {
-            return Err(na(
+            return Err(self.na(
                 "pair_friction.value",
                 v,
                 format!(
@@ -438,44 +534,50 @@ pub(crate) fn check_applicable(
             ));
         }
         if p.rolling_friction_factor != 1.0
-            && let Some((pairs, _, rolling)) = t.spheres
+            && let Some((pairs, _, rolling)) = self.t.spheres
         {
             if !rolling {
-                return Err(na(
+                return Err(self.na(
                     "rolling_friction_factor",
                     p.rolling_friction_factor,
                     "the case has no rolling friction model (models.rolling = \"none\")".into(),
                 ));
             }
             if pairs.rolling_friction.iter().all(|m| *m == 0.0) {
-                return Err(na(
+                return Err(self.na(
                     "rolling_friction_factor",
                     p.rolling_friction_factor,
                     "every rolling friction coefficient of the case is 0, so scaling it changes nothing".into(),
                 ));
             }
         }
-        if p.swap_friction_model && t.spheres.is_some() {
-            return Err(ctx.bad(
-                f("swap_friction_model"),
+        Ok(())
+    }
+
+    /// The friction model swap exists only in the 2D engine; inertia and member-sphere
+    /// mass perturbations need rigid clumps.
+    fn model_and_clumps(&self, p: &Perturbation) -> Result<(), CaseError> {
+        if p.swap_friction_model && self.t.spheres.is_some() {
+            return Err(self.ctx.bad(
+                self.field("swap_friction_model"),
                 true,
                 "not applicable: only the 2D engine has a static and a kinetic friction model to swap",
             ));
         }
-        if (p.inertia_factor != 1.0 || p.member_sphere_mass) && !t.clumps {
+        if (p.inertia_factor != 1.0 || p.member_sphere_mass) && !self.t.clumps {
             let (field, value) = if p.inertia_factor != 1.0 {
                 ("inertia_factor", p.inertia_factor)
             } else {
                 ("member_sphere_mass", 1.0)
             };
-            return Err(na(
+            return Err(self.na(
                 field,
                 value,
                 "the case has no rigid clumps, whose inertia and contact mass this perturbs".into(),
             ));
         }
+        Ok(())
     }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 //! Fig 1). Parsed and validated once; all SI.
 
 use super::error::{CaseError, Ctx};
-use super::validate::{finite, override_pairs, physics, positive};
+use super::validate::{finite, material_type, override_pairs, physics, positive};
 use super::{ContactFamily, Gate, Material, NegativeControl, PairTable, RollingModel, schema};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -602,282 +602,30 @@ impl PenetrationCase {
         Ok(case)
     }
 
+    /// Validates a parsed file one section at a time, in the order of the calls below;
+    /// the first error found is the one reported.
     fn validated(raw: File, ctx: Ctx, path: &Path) -> Result<PenetrationCase, CaseError> {
         let (rolling, materials, bed_pairs) =
             physics(&ctx, &raw.models, &raw.materials, &raw.interactions, true)?;
         let n_types = materials.len();
         let family = penetration_family(&ctx, &raw, n_types)?;
-        let (pairs, settle_pairs) = if raw.penetration_interactions.is_empty() {
-            (bed_pairs, None)
-        } else {
-            let p = override_pairs(
-                &ctx,
-                &bed_pairs,
-                &raw.penetration_interactions,
-                "penetration_interactions",
-            )?;
-            (p, Some(bed_pairs))
-        };
-        let ty = |field: &str, t: usize| -> Result<usize, CaseError> {
-            if t < 1 || t > n_types {
-                Err(ctx.bad(
-                    field,
-                    t,
-                    format!("must be a material type in 1..={n_types}"),
-                ))
-            } else {
-                Ok(t - 1)
-            }
-        };
-        let wall_type = ty("container.type", raw.container.type_)?;
-        let grain_type = ty("bed.type", raw.bed.type_)?;
-        let intruder_type = ty("intruder.type", raw.intruder.type_)?;
-
+        let (pairs, settle_pairs) = penetration_pairs(&ctx, &raw, bed_pairs)?;
+        let wall_type = material_type(&ctx, "container.type", raw.container.type_, n_types)?;
+        let grain_type = material_type(&ctx, "bed.type", raw.bed.type_, n_types)?;
+        let intruder_type = material_type(&ctx, "intruder.type", raw.intruder.type_, n_types)?;
         let container_radius = 0.5 * positive(&ctx, "container.diameter", raw.container.diameter)?;
         let container_height = positive(&ctx, "container.height", raw.container.height)?;
-        let density = positive(&ctx, "bed.density", raw.bed.density)?;
-        let diameter = raw.bed.diameter;
-        match diameter {
-            Diameter::Constant { value } => {
-                positive(&ctx, "bed.diameter.value", value)?;
-            }
-            Diameter::Gaussian {
-                mean,
-                std,
-                min,
-                max,
-            } => {
-                positive(&ctx, "bed.diameter.mean", mean)?;
-                positive(&ctx, "bed.diameter.std", std)?;
-                positive(&ctx, "bed.diameter.min", min)?;
-                if !(min <= mean && mean <= max) {
-                    return Err(ctx.bad(
-                        "bed.diameter",
-                        (min, mean, max),
-                        "need min <= mean <= max",
-                    ));
-                }
-            }
-            Diameter::Uniform { mean, half_width } => {
-                positive(&ctx, "bed.diameter.mean", mean)?;
-                let hw = finite(&ctx, "bed.diameter.half_width", half_width)?;
-                if !(0.0..mean).contains(&hw) {
-                    return Err(ctx.bad("bed.diameter.half_width", hw, "must lie in [0, mean)"));
-                }
-            }
-        }
-        let d_mean = diameter.mean();
-        let clump = bed_clump(
-            &ctx,
-            &raw.clump_templates,
-            &raw.bed,
-            n_types,
-            density,
-            diameter,
-        )?;
-        if clump.is_some() && family != ContactFamily::Liggghts {
-            return Err(ctx.bad(
-                "models.family",
-                "lammps",
-                "a clump bed is LIGGGHTS' fix multisphere; the LAMMPS penetration deck takes sphere beds only",
-            ));
-        }
-        let packing_guess = raw.bed.packing_guess;
-        if !(packing_guess > 0.0 && packing_guess < 0.75) {
-            return Err(ctx.bad("bed.packing_guess", packing_guess, "must lie in (0, 0.75)"));
-        }
-        let count = match (raw.bed.count, raw.bed.fill_height) {
-            (Some(n), None) if n > 0 => n,
-            (Some(n), None) => return Err(ctx.bad("bed.count", n, "must be >= 1")),
-            (None, Some(h)) => {
-                let h = positive(&ctx, "bed.fill_height", h)?;
-                if h >= container_height {
-                    return Err(ctx.bad(
-                        "bed.fill_height",
-                        h,
-                        format!("the bed would overflow the container (container.height = {container_height:e} m)"),
-                    ));
-                }
-                let v_grain = match &clump {
-                    Some(t) => t.volume,
-                    None => std::f64::consts::PI / 6.0 * d_mean.powi(3),
-                };
-                (packing_guess * std::f64::consts::PI * container_radius.powi(2) * h / v_grain)
-                    .round() as usize
-            }
-            (Some(_), Some(_)) => {
-                return Err(ctx.bad(
-                    "bed.count",
-                    "both given",
-                    "give count or fill_height, not both",
-                ));
-            }
-            (None, None) => {
-                return Err(ctx.bad("bed.count", "missing", "give count or fill_height"));
-            }
-        };
-
-        let settle_ke_ratio = positive(
-            &ctx,
-            "preparation.settle_ke_ratio",
-            raw.preparation.settle_ke_ratio,
-        )?;
-        let max_settle_time = positive(
-            &ctx,
-            "preparation.max_settle_time",
-            raw.preparation.max_settle_time,
-        )?;
-
-        let i = &raw.intruder;
-        let intruder_radius = 0.5 * positive(&ctx, "intruder.diameter", i.diameter)?;
-        let intruder_length = positive(&ctx, "intruder.length", i.length)?;
-        let speed = positive(&ctx, "intruder.speed", i.speed)?;
-        let start_gap = finite(&ctx, "intruder.start_gap", i.start_gap)?;
-        if start_gap < 0.0 {
-            return Err(ctx.bad(
-                "intruder.start_gap",
-                start_gap,
-                "must be >= 0 (the intruder starts above the bed)",
-            ));
-        }
-        let final_depth = positive(&ctx, "intruder.final_depth", i.final_depth)?;
-        if i.force_every == 0 {
-            return Err(ctx.bad("intruder.force_every", 0, "must be >= 1"));
-        }
-        let stl_rim_error = positive(&ctx, "intruder.stl_rim_error", i.stl_rim_error)?;
-        if stl_rim_error >= 0.1 {
-            return Err(ctx.bad(
-                "intruder.stl_rim_error",
-                stl_rim_error,
-                "must be below 0.1 (an STL that far inside the cylinder is not the same intruder)",
-            ));
-        }
-        if intruder_radius >= container_radius {
-            return Err(ctx.bad(
-                "intruder.diameter",
-                i.diameter,
-                "must be smaller than the container diameter",
-            ));
-        }
-        let gap = container_radius - intruder_radius;
-        if gap < 2.0 * diameter.max() {
-            return Err(ctx.bad(
-                "intruder.diameter",
-                i.diameter,
-                format!(
-                    "leaves a gap of {gap:e} m to the container wall, less than two grain diameters ({:e} m): grains could not flow past the intruder",
-                    2.0 * diameter.max()
-                ),
-            ));
-        }
-        if final_depth >= intruder_length {
-            return Err(ctx.bad(
-                "intruder.final_depth",
-                final_depth,
-                "the intruder would be buried: must be < intruder.length",
-            ));
-        }
-
-        let mat = &materials[grain_type];
-        let rayleigh = super::rayleigh_time(
-            0.5 * diameter.min(),
-            density,
-            mat.shear_modulus,
-            mat.poisson_ratio,
-        );
-        let dt = positive(&ctx, "simulation.dt", raw.simulation.dt)?;
-        if dt > rayleigh {
-            return Err(ctx.bad("simulation.dt", dt, format!("exceeds the Rayleigh time {rayleigh:.3e} s of the smallest grain; use <= 20% of it ({:.3e} s)", 0.2 * rayleigh)));
-        }
-        let gravity = positive(&ctx, "simulation.gravity", raw.simulation.gravity)?;
-        let neighbor_skin = match raw.simulation.neighbor_skin {
-            Some(s) => positive(&ctx, "simulation.neighbor_skin", s)?,
-            None => 0.25 * diameter.min(),
-        };
+        let grains = bed_grains(&ctx, &raw, n_types, &family)?;
+        let count = bed_count(&ctx, &raw.bed, &grains, container_radius, container_height)?;
+        let (settle_ke_ratio, max_settle_time) = preparation(&ctx, &raw.preparation)?;
+        let intruder = intruder_params(&ctx, &raw.intruder, container_radius, grains.diameter)?;
+        let time = timing(&ctx, &raw.simulation, &materials[grain_type], &grains)?;
         let fit_h_min = positive(&ctx, "analysis.fit_h_min", raw.analysis.fit_h_min)?;
-        let tolerances = raw.compare.unwrap_or_default();
-        for (f, v) in [
-            ("compare.k_phi_rel", tolerances.k_phi_rel),
-            ("compare.fdr_distance", tolerances.fdr_distance),
-            ("compare.h_a_abs", tolerances.h_a_abs),
-            ("compare.h_b_abs", tolerances.h_b_abs),
-            ("compare.quasi_static_k_rel", tolerances.quasi_static_k_rel),
-            ("compare.published_k_rel", tolerances.published_k_rel),
-            ("compare.phi_abs_deg", tolerances.phi_abs_deg),
-            ("compare.malt_k_rel", tolerances.malt_k_rel),
-            ("compare.malt_phi_abs_deg", tolerances.malt_phi_abs_deg),
-        ] {
-            positive(&ctx, f, v)?;
-        }
-        let k_phi_range = match raw.analysis.k_phi_range.as_deref() {
-            None | Some("open") => KPhiRange::Open,
-            Some("rule3") => KPhiRange::Rule3,
-            Some(o) => {
-                return Err(ctx.bad("analysis.k_phi_range", o, "must be \"open\" or \"rule3\""));
-            }
-        };
-        let phi_estimator = match raw.analysis.phi_estimator.as_deref() {
-            None | Some("v1") => PhiEstimator::V1,
-            Some("v2") => PhiEstimator::V2,
-            Some(o) => {
-                return Err(ctx.bad("analysis.phi_estimator", o, "must be \"v1\" or \"v2\""));
-            }
-        };
-        let h_bin = match raw.analysis.h_bin {
-            Some(b) => positive(&ctx, "analysis.h_bin", b)?,
-            None => 0.01,
-        };
-        if h_bin > 0.1 * fit_h_min.max(final_depth / intruder_radius - fit_h_min) {
-            return Err(ctx.bad(
-                "analysis.h_bin",
-                h_bin,
-                "too coarse: regime C would hold fewer than 10 bins",
-            ));
-        }
-        let ensemble_beds = match raw.ensemble {
-            Some(Ensemble { beds: 0 }) => {
-                return Err(ctx.bad("ensemble.beds", 0, "must be >= 1"));
-            }
-            Some(e) => e.beds,
-            None => 1,
-        };
-        let quasi_static_speed = match raw.quasi_static {
-            Some(q) => {
-                let v = positive(&ctx, "quasi_static.speed", q.speed)?;
-                if v == speed {
-                    return Err(ctx.bad(
-                        "quasi_static.speed",
-                        v,
-                        "equals intruder.speed: the test needs a second speed",
-                    ));
-                }
-                Some(v)
-            }
-            None => None,
-        };
-        if let Some(p) = &raw.published {
-            positive(&ctx, "published.k_phi", p.k_phi)?;
-            if p.source.trim().is_empty() {
-                return Err(ctx.bad("published.source", &p.source, "cite the table or figure"));
-            }
-        }
-        if let Some(p) = &raw.published_phi {
-            if !(p.phi_deg.is_finite() && p.phi_deg > 0.0 && p.phi_deg < 60.0) {
-                return Err(ctx.bad(
-                    "published_phi.phi_deg",
-                    p.phi_deg,
-                    "must lie in (0, 60) deg (the MALT domain)",
-                ));
-            }
-            positive(&ctx, "published_phi.abs_deg", p.abs_deg)?;
-            if p.source.trim().is_empty() {
-                return Err(ctx.bad(
-                    "published_phi.source",
-                    &p.source,
-                    "cite the table or figure",
-                ));
-            }
-        }
+        let tolerances = tolerances(&ctx, raw.compare)?;
+        let fit = fit_options(&ctx, &raw.analysis, fit_h_min, &intruder)?;
+        let ensemble_beds = ensemble_beds(&ctx, raw.ensemble)?;
+        let quasi_static_speed = quasi_static_speed(&ctx, raw.quasi_static, intruder.speed)?;
+        published(&ctx, raw.published.as_ref(), raw.published_phi.as_ref())?;
         if !(tolerances.unified_r2_min > 0.0 && tolerances.unified_r2_min < 1.0) {
             return Err(ctx.bad(
                 "compare.unified_r2_min",
@@ -885,78 +633,16 @@ impl PenetrationCase {
                 "must lie in (0, 1)",
             ));
         }
-        let h_final = final_depth / intruder_radius;
-        // The default list is cut at the final depth (a shallow case keeps loading); an
-        // explicit list is validated entry by entry.
-        let requested: Vec<f64> = match raw.analysis.snapshot_h.as_deref() {
-            Some(list) => list.to_vec(),
-            None => DEFAULT_SNAPSHOT_H
-                .iter()
-                .copied()
-                .filter(|&h| h < h_final)
-                .collect(),
-        };
-        let mut snapshot_h = Vec::new();
-        for (k, &h) in requested.iter().enumerate() {
-            let field = format!("analysis.snapshot_h[{k}]");
-            if !(h.is_finite() && h > 0.0 && h < h_final) {
-                return Err(ctx.bad(
-                    &field,
-                    h,
-                    format!(
-                        "must lie in (0, {h_final:.4}) (depth / R; the final depth {h_final:.4} is always added)"
-                    ),
-                ));
-            }
-            if snapshot_h.last().is_some_and(|&p| h <= p) {
-                return Err(ctx.bad(&field, h, "snapshot depths must be strictly ascending"));
-            }
-            snapshot_h.push(h);
-        }
-        snapshot_h.push(h_final);
-        let snapshot_window = match raw.analysis.snapshot_window {
-            Some(0) => {
-                return Err(ctx.bad(
-                    "analysis.snapshot_window",
-                    0,
-                    "must be >= 1 (snapshots per depth; 1 = no time averaging)",
-                ));
-            }
-            Some(n) => n,
-            None => DEFAULT_SNAPSHOT_WINDOW,
-        };
-        let (snapshot_window_h, span_origin) = match raw.analysis.snapshot_window_h {
-            Some(w) => (positive(&ctx, "analysis.snapshot_window_h", w)?, ""),
-            None => (d_mean / intruder_radius, " (the default, d_mean / R)"),
-        };
-        if snapshot_window_h >= h_final {
-            return Err(ctx.bad(
-                "analysis.snapshot_window_h",
-                snapshot_window_h,
-                format!(
-                    "must be shorter than the whole travel h_final = {h_final:.4}{span_origin}: a window would average over the entire penetration"
-                ),
-            ));
-        }
-        // Distinct snapshots need at least one time step of travel between them.
-        let travel_per_step = speed * dt / intruder_radius;
-        for w in snapshot_windows(&snapshot_h, h_final, snapshot_window, snapshot_window_h) {
-            let gap =
-                w.h.windows(2)
-                    .map(|p| p[1] - p[0])
-                    .fold(f64::INFINITY, f64::min);
-            if gap < travel_per_step {
-                return Err(ctx.bad(
-                    "analysis.snapshot_window",
-                    snapshot_window,
-                    format!(
-                        "the window around h = {:.4} spaces its snapshots {gap:.3e} R apart, less than one time step of travel ({travel_per_step:.3e} R); use fewer snapshots or a wider analysis.snapshot_window_h (now {snapshot_window_h:.4}{span_origin})",
-                        w.h_target
-                    ),
-                ));
-            }
-        }
-
+        let h_final = intruder.final_depth / intruder.radius;
+        let snapshot_h = snapshot_depths(&ctx, raw.analysis.snapshot_h.as_deref(), h_final)?;
+        let (snapshot_window, snapshot_window_h) = snapshot_spans(
+            &ctx,
+            &raw.analysis,
+            &snapshot_h,
+            grains.diameter.mean(),
+            &intruder,
+            time.dt,
+        )?;
         let negative_controls =
             super::control::controls(&ctx, &raw.negative_control, n_types, PENETRATION_GATES)?;
         super::control::check_applicable(
@@ -964,7 +650,7 @@ impl PenetrationCase {
             &negative_controls,
             &super::control::Targets {
                 spheres: Some((&pairs, &materials, rolling != super::RollingModel::None)),
-                clumps: clump.is_some(),
+                clumps: grains.clump.is_some(),
             },
         )?;
         Ok(PenetrationCase {
@@ -973,9 +659,9 @@ impl PenetrationCase {
             name: raw.case.name,
             description: raw.case.description,
             source: path.to_path_buf(),
-            dt,
-            gravity,
-            neighbor_skin,
+            dt: time.dt,
+            gravity: time.gravity,
+            neighbor_skin: time.neighbor_skin,
             rolling,
             materials,
             pairs,
@@ -985,22 +671,22 @@ impl PenetrationCase {
             wall_type,
             grain_type,
             intruder_type,
-            density,
-            diameter,
+            density: grains.density,
+            diameter: grains.diameter,
             count,
-            clump,
+            clump: grains.clump,
             seed: raw.bed.seed,
             settle_ke_ratio,
             max_settle_time,
-            intruder_radius,
-            intruder_length,
-            speed,
-            start_gap,
-            final_depth,
-            force_every: i.force_every,
-            stl_rim_error,
+            intruder_radius: intruder.radius,
+            intruder_length: intruder.length,
+            speed: intruder.speed,
+            start_gap: intruder.start_gap,
+            final_depth: intruder.final_depth,
+            force_every: raw.intruder.force_every,
+            stl_rim_error: intruder.stl_rim_error,
             fit_h_min,
-            h_bin,
+            h_bin: fit.h_bin,
             snapshot_h,
             snapshot_window,
             snapshot_window_h,
@@ -1009,12 +695,488 @@ impl PenetrationCase {
             quasi_static_speed,
             published: raw.published,
             published_phi: raw.published_phi,
-            rayleigh_time: rayleigh,
-            k_phi_range,
-            phi_estimator,
+            rayleigh_time: time.rayleigh,
+            k_phi_range: fit.k_phi_range,
+            phi_estimator: fit.phi_estimator,
             warnings: Vec::new(),
         })
     }
+}
+
+/// The pair table the intruder penetrates with and, when `[[penetration_interactions]]`
+/// overrides some pairs, the table the bed was poured and settled with (Feng et al.
+/// Sec. 3 sweep one parameter at a fixed packing; here the packing is the very same bed).
+fn penetration_pairs(
+    ctx: &Ctx,
+    raw: &File,
+    bed_pairs: PairTable,
+) -> Result<(PairTable, Option<PairTable>), CaseError> {
+    if raw.penetration_interactions.is_empty() {
+        return Ok((bed_pairs, None));
+    }
+    let p = override_pairs(
+        ctx,
+        &bed_pairs,
+        &raw.penetration_interactions,
+        "penetration_interactions",
+    )?;
+    Ok((p, Some(bed_pairs)))
+}
+
+/// `[bed]`'s grains, validated: density, diameter distribution and, for a bed of
+/// non-spherical grains, its clump template.
+struct BedGrains {
+    density: f64,
+    diameter: Diameter,
+    clump: Option<Box<super::clumps::ClumpTemplate>>,
+}
+
+/// `[bed]` density and diameter distribution (each of its parameters positive, the
+/// Gaussian's mean between its cut-offs, the uniform one's half width below its mean),
+/// and the clump template of a bed of non-spherical grains, which only LIGGGHTS' fix
+/// multisphere runs.
+fn bed_grains(
+    ctx: &Ctx,
+    raw: &File,
+    n_types: usize,
+    family: &ContactFamily,
+) -> Result<BedGrains, CaseError> {
+    let density = positive(ctx, "bed.density", raw.bed.density)?;
+    let diameter = raw.bed.diameter;
+    match diameter {
+        Diameter::Constant { value } => {
+            positive(ctx, "bed.diameter.value", value)?;
+        }
+        Diameter::Gaussian {
+            mean,
+            std,
+            min,
+            max,
+        } => {
+            positive(ctx, "bed.diameter.mean", mean)?;
+            positive(ctx, "bed.diameter.std", std)?;
+            positive(ctx, "bed.diameter.min", min)?;
+            if !(min <= mean && mean <= max) {
+                return Err(ctx.bad("bed.diameter", (min, mean, max), "need min <= mean <= max"));
+            }
+        }
+        Diameter::Uniform { mean, half_width } => {
+            positive(ctx, "bed.diameter.mean", mean)?;
+            let hw = finite(ctx, "bed.diameter.half_width", half_width)?;
+            if !(0.0..mean).contains(&hw) {
+                return Err(ctx.bad("bed.diameter.half_width", hw, "must lie in [0, mean)"));
+            }
+        }
+    }
+    let clump = bed_clump(
+        ctx,
+        &raw.clump_templates,
+        &raw.bed,
+        n_types,
+        density,
+        diameter,
+    )?;
+    if clump.is_some() && *family != ContactFamily::Liggghts {
+        return Err(ctx.bad(
+            "models.family",
+            "lammps",
+            "a clump bed is LIGGGHTS' fix multisphere; the LAMMPS penetration deck takes sphere beds only",
+        ));
+    }
+    Ok(BedGrains {
+        density,
+        diameter,
+        clump,
+    })
+}
+
+/// `[bed]` count, or the count that fills the container to `fill_height` at the solid
+/// fraction `packing_guess` (spheres of the mean diameter, or clumps), a height below
+/// the container's.
+fn bed_count(
+    ctx: &Ctx,
+    bed: &Bed,
+    grains: &BedGrains,
+    container_radius: f64,
+    container_height: f64,
+) -> Result<usize, CaseError> {
+    let packing_guess = bed.packing_guess;
+    if !(packing_guess > 0.0 && packing_guess < 0.75) {
+        return Err(ctx.bad("bed.packing_guess", packing_guess, "must lie in (0, 0.75)"));
+    }
+    match (bed.count, bed.fill_height) {
+        (Some(n), None) if n > 0 => Ok(n),
+        (Some(n), None) => Err(ctx.bad("bed.count", n, "must be >= 1")),
+        (None, Some(h)) => {
+            let h = positive(ctx, "bed.fill_height", h)?;
+            if h >= container_height {
+                return Err(ctx.bad(
+                    "bed.fill_height",
+                    h,
+                    format!("the bed would overflow the container (container.height = {container_height:e} m)"),
+                ));
+            }
+            let v_grain = match &grains.clump {
+                Some(t) => t.volume,
+                None => std::f64::consts::PI / 6.0 * grains.diameter.mean().powi(3),
+            };
+            Ok(
+                (packing_guess * std::f64::consts::PI * container_radius.powi(2) * h / v_grain)
+                    .round() as usize,
+            )
+        }
+        (Some(_), Some(_)) => Err(ctx.bad(
+            "bed.count",
+            "both given",
+            "give count or fill_height, not both",
+        )),
+        (None, None) => Err(ctx.bad("bed.count", "missing", "give count or fill_height")),
+    }
+}
+
+/// `[preparation]`: the settling criterion (Sec. 2: mean KE below 1e-7 of its value at
+/// the end of pouring) and the time after which settling gives up.
+fn preparation(ctx: &Ctx, p: &Preparation) -> Result<(f64, f64), CaseError> {
+    let settle_ke_ratio = positive(ctx, "preparation.settle_ke_ratio", p.settle_ke_ratio)?;
+    let max_settle_time = positive(ctx, "preparation.max_settle_time", p.max_settle_time)?;
+    Ok((settle_ke_ratio, max_settle_time))
+}
+
+/// `[intruder]`, validated (SI); its type and `force_every` are the file's.
+struct IntruderParams {
+    radius: f64,
+    length: f64,
+    speed: f64,
+    start_gap: f64,
+    final_depth: f64,
+    stl_rim_error: f64,
+}
+
+/// `[intruder]`: its size, speed, start and final depth, force interval and the STL's
+/// rim error; it must leave grains room to flow past it in the container (`diameter`
+/// is the grains') and must not be buried at the final depth.
+fn intruder_params(
+    ctx: &Ctx,
+    i: &Intruder,
+    container_radius: f64,
+    diameter: Diameter,
+) -> Result<IntruderParams, CaseError> {
+    let radius = 0.5 * positive(ctx, "intruder.diameter", i.diameter)?;
+    let length = positive(ctx, "intruder.length", i.length)?;
+    let speed = positive(ctx, "intruder.speed", i.speed)?;
+    let start_gap = finite(ctx, "intruder.start_gap", i.start_gap)?;
+    if start_gap < 0.0 {
+        return Err(ctx.bad(
+            "intruder.start_gap",
+            start_gap,
+            "must be >= 0 (the intruder starts above the bed)",
+        ));
+    }
+    let final_depth = positive(ctx, "intruder.final_depth", i.final_depth)?;
+    if i.force_every == 0 {
+        return Err(ctx.bad("intruder.force_every", 0, "must be >= 1"));
+    }
+    let stl_rim_error = positive(ctx, "intruder.stl_rim_error", i.stl_rim_error)?;
+    if stl_rim_error >= 0.1 {
+        return Err(ctx.bad(
+            "intruder.stl_rim_error",
+            stl_rim_error,
+            "must be below 0.1 (an STL that far inside the cylinder is not the same intruder)",
+        ));
+    }
+    if radius >= container_radius {
+        return Err(ctx.bad(
+            "intruder.diameter",
+            i.diameter,
+            "must be smaller than the container diameter",
+        ));
+    }
+    let gap = container_radius - radius;
+    if gap < 2.0 * diameter.max() {
+        return Err(ctx.bad(
+            "intruder.diameter",
+            i.diameter,
+            format!(
+                "leaves a gap of {gap:e} m to the container wall, less than two grain diameters ({:e} m): grains could not flow past the intruder",
+                2.0 * diameter.max()
+            ),
+        ));
+    }
+    if final_depth >= length {
+        return Err(ctx.bad(
+            "intruder.final_depth",
+            final_depth,
+            "the intruder would be buried: must be < intruder.length",
+        ));
+    }
+    Ok(IntruderParams {
+        radius,
+        length,
+        speed,
+        start_gap,
+        final_depth,
+        stl_rim_error,
+    })
+}
+
+/// `[simulation]`, validated (SI), with the Rayleigh time of the smallest grain.
+struct Timing {
+    dt: f64,
+    rayleigh: f64,
+    gravity: f64,
+    neighbor_skin: f64,
+}
+
+/// `[simulation]`: the time step against the Rayleigh time of the smallest grain of
+/// material `mat` (Feng uses 20% of it), gravity, and the skin (default a quarter of the
+/// smallest diameter).
+fn timing(ctx: &Ctx, s: &Sim, mat: &Material, grains: &BedGrains) -> Result<Timing, CaseError> {
+    let diameter = grains.diameter;
+    let rayleigh = super::rayleigh_time(
+        0.5 * diameter.min(),
+        grains.density,
+        mat.shear_modulus,
+        mat.poisson_ratio,
+    );
+    let dt = positive(ctx, "simulation.dt", s.dt)?;
+    if dt > rayleigh {
+        return Err(ctx.bad("simulation.dt", dt, format!("exceeds the Rayleigh time {rayleigh:.3e} s of the smallest grain; use <= 20% of it ({:.3e} s)", 0.2 * rayleigh)));
+    }
+    let gravity = positive(ctx, "simulation.gravity", s.gravity)?;
+    let neighbor_skin = match s.neighbor_skin {
+        Some(skin) => positive(ctx, "simulation.neighbor_skin", skin)?,
+        None => 0.25 * diameter.min(),
+    };
+    Ok(Timing {
+        dt,
+        rayleigh,
+        gravity,
+        neighbor_skin,
+    })
+}
+
+/// `[compare]` (defaults where absent): every tolerance positive. The unified fit's
+/// R^2 floor, a fraction in (0, 1), is checked after the published values.
+fn tolerances(ctx: &Ctx, compare: Option<Tolerances>) -> Result<Tolerances, CaseError> {
+    let tolerances = compare.unwrap_or_default();
+    for (f, v) in [
+        ("compare.k_phi_rel", tolerances.k_phi_rel),
+        ("compare.fdr_distance", tolerances.fdr_distance),
+        ("compare.h_a_abs", tolerances.h_a_abs),
+        ("compare.h_b_abs", tolerances.h_b_abs),
+        ("compare.quasi_static_k_rel", tolerances.quasi_static_k_rel),
+        ("compare.published_k_rel", tolerances.published_k_rel),
+        ("compare.phi_abs_deg", tolerances.phi_abs_deg),
+        ("compare.malt_k_rel", tolerances.malt_k_rel),
+        ("compare.malt_phi_abs_deg", tolerances.malt_phi_abs_deg),
+    ] {
+        positive(ctx, f, v)?;
+    }
+    Ok(tolerances)
+}
+
+/// `[analysis]`'s choices of fit, validated.
+struct FitOptions {
+    k_phi_range: KPhiRange,
+    phi_estimator: PhiEstimator,
+    h_bin: f64,
+}
+
+/// `[analysis]`: where the K_phi fit ends (docs/stress.md rule 3), the gated phi
+/// estimator (rule 2), and the width of the force bins, fine enough that regime C (from
+/// `fit_h_min` to the final depth) holds at least 10 of them.
+fn fit_options(
+    ctx: &Ctx,
+    a: &Analysis,
+    fit_h_min: f64,
+    intruder: &IntruderParams,
+) -> Result<FitOptions, CaseError> {
+    let k_phi_range = match a.k_phi_range.as_deref() {
+        None | Some("open") => KPhiRange::Open,
+        Some("rule3") => KPhiRange::Rule3,
+        Some(o) => {
+            return Err(ctx.bad("analysis.k_phi_range", o, "must be \"open\" or \"rule3\""));
+        }
+    };
+    let phi_estimator = match a.phi_estimator.as_deref() {
+        None | Some("v1") => PhiEstimator::V1,
+        Some("v2") => PhiEstimator::V2,
+        Some(o) => {
+            return Err(ctx.bad("analysis.phi_estimator", o, "must be \"v1\" or \"v2\""));
+        }
+    };
+    let h_bin = match a.h_bin {
+        Some(b) => positive(ctx, "analysis.h_bin", b)?,
+        None => 0.01,
+    };
+    if h_bin > 0.1 * fit_h_min.max(intruder.final_depth / intruder.radius - fit_h_min) {
+        return Err(ctx.bad(
+            "analysis.h_bin",
+            h_bin,
+            "too coarse: regime C would hold fewer than 10 bins",
+        ));
+    }
+    Ok(FitOptions {
+        k_phi_range,
+        phi_estimator,
+        h_bin,
+    })
+}
+
+/// `[ensemble] beds` (default 1): granular penetration is chaotic, so the engines are
+/// compared on ensemble means of at least one bed.
+fn ensemble_beds(ctx: &Ctx, e: Option<Ensemble>) -> Result<usize, CaseError> {
+    match e {
+        Some(Ensemble { beds: 0 }) => Err(ctx.bad("ensemble.beds", 0, "must be >= 1")),
+        Some(e) => Ok(e.beds),
+        None => Ok(1),
+    }
+}
+
+/// `[quasi_static] speed`: Sec. 3's quasi-static test needs a second speed, other than
+/// the intruder's `speed`.
+fn quasi_static_speed(
+    ctx: &Ctx,
+    q: Option<QuasiStatic>,
+    speed: f64,
+) -> Result<Option<f64>, CaseError> {
+    let Some(q) = q else {
+        return Ok(None);
+    };
+    let v = positive(ctx, "quasi_static.speed", q.speed)?;
+    if v == speed {
+        return Err(ctx.bad(
+            "quasi_static.speed",
+            v,
+            "equals intruder.speed: the test needs a second speed",
+        ));
+    }
+    Ok(Some(v))
+}
+
+/// `[published]` and `[published_phi]`: a published K_phi (e.g. Table 3) and phi, each
+/// citing its table or figure; phi within the MALT domain (0, 60) deg.
+fn published(
+    ctx: &Ctx,
+    published: Option<&Published>,
+    published_phi: Option<&PublishedPhi>,
+) -> Result<(), CaseError> {
+    if let Some(p) = published {
+        positive(ctx, "published.k_phi", p.k_phi)?;
+        if p.source.trim().is_empty() {
+            return Err(ctx.bad("published.source", &p.source, "cite the table or figure"));
+        }
+    }
+    if let Some(p) = published_phi {
+        if !(p.phi_deg.is_finite() && p.phi_deg > 0.0 && p.phi_deg < 60.0) {
+            return Err(ctx.bad(
+                "published_phi.phi_deg",
+                p.phi_deg,
+                "must lie in (0, 60) deg (the MALT domain)",
+            ));
+        }
+        positive(ctx, "published_phi.abs_deg", p.abs_deg)?;
+        if p.source.trim().is_empty() {
+            return Err(ctx.bad(
+                "published_phi.source",
+                &p.source,
+                "cite the table or figure",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `[analysis] snapshot_h`, ending with the final depth `h_final`: the requested depths
+/// of the contact snapshots (Feng et al. Fig 5), each inside the travel and strictly
+/// ascending.
+fn snapshot_depths(ctx: &Ctx, list: Option<&[f64]>, h_final: f64) -> Result<Vec<f64>, CaseError> {
+    // The default list is cut at the final depth (a shallow case keeps loading); an
+    // explicit list is validated entry by entry.
+    let requested: Vec<f64> = match list {
+        Some(list) => list.to_vec(),
+        None => DEFAULT_SNAPSHOT_H
+            .iter()
+            .copied()
+            .filter(|&h| h < h_final)
+            .collect(),
+    };
+    let mut snapshot_h = Vec::new();
+    for (k, &h) in requested.iter().enumerate() {
+        let field = format!("analysis.snapshot_h[{k}]");
+        if !(h.is_finite() && h > 0.0 && h < h_final) {
+            return Err(ctx.bad(
+                &field,
+                h,
+                format!(
+                    "must lie in (0, {h_final:.4}) (depth / R; the final depth {h_final:.4} is always added)"
+                ),
+            ));
+        }
+        if snapshot_h.last().is_some_and(|&p| h <= p) {
+            return Err(ctx.bad(&field, h, "snapshot depths must be strictly ascending"));
+        }
+        snapshot_h.push(h);
+    }
+    snapshot_h.push(h_final);
+    Ok(snapshot_h)
+}
+
+/// `[analysis] snapshot_window` and `snapshot_window_h`: snapshots per depth and the
+/// travel each window spans (default one mean grain diameter `d_mean`), shorter than the
+/// whole travel, with at least one time step `dt` of travel between its snapshots.
+fn snapshot_spans(
+    ctx: &Ctx,
+    a: &Analysis,
+    snapshot_h: &[f64],
+    d_mean: f64,
+    intruder: &IntruderParams,
+    dt: f64,
+) -> Result<(usize, f64), CaseError> {
+    let h_final = intruder.final_depth / intruder.radius;
+    let snapshot_window = match a.snapshot_window {
+        Some(0) => {
+            return Err(ctx.bad(
+                "analysis.snapshot_window",
+                0,
+                "must be >= 1 (snapshots per depth; 1 = no time averaging)",
+            ));
+        }
+        Some(n) => n,
+        None => DEFAULT_SNAPSHOT_WINDOW,
+    };
+    let (snapshot_window_h, span_origin) = match a.snapshot_window_h {
+        Some(w) => (positive(ctx, "analysis.snapshot_window_h", w)?, ""),
+        None => (d_mean / intruder.radius, " (the default, d_mean / R)"),
+    };
+    if snapshot_window_h >= h_final {
+        return Err(ctx.bad(
+            "analysis.snapshot_window_h",
+            snapshot_window_h,
+            format!(
+                "must be shorter than the whole travel h_final = {h_final:.4}{span_origin}: a window would average over the entire penetration"
+            ),
+        ));
+    }
+    // Distinct snapshots need at least one time step of travel between them.
+    let travel_per_step = intruder.speed * dt / intruder.radius;
+    for w in snapshot_windows(snapshot_h, h_final, snapshot_window, snapshot_window_h) {
+        let gap =
+            w.h.windows(2)
+                .map(|p| p[1] - p[0])
+                .fold(f64::INFINITY, f64::min);
+        if gap < travel_per_step {
+            return Err(ctx.bad(
+                "analysis.snapshot_window",
+                snapshot_window,
+                format!(
+                    "the window around h = {:.4} spaces its snapshots {gap:.3e} R apart, less than one time step of travel ({travel_per_step:.3e} R); use fewer snapshots or a wider analysis.snapshot_window_h (now {snapshot_window_h:.4}{span_origin})",
+                    w.h_target
+                ),
+            ));
+        }
+    }
+    Ok((snapshot_window, snapshot_window_h))
 }
 
 /// Plausibility warnings of a penetration case as written ([`super::plausible`]).

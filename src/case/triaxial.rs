@@ -6,7 +6,7 @@
 //! validated once; all SI.
 
 use super::error::CaseError;
-use super::validate::{physics, positive};
+use super::validate::{material_type, physics, positive};
 use super::{Gate, Material, NegativeControl, PairTable, RollingModel, schema};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -264,6 +264,8 @@ impl TriaxialCase {
         Ok(case)
     }
 
+    /// Validates a parsed file one section at a time, in the order of the calls below;
+    /// the first error found is the one reported.
     fn validated(
         raw: File,
         ctx: super::error::Ctx,
@@ -272,149 +274,21 @@ impl TriaxialCase {
         let (rolling, materials, pairs) =
             physics(&ctx, &raw.models, &raw.materials, &raw.interactions, false)?;
         let n_types = materials.len();
-        let ty = |field: &str, t: usize| -> Result<usize, CaseError> {
-            if t < 1 || t > n_types {
-                Err(ctx.bad(
-                    field,
-                    t,
-                    format!("must be a material type in 1..={n_types}"),
-                ))
-            } else {
-                Ok(t - 1)
-            }
-        };
-        let s = &raw.sample;
-        let grain_type = ty("sample.type", s.type_)?;
-        let wall_type = ty("sample.wall_type", s.wall_type)?;
-        if grain_type == wall_type {
-            return Err(ctx.bad(
-                "sample.wall_type",
-                s.wall_type,
-                "the walls need their own type (frictionless against the grains, docs/stress.md rule 5)",
-            ));
-        }
-        if s.grains < 8 {
-            return Err(ctx.bad("sample.grains", s.grains, "must be >= 8"));
-        }
-        let diameter = positive(&ctx, "sample.diameter", s.diameter)?;
-        let density = positive(&ctx, "sample.density", s.density)?;
-        let solid_fraction = positive(&ctx, "sample.solid_fraction", s.solid_fraction)?;
-        if s.seeds.is_empty() {
-            return Err(ctx.bad("sample.seeds", "[]", "give at least one seed"));
-        }
-        for (k, a) in s.seeds.iter().enumerate() {
-            if s.seeds[..k].contains(a) {
-                return Err(ctx.bad(format!("sample.seeds[{k}]"), a, "seeds must differ"));
-            }
-        }
-        let g = raw.servo;
-        for (f, v) in [("servo.kp", g.kp), ("servo.ki", g.ki), ("servo.kd", g.kd)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(ctx.bad(f, v, "must be >= 0 (LIGGGHTS: kp, ki, kd >= 0)"));
-            }
-        }
-        if g.kp == 0.0 && g.ki == 0.0 && g.kd == 0.0 {
-            return Err(ctx.bad(
-                "servo.kp",
-                0.0,
-                "kp, ki and kd are all zero: the servo would not move",
-            ));
-        }
-        positive(&ctx, "servo.vel_max", g.vel_max)?;
-        let c = &raw.compaction;
-        let stress_tolerance = positive(&ctx, "compaction.stress_tolerance", c.stress_tolerance)?;
-        if stress_tolerance >= 1.0 {
-            return Err(ctx.bad(
-                "compaction.stress_tolerance",
-                stress_tolerance,
-                "must be below 1 (a fraction of sigma_c)",
-            ));
-        }
-        let ke_factor = positive(&ctx, "compaction.ke_factor", c.ke_factor)?;
-        let max_compaction_time = positive(&ctx, "compaction.max_time", c.max_time)?;
-        if c.check_every == 0 {
-            return Err(ctx.bad("compaction.check_every", 0, "must be >= 1"));
-        }
-        let sh = &raw.shear;
-        if sh.confining_pressures.is_empty() {
-            return Err(ctx.bad(
-                "shear.confining_pressures",
-                "[]",
-                "give at least one pressure",
-            ));
-        }
-        for (k, p) in sh.confining_pressures.iter().enumerate() {
-            positive(&ctx, &format!("shear.confining_pressures[{k}]"), *p)?;
-            if sh.confining_pressures[..k].contains(p) {
-                return Err(ctx.bad(
-                    format!("shear.confining_pressures[{k}]"),
-                    p,
-                    "pressures must differ",
-                ));
-            }
-        }
-        let strain_rate = positive(&ctx, "shear.strain_rate", sh.strain_rate)?;
-        let final_strain = positive(&ctx, "shear.final_strain", sh.final_strain)?;
-        if final_strain >= 0.9 {
-            return Err(ctx.bad(
-                "shear.final_strain",
-                final_strain,
-                "must be below 0.9 (the z_hi wall would reach the grains of the floor)",
-            ));
-        }
-        if sh.output_every == 0 {
-            return Err(ctx.bad("shear.output_every", 0, "must be >= 1"));
-        }
-        let a = &raw.analysis;
-        let peak_window = positive(&ctx, "analysis.peak_window", a.peak_window)?;
-        let block = positive(&ctx, "analysis.block", a.block)?;
-        let [c0, c1] = a.critical_state;
-        if !(c0.is_finite() && c0 >= 0.0 && c1 > c0 && c1 <= final_strain + 1e-12) {
-            return Err(ctx.bad(
-                "analysis.critical_state",
-                a.critical_state,
-                format!("need 0 <= from < to <= shear.final_strain ({final_strain})"),
-            ));
-        }
-        if block > c1 - c0 {
-            return Err(ctx.bad(
-                "analysis.block",
-                block,
-                "wider than the critical-state window",
-            ));
-        }
-        if peak_window > final_strain {
-            return Err(ctx.bad(
-                "analysis.peak_window",
-                peak_window,
-                "wider than the whole shear",
-            ));
-        }
+        let sample = sample(&ctx, &raw.sample, n_types)?;
+        let g = servo(&ctx, raw.servo)?;
+        let compaction = compaction(&ctx, &raw.compaction)?;
+        let (strain_rate, final_strain) = shear(&ctx, &raw.shear)?;
+        let (peak_window, block) = analysis_windows(&ctx, &raw.analysis, final_strain)?;
         let tolerances = raw.compare.unwrap_or_default();
         positive(&ctx, "compare.phi_abs_deg", tolerances.phi_abs_deg)?;
-
-        let mat = &materials[grain_type];
-        let rayleigh = super::rayleigh_time(
-            0.5 * diameter,
-            density,
-            mat.shear_modulus,
-            mat.poisson_ratio,
-        );
-        let dt = positive(&ctx, "simulation.dt", raw.simulation.dt)?;
-        if dt > rayleigh {
-            return Err(ctx.bad("simulation.dt", dt, format!("exceeds the Rayleigh time {rayleigh:.3e} s of the grains; use <= 20% of it ({:.3e} s)", 0.2 * rayleigh)));
-        }
-        let neighbor_skin = match raw.simulation.neighbor_skin {
-            Some(v) => positive(&ctx, "simulation.neighbor_skin", v)?,
-            None => 0.25 * diameter,
-        };
-        if g.vel_max >= neighbor_skin / (2.0 * dt) {
-            return Err(ctx.bad(
-                "servo.vel_max",
-                g.vel_max,
-                format!("must be below skin / (2 dt) = {:.4e} m/s (LIGGGHTS refuses it otherwise: a wall may not cross half the skin in one step)", neighbor_skin / (2.0 * dt)),
-            ));
-        }
+        let (dt, rayleigh, neighbor_skin) = timing(
+            &ctx,
+            &raw.simulation,
+            &materials[sample.grain_type],
+            &sample,
+            g.vel_max,
+        )?;
+        let (s, c, sh, a) = (&raw.sample, &raw.compaction, &raw.shear, &raw.analysis);
         let case = TriaxialCase {
             name: raw.case.name,
             description: raw.case.description,
@@ -424,17 +298,17 @@ impl TriaxialCase {
             rolling,
             materials,
             pairs,
-            grain_type,
-            wall_type,
+            grain_type: sample.grain_type,
+            wall_type: sample.wall_type,
             grains: s.grains,
-            diameter,
-            density,
-            solid_fraction,
+            diameter: sample.diameter,
+            density: sample.density,
+            solid_fraction: sample.solid_fraction,
             seeds: s.seeds.clone(),
             servo: g,
-            stress_tolerance,
-            ke_factor,
-            max_compaction_time,
+            stress_tolerance: compaction.stress_tolerance,
+            ke_factor: compaction.ke_factor,
+            max_compaction_time: compaction.max_time,
             check_every: c.check_every,
             confining_pressures: sh.confining_pressures.clone(),
             strain_rate,
@@ -465,17 +339,225 @@ impl TriaxialCase {
                 clumps: false,
             },
         )?;
-        let (side, n) = case.lattice_box();
-        let spacing = side / n as f64;
-        if spacing <= diameter {
-            return Err(ctx.bad(
-                "sample.solid_fraction",
-                solid_fraction,
-                format!("too dense for a cubic lattice of {n}^3 sites: spacing {spacing:.4e} m <= diameter"),
-            ));
-        }
+        lattice_fits(&ctx, &case)?;
         Ok(case)
     }
+}
+
+/// `[sample]`, validated: 0-based material types and the grains (SI).
+struct Sample {
+    grain_type: usize,
+    wall_type: usize,
+    diameter: f64,
+    density: f64,
+    solid_fraction: f64,
+}
+
+/// `[sample]`: the grains' and the walls' material types (distinct: the walls are
+/// frictionless against the grains, docs/stress.md rule 5), at least a 2^3 lattice of
+/// grains, their size, density and starting solid fraction, and distinct seeds.
+fn sample(ctx: &super::error::Ctx, s: &RawSample, n_types: usize) -> Result<Sample, CaseError> {
+    let grain_type = material_type(ctx, "sample.type", s.type_, n_types)?;
+    let wall_type = material_type(ctx, "sample.wall_type", s.wall_type, n_types)?;
+    if grain_type == wall_type {
+        return Err(ctx.bad(
+            "sample.wall_type",
+            s.wall_type,
+            "the walls need their own type (frictionless against the grains, docs/stress.md rule 5)",
+        ));
+    }
+    if s.grains < 8 {
+        return Err(ctx.bad("sample.grains", s.grains, "must be >= 8"));
+    }
+    let diameter = positive(ctx, "sample.diameter", s.diameter)?;
+    let density = positive(ctx, "sample.density", s.density)?;
+    let solid_fraction = positive(ctx, "sample.solid_fraction", s.solid_fraction)?;
+    if s.seeds.is_empty() {
+        return Err(ctx.bad("sample.seeds", "[]", "give at least one seed"));
+    }
+    for (k, a) in s.seeds.iter().enumerate() {
+        if s.seeds[..k].contains(a) {
+            return Err(ctx.bad(format!("sample.seeds[{k}]"), a, "seeds must differ"));
+        }
+    }
+    Ok(Sample {
+        grain_type,
+        wall_type,
+        diameter,
+        density,
+        solid_fraction,
+    })
+}
+
+/// `[servo]`: LIGGGHTS' gains must be >= 0 and not all zero (a servo that does not
+/// move), and a positive speed limit (checked against the skin with the time step).
+fn servo(ctx: &super::error::Ctx, g: ServoGains) -> Result<ServoGains, CaseError> {
+    for (f, v) in [("servo.kp", g.kp), ("servo.ki", g.ki), ("servo.kd", g.kd)] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(ctx.bad(f, v, "must be >= 0 (LIGGGHTS: kp, ki, kd >= 0)"));
+        }
+    }
+    if g.kp == 0.0 && g.ki == 0.0 && g.kd == 0.0 {
+        return Err(ctx.bad(
+            "servo.kp",
+            0.0,
+            "kp, ki and kd are all zero: the servo would not move",
+        ));
+    }
+    positive(ctx, "servo.vel_max", g.vel_max)?;
+    Ok(g)
+}
+
+/// `[compaction]`, validated (the check interval is taken as written).
+struct Compaction {
+    stress_tolerance: f64,
+    ke_factor: f64,
+    max_time: f64,
+}
+
+/// `[compaction]`: the criterion (wall stresses within a fraction below 1 of sigma_c,
+/// kinetic energy), its time limit and check interval.
+fn compaction(ctx: &super::error::Ctx, c: &RawCompaction) -> Result<Compaction, CaseError> {
+    let stress_tolerance = positive(ctx, "compaction.stress_tolerance", c.stress_tolerance)?;
+    if stress_tolerance >= 1.0 {
+        return Err(ctx.bad(
+            "compaction.stress_tolerance",
+            stress_tolerance,
+            "must be below 1 (a fraction of sigma_c)",
+        ));
+    }
+    let ke_factor = positive(ctx, "compaction.ke_factor", c.ke_factor)?;
+    let max_time = positive(ctx, "compaction.max_time", c.max_time)?;
+    if c.check_every == 0 {
+        return Err(ctx.bad("compaction.check_every", 0, "must be >= 1"));
+    }
+    Ok(Compaction {
+        stress_tolerance,
+        ke_factor,
+        max_time,
+    })
+}
+
+/// `[shear]`: distinct positive confining pressures, the strain rate, a final strain
+/// that keeps the z_hi wall off the floor's grains, and the output interval. Returns
+/// (strain rate, final strain).
+fn shear(ctx: &super::error::Ctx, sh: &RawShear) -> Result<(f64, f64), CaseError> {
+    if sh.confining_pressures.is_empty() {
+        return Err(ctx.bad(
+            "shear.confining_pressures",
+            "[]",
+            "give at least one pressure",
+        ));
+    }
+    for (k, p) in sh.confining_pressures.iter().enumerate() {
+        positive(ctx, &format!("shear.confining_pressures[{k}]"), *p)?;
+        if sh.confining_pressures[..k].contains(p) {
+            return Err(ctx.bad(
+                format!("shear.confining_pressures[{k}]"),
+                p,
+                "pressures must differ",
+            ));
+        }
+    }
+    let strain_rate = positive(ctx, "shear.strain_rate", sh.strain_rate)?;
+    let final_strain = positive(ctx, "shear.final_strain", sh.final_strain)?;
+    if final_strain >= 0.9 {
+        return Err(ctx.bad(
+            "shear.final_strain",
+            final_strain,
+            "must be below 0.9 (the z_hi wall would reach the grains of the floor)",
+        ));
+    }
+    if sh.output_every == 0 {
+        return Err(ctx.bad("shear.output_every", 0, "must be >= 1"));
+    }
+    Ok((strain_rate, final_strain))
+}
+
+/// `[analysis]`: the peak window and the critical-state window within the shear (up to
+/// `final_strain`), the blocks no wider than the latter. Returns (peak window, block).
+fn analysis_windows(
+    ctx: &super::error::Ctx,
+    a: &Analysis,
+    final_strain: f64,
+) -> Result<(f64, f64), CaseError> {
+    let peak_window = positive(ctx, "analysis.peak_window", a.peak_window)?;
+    let block = positive(ctx, "analysis.block", a.block)?;
+    let [c0, c1] = a.critical_state;
+    if !(c0.is_finite() && c0 >= 0.0 && c1 > c0 && c1 <= final_strain + 1e-12) {
+        return Err(ctx.bad(
+            "analysis.critical_state",
+            a.critical_state,
+            format!("need 0 <= from < to <= shear.final_strain ({final_strain})"),
+        ));
+    }
+    if block > c1 - c0 {
+        return Err(ctx.bad(
+            "analysis.block",
+            block,
+            "wider than the critical-state window",
+        ));
+    }
+    if peak_window > final_strain {
+        return Err(ctx.bad(
+            "analysis.peak_window",
+            peak_window,
+            "wider than the whole shear",
+        ));
+    }
+    Ok((peak_window, block))
+}
+
+/// `[simulation]`: the time step against the grains' Rayleigh time (material `mat`), the
+/// skin (default a quarter diameter), and the servo's speed limit `vel_max` below what
+/// LIGGGHTS accepts for them. Returns (dt, Rayleigh time, skin).
+fn timing(
+    ctx: &super::error::Ctx,
+    s: &Sim,
+    mat: &Material,
+    sample: &Sample,
+    vel_max: f64,
+) -> Result<(f64, f64, f64), CaseError> {
+    let diameter = sample.diameter;
+    let rayleigh = super::rayleigh_time(
+        0.5 * diameter,
+        sample.density,
+        mat.shear_modulus,
+        mat.poisson_ratio,
+    );
+    let dt = positive(ctx, "simulation.dt", s.dt)?;
+    if dt > rayleigh {
+        return Err(ctx.bad("simulation.dt", dt, format!("exceeds the Rayleigh time {rayleigh:.3e} s of the grains; use <= 20% of it ({:.3e} s)", 0.2 * rayleigh)));
+    }
+    let neighbor_skin = match s.neighbor_skin {
+        Some(v) => positive(ctx, "simulation.neighbor_skin", v)?,
+        None => 0.25 * diameter,
+    };
+    if vel_max >= neighbor_skin / (2.0 * dt) {
+        return Err(ctx.bad(
+            "servo.vel_max",
+            vel_max,
+            format!("must be below skin / (2 dt) = {:.4e} m/s (LIGGGHTS refuses it otherwise: a wall may not cross half the skin in one step)", neighbor_skin / (2.0 * dt)),
+        ));
+    }
+    Ok((dt, rayleigh, neighbor_skin))
+}
+
+/// The starting lattice must hold its grains apart: a cubic lattice of the case's box at
+/// its solid fraction, spaced wider than a grain.
+fn lattice_fits(ctx: &super::error::Ctx, case: &TriaxialCase) -> Result<(), CaseError> {
+    let (side, n) = case.lattice_box();
+    let spacing = side / n as f64;
+    if spacing <= case.diameter {
+        return Err(ctx.bad(
+            "sample.solid_fraction",
+            case.solid_fraction,
+            format!(
+                "too dense for a cubic lattice of {n}^3 sites: spacing {spacing:.4e} m <= diameter"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 super::validated_case!(TriaxialCase);

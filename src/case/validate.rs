@@ -325,6 +325,26 @@ pub(super) fn override_pairs(
     Ok(pairs)
 }
 
+/// A 1-based material type `t` of `field`, as a 0-based index into the case's
+/// `n_types` materials (penetration and triaxial cases name their grains', walls' and
+/// intruder's types so).
+pub(super) fn material_type(
+    ctx: &Ctx,
+    field: &str,
+    t: usize,
+    n_types: usize,
+) -> Result<usize, CaseError> {
+    if t < 1 || t > n_types {
+        Err(ctx.bad(
+            field,
+            t,
+            format!("must be a material type in 1..={n_types}"),
+        ))
+    } else {
+        Ok(t - 1)
+    }
+}
+
 /// Borrowed view so the shared validation reads like the original field accesses.
 struct Raw<'a> {
     models: &'a schema::Models,
@@ -332,6 +352,8 @@ struct Raw<'a> {
     interactions: &'a [schema::Interaction],
 }
 
+/// Validates a micro case file one section at a time, in the order of the calls below;
+/// the first error found is the one reported.
 pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseError> {
     let ctx = Ctx {
         file: path.to_path_buf(),
@@ -347,10 +369,64 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
     let (rolling, materials, pairs) =
         physics(&ctx, &raw.models, &raw.materials, &raw.interactions, true)?;
     let n_types = materials.len();
+    let (lo, hi) = domain(&ctx, &raw.domain)?;
+    let (particles, ids) = particles(&ctx, &raw, n_types, lo, hi)?;
+    let clumps = clumps(&ctx, &raw, n_types, lo, hi, &ids)?;
+    let walls = walls(&ctx, &raw.walls, n_types)?;
+    let time = timing(&ctx, &raw.simulation, &particles, &clumps, &materials)?;
+    clumps_start_still(&ctx, &particles, &clumps, time.gravity)?;
+    let neighbor_skin = neighbor_skin(&ctx, &raw.simulation, &particles, &clumps)?;
+    let tolerances = tolerances(&ctx, raw.compare.as_ref())?;
+    let expect = match raw.compare.as_ref().and_then(|c| c.expect.as_ref()) {
+        Some(list) => observations(&ctx, list)?,
+        None => default_expect(&particles, &clumps.bodies),
+    };
+    let negative_controls = micro_controls(&ctx, &raw, &pairs, &materials, rolling, &clumps)?;
+    let family = if super::family::is_lammps(&ctx, &raw.models)? {
+        ContactFamily::Lammps(super::family::lammps_models(
+            &ctx,
+            &raw.models,
+            &raw.interactions,
+            n_types,
+            &particles,
+            &walls,
+            !clumps.is_empty(),
+        )?)
+    } else {
+        ContactFamily::Liggghts
+    };
 
-    // Domain.
-    let lo = vec3(&ctx, "domain.lo", raw.domain.lo)?;
-    let hi = vec3(&ctx, "domain.hi", raw.domain.hi)?;
+    Ok(Case {
+        family,
+        negative_controls,
+        name: raw.case.name,
+        kind: raw.case.kind,
+        description: raw.case.description,
+        source: path.to_path_buf(),
+        dt: time.dt,
+        n_steps: time.n_steps as u64,
+        output_every: raw.simulation.output_every,
+        gravity: time.gravity,
+        neighbor_skin,
+        rolling,
+        domain_lo: lo,
+        domain_hi: hi,
+        materials,
+        pairs,
+        particles,
+        walls,
+        clumps,
+        tolerances,
+        rayleigh_time: time.rayleigh,
+        expect,
+        warnings: Vec::new(),
+    })
+}
+
+/// `[domain]`: the box's corners, `hi` above `lo` on every axis.
+fn domain(ctx: &Ctx, d: &schema::Domain) -> Result<([f64; 3], [f64; 3]), CaseError> {
+    let lo = vec3(ctx, "domain.lo", d.lo)?;
+    let hi = vec3(ctx, "domain.hi", d.hi)?;
     for k in 0..3 {
         if hi[k] <= lo[k] {
             return Err(ctx.bad(
@@ -360,8 +436,19 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             ));
         }
     }
+    Ok((lo, hi))
+}
 
-    // Particles (free spheres); a clump case may have none.
+/// `[[particles]]`, the free spheres (a clump case may have none), and their ids, which
+/// the clump bodies must not reuse: unique positive ids, material types of the case, and
+/// spheres that fit inside the box `lo`..`hi`.
+fn particles(
+    ctx: &Ctx,
+    raw: &schema::CaseFile,
+    n_types: usize,
+    lo: [f64; 3],
+    hi: [f64; 3],
+) -> Result<(Vec<Particle>, std::collections::HashSet<u64>), CaseError> {
     if raw.particles.is_empty() && raw.clumps.is_empty() {
         return Err(ctx.bad(
             "particles",
@@ -379,7 +466,7 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         if p.type_ < 1 || p.type_ > n_types {
             return Err(ctx.bad(f("type"), p.type_, format!("must be in 1..={n_types}")));
         }
-        let radius = positive(&ctx, &f("radius"), p.radius)?;
+        let radius = positive(ctx, &f("radius"), p.radius)?;
         let smallest_side = (0..3).map(|c| hi[c] - lo[c]).fold(f64::INFINITY, f64::min);
         if 2.0 * radius > smallest_side {
             return Err(ctx.bad(
@@ -390,8 +477,8 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
                 ),
             ));
         }
-        let density = positive(&ctx, &f("density"), p.density)?;
-        let x = vec3(&ctx, &f("x"), p.x)?;
+        let density = positive(ctx, &f("density"), p.density)?;
+        let x = vec3(ctx, &f("x"), p.x)?;
         for c in 0..3 {
             if x[c] - radius < lo[c] || x[c] + radius > hi[c] {
                 return Err(ctx.bad(
@@ -407,14 +494,25 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             radius,
             density,
             x,
-            v: vec3(&ctx, &f("v"), p.v)?,
-            omega: vec3(&ctx, &f("omega"), p.omega)?,
+            v: vec3(ctx, &f("v"), p.v)?,
+            omega: vec3(ctx, &f("omega"), p.omega)?,
         });
     }
+    Ok((particles, seen))
+}
 
-    // Clumps.
-    let templates = super::clumps::templates(&ctx, &raw.clump_templates, n_types)?;
-    let bodies = super::clumps::bodies(&ctx, &raw.clumps, &templates, lo, hi, &seen)?;
+/// `[[clump_templates]]` and `[[clumps]]`: the bodies, whose ids must differ from the
+/// free spheres' `ids`; a template no body uses is refused.
+fn clumps(
+    ctx: &Ctx,
+    raw: &schema::CaseFile,
+    n_types: usize,
+    lo: [f64; 3],
+    hi: [f64; 3],
+    ids: &std::collections::HashSet<u64>,
+) -> Result<super::clumps::Clumps, CaseError> {
+    let templates = super::clumps::templates(ctx, &raw.clump_templates, n_types)?;
+    let bodies = super::clumps::bodies(ctx, &raw.clumps, &templates, lo, hi, ids)?;
     if bodies.is_empty() && !templates.is_empty() {
         return Err(ctx.bad(
             "clump_templates",
@@ -422,11 +520,14 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             "templates are defined but no [[clumps]] body uses them",
         ));
     }
-    let clumps = super::clumps::Clumps { templates, bodies };
+    Ok(super::clumps::Clumps { templates, bodies })
+}
 
-    // Walls.
-    let mut walls = Vec::with_capacity(raw.walls.len());
-    for (k, w) in raw.walls.iter().enumerate() {
+/// `[[walls]]`: planes along any axis, cylinders along z only, each of a material type
+/// of the case (0-based once validated).
+fn walls(ctx: &Ctx, raw: &[schema::Wall], n_types: usize) -> Result<Vec<Wall>, CaseError> {
+    let mut walls = Vec::with_capacity(raw.len());
+    for (k, w) in raw.iter().enumerate() {
         let f = |name: &str| format!("walls[{k}].{name}");
         let wall = match w {
             schema::Wall::Plane {
@@ -434,8 +535,8 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
                 position,
                 type_,
             } => Wall::Plane {
-                axis: axis(&ctx, &f("axis"), a)?,
-                position: finite(&ctx, &f("position"), *position)?,
+                axis: axis(ctx, &f("axis"), a)?,
+                position: finite(ctx, &f("position"), *position)?,
                 type_: *type_,
             },
             schema::Wall::Cylinder {
@@ -444,16 +545,16 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
                 center,
                 type_,
             } => {
-                let ax = axis(&ctx, &f("axis"), a)?;
+                let ax = axis(ctx, &f("axis"), a)?;
                 if ax != Axis::Z {
                     return Err(ctx.bad(f("axis"), a, "only \"z\" cylinders are supported"));
                 }
                 Wall::Cylinder {
                     axis: ax,
-                    radius: positive(&ctx, &f("radius"), *radius)?,
+                    radius: positive(ctx, &f("radius"), *radius)?,
                     center: [
-                        finite(&ctx, &f("center[0]"), center[0])?,
-                        finite(&ctx, &f("center[1]"), center[1])?,
+                        finite(ctx, &f("center[0]"), center[0])?,
+                        finite(ctx, &f("center[1]"), center[1])?,
                     ],
                     type_: *type_,
                 }
@@ -486,9 +587,28 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             },
         });
     }
+    Ok(walls)
+}
 
-    // Time integration: refuse steps above the Rayleigh time of the most critical grain.
-    let dt = positive(&ctx, "simulation.dt", raw.simulation.dt)?;
+/// `[simulation]`, validated (SI): `n_steps` is the duration in whole steps.
+struct Timing {
+    dt: f64,
+    rayleigh: f64,
+    n_steps: f64,
+    gravity: [f64; 3],
+}
+
+/// `[simulation]`: the time step, refused above the Rayleigh time of the most critical
+/// grain (free spheres and clump members); a duration of a whole number of at most
+/// [`MAX_STEPS`] steps; the output interval; gravity.
+fn timing(
+    ctx: &Ctx,
+    s: &schema::Simulation,
+    particles: &[Particle],
+    clumps: &super::clumps::Clumps,
+    materials: &[Material],
+) -> Result<Timing, CaseError> {
+    let dt = positive(ctx, "simulation.dt", s.dt)?;
     let rayleigh = particles
         .iter()
         .map(|p| (p.radius, p.density, p.type_))
@@ -513,7 +633,7 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             ),
         ));
     }
-    let duration = positive(&ctx, "simulation.duration", raw.simulation.duration)?;
+    let duration = positive(ctx, "simulation.duration", s.duration)?;
     let n_steps = (duration / dt).round();
     if n_steps > MAX_STEPS {
         return Err(ctx.bad(
@@ -531,31 +651,58 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
             format!("must be a whole number of time steps of {dt} s"),
         ));
     }
-    if raw.simulation.output_every == 0 {
+    if s.output_every == 0 {
         return Err(ctx.bad("simulation.output_every", 0, "must be >= 1"));
     }
-    let gravity = vec3(&ctx, "simulation.gravity", raw.simulation.gravity)?;
-    if !clumps.is_empty() {
-        // LIGGGHTS creates free spheres at step 0 but inserts bodies at step 1 (fix
-        // insert/pack, pre_exchange of step 1); the comparison starts at step 1 (t = 0).
-        // A free sphere must therefore not move during step 0 -> 1: at rest, force-free.
-        for (k, p) in particles.iter().enumerate() {
-            if p.v != [0.0; 3] || p.omega != [0.0; 3] {
-                return Err(ctx.bad(
-                    format!("particles[{k}].v"),
-                    (p.v, p.omega),
-                    "in a case with clumps, free spheres must start at rest (v = omega = 0): LIGGGHTS inserts the bodies one step after creating the spheres",
-                ));
-            }
-        }
-        if !particles.is_empty() && gravity != [0.0; 3] {
+    let gravity = vec3(ctx, "simulation.gravity", s.gravity)?;
+    Ok(Timing {
+        dt,
+        rayleigh,
+        n_steps,
+        gravity,
+    })
+}
+
+/// A case with clumps: its free spheres must not move before the bodies exist.
+fn clumps_start_still(
+    ctx: &Ctx,
+    particles: &[Particle],
+    clumps: &super::clumps::Clumps,
+    gravity: [f64; 3],
+) -> Result<(), CaseError> {
+    if clumps.is_empty() {
+        return Ok(());
+    }
+    // LIGGGHTS creates free spheres at step 0 but inserts bodies at step 1 (fix
+    // insert/pack, pre_exchange of step 1); the comparison starts at step 1 (t = 0).
+    // A free sphere must therefore not move during step 0 -> 1: at rest, force-free.
+    for (k, p) in particles.iter().enumerate() {
+        if p.v != [0.0; 3] || p.omega != [0.0; 3] {
             return Err(ctx.bad(
-                "simulation.gravity",
-                gravity,
-                "a case with clumps and free spheres must have zero gravity: the free spheres would fall during the step before the bodies are inserted",
+                format!("particles[{k}].v"),
+                (p.v, p.omega),
+                "in a case with clumps, free spheres must start at rest (v = omega = 0): LIGGGHTS inserts the bodies one step after creating the spheres",
             ));
         }
     }
+    if !particles.is_empty() && gravity != [0.0; 3] {
+        return Err(ctx.bad(
+            "simulation.gravity",
+            gravity,
+            "a case with clumps and free spheres must have zero gravity: the free spheres would fall during the step before the bodies are inserted",
+        ));
+    }
+    Ok(())
+}
+
+/// `[simulation] neighbor_skin`: it changes cost, not physics (default: half the smallest
+/// radius of a free sphere or clump member).
+fn neighbor_skin(
+    ctx: &Ctx,
+    s: &schema::Simulation,
+    particles: &[Particle],
+    clumps: &super::clumps::Clumps,
+) -> Result<f64, CaseError> {
     let min_r = particles
         .iter()
         .map(|p| p.radius)
@@ -566,41 +713,50 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
                 .flat_map(|t| t.radii.iter().copied()),
         )
         .fold(f64::INFINITY, f64::min);
-    let neighbor_skin = match raw.simulation.neighbor_skin {
-        Some(s) => positive(&ctx, "simulation.neighbor_skin", s)?,
-        None => 0.5 * min_r,
-    };
+    match s.neighbor_skin {
+        Some(skin) => positive(ctx, "simulation.neighbor_skin", skin),
+        None => Ok(0.5 * min_r),
+    }
+}
 
-    let tolerances = match &raw.compare {
+/// `[compare]` tolerances, each positive (default 1e-6: the engines agree to round-off).
+fn tolerances(ctx: &Ctx, compare: Option<&schema::Compare>) -> Result<Tolerances, CaseError> {
+    Ok(match compare {
         None => Tolerances {
             velocity_rel: 1e-6,
             position_frac_radius: 1e-6,
             orientation_rad: 1e-6,
         },
         Some(c) => Tolerances {
-            velocity_rel: positive(&ctx, "compare.velocity_rel", c.velocity_rel.unwrap_or(1e-6))?,
+            velocity_rel: positive(ctx, "compare.velocity_rel", c.velocity_rel.unwrap_or(1e-6))?,
             position_frac_radius: positive(
-                &ctx,
+                ctx,
                 "compare.position_frac_radius",
                 c.position_frac_radius.unwrap_or(1e-6),
             )?,
             orientation_rad: positive(
-                &ctx,
+                ctx,
                 "compare.orientation_rad",
                 c.orientation_rad.unwrap_or(1e-6),
             )?,
         },
-    };
+    })
+}
 
-    let expect = match raw.compare.as_ref().and_then(|c| c.expect.as_ref()) {
-        Some(list) => observations(&ctx, list)?,
-        None => default_expect(&particles, &clumps.bodies),
-    };
-
+/// `[[negative_control]]` of a micro case, refused where it would not change the
+/// physics of these pairs, materials and clumps.
+fn micro_controls(
+    ctx: &Ctx,
+    raw: &schema::CaseFile,
+    pairs: &PairTable,
+    materials: &[Material],
+    rolling: RollingModel,
+    clumps: &super::clumps::Clumps,
+) -> Result<Vec<super::NegativeControl>, CaseError> {
     let negative_controls = super::control::controls(
-        &ctx,
+        ctx,
         &raw.negative_control,
-        n_types,
+        materials.len(),
         // Orientation is gated only where there are bodies to orient.
         if clumps.is_empty() {
             &MICRO_GATES[..3]
@@ -609,57 +765,18 @@ pub(super) fn validate(raw: schema::CaseFile, path: &Path) -> Result<Case, CaseE
         },
     )?;
     super::control::check_applicable(
-        &ctx,
+        ctx,
         &negative_controls,
         &super::control::Targets {
             spheres: Some((
-                &pairs,
-                &materials,
+                pairs,
+                materials,
                 rolling != RollingModel::None || raw.models.rolling == "sds",
             )),
             clumps: !clumps.is_empty(),
         },
     )?;
-
-    let family = if super::family::is_lammps(&ctx, &raw.models)? {
-        ContactFamily::Lammps(super::family::lammps_models(
-            &ctx,
-            &raw.models,
-            &raw.interactions,
-            n_types,
-            &particles,
-            &walls,
-            !clumps.is_empty(),
-        )?)
-    } else {
-        ContactFamily::Liggghts
-    };
-
-    Ok(Case {
-        family,
-        negative_controls,
-        name: raw.case.name,
-        kind: raw.case.kind,
-        description: raw.case.description,
-        source: path.to_path_buf(),
-        dt,
-        n_steps: n_steps as u64,
-        output_every: raw.simulation.output_every,
-        gravity,
-        neighbor_skin,
-        rolling,
-        domain_lo: lo,
-        domain_hi: hi,
-        materials,
-        pairs,
-        particles,
-        walls,
-        clumps,
-        tolerances,
-        rayleigh_time: rayleigh,
-        expect,
-        warnings: Vec::new(),
-    })
+    Ok(negative_controls)
 }
 
 /// `[compare] expect` as written: known names, each once.

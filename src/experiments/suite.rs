@@ -219,6 +219,9 @@ pub fn names(cases_root: &Path) -> Vec<String> {
     v
 }
 
+/// Reads suite `name` of `cases_root` and resolves it: its reference directory, its case
+/// files, its claims, expectations and families, each checked in the order of the calls
+/// below; the first error found is the one reported.
 pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
     // A suite is named, not a path: `--suite ../../x` must not read any TOML on disk.
     ensure!(
@@ -244,49 +247,56 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         )
     })?;
     let f: File = toml::from_str(&text).with_context(|| format!("{}", path.display()))?;
-    let reference = match &f.reference {
-        None => None,
-        Some(d) => {
-            let p = PathBuf::from(d);
-            ensure!(
-                !d.is_empty()
-                    && p.components()
-                        .all(|c| matches!(c, std::path::Component::Normal(_))),
-                "{}: reference = {d:?}: must be a plain relative directory (no `..`, no root)",
-                path.display()
-            );
-            Some(p)
-        }
+    let reference = reference_dir(&path, f.reference.as_deref())?;
+    let cases = suite_cases(cases_root, &path, &f.cases)?;
+    unique_names(&path, &cases)?;
+    let claims = f
+        .claims
+        .into_iter()
+        .enumerate()
+        .map(|(k, c)| suite_claim(cases_root, &path, k, c, &cases))
+        .collect::<Result<Vec<_>>>()?;
+    crate::compare::expect::check_list(&path, &f.expectations)?;
+    let families = families(cases_root, &path, f.families, &cases)?;
+    Ok(Suite {
+        name: name.to_string(),
+        description: f.description,
+        cases,
+        claims,
+        expectations: f.expectations,
+        families,
+        registration: f.registration,
+        file: path,
+        reference,
+    })
+}
+
+/// `reference`: the sub-directory of the reference root holding the suite's records, a
+/// plain relative directory so that it stays under that root.
+fn reference_dir(path: &Path, reference: Option<&str>) -> Result<Option<PathBuf>> {
+    let Some(d) = reference else {
+        return Ok(None);
     };
+    let p = PathBuf::from(d);
+    ensure!(
+        !d.is_empty()
+            && p.components()
+                .all(|c| matches!(c, std::path::Component::Normal(_))),
+        "{}: reference = {d:?}: must be a plain relative directory (no `..`, no root)",
+        path.display()
+    );
+    Ok(Some(p))
+}
+
+/// `[[case]]` entries resolved to case files (`dir/*.toml` expanded in name order): at
+/// least one case, every file existing, and none listed twice, which would run twice
+/// into one output directory.
+fn suite_cases(cases_root: &Path, path: &Path, entries: &[Entry]) -> Result<Vec<SuiteCase>> {
     let mut cases = Vec::new();
     // (entry index, canonical path, entry's path) of every case file taken so far.
     let mut listed: Vec<(usize, PathBuf, String)> = Vec::new();
-    for (k, e) in f.cases.iter().enumerate() {
-        let expanded = if let Some(dir) = e.path.strip_suffix("/*.toml") {
-            let d = cases_root.join(dir);
-            let mut v: Vec<PathBuf> = std::fs::read_dir(&d)
-                .with_context(|| {
-                    format!(
-                        "{}: case[{k}].path = {:?}: cannot list {}",
-                        path.display(),
-                        e.path,
-                        d.display()
-                    )
-                })?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-                .collect();
-            v.sort();
-            v
-        } else {
-            vec![cases_root.join(&e.path)]
-        };
-        ensure!(
-            !expanded.is_empty(),
-            "{}: case[{k}].path = {:?} names no case file",
-            path.display(),
-            e.path
-        );
+    for (k, e) in entries.iter().enumerate() {
+        let expanded = entry_files(cases_root, path, k, e)?;
         for p in expanded {
             if !p.is_file() {
                 bail!(
@@ -325,69 +335,118 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
         "{}: the suite has no cases",
         path.display()
     );
-    unique_names(&path, &cases)?;
-    let mut claims = Vec::new();
-    for (k, c) in f.claims.into_iter().enumerate() {
+    Ok(cases)
+}
+
+/// The case files entry `k` names: one file, or every `.toml` of a directory for
+/// `dir/*.toml`, sorted; at least one.
+fn entry_files(cases_root: &Path, path: &Path, k: usize, e: &Entry) -> Result<Vec<PathBuf>> {
+    let expanded = if let Some(dir) = e.path.strip_suffix("/*.toml") {
+        let d = cases_root.join(dir);
+        let mut v: Vec<PathBuf> = std::fs::read_dir(&d)
+            .with_context(|| {
+                format!(
+                    "{}: case[{k}].path = {:?}: cannot list {}",
+                    path.display(),
+                    e.path,
+                    d.display()
+                )
+            })?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect();
+        v.sort();
+        v
+    } else {
+        vec![cases_root.join(&e.path)]
+    };
+    ensure!(
+        !expanded.is_empty(),
+        "{}: case[{k}].path = {:?} names no case file",
+        path.display(),
+        e.path
+    );
+    Ok(expanded)
+}
+
+/// `[[claim]]` number `k`: over at least two cases of this suite, a valid claim, its
+/// negative controls resolved to what they substitute, and figure values (`x`,
+/// `paper_k_phi`) one per case when given, `x` finite.
+fn suite_claim(
+    cases_root: &Path,
+    path: &Path,
+    k: usize,
+    c: ClaimEntry,
+    cases: &[SuiteCase],
+) -> Result<SuiteClaim> {
+    ensure!(
+        c.cases.len() >= 2,
+        "{}: claim[{k}] ({:?}).cases: a claim across cases needs at least 2, got {}",
+        path.display(),
+        c.name,
+        c.cases.len()
+    );
+    let mut files = Vec::new();
+    for rel in &c.cases {
+        let p = cases_root.join(rel);
         ensure!(
-            c.cases.len() >= 2,
-            "{}: claim[{k}] ({:?}).cases: a claim across cases needs at least 2, got {}",
+            cases.iter().any(|e| e.path == p),
+            "{}: claim[{k}] ({:?}).cases: {rel:?} is not a case of this suite (add a [[case]] for it)",
             path.display(),
-            c.name,
-            c.cases.len()
+            c.name
         );
-        let mut files = Vec::new();
-        for rel in &c.cases {
-            let p = cases_root.join(rel);
-            ensure!(
-                cases.iter().any(|e| e.path == p),
-                "{}: claim[{k}] ({:?}).cases: {rel:?} is not a case of this suite (add a [[case]] for it)",
-                path.display(),
-                c.name
-            );
-            files.push(p);
-        }
-        let at = |what: String| format!("{}: claim[{k}] ({:?}): {what}", path.display(), c.name);
-        c.claim.validate().map_err(|e| anyhow::anyhow!(at(e)))?;
-        let mut controls = Vec::new();
-        for (j, control) in c.controls.iter().enumerate() {
-            let substitute = resolve_control(control, &c.cases, &files)
-                .map_err(|e| anyhow::anyhow!(at(format!("negative_control[{j}]: {e}"))))?;
-            controls.push(ClaimControl {
-                control: control.clone(),
-                substitute,
-            });
-        }
-        for (field, v) in [("x", &c.x), ("paper_k_phi", &c.paper_k_phi)] {
-            ensure!(
-                v.is_empty() || v.len() == files.len(),
-                "{}",
-                at(format!(
-                    "{field} has {} values for {} cases (one per case, or leave it out)",
-                    v.len(),
-                    files.len()
-                ))
-            );
-        }
-        ensure!(
-            c.x.iter().all(|v| v.is_finite()),
-            "{}",
-            at(format!("x = {:?}: every value must be finite", c.x))
-        );
-        claims.push(SuiteClaim {
-            name: c.name,
-            source: c.source,
-            cases: files,
-            claim: c.claim,
-            controls,
-            x: c.x,
-            x_label: c.x_label.unwrap_or_else(|| "case".into()),
-            paper_k_phi: c.paper_k_phi,
+        files.push(p);
+    }
+    let at = |what: String| format!("{}: claim[{k}] ({:?}): {what}", path.display(), c.name);
+    c.claim.validate().map_err(|e| anyhow::anyhow!(at(e)))?;
+    let mut controls = Vec::new();
+    for (j, control) in c.controls.iter().enumerate() {
+        let substitute = resolve_control(control, &c.cases, &files)
+            .map_err(|e| anyhow::anyhow!(at(format!("negative_control[{j}]: {e}"))))?;
+        controls.push(ClaimControl {
+            control: control.clone(),
+            substitute,
         });
     }
-    crate::compare::expect::check_list(&path, &f.expectations)?;
+    for (field, v) in [("x", &c.x), ("paper_k_phi", &c.paper_k_phi)] {
+        ensure!(
+            v.is_empty() || v.len() == files.len(),
+            "{}",
+            at(format!(
+                "{field} has {} values for {} cases (one per case, or leave it out)",
+                v.len(),
+                files.len()
+            ))
+        );
+    }
+    ensure!(
+        c.x.iter().all(|v| v.is_finite()),
+        "{}",
+        at(format!("x = {:?}: every value must be finite", c.x))
+    );
+    Ok(SuiteClaim {
+        name: c.name,
+        source: c.source,
+        cases: files,
+        claim: c.claim,
+        controls,
+        x: c.x,
+        x_label: c.x_label.unwrap_or_else(|| "case".into()),
+        paper_k_phi: c.paper_k_phi,
+    })
+}
+
+/// `[[family]]`s resolved: each case a case of this suite (relative to `cases_root`),
+/// the chaos records relative to the repository, the parent of `cases_root`.
+fn families(
+    cases_root: &Path,
+    path: &Path,
+    entries: Vec<FamilyEntry>,
+    cases: &[SuiteCase],
+) -> Result<Vec<Family>> {
     let repo = cases_root.parent().unwrap_or(Path::new("."));
     let mut families = Vec::new();
-    for (k, fam) in f.families.into_iter().enumerate() {
+    for (k, fam) in entries.into_iter().enumerate() {
         let mut fcases = Vec::new();
         for c in &fam.cases {
             let p = cases_root.join(c);
@@ -406,17 +465,7 @@ pub fn load(cases_root: &Path, name: &str) -> Result<Suite> {
             chaos,
         });
     }
-    Ok(Suite {
-        name: name.to_string(),
-        description: f.description,
-        cases,
-        claims,
-        expectations: f.expectations,
-        families,
-        registration: f.registration,
-        file: path,
-        reference,
-    })
+    Ok(families)
 }
 
 /// A case's outputs go to `OUT/<case name>/` and its record to

@@ -156,6 +156,7 @@ fn positive(name: &str, x: f64) -> Result<()> {
 }
 
 /// Refuses inputs LIGGGHTS would refuse or that make no sense, naming field and value.
+/// The checks run in the order of the calls below; the first failure is reported.
 pub(crate) fn validate(d: &PenetrationDeck) -> Result<()> {
     if let Some(n) = d.viz_every
         && (n == 0 || n > d.n_steps)
@@ -169,6 +170,17 @@ pub(crate) fn validate(d: &PenetrationDeck) -> Result<()> {
     if n == 0 {
         bail!("penetration deck: no materials");
     }
+    validate_pairs(d, n)?;
+    validate_materials(d)?;
+    validate_scalars(d, n)?;
+    validate_geometry(d)?;
+    validate_clumps(d, n)?;
+    validate_particles(d, n)
+}
+
+/// The pair table must be the materials' `n` types square, and every restitution
+/// coefficient in LIGGGHTS' range.
+fn validate_pairs(d: &PenetrationDeck, n: usize) -> Result<()> {
     if d.pairs.n_types != n
         || [
             &d.pairs.restitution,
@@ -187,6 +199,13 @@ pub(crate) fn validate(d: &PenetrationDeck) -> Result<()> {
             n * n
         );
     }
+    Ok(())
+}
+
+/// Every material within LIGGGHTS 3.8's ranges: Young's modulus from 5e6 to 1e9 Pa
+/// unless the deck writes `soft_particles` / `hard_particles` (the module's header: the
+/// same limit in cgs), 0 <= nu <= 0.5.
+fn validate_materials(d: &PenetrationDeck) -> Result<()> {
     for (t, m) in d.materials.iter().enumerate() {
         let e = m.youngs_modulus;
         if !e.is_finite() || e <= 0.0 {
@@ -218,6 +237,7 @@ pub(crate) fn validate(d: &PenetrationDeck) -> Result<()> {
             );
         }
     }
+    let n = d.materials.len();
     for a in 0..n {
         for b in 0..n {
             let e = d.pairs.restitution[d.pairs.idx(a, b)];
@@ -230,6 +250,12 @@ pub(crate) fn validate(d: &PenetrationDeck) -> Result<()> {
             }
         }
     }
+    Ok(())
+}
+
+/// The intruder's and walls' types among the `n` materials; positive sizes, step, speed
+/// and skin; gravity >= 0 (it acts along -z); a positive step count and force interval.
+fn validate_scalars(d: &PenetrationDeck, n: usize) -> Result<()> {
     for (name, t) in [
         ("intruder_type", d.intruder_type),
         ("wall_type", d.wall_type),
@@ -262,6 +288,12 @@ pub(crate) fn validate(d: &PenetrationDeck) -> Result<()> {
             d.force_every
         );
     }
+    Ok(())
+}
+
+/// The intruder inside the container, the container and the floor inside the domain, and
+/// the whole intruder mesh inside the domain for the whole run, above the floor.
+fn validate_geometry(d: &PenetrationDeck) -> Result<()> {
     if d.intruder_radius >= d.container_radius {
         bail!(
             "penetration deck: intruder_radius {:e} m must be smaller than container_radius {:e} m",
@@ -306,35 +338,48 @@ pub(crate) fn validate(d: &PenetrationDeck) -> Result<()> {
             d.floor_z
         );
     }
-    if !d.bodies.is_empty() {
-        let Some(t) = &d.clump else {
-            bail!("penetration deck: clump bodies without their template");
-        };
-        if !d.particles.is_empty() || d.settle.is_some() {
+    Ok(())
+}
+
+/// A bed of clumps: bodies only, with their template (of one of the `n` types), settled
+/// by granval, every body inside the domain with its bounding radius.
+fn validate_clumps(d: &PenetrationDeck, n: usize) -> Result<()> {
+    if d.bodies.is_empty() {
+        return Ok(());
+    }
+    let Some(t) = &d.clump else {
+        bail!("penetration deck: clump bodies without their template");
+    };
+    if !d.particles.is_empty() || d.settle.is_some() {
+        bail!(
+            "penetration deck: a bed of clumps holds bodies only and is settled by granval (not in the deck)"
+        );
+    }
+    if t.type_ >= n {
+        bail!(
+            "penetration deck: the clump template has type {} (0-based), only {n} materials",
+            t.type_
+        );
+    }
+    for b in &d.bodies {
+        if (0..3).any(|k| {
+            !(b.x[k] - t.bounding_radius > d.domain_lo[k]
+                && b.x[k] + t.bounding_radius < d.domain_hi[k])
+        }) {
             bail!(
-                "penetration deck: a bed of clumps holds bodies only and is settled by granval (not in the deck)"
+                "penetration deck: clump {} at {:?} m does not fit in the domain with its bounding radius {:e} m",
+                b.id,
+                b.x,
+                t.bounding_radius
             );
-        }
-        if t.type_ >= n {
-            bail!(
-                "penetration deck: the clump template has type {} (0-based), only {n} materials",
-                t.type_
-            );
-        }
-        for b in &d.bodies {
-            if (0..3).any(|k| {
-                !(b.x[k] - t.bounding_radius > d.domain_lo[k]
-                    && b.x[k] + t.bounding_radius < d.domain_hi[k])
-            }) {
-                bail!(
-                    "penetration deck: clump {} at {:?} m does not fit in the domain with its bounding radius {:e} m",
-                    b.id,
-                    b.x,
-                    t.bounding_radius
-                );
-            }
         }
     }
+    Ok(())
+}
+
+/// Every sphere of the bed: a type among the `n` materials, positive radius and density,
+/// its centre inside the domain.
+fn validate_particles(d: &PenetrationDeck, n: usize) -> Result<()> {
     for p in &d.particles {
         if p.type_ >= n {
             bail!(
